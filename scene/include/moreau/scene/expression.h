@@ -1,0 +1,128 @@
+// Expressions of the scene format: parsed once into a hash-consed DAG, differentiated symbolically
+// (exact derivatives, never finite differences), and compiled into a Tape that evaluates many outputs in
+// one pass without allocating.
+//
+// Grammar (precedence from low to high; ^ is right-associative and binds tighter than unary minus, so
+// -x^2 == -(x^2)):
+//   expr    := term (('+' | '-') term)*
+//   term    := unary (('*' | '/') unary)*
+//   unary   := ('-' | '+') unary | power
+//   power   := primary ('^' unary)?
+//   primary := number | name | name '(' expr (',' expr)* ')' | '(' expr ')'
+// Functions: sin cos tan asin acos atan atan2 sinh cosh tanh exp log sqrt abs min max pow.
+// Names are resolved by the caller (parameters, coordinates, velocities, t).
+//
+// Limits (documented in docs/scene-format.md): text length kMaxTextLength, nesting depth kMaxDepth, nodes
+// per graph kMaxNodes. Exceeding one is an ExpressionError, never a crash or unbounded work.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace moreau::expr {
+
+inline constexpr std::size_t kMaxTextLength = 16384;
+inline constexpr int kMaxDepth = 128;
+inline constexpr std::size_t kMaxNodes = 1'000'000;
+
+// A parse or limit error. `position` is the 0-based character offset in the text the error is about.
+class ExpressionError : public std::runtime_error {
+ public:
+  ExpressionError(const std::string& message, std::size_t position)
+      : std::runtime_error(message), position_(position) {}
+  std::size_t position() const { return position_; }
+
+ private:
+  std::size_t position_;
+};
+
+enum class Op : std::uint8_t {
+  kConst, kVar,
+  kAdd, kSub, kMul, kDiv, kPow, kNeg,
+  kSin, kCos, kTan, kAsin, kAcos, kAtan, kAtan2, kSinh, kCosh, kTanh, kExp, kLog, kSqrt, kAbs,
+  kMin, kMax,
+  kSign,      // internal: derivative of abs; sign(0) = 0
+  kSquare,    // internal: x*x, from x^2
+};
+
+// Index of a node in a Graph.
+using Node = std::int32_t;
+
+// A DAG of expression nodes. Structurally equal nodes are shared (hash-consing), so common
+// subexpressions are computed once by a Tape. Builders fold constants and simplify the trivial
+// identities (x+0, x*1, x*0, x-x, --x, x^1, x^0, x^2 -> square).
+class Graph {
+ public:
+  // Resolves a name to a node (a variable or a constant), or nullopt if unknown.
+  using Resolver = std::function<std::optional<Node>(std::string_view name)>;
+
+  Node constant(double value);
+  Node variable(int slot);  // slot >= 0: an index into the inputs of Tape::eval
+
+  // Parses `text`. Throws ExpressionError (with the offset) on syntax errors, unknown names
+  // ("unknown name 'foo'"), unknown functions, wrong argument counts, non-finite literals and limits.
+  Node parse(std::string_view text, const Resolver& resolve);
+
+  Node unary(Op op, Node a);
+  Node binary(Op op, Node a, Node b);
+
+  // Exact symbolic derivative d f / d (variable `slot`), simplified. abs, min and max are differentiated
+  // piecewise (sign(x), and the derivative of the selected argument; at ties the first argument).
+  Node derivative(Node f, int slot);
+
+  bool depends_on(Node f, int slot) const;
+  bool is_constant(Node f) const;
+  double constant_value(Node f) const;  // precondition: is_constant(f)
+  std::string to_string(Node f) const;  // fully parenthesised, for messages and tests
+
+  std::size_t size() const;
+
+  struct Entry {
+    Op op;
+    Node a = -1, b = -1;
+    double value = 0.0;  // kConst
+    int slot = -1;       // kVar
+  };
+  const Entry& entry(Node n) const;
+
+ private:
+  std::vector<Entry> nodes_;
+  struct Impl;  // hash index for hash-consing, defined in expression.cc
+  std::shared_ptr<Impl> index_;
+};
+
+// A straight-line program computing several outputs of a Graph at once. Evaluation allocates nothing:
+// the caller owns the scratch buffer (scratch_size() doubles), so one Tape can serve many threads.
+class Tape {
+ public:
+  Tape() = default;
+  // Compiles `outputs` (nodes of `graph`), keeping only the nodes they reach, in topological order.
+  // `num_slots` is the number of inputs; every kVar slot must be < num_slots.
+  static Tape compile(const Graph& graph, const std::vector<Node>& outputs, int num_slots);
+
+  // outputs[i] = value of the i-th output node for inputs `slots`.
+  void eval(const double* slots, double* outputs, double* scratch) const;
+
+  std::size_t scratch_size() const { return scratch_size_; }
+  std::size_t num_outputs() const { return output_regs_.size(); }
+  std::size_t num_instructions() const { return code_.size(); }
+
+ private:
+  struct Instr {
+    Op op;
+    std::int32_t a, b;  // register indices (or slot for kVar)
+    double value;       // kConst
+  };
+  std::vector<Instr> code_;               // instruction i writes register i
+  std::vector<std::int32_t> output_regs_;
+  std::size_t scratch_size_ = 0;
+};
+
+}  // namespace moreau::expr
