@@ -1,0 +1,341 @@
+// The implicit Euler scheme of Adly, Brogliato and Le (2016), eq. (0.2), for
+//
+//   M(q) q'' + C(q, q') q' + grad V(q) + F(t, q, q')  in  -dPhi(q')                       (0.1)
+//
+// Update rule (implicit in velocity, explicit in position):
+//
+//   M(Q^k) (V^{k+1} - V^k) / h_k + C(Q^k, V^k) V^{k+1} + grad V(Q^k) + F(t_k, Q^k, V^k)
+//                                                                     in -dPhi(V^{k+1})
+//   Q^{k+1} = Q^k + h_k V^k
+//
+// With Phi = 1/2 <W v, v> + phi (controller.h), each step is the inclusion (6.5) P y + x in -d phi(y),
+// y = V^{k+1}, P = M/h_k + C + W, x = grad V + F - M V^k / h_k (the paper's (6.4) with F added), solved
+// exactly by OneStepSolver.
+//
+// Step rules: fixed h; Theorem 4.1, h_k = min(h, k1 / (2 k3 ||V^k||)); Theorem 4.2, additionally
+// h_k <= h_{k-1} and ||eps_k||_2 <= 2 eta with eps_k of (4.9), eta = min w_i / 2 from Phi's quadratic
+// part. k1 and k3 are the constants of Assumptions 3.1 and 3.2 when the caller gives them; otherwise their
+// local values at (Q^k, V^k): k1 = lambda_min(M(Q^k)) and k3 = ||C(Q^k, V^k)||_2 / ||V^k||. h_k* of (4.9)
+// is found by halving from the Theorem 4.1 value until ||eps_k|| <= 2 eta holds. Every rule shortens the
+// last step to land on t_end exactly.
+//
+// Order: 1/2 in general (Theorem 5.2), 1 for constant M (Remark 5.1). Theorem 4.2: E_k non-increasing
+// under Assumption 4.1. Theorem 4.3: V^k == 0 after finitely many steps when
+// -F(Q*, 0) - grad V(Q*) lies in int dPhi(0).
+//
+// Model requirements (a compiled scene or a hand-written C++ functor; templates, so a functor inlines):
+//   static constexpr int kDof;                       // N, or Eigen::Dynamic
+//   int dof() const;
+//   const Controller<kDof>& controller() const;
+//   bool constant_mass() const;
+//   void evaluate(double t, const Vec<N>& q, const Vec<N>& v, LagrangianTerms<N>& out);  // M, C, g
+//   void mass(const Vec<N>& q, Mat<N>& M);           // M(q) alone, for the Theorem 4.2 rule
+#pragma once
+
+#include <chrono>
+#include <cstdio>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <optional>
+#include <string>
+
+#include "moreau/core/controller.h"
+#include "moreau/core/observer.h"
+#include "moreau/core/one_step_solver.h"
+#include "moreau/core/run_summary.h"
+#include "moreau/core/types.h"
+
+namespace moreau {
+
+enum class StepRule { kFixed, kTheorem41, kTheorem42 };
+
+struct AblSettings {
+  double h = 1e-3;      // the step h (fixed rule) or its upper bound (Theorems 4.1, 4.2), seconds
+  double t0 = 0.0;      // initial time, seconds
+  double t_end = 1.0;   // final time, seconds
+  StepRule step_rule = StepRule::kFixed;
+  std::optional<double> k1;  // lower bound of M(q) (Assumption 3.1); local value if absent
+  std::optional<double> k3;  // bound ||C(u, v)|| <= k3 ||v|| (Assumption 3.2); local value if absent
+  std::int64_t max_steps = 2'000'000'000;
+  std::int64_t output_every = 1;  // call the observer every this many steps
+};
+
+// The number of steps the fixed rule takes: t_end - t0 = N h up to round-off, else ceil.
+inline std::int64_t fixed_step_count(double t0, double t_end, double h) {
+  const double ratio = (t_end - t0) / h;
+  const double nearest = std::round(ratio);
+  if (std::abs(ratio - nearest) <= 1e-9 * std::max(1.0, ratio)) return static_cast<std::int64_t>(nearest);
+  return static_cast<std::int64_t>(std::ceil(ratio));
+}
+
+template <class Model>
+class AblIntegrator {
+ public:
+  static constexpr int N = Model::kDof;
+
+  AblIntegrator(Model& model, const AblSettings& settings) : model_(model), settings_(settings) {
+    const int n = model_.dof();
+    const Controller<N>& phi = model_.controller();
+    weights_ = phi.weights;
+    eta_ = phi.eta();
+    solver_.configure(phi.gains, phi.norm_gain);
+    terms_.resize(n);
+    P_.setZero(n, n);
+    Mtrial_.setZero(n, n);
+    eps_.setZero(n, n);
+    x_.setZero(n);
+    y_.setZero(n);
+    Mv_.setZero(n);
+    zero_.setZero(n);
+    q_trial_.setZero(n);
+  }
+
+  // Runs from (Q^0, V^0) at t0 to t_end. Never throws for numerical trouble: a failing step (solver not
+  // converged, non-finite state, step rule impossible) ends the run with RunStatus::kFailed and the last
+  // good state, which is all the observer has seen.
+  RunSummary run(const Vec<N>& q0, const Vec<N>& v0, RunObserver* observer = nullptr) {
+    const auto clock_start = std::chrono::steady_clock::now();
+    RunSummary s;
+    const int n = model_.dof();
+    Vec<N> q = q0, v = v0;
+    double t = settings_.t0;
+    std::int64_t k = 0;
+    const std::int64_t every = std::max<std::int64_t>(1, settings_.output_every);
+
+    model_.evaluate(t, q, v, terms_);
+    Mv_.noalias() = terms_.M * v;
+    double energy = 0.5 * v.dot(Mv_);
+    s.energy_initial = energy;
+    // Allowance for round-off in E_k itself: a few ulps of the run's energy scale.
+    const auto energy_tol = [&](double e) { return 64.0 * std::numeric_limits<double>::epsilon() * std::max(e, s.energy_initial); };
+
+    std::int64_t rest_from = (v.array() == 0.0).all() ? 0 : -1;
+    double rest_time = t;
+    s.h_min = std::numeric_limits<double>::infinity();
+    s.h_max = 0.0;
+
+    auto emit = [&](double h_used) {
+      if (observer) observer->on_sample(Sample{k, t, h_used, n, q.data(), v.data(), energy});
+    };
+    if (!terms_.M.allFinite() || !terms_.C.allFinite() || !terms_.g.allFinite()) {
+      return fail(s, q, v, t, k, clock_start, "model terms are not finite at the initial state");
+    }
+    emit(settings_.h);
+
+    const bool fixed = settings_.step_rule == StepRule::kFixed;
+    const std::int64_t fixed_steps = fixed ? fixed_step_count(settings_.t0, settings_.t_end, settings_.h) : 0;
+    if (fixed && fixed_steps > settings_.max_steps) {
+      return fail(s, q, v, t, k, clock_start, "the step count exceeds max_steps");
+    }
+    double h_prev = settings_.h;
+    std::int64_t last_emitted = 0;
+    double h_k = settings_.h;
+
+    while (true) {
+      if (fixed) {
+        if (k >= fixed_steps) break;
+        h_k = (k + 1 == fixed_steps) ? settings_.t_end - (settings_.t0 + static_cast<double>(k) * settings_.h)
+                                      : settings_.h;
+      } else {
+        if (t >= settings_.t_end) break;
+        if (k >= settings_.max_steps) return fail(s, q, v, t, k, clock_start, "max_steps reached before t_end");
+        std::string why;
+        if (!adaptive_step(q, v, h_prev, h_k, why)) return fail(s, q, v, t, k, clock_start, why);
+        const double remaining = settings_.t_end - t;
+        if (h_k >= remaining) h_k = remaining;
+        if (!(h_k > 0.0) || h_k < 1e-15 * std::max(1.0, std::abs(settings_.t_end))) {
+          return fail(s, q, v, t, k, clock_start, "the step size collapsed below 1e-15 t_end");
+        }
+      }
+
+      // One step of (0.2): the inclusion (6.5) for V^{k+1}.
+      const double inv_h = 1.0 / h_k;
+      P_.noalias() = inv_h * terms_.M;
+      P_ += terms_.C;
+      P_.diagonal() += weights_;
+      x_ = terms_.g - inv_h * Mv_;
+      OneStepStats st;
+      if (!solver_.solve(P_, x_, y_, st)) {
+        return fail(s, q, v, t, k, clock_start,
+                    "the one-step inclusion (6.5) was not solved to round-off (residual " +
+                        std::to_string(st.residual) + ", tolerance " + std::to_string(st.tolerance) + ")");
+      }
+      s.solver.total_iterations += st.iterations;
+      s.solver.max_iterations = std::max(s.solver.max_iterations, st.iterations);
+      s.solver.max_residual = std::max(s.solver.max_residual, st.residual);
+      s.solver.fallback_steps += st.used_fallback;
+      s.solver.rest_steps += (st.iterations == 0);
+
+      q += h_k * v;  // Q^{k+1} = Q^k + h_k V^k: explicit in position
+      v = y_;
+      ++k;
+      t = fixed ? (k == fixed_steps ? settings_.t_end : settings_.t0 + static_cast<double>(k) * settings_.h)
+                : t + h_k;
+      h_prev = h_k;
+      s.h_min = std::min(s.h_min, h_k);
+      s.h_max = std::max(s.h_max, h_k);
+      if (!q.allFinite() || !v.allFinite()) {
+        return fail(s, q, v, t, k, clock_start, "the state became non-finite");
+      }
+      if ((v.array() != 0.0).any()) {
+        rest_from = -1;
+      } else if (rest_from < 0) {
+        rest_from = k;
+        rest_time = t;
+      }
+
+      model_.evaluate(t, q, v, terms_);
+      if (!terms_.M.allFinite() || !terms_.C.allFinite() || !terms_.g.allFinite()) {
+        return fail(s, q, v, t, k, clock_start, "model terms are not finite (an expression left its domain)");
+      }
+      Mv_.noalias() = terms_.M * v;
+      const double e_new = 0.5 * v.dot(Mv_);
+      const double rise = e_new - energy;
+      if (rise > energy_tol(energy)) {
+        ++s.energy_increases;
+        s.energy_max_increase = std::max(s.energy_max_increase, rise);
+      }
+      energy = e_new;
+
+      if (k % every == 0) {
+        emit(h_k);
+        last_emitted = k;
+      }
+      if (observer && k % RunObserver::kControlInterval == 0 && !observer->keep_going(k, t)) {
+        finish(s, q, v, t, k, energy, rest_from, rest_time);
+        s.status = RunStatus::kCancelled;
+        s.message = "cancelled at step " + std::to_string(k);
+        s.add_phase("integrate", seconds_since(clock_start));
+        return s;
+      }
+    }
+    if (last_emitted != k) emit(h_k);
+    finish(s, q, v, t, k, energy, rest_from, rest_time);
+    s.add_phase("integrate", seconds_since(clock_start));
+    return s;
+  }
+
+ private:
+  static double seconds_since(std::chrono::steady_clock::time_point start) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  }
+
+  void finish(RunSummary& s, const Vec<N>& q, const Vec<N>& v, double t, std::int64_t k, double energy,
+              std::int64_t rest_from, double rest_time) {
+    s.steps = k;
+    s.t_final = t;
+    s.q_final.assign(q.data(), q.data() + q.size());
+    s.v_final.assign(v.data(), v.data() + v.size());
+    s.energy_final = energy;
+    s.energy_nonincreasing = s.energy_increases == 0;
+    if (rest_from >= 0) {
+      s.converged_step = rest_from;
+      s.converged_time = rest_time;
+    }
+    if (k == 0) s.h_min = s.h_max = 0.0;
+    // Theorem 4.3's equilibrium inclusion at the final position: -F(t, Q, 0) - grad V(Q) in dPhi(0).
+    model_.evaluate(t, q, zero_, terms_);
+    const Vec<N> z = -terms_.g;
+    const Controller<N>& phi = model_.controller();
+    s.equilibrium.evaluated = z.allFinite();
+    s.equilibrium.residual = phi.distance_to_subdifferential_at_zero(z);
+    s.equilibrium.interior = phi.in_interior_of_subdifferential_at_zero(z);
+  }
+
+  RunSummary fail(RunSummary& s, const Vec<N>& q, const Vec<N>& v, double t, std::int64_t k,
+                  std::chrono::steady_clock::time_point start, const std::string& why) {
+    // Report the last state the observer saw as good; never a non-finite one.
+    s.steps = k;
+    s.t_final = t;
+    if (q.allFinite()) s.q_final.assign(q.data(), q.data() + q.size());
+    if (v.allFinite()) s.v_final.assign(v.data(), v.data() + v.size());
+    s.energy_nonincreasing = s.energy_increases == 0;
+    s.status = RunStatus::kFailed;
+    char where[96];
+    std::snprintf(where, sizeof where, "step %lld (t = %.17g): ", static_cast<long long>(k), t);
+    s.message = where + why;
+    s.add_phase("integrate", seconds_since(start));
+    return s;
+  }
+
+  // Smallest eigenvalue of a symmetric matrix, and the spectral norm of any square matrix.
+  double min_eigenvalue(const Mat<N>& S) {
+    if constexpr (N == 1) {
+      return S(0, 0);
+    } else if constexpr (N == 2) {
+      const double m = 0.5 * (S(0, 0) + S(1, 1));
+      const double d = std::hypot(0.5 * (S(0, 0) - S(1, 1)), S(0, 1));
+      return m - d;
+    } else {
+      eig_.compute(S, Eigen::EigenvaluesOnly);
+      return eig_.eigenvalues()(0);
+    }
+  }
+  double max_abs_eigenvalue(const Mat<N>& S) {
+    if constexpr (N == 1) {
+      return std::abs(S(0, 0));
+    } else if constexpr (N == 2) {
+      const double m = 0.5 * (S(0, 0) + S(1, 1));
+      const double d = std::hypot(0.5 * (S(0, 0) - S(1, 1)), S(0, 1));
+      return std::max(std::abs(m - d), std::abs(m + d));
+    } else {
+      eig_.compute(S, Eigen::EigenvaluesOnly);
+      return std::max(std::abs(eig_.eigenvalues()(0)), std::abs(eig_.eigenvalues()(eig_.eigenvalues().size() - 1)));
+    }
+  }
+
+  // h_k of Theorems 4.1 and 4.2 (before landing on t_end). Returns false with a reason when the rule
+  // cannot be met.
+  bool adaptive_step(const Vec<N>& q, const Vec<N>& v, double h_prev, double& h_k, std::string& why) {
+    double h = settings_.h;
+    const double vnorm = v.norm();
+    if (vnorm > 0.0) {
+      const double k1 = settings_.k1 ? *settings_.k1 : min_eigenvalue(terms_.M);
+      double k3;
+      if (settings_.k3) {
+        k3 = *settings_.k3;
+      } else {
+        eps_.noalias() = terms_.C.transpose() * terms_.C;
+        k3 = std::sqrt(max_abs_eigenvalue(eps_)) / vnorm;
+      }
+      if (!(k1 > 0.0)) {
+        why = "Theorem 4.1 rule: k1 = lambda_min(M) is not positive";
+        return false;
+      }
+      if (k3 > 0.0) h = std::min(h, k1 / (2.0 * k3 * vnorm));
+    }
+    if (settings_.step_rule == StepRule::kTheorem42) {
+      h = std::min(h, h_prev);
+      if (!model_.constant_mass() || !terms_.C.isZero(0.0)) {
+        // h_k* of (4.9): the largest h = h_start / 2^j with ||eps_k(h)||_2 <= 2 eta.
+        for (int halvings = 0;; ++halvings) {
+          q_trial_ = q + h * v;
+          model_.mass(q_trial_, Mtrial_);
+          eps_ = (Mtrial_ - terms_.M) / h - terms_.C - terms_.C.transpose();
+          if (max_abs_eigenvalue(eps_) <= 2.0 * eta_) break;
+          if (halvings == 80 || eta_ == 0.0) {
+            why = eta_ == 0.0 ? "Theorem 4.2 rule: ||eps_k|| <= 2 eta needs eta > 0 (a quadratic controller term)"
+                              : "Theorem 4.2 rule: no h_k with ||eps_k|| <= 2 eta after 80 halvings";
+            return false;
+          }
+          h *= 0.5;
+        }
+      }
+    }
+    h_k = h;
+    return true;
+  }
+
+  Model& model_;
+  AblSettings settings_;
+  Vec<N> weights_;
+  double eta_ = 0.0;
+  OneStepSolver<N> solver_;
+  LagrangianTerms<N> terms_;
+  Mat<N> P_, Mtrial_, eps_;
+  Vec<N> x_, y_, Mv_, zero_, q_trial_;
+  Eigen::SelfAdjointEigenSolver<Mat<N>> eig_;
+};
+
+}  // namespace moreau

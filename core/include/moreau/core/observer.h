@@ -1,0 +1,30 @@
+// How a run hands its states out without knowing where they go (recorder, CSV writer, LCM publisher,
+// progress bar, cancellation). The integrator calls on_sample() only every `output_every` steps (and at
+// the first and last state), and keep_going() every kControlInterval steps: the hot loop never makes a
+// virtual call per step.
+#pragma once
+
+#include <cstdint>
+
+namespace moreau {
+
+struct Sample {
+  std::int64_t step;       // k
+  double t;                // t_k
+  double h;                // the step that led to this state, t_k - t_{k-1} (step 0: the nominal h)
+  int n;                   // degrees of freedom
+  const double* q;         // Q^k, n values
+  const double* v;         // V^k, n values
+  double kinetic_energy;   // E_k = 1/2 <M(Q^k) V^k, V^k>
+};
+
+class RunObserver {
+ public:
+  static constexpr std::int64_t kControlInterval = 4096;
+  virtual ~RunObserver() = default;
+  virtual void on_sample(const Sample& sample) = 0;
+  // Return false to cancel the run (it then ends with RunStatus::kCancelled).
+  virtual bool keep_going(std::int64_t /*step*/, double /*t*/) { return true; }
+};
+
+}  // namespace moreau

@@ -1,0 +1,404 @@
+// The one-step problem of the scheme (0.2): given P (positive definite, not necessarily symmetric) and x,
+// find the unique y with
+//
+//   P y + x  in  -d phi(y),     phi(y) = sum_i a_i |y_i| + a_norm ||y||_2,              (6.5)
+//
+// the inclusion of section 6 of Adly, Brogliato and Le (2016), generalised to any n and to the norm
+// term of Remark 4.2. Existence and uniqueness: Theorem 4.1 (P - k1/(2h) I is monotone).
+//
+// Method, in order (each exact, each verified before it is accepted):
+//  1. closed forms: no nonsmooth term (one linear solve); y = 0 when -x lies in d phi(0) (this is what
+//     makes a component at rest exactly 0.0); P diagonal and phi separable (componentwise soft
+//     threshold).
+//  2. semismooth Newton on the natural map of (6.5), in its primal-dual active-set form (Hintermueller,
+//     Ito and Kunisch 2002), the route Remark 6.1 points to: guess the sign pattern s in {-1, 0, +1}^n,
+//     solve the linear (or, with a norm term, smooth) equations it implies with y_i = 0.0 exactly where
+//     s_i = 0, check the inclusion, update the pattern. Warm-started from the previous step's pattern,
+//     it usually needs one solve. Deviation from the paper: Lemma 6.1's projection form (6.8) is not
+//     iterated; it characterises the same solution, and the pattern equations are exact.
+//  3. if the pattern iteration cycles: a finite, exhaustive search over the 3^n patterns (n <= 10),
+//     else forward-backward splitting y <- prox(y - gamma (P y + x)), gamma = mu / L^2, globally
+//     convergent because y -> P y + x is strongly monotone, whose pattern is then polished exactly.
+// A solution is accepted only when dist(-(P y + x), d phi(y)) is within round-off of the problem's scale;
+// otherwise solve() returns false and the caller must stop: an unsolved step is never used.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+
+#include "moreau/core/types.h"
+
+namespace moreau {
+
+struct OneStepStats {
+  int iterations = 0;        // linear (or Newton) solves of pattern equations, or fixed-point sweeps
+  double residual = 0.0;     // dist(-(P y + x), d phi(y)) of the returned y
+  double tolerance = 0.0;    // the round-off bound the residual was accepted against
+  bool used_fallback = false;
+};
+
+template <int N>
+class OneStepSolver {
+ public:
+  using Pattern = Eigen::Matrix<std::int8_t, N, 1>;
+
+  OneStepSolver() = default;
+
+  // gains a_i >= 0 and a_norm >= 0 of phi. Sizes every buffer once: solve() does not allocate.
+  void configure(const Vec<N>& gains, double norm_gain) {
+    const int n = static_cast<int>(gains.size());
+    a_ = gains;
+    an_ = norm_gain;
+    nonsmooth_ = an_ > 0.0 || (a_.array() > 0.0).any();
+    pattern_.setZero(n);
+    trial_.setZero(n);
+    pinned_.setZero(n);
+    A_.setZero(n, n);
+    J_.setZero(n, n);
+    b_.setZero(n);
+    w_.setZero(n);
+    r_.setZero(n);
+    dy_.setZero(n);
+    best_.setZero(n);
+    if constexpr (N == Eigen::Dynamic) lu_ = Eigen::PartialPivLU<Mat<N>>(n);
+  }
+
+  int size() const { return static_cast<int>(a_.size()); }
+
+  // Solves (6.5). On success returns true with y the solution; on failure returns false (y then holds
+  // the best iterate, for diagnostics only).
+  bool solve(const Mat<N>& P, const Vec<N>& x, Vec<N>& y, OneStepStats& stats) {
+    const int n = size();
+    stats = OneStepStats{};
+    const double scale_px = P.cwiseAbs().rowwise().sum().maxCoeff();  // ||P||_inf
+    const double gain_scale = (n > 0 ? a_.maxCoeff() : 0.0) + an_;
+
+    if (!nonsmooth_) {
+      lu_.compute(P);
+      y.noalias() = lu_.solve(-x);
+      stats.iterations = 1;
+      return accept(P, x, y, scale_px, gain_scale, stats);
+    }
+
+    // y = 0 solves (6.5) iff -x lies in d phi(0) = A [-1,1]^n + a_norm B.
+    {
+      w_ = -x;
+      const double to_box = (w_ - w_.cwiseMax(-a_).cwiseMin(a_)).norm();
+      if (to_box <= an_) {
+        y.setZero(n);
+        pattern_.setZero(n);
+        stats.iterations = 0;
+        return accept(P, x, y, scale_px, gain_scale, stats);
+      }
+    }
+
+    // P diagonal and phi separable: componentwise soft threshold, exact.
+    if (an_ == 0.0 || n == 1) {
+      if (is_diagonal(P)) {
+        const double extra = (n == 1) ? an_ : 0.0;  // in one dimension ||y|| = |y|
+        for (int i = 0; i < n; ++i) {
+          const double ai = a_(i) + extra;
+          const double xi = x(i);
+          if (std::abs(xi) <= ai) {
+            y(i) = 0.0;
+            pattern_(i) = 0;
+          } else {
+            const double s = xi > 0.0 ? 1.0 : -1.0;  // y has the sign of -x
+            y(i) = -(xi - ai * s) / P(i, i);
+            pattern_(i) = static_cast<std::int8_t>(-s);
+          }
+        }
+        stats.iterations = 1;
+        return accept(P, x, y, scale_px, gain_scale, stats);
+      }
+    }
+
+    // Semismooth Newton (primal-dual active set) from the previous step's pattern.
+    if (all_zero(pattern_)) initial_pattern(x);
+    const int max_newton = 2 * n + 8;
+    for (int it = 0; it < max_newton; ++it) {
+      ++stats.iterations;
+      if (solve_pattern(P, x, pattern_, y) && consistent(P, x, y, pattern_, scale_px, gain_scale)) {
+        return accept(P, x, y, scale_px, gain_scale, stats);
+      }
+      if (!update_pattern(P, x, y)) break;  // no change: a fixed point that is not a solution
+    }
+
+    // Fallbacks: exhaustive for small n (finite and exact), forward-backward otherwise.
+    stats.used_fallback = true;
+    if (n <= 10) {
+      if (enumerate(P, x, y, scale_px, gain_scale, stats)) return accept(P, x, y, scale_px, gain_scale, stats);
+    }
+    return forward_backward(P, x, y, scale_px, gain_scale, stats);
+  }
+
+  // dist(-(P y + x), d phi(y)): zero exactly at the solution of (6.5).
+  double residual(const Mat<N>& P, const Vec<N>& x, const Vec<N>& y) {
+    w_.noalias() = -(P * y);
+    w_ -= x;
+    const double ny = y.norm();
+    if (ny == 0.0) {
+      return std::max(0.0, (w_ - w_.cwiseMax(-a_).cwiseMin(a_)).norm() - an_);
+    }
+    if (an_ > 0.0) w_ -= (an_ / ny) * y;
+    double sum = 0.0;
+    for (int i = 0; i < size(); ++i) {
+      double d;
+      if (y(i) > 0.0) d = w_(i) - a_(i);
+      else if (y(i) < 0.0) d = w_(i) + a_(i);
+      else d = std::max(0.0, std::abs(w_(i)) - a_(i));
+      sum += d * d;
+    }
+    return std::sqrt(sum);
+  }
+
+  const Pattern& pattern() const { return pattern_; }
+
+ private:
+  static bool all_zero(const Pattern& s) { return (s.array() == 0).all(); }
+
+  static bool is_diagonal(const Mat<N>& P) {
+    const int n = static_cast<int>(P.rows());
+    for (int j = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i)
+        if (i != j && P(i, j) != 0.0) return false;
+    return true;
+  }
+
+  // The accepted residual: a few ulps of the size of the terms of (6.5).
+  bool accept(const Mat<N>& P, const Vec<N>& x, const Vec<N>& y, double scale_px, double gain_scale,
+              OneStepStats& stats) {
+    const double scale =
+        x.cwiseAbs().maxCoeff() + scale_px * (y.size() ? y.cwiseAbs().maxCoeff() : 0.0) + gain_scale;
+    stats.tolerance = 256.0 * std::numeric_limits<double>::epsilon() * std::max(scale, 1e-300);
+    stats.residual = residual(P, x, y);
+    return std::isfinite(stats.residual) && stats.residual <= stats.tolerance && y.allFinite();
+  }
+
+  // A first pattern from y = 0: a component moves where |x_i| exceeds its gain, against x_i.
+  void initial_pattern(const Vec<N>& x) {
+    bool any = false;
+    for (int i = 0; i < size(); ++i) {
+      if (a_(i) > 0.0 && std::abs(x(i)) > a_(i)) {
+        pattern_(i) = x(i) > 0.0 ? -1 : 1;
+        any = true;
+      } else {
+        pattern_(i) = 0;
+      }
+    }
+    if (!any) {
+      // Only the norm term keeps y = 0 from solving: every component is free to move.
+      for (int i = 0; i < size(); ++i) pattern_(i) = x(i) > 0.0 ? -1 : 1;
+    }
+  }
+
+  // Solves the equations of pattern s: y_i = 0 where a_i > 0 and s_i = 0; elsewhere
+  // (P y)_i + x_i + a_i s_i + a_norm y_i / ||y|| = 0. Returns false if they have no usable solution.
+  bool solve_pattern(const Mat<N>& P, const Vec<N>& x, const Pattern& s, Vec<N>& y) {
+    const int n = size();
+    A_ = P;
+    for (int i = 0; i < n; ++i) b_(i) = -(x(i) + a_(i) * s(i));
+    bool any_free = false;
+    for (int i = 0; i < n; ++i) {
+      pinned_(i) = (a_(i) > 0.0 && s(i) == 0) ? 1 : 0;
+      if (pinned_(i)) {
+        A_.row(i).setZero();
+        A_.col(i).setZero();
+        A_(i, i) = 1.0;
+        b_(i) = 0.0;
+      } else {
+        any_free = true;
+      }
+    }
+    if (!any_free) {
+      y.setZero(n);
+      return an_ == 0.0;  // with a norm term y = 0 was already ruled out
+    }
+    lu_.compute(A_);
+    y.noalias() = lu_.solve(b_);
+    pin_zeros(s, y);
+    if (an_ == 0.0) return y.allFinite();
+
+    // The norm term: y != 0 here, so ||y|| is smooth; Newton on the free components, from the linear
+    // solution, with step halving on the residual norm.
+    if (y.norm() == 0.0) {
+      for (int i = 0; i < n; ++i)
+        if (!pinned_(i)) y(i) = b_(i);
+      if (y.norm() == 0.0) return false;
+    }
+    double fnorm = pattern_equation_residual(y);
+    for (int it = 0; it < 60; ++it) {
+      const double ny = y.norm();
+      J_ = A_;
+      for (int i = 0; i < n; ++i) {
+        if (pinned_(i)) continue;
+        for (int j = 0; j < n; ++j) {
+          if (pinned_(j)) continue;
+          J_(i, j) += an_ * ((i == j ? 1.0 : 0.0) - y(i) * y(j) / (ny * ny)) / ny;
+        }
+      }
+      lu_.compute(J_);
+      dy_.noalias() = lu_.solve(r_);
+      double step = 1.0;
+      for (int ls = 0; ls < 40; ++ls) {
+        best_ = y - step * dy_;
+        pin_zeros(s, best_);
+        if (best_.norm() > 0.0) {
+          const double fnew = pattern_equation_residual(best_);
+          if (fnew < fnorm || fnew == 0.0) {
+            y = best_;
+            fnorm = fnew;
+            break;
+          }
+        }
+        step *= 0.5;
+      }
+      pattern_equation_residual(y);  // refresh r_ for the next Jacobian solve
+      if (step * dy_.norm() <= 4.0 * std::numeric_limits<double>::epsilon() * y.norm()) break;
+    }
+    return y.allFinite() && y.norm() > 0.0;
+  }
+
+  // r_ = A y - b + a_norm y / ||y|| on the free components (0 on the pinned ones); returns ||r_||.
+  double pattern_equation_residual(const Vec<N>& y) {
+    r_.noalias() = A_ * y;
+    r_ -= b_;
+    const double ny = y.norm();
+    for (int i = 0; i < size(); ++i) {
+      if (pinned_(i)) {
+        r_(i) = 0.0;
+      } else if (ny > 0.0) {
+        r_(i) += an_ * y(i) / ny;
+      }
+    }
+    return r_.norm();
+  }
+
+  void pin_zeros(const Pattern& s, Vec<N>& y) const {
+    for (int i = 0; i < size(); ++i)
+      if (a_(i) > 0.0 && s(i) == 0) y(i) = 0.0;  // exactly zero, not round-off
+  }
+
+  // Whether y (from pattern s) satisfies (6.5): free components keep their sign, pinned ones have a
+  // multiplier within their gain.
+  bool consistent(const Mat<N>& P, const Vec<N>& x, const Vec<N>& y, const Pattern& s, double scale_px,
+                  double gain_scale) {
+    w_.noalias() = -(P * y);
+    w_ -= x;
+    const double ny = y.norm();
+    if (an_ > 0.0) {
+      if (ny == 0.0) return false;
+      w_ -= (an_ / ny) * y;
+    }
+    const double tol = 64.0 * std::numeric_limits<double>::epsilon() *
+                       (x.cwiseAbs().maxCoeff() + scale_px * y.cwiseAbs().maxCoeff() + gain_scale);
+    for (int i = 0; i < size(); ++i) {
+      if (!(a_(i) > 0.0)) continue;
+      if (s(i) != 0) {
+        if (y(i) * s(i) < 0.0) return false;
+      } else if (std::abs(w_(i)) > a_(i) + tol) {
+        return false;
+      }
+    }
+    return true;
+  }
+
+  // The active-set update of the semismooth Newton method: s_i = sign(c_i y_i + w_i) where that exceeds
+  // a_i, else 0, with w the multiplier estimate and c_i = P_ii. Returns whether the pattern changed.
+  bool update_pattern(const Mat<N>& P, const Vec<N>& x, const Vec<N>& y) {
+    w_.noalias() = -(P * y);
+    w_ -= x;
+    const double ny = y.norm();
+    if (an_ > 0.0 && ny > 0.0) w_ -= (an_ / ny) * y;
+    bool changed = false;
+    for (int i = 0; i < size(); ++i) {
+      if (!(a_(i) > 0.0)) continue;
+      const double u = P(i, i) * y(i) + w_(i);
+      const std::int8_t si = std::abs(u) > a_(i) ? (u > 0.0 ? 1 : -1) : 0;
+      if (si != pattern_(i)) {
+        pattern_(i) = si;
+        changed = true;
+      }
+    }
+    return changed;
+  }
+
+  // Tries every pattern in {-1, 0, 1}^n; the solution's pattern is among them, so this is exact.
+  bool enumerate(const Mat<N>& P, const Vec<N>& x, Vec<N>& y, double scale_px, double gain_scale,
+                 OneStepStats& stats) {
+    const int n = size();
+    long total = 1;
+    for (int i = 0; i < n; ++i) total *= 3;
+    for (long code = 0; code < total; ++code) {
+      long c = code;
+      for (int i = 0; i < n; ++i) {
+        trial_(i) = static_cast<std::int8_t>(c % 3 - 1);
+        c /= 3;
+      }
+      ++stats.iterations;
+      if (solve_pattern(P, x, trial_, y) && consistent(P, x, y, trial_, scale_px, gain_scale)) {
+        pattern_ = trial_;
+        return true;
+      }
+    }
+    return false;
+  }
+
+  // prox of gamma*phi: soft threshold by gamma*a, then shrink the norm by gamma*a_norm (the prox of an
+  // l1 plus l2 penalty is the composition of the two).
+  void prox(Vec<N>& z, double gamma) const {
+    for (int i = 0; i < size(); ++i) {
+      const double t = gamma * a_(i);
+      z(i) = z(i) > t ? z(i) - t : (z(i) < -t ? z(i) + t : 0.0);
+    }
+    if (an_ > 0.0) {
+      const double nz = z.norm();
+      const double t = gamma * an_;
+      if (nz <= t) z.setZero();
+      else z *= (1.0 - t / nz);
+    }
+  }
+
+  bool forward_backward(const Mat<N>& P, const Vec<N>& x, Vec<N>& y, double scale_px, double gain_scale,
+                        OneStepStats& stats) {
+    const int n = size();
+    const Mat<N> Ps = 0.5 * (P + P.transpose());
+    Eigen::SelfAdjointEigenSolver<Mat<N>> eig(Ps, Eigen::EigenvaluesOnly);
+    const double mu = eig.eigenvalues()(0);
+    Eigen::JacobiSVD<Mat<N>> svd(P);
+    const double L = svd.singularValues()(0);
+    if (!(mu > 0.0) || !(L > 0.0)) return false;
+    const double gamma = mu / (L * L);
+    y.setZero(n);
+    for (int it = 1; it <= 200000; ++it) {
+      w_.noalias() = P * y;
+      w_ += x;
+      best_ = y - gamma * w_;
+      prox(best_, gamma);
+      y = best_;
+      ++stats.iterations;
+      if (it % 64 == 0) {
+        for (int i = 0; i < n; ++i) trial_(i) = y(i) > 0.0 ? 1 : (y(i) < 0.0 ? -1 : 0);
+        if (solve_pattern(P, x, trial_, dy_) && consistent(P, x, dy_, trial_, scale_px, gain_scale)) {
+          y = dy_;
+          pattern_ = trial_;
+          return accept(P, x, y, scale_px, gain_scale, stats);
+        }
+      }
+    }
+    accept(P, x, y, scale_px, gain_scale, stats);
+    return false;
+  }
+
+  Vec<N> a_;
+  double an_ = 0.0;
+  bool nonsmooth_ = false;
+  Pattern pattern_, trial_, pinned_;
+  Mat<N> A_, J_;
+  Vec<N> b_, w_, r_, dy_, best_;
+  Eigen::PartialPivLU<Mat<N>> lu_;
+};
+
+}  // namespace moreau

@@ -1,0 +1,180 @@
+// The one-step inclusion (6.5) P y + x in -d phi(y): closed forms, random problems checked against an
+// independent brute-force search over sign patterns, exact zeros, and the norm term.
+#include "moreau/core/one_step_solver.h"
+
+#include <gtest/gtest.h>
+
+#include <random>
+
+namespace moreau {
+namespace {
+
+// Independent reference for phi = sum a_i |y_i| (no norm term): try every sign pattern, solve its
+// linear system with a different factorisation (full-pivot LU on the reduced system), keep the one
+// satisfying the inclusion. Unique by Theorem 4.1, so the first hit is the answer.
+Eigen::VectorXd BruteForce(const Eigen::MatrixXd& P, const Eigen::VectorXd& x, const Eigen::VectorXd& a) {
+  const int n = static_cast<int>(x.size());
+  int total = 1;
+  for (int i = 0; i < n; ++i) total *= 3;
+  for (int code = 0; code < total; ++code) {
+    std::vector<int> s(n), free;
+    int c = code;
+    for (int i = 0; i < n; ++i) {
+      s[i] = c % 3 - 1;
+      c /= 3;
+      if (s[i] != 0) free.push_back(i);
+    }
+    Eigen::VectorXd y = Eigen::VectorXd::Zero(n);
+    if (!free.empty()) {
+      const int m = static_cast<int>(free.size());
+      Eigen::MatrixXd A(m, m);
+      Eigen::VectorXd b(m);
+      for (int r = 0; r < m; ++r) {
+        b(r) = -(x(free[r]) + a(free[r]) * s[free[r]]);
+        for (int cc = 0; cc < m; ++cc) A(r, cc) = P(free[r], free[cc]);
+      }
+      Eigen::VectorXd yf = A.fullPivLu().solve(b);
+      for (int r = 0; r < m; ++r) y(free[r]) = yf(r);
+    }
+    bool ok = true;
+    const Eigen::VectorXd w = -(P * y + x);
+    for (int i = 0; i < n && ok; ++i) {
+      if (s[i] != 0) ok = y(i) * s[i] >= 0.0;
+      else ok = std::abs(w(i)) <= a(i) * (1 + 1e-12);
+    }
+    if (ok) return y;
+  }
+  ADD_FAILURE() << "brute force found no pattern";
+  return Eigen::VectorXd::Zero(n);
+}
+
+TEST(OneStepSolver, ScalarClosedForm) {
+  OneStepSolver<1> solver;
+  solver.configure(Vec<1>(2.0), 0.0);
+  OneStepStats st;
+  Vec<1> y;
+  // |x| <= a: y = 0 exactly.
+  ASSERT_TRUE(solver.solve(Mat<1>(4.0), Vec<1>(-1.999), y, st));
+  EXPECT_EQ(y(0), 0.0);
+  EXPECT_EQ(st.iterations, 0);
+  // x = -10: y = (10 - 2) / 4 = 2.
+  ASSERT_TRUE(solver.solve(Mat<1>(4.0), Vec<1>(-10.0), y, st));
+  EXPECT_DOUBLE_EQ(y(0), 2.0);
+  ASSERT_TRUE(solver.solve(Mat<1>(4.0), Vec<1>(10.0), y, st));
+  EXPECT_DOUBLE_EQ(y(0), -2.0);
+}
+
+TEST(OneStepSolver, NoNonsmoothTermIsALinearSolve) {
+  OneStepSolver<2> solver;
+  solver.configure(Vec<2>::Zero(), 0.0);
+  Mat<2> P;
+  P << 3, 1, -1, 2;
+  const Vec<2> x(1.0, -2.0);
+  Vec<2> y;
+  OneStepStats st;
+  ASSERT_TRUE(solver.solve(P, x, y, st));
+  EXPECT_LT((P * y + x).norm(), 1e-15);
+}
+
+TEST(OneStepSolver, RestIsExactlyZero) {
+  OneStepSolver<3> solver;
+  solver.configure(Vec<3>(1.0, 2.0, 3.0), 0.0);
+  Mat<3> P = Mat<3>::Identity() * 100.0;
+  P(0, 1) = 5.0;
+  Vec<3> y;
+  OneStepStats st;
+  ASSERT_TRUE(solver.solve(P, Vec<3>(0.5, -1.9, 2.99), y, st));
+  EXPECT_EQ(y(0), 0.0);
+  EXPECT_EQ(y(1), 0.0);
+  EXPECT_EQ(y(2), 0.0);
+}
+
+template <int N>
+void RandomProblems(int n, int count, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  std::uniform_real_distribution<double> unif(0.0, 2.0);
+  OneStepSolver<N> solver;
+  Vec<N> a(n);
+  for (int i = 0; i < n; ++i) a(i) = unif(rng);
+  solver.configure(a, 0.0);
+  int zeros = 0;
+  for (int trial = 0; trial < count; ++trial) {
+    // P = S + K with S symmetric positive definite and K skew: the structure of M/h + C + W.
+    Eigen::MatrixXd G(n, n), K(n, n);
+    for (int i = 0; i < n; ++i)
+      for (int j = 0; j < n; ++j) {
+        G(i, j) = gauss(rng);
+        K(i, j) = gauss(rng);
+      }
+    Mat<N> P = G * G.transpose() + 0.5 * Eigen::MatrixXd::Identity(n, n) + 0.8 * (K - K.transpose());
+    Vec<N> x(n);
+    for (int i = 0; i < n; ++i) x(i) = 2.0 * gauss(rng);
+    Vec<N> y(n);
+    OneStepStats st;
+    ASSERT_TRUE(solver.solve(P, x, y, st)) << "trial " << trial << " residual " << st.residual;
+    const Eigen::VectorXd ref = BruteForce(P, x, a);
+    for (int i = 0; i < n; ++i) {
+      if (ref(i) == 0.0) {
+        EXPECT_EQ(y(i), 0.0) << "component " << i << " of trial " << trial << " must be exactly zero";
+        ++zeros;
+      } else {
+        EXPECT_NEAR(y(i), ref(i), 1e-12 * (1.0 + std::abs(ref(i))));
+      }
+    }
+    EXPECT_LE(st.residual, st.tolerance);
+  }
+  EXPECT_GT(zeros, 0) << "the random problems should exercise sticking components";
+}
+
+TEST(OneStepSolver, RandomNonsymmetric2) { RandomProblems<2>(2, 400, 1); }
+TEST(OneStepSolver, RandomNonsymmetric3) { RandomProblems<3>(3, 300, 2); }
+TEST(OneStepSolver, RandomNonsymmetricDynamic6) { RandomProblems<Eigen::Dynamic>(6, 200, 3); }
+
+TEST(OneStepSolver, WarmStartNeedsOneSolve) {
+  OneStepSolver<2> solver;
+  solver.configure(Vec<2>(1.0, 1.0), 0.0);
+  Mat<2> P;
+  P << 10, 2, -2, 10;
+  Vec<2> y;
+  OneStepStats st;
+  ASSERT_TRUE(solver.solve(P, Vec<2>(-30.0, 25.0), y, st));
+  ASSERT_TRUE(solver.solve(P, Vec<2>(-29.0, 24.0), y, st));
+  EXPECT_EQ(st.iterations, 1);
+}
+
+TEST(OneStepSolver, NormTermZeroBallAndResidual) {
+  OneStepSolver<2> solver;
+  solver.configure(Vec<2>::Zero(), 1.5);  // phi = 1.5 ||y||
+  Mat<2> P;
+  P << 2, 0.5, -0.5, 3;
+  Vec<2> y;
+  OneStepStats st;
+  // ||x|| <= 1.5: y = 0.
+  ASSERT_TRUE(solver.solve(P, Vec<2>(1.0, -1.0), y, st));
+  EXPECT_EQ(y.norm(), 0.0);
+  // Outside the ball: y != 0 and P y + x + 1.5 y/||y|| = 0.
+  ASSERT_TRUE(solver.solve(P, Vec<2>(4.0, -3.0), y, st));
+  ASSERT_GT(y.norm(), 0.0);
+  EXPECT_LT((P * y + Vec<2>(4.0, -3.0) + 1.5 * y / y.norm()).norm(), 1e-13);
+}
+
+TEST(OneStepSolver, NormAndAbsTogether) {
+  std::mt19937 rng(7);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  OneStepSolver<3> solver;
+  solver.configure(Vec<3>(0.5, 0.0, 1.0), 0.7);
+  for (int trial = 0; trial < 200; ++trial) {
+    Mat<3> G = Mat<3>::NullaryExpr([&] { return gauss(rng); });
+    Mat<3> K = Mat<3>::NullaryExpr([&] { return gauss(rng); });
+    Mat<3> P = G * G.transpose() + Mat<3>::Identity() + (K - K.transpose());
+    Vec<3> x = Vec<3>::NullaryExpr([&] { return 3.0 * gauss(rng); });
+    Vec<3> y;
+    OneStepStats st;
+    ASSERT_TRUE(solver.solve(P, x, y, st)) << trial;
+    EXPECT_LE(solver.residual(P, x, y), 1e-12 * (1 + x.norm()));
+  }
+}
+
+}  // namespace
+}  // namespace moreau
