@@ -50,6 +50,8 @@ enum class Op : std::uint8_t {
   kMin, kMax,
   kSign,      // internal: derivative of abs; sign(0) = 0
   kSquare,    // internal: x*x, from x^2
+  kSelectLe,  // internal: (a <= b) ? c : d, with the tie/NaN behaviour of std::min; derivative of min/max
+  kSinCos,    // tape only: sin(a) into the instruction's register and cos(a) into the next; never in a Graph
 };
 
 // Index of a node in a Graph.
@@ -62,6 +64,17 @@ class Graph {
  public:
   // Resolves a name to a node (a variable or a constant), or nullopt if unknown.
   using Resolver = std::function<std::optional<Node>(std::string_view name)>;
+  // Names a variable slot in to_string; the default spelling is "x<slot>".
+  using SlotNamer = std::function<std::string(int slot)>;
+
+  // Copies get their own hash-consing index: a shared index would hand out node indices that are
+  // only valid in the other graph.
+  Graph() = default;
+  Graph(const Graph& other);
+  Graph& operator=(const Graph& other);
+  Graph(Graph&&) noexcept = default;
+  Graph& operator=(Graph&&) noexcept = default;
+  ~Graph() = default;
 
   Node constant(double value);
   Node variable(int slot);  // slot >= 0: an index into the inputs of Tape::eval
@@ -81,6 +94,7 @@ class Graph {
   bool is_constant(Node f) const;
   double constant_value(Node f) const;  // precondition: is_constant(f)
   std::string to_string(Node f) const;  // fully parenthesised, for messages and tests
+  std::string to_string(Node f, const SlotNamer& slot_name) const;
 
   std::size_t size() const;
 
@@ -89,10 +103,17 @@ class Graph {
     Node a = -1, b = -1;
     double value = 0.0;  // kConst
     int slot = -1;       // kVar
+    Node c = -1, d = -1;  // kSelectLe only (declared last so that {op, a, b} initialisation still works)
   };
   const Entry& entry(Node n) const;
 
  private:
+  // Returns the shared node equal to `e`, adding it if new. All nodes are created here.
+  Node intern(const Entry& e);
+  // (a <= b) ? c : d, simplified; only the derivative of min/max creates it.
+  Node select_le(Node a, Node b, Node c, Node d);
+  void check_node(Node n) const;
+
   std::vector<Entry> nodes_;
   struct Impl;  // hash index for hash-consing, defined in expression.cc
   std::shared_ptr<Impl> index_;
@@ -112,17 +133,25 @@ class Tape {
 
   std::size_t scratch_size() const { return scratch_size_; }
   std::size_t num_outputs() const { return output_regs_.size(); }
+  // Executed instructions; constants and inputs occupy registers but are copied in bulk, not executed.
   std::size_t num_instructions() const { return code_.size(); }
 
  private:
   struct Instr {
     Op op;
-    std::int32_t a, b;  // register indices (or slot for kVar)
-    double value;       // kConst
+    std::int32_t a, b;  // register indices
+    std::int32_t c, d;  // register indices, kSelectLe only
+    double value;       // unused: constants are not instructions but registers filled from constants_
   };
-  std::vector<Instr> code_;               // instruction i writes register i
+  // Register layout: constants_ first, then the inputs named by input_slots_, then one register per
+  // instruction (instruction i writes register first_instr_reg_ + i). Leaves are copied in bulk instead of
+  // being dispatched one by one.
+  std::vector<Instr> code_;
   std::vector<std::int32_t> output_regs_;
   std::size_t scratch_size_ = 0;
+  std::vector<double> constants_;
+  std::vector<std::int32_t> input_slots_;
+  std::size_t first_instr_reg_ = 0;
 };
 
 }  // namespace moreau::expr

@@ -1,0 +1,665 @@
+#include "moreau/scene/expression.h"
+
+#include <gtest/gtest.h>
+
+#include <array>
+#include <bit>
+#include <chrono>
+#include <cmath>
+#include <map>
+#include <random>
+#include <string>
+#include <vector>
+
+namespace moreau::expr {
+namespace {
+
+// A graph with the variables x, y, z (slots 0, 1, 2) and a few named constants, as the scene compiler
+// resolves coordinates and parameters.
+class ExprTest : public ::testing::Test {
+ public:
+  ExprTest() {
+    resolve_ = [this](std::string_view name) -> std::optional<Node> {
+      if (name == "x") return g_.variable(0);
+      if (name == "y") return g_.variable(1);
+      if (name == "z") return g_.variable(2);
+      if (auto it = params_.find(std::string(name)); it != params_.end()) return g_.constant(it->second);
+      return std::nullopt;
+    };
+  }
+
+  Node parse(std::string_view text) { return g_.parse(text, resolve_); }
+
+  // Value of `n` at (x, y, z), through a compiled tape.
+  double eval(Node n, double x = 0.0, double y = 0.0, double z = 0.0) const {
+    Tape tape = Tape::compile(g_, {n}, 3);
+    std::vector<double> scratch(tape.scratch_size());
+    const double slots[3] = {x, y, z};
+    double out = 0.0;
+    tape.eval(slots, &out, scratch.data());
+    return out;
+  }
+  double eval(std::string_view text, double x = 0.0, double y = 0.0, double z = 0.0) {
+    return eval(parse(text), x, y, z);
+  }
+
+  // Throws and returns the error, so the test can look at message and position.
+  ExpressionError parse_error(std::string_view text) {
+    try {
+      parse(text);
+    } catch (const ExpressionError& e) {
+      return e;
+    }
+    ADD_FAILURE() << "no error for '" << text << "'";
+    return ExpressionError("", 0);
+  }
+
+  // Central finite difference of `n` in variable `slot`: the reference for the symbolic derivative.
+  double finite_difference(Node n, int slot, std::array<double, 3> p) const {
+    const auto k = static_cast<std::size_t>(slot);
+    const double h = 1e-6 * std::max(1.0, std::fabs(p[k]));
+    std::array<double, 3> lo = p, hi = p;
+    lo[k] -= h;
+    hi[k] += h;
+    return (eval(n, hi[0], hi[1], hi[2]) - eval(n, lo[0], lo[1], lo[2])) / (2.0 * h);
+  }
+
+  Graph g_;
+  std::map<std::string, double> params_{{"a", 2.0}, {"b", 0.5}, {"m2", 1.5}, {"g", 9.81}};
+  Graph::Resolver resolve_;
+};
+
+// ---------------------------------------------------------------------------------------------------------
+// Parsing and precedence.
+
+TEST_F(ExprTest, PrecedenceAndAssociativity) {
+  EXPECT_EQ(eval("2^3^2"), 512.0);  // right-associative
+  EXPECT_EQ(eval("-2^2"), -4.0);    // ^ binds tighter than unary minus
+  EXPECT_EQ(eval("1-2-3"), -4.0);   // left-associative
+  EXPECT_EQ(eval("8/4/2"), 1.0);
+  EXPECT_EQ(eval("2+3*4"), 14.0);
+  EXPECT_EQ(eval("(2+3)*4"), 20.0);
+  EXPECT_EQ(eval("2*-3"), -6.0);
+  EXPECT_EQ(eval("2^-1"), 0.5);
+  EXPECT_EQ(eval("--2"), 2.0);
+  EXPECT_EQ(eval("+3"), 3.0);
+  EXPECT_EQ(eval("-x^2", 3.0), -9.0);
+  EXPECT_EQ(eval("(-x)^2", 3.0), 9.0);
+  EXPECT_EQ(eval("2^x^y", 3.0, 2.0), 512.0);
+  EXPECT_EQ(eval("x-y-z", 1.0, 2.0, 3.0), -4.0);
+  EXPECT_EQ(eval("x/y/z", 8.0, 4.0, 2.0), 1.0);
+  EXPECT_EQ(eval("x - -y", 1.0, 2.0), 3.0);
+  EXPECT_EQ(eval(" \t2\n*\r( x +1 ) ", 1.0), 4.0);
+  EXPECT_EQ(eval("sin (0)"), 0.0);
+}
+
+TEST_F(ExprTest, Numbers) {
+  EXPECT_EQ(eval("1"), 1.0);
+  EXPECT_EQ(eval("1.5"), 1.5);
+  EXPECT_EQ(eval(".5"), 0.5);
+  EXPECT_EQ(eval("1."), 1.0);
+  EXPECT_EQ(eval("1e-3"), 1e-3);
+  EXPECT_EQ(eval("2.5E+4"), 2.5e4);
+  EXPECT_EQ(eval("1e2"), 100.0);
+  EXPECT_EQ(eval("0.1"), 0.1);  // correctly rounded
+  EXPECT_EQ(eval("1.7976931348623157e308"), 1.7976931348623157e308);
+  EXPECT_EQ(eval("4.9e-324"), 4.9e-324);
+  EXPECT_EQ(eval("1e-400"), 0.0);  // underflow rounds to zero, like the C++ literal
+  EXPECT_EQ(eval("0.0000001e-330"), 0.0);
+}
+
+TEST_F(ExprTest, FunctionValuesMatchCmath) {
+  struct Case {
+    const char* text;
+    double (*f)(double);
+    std::vector<double> points;
+  };
+  const std::vector<Case> cases = {
+      {"sin(x)", [](double v) { return std::sin(v); }, {-2.0, 0.0, 0.3, 7.5}},
+      {"cos(x)", [](double v) { return std::cos(v); }, {-2.0, 0.0, 0.3, 7.5}},
+      {"tan(x)", [](double v) { return std::tan(v); }, {-1.0, 0.0, 0.3, 1.4}},
+      {"asin(x)", [](double v) { return std::asin(v); }, {-0.9, 0.0, 0.3, 1.0}},
+      {"acos(x)", [](double v) { return std::acos(v); }, {-0.9, 0.0, 0.3, 1.0}},
+      {"atan(x)", [](double v) { return std::atan(v); }, {-5.0, 0.0, 0.3, 100.0}},
+      {"sinh(x)", [](double v) { return std::sinh(v); }, {-2.0, 0.0, 0.3, 5.0}},
+      {"cosh(x)", [](double v) { return std::cosh(v); }, {-2.0, 0.0, 0.3, 5.0}},
+      {"tanh(x)", [](double v) { return std::tanh(v); }, {-2.0, 0.0, 0.3, 5.0}},
+      {"exp(x)", [](double v) { return std::exp(v); }, {-2.0, 0.0, 0.3, 5.0}},
+      {"log(x)", [](double v) { return std::log(v); }, {1e-3, 0.3, 1.0, 50.0}},
+      {"sqrt(x)", [](double v) { return std::sqrt(v); }, {0.0, 0.3, 2.0, 50.0}},
+      {"abs(x)", [](double v) { return std::fabs(v); }, {-2.0, 0.0, 0.3}},
+  };
+  for (const Case& c : cases) {
+    const Node n = parse(c.text);
+    for (double p : c.points) {
+      EXPECT_EQ(eval(n, p), c.f(p)) << c.text << " at " << p;
+    }
+  }
+  for (double p : {-1.5, 0.0, 0.25, 3.0}) {
+    for (double q : {-2.0, 0.0, 0.5}) {
+      EXPECT_EQ(eval("atan2(x, y)", p, q), std::atan2(p, q));
+      EXPECT_EQ(eval("min(x, y)", p, q), std::min(p, q));
+      EXPECT_EQ(eval("max(x, y)", p, q), std::max(p, q));
+    }
+  }
+  for (double p : {0.5, 1.0, 2.5}) {
+    for (double q : {-1.5, 0.0, 0.5, 3.0, 7.0}) {
+      EXPECT_EQ(eval("pow(x, y)", p, q), std::pow(p, q));
+      EXPECT_EQ(eval("x^y", p, q), std::pow(p, q));
+    }
+  }
+  EXPECT_TRUE(std::isnan(eval("sqrt(x)", -1.0)));
+  EXPECT_TRUE(std::isinf(eval("1/x", 0.0)));
+}
+
+TEST_F(ExprTest, ConstantFoldingUsesTheSameFunctions) {
+  // A folded constant has exactly the value the tape computes for the same operation at run time.
+  const char* functions[] = {"sin", "cos", "tan", "asin", "acos", "atan", "sinh", "cosh",
+                             "tanh", "exp", "log", "sqrt", "abs"};
+  for (const char* f : functions) {
+    const Node folded = parse(std::string(f) + "(0.37)");
+    ASSERT_TRUE(g_.is_constant(folded)) << f;
+    EXPECT_EQ(g_.constant_value(folded), eval(std::string(f) + "(x)", 0.37)) << f;
+  }
+  EXPECT_EQ(g_.constant_value(parse("atan2(0.3, -0.7)")), std::atan2(0.3, -0.7));
+  EXPECT_EQ(g_.constant_value(parse("1.3^0.7")), std::pow(1.3, 0.7));
+  EXPECT_EQ(g_.constant_value(parse("min(2, -1)")), -1.0);
+  EXPECT_EQ(g_.constant_value(parse("max(2, -1)")), 2.0);
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Simplification and hash-consing.
+
+TEST_F(ExprTest, ConstantFolding) {
+  const Node n = parse("2*3+1");
+  ASSERT_TRUE(g_.is_constant(n));
+  EXPECT_EQ(g_.constant_value(n), 7.0);
+  EXPECT_EQ(g_.constant_value(parse("a*b + g")), 2.0 * 0.5 + 9.81);
+  EXPECT_FALSE(g_.is_constant(parse("x")));
+  EXPECT_FALSE(g_.is_constant(parse("x + 1")));
+  EXPECT_THROW(g_.constant_value(parse("x")), std::logic_error);
+}
+
+TEST_F(ExprTest, Identities) {
+  const Node x = parse("x");
+  EXPECT_EQ(parse("x + 0"), x);
+  EXPECT_EQ(parse("0 + x"), x);
+  EXPECT_EQ(parse("x - 0"), x);
+  EXPECT_EQ(parse("0 - x"), parse("-x"));
+  EXPECT_EQ(parse("x * 1"), x);
+  EXPECT_EQ(parse("1 * x"), x);
+  EXPECT_EQ(parse("x / 1"), x);
+  EXPECT_EQ(parse("--x"), x);
+  EXPECT_EQ(parse("x^1"), x);
+  EXPECT_EQ(parse("pow(x, 1)"), x);
+  for (const char* zero : {"x * 0", "0 * x", "0 / x", "x - x", "sin(x) - sin(x)", "x*y - y*x"}) {
+    const Node n = parse(zero);
+    ASSERT_TRUE(g_.is_constant(n)) << zero;
+    EXPECT_EQ(g_.constant_value(n), 0.0) << zero;
+  }
+  for (const char* one : {"x^0", "pow(x, 0)", "1^x"}) {
+    const Node n = parse(one);
+    ASSERT_TRUE(g_.is_constant(n)) << one;
+    EXPECT_EQ(g_.constant_value(n), 1.0) << one;
+  }
+  EXPECT_EQ(g_.entry(parse("x^2")).op, Op::kSquare);
+  EXPECT_EQ(parse("pow(x, 2)"), parse("x^2"));
+  EXPECT_EQ(g_.entry(parse("x^3")).op, Op::kPow);
+  EXPECT_EQ(g_.entry(parse("x^2")).a, x);
+}
+
+TEST_F(ExprTest, HashConsing) {
+  const Node sum = parse("sin(x)+sin(x)");
+  EXPECT_EQ(g_.size(), 3u);  // x, sin(x), and the sum
+  EXPECT_EQ(g_.entry(sum).a, g_.entry(sum).b);
+  const std::size_t before = g_.size();
+  EXPECT_EQ(parse("sin(x) + sin(x)"), sum);
+  EXPECT_EQ(g_.size(), before);
+  EXPECT_EQ(parse("x*y"), parse("y*x"));  // commutative operands are ordered
+  EXPECT_EQ(parse("x+y"), parse("y+x"));
+  EXPECT_NE(parse("x-y"), parse("y-x"));
+  EXPECT_NE(parse("x/y"), parse("y/x"));
+  EXPECT_EQ(g_.constant(1.5), g_.constant(1.5));
+  EXPECT_NE(g_.constant(0.0), g_.constant(-0.0));  // distinct bits, distinct behaviour under 1/x
+  EXPECT_EQ(g_.variable(7), g_.variable(7));
+}
+
+TEST_F(ExprTest, CopiedGraphsHaveIndependentIndices) {
+  const Node sx = parse("sin(x)");
+  Graph copy = g_;
+  // New nodes in each graph get the same index but mean different things; neither may see the other's.
+  const Node in_original = g_.unary(Op::kCos, sx);
+  const Node in_copy = copy.unary(Op::kExp, sx);
+  EXPECT_EQ(in_original, in_copy);
+  EXPECT_EQ(g_.entry(in_original).op, Op::kCos);
+  EXPECT_EQ(copy.entry(in_copy).op, Op::kExp);
+  EXPECT_EQ(g_.unary(Op::kExp, sx), in_copy + 1);
+  EXPECT_EQ(copy.unary(Op::kCos, sx), in_copy + 1);
+  EXPECT_EQ(copy.unary(Op::kSin, copy.variable(0)), sx);  // existing nodes are still shared in the copy
+
+  Graph assigned;
+  assigned = copy;
+  EXPECT_EQ(assigned.unary(Op::kExp, sx), in_copy);
+  EXPECT_EQ(assigned.size(), copy.size());
+
+  Graph moved = std::move(assigned);
+  EXPECT_EQ(moved.unary(Op::kExp, sx), in_copy);
+  EXPECT_EQ(moved.size(), copy.size());
+}
+
+TEST_F(ExprTest, ToString) {
+  EXPECT_EQ(g_.to_string(parse("x + 2*y")), "(x0+(2*x1))");
+  EXPECT_EQ(g_.to_string(parse("sin(x)^2 - atan2(y, 1.5)")), "((sin(x0)^2)-atan2(x1, 1.5))");
+  EXPECT_EQ(g_.to_string(parse("-x / 3")), "((-x0)/3)");
+  EXPECT_EQ(g_.to_string(parse("x^y^z")), "(x0^(x1^x2))");
+  EXPECT_EQ(g_.to_string(parse("-2.5")), "(-2.5)");
+  EXPECT_EQ(g_.to_string(parse("0.1")), "0.1");
+  const Node n = parse("min(x, y) * abs(z)");
+  EXPECT_EQ(g_.to_string(n, [](int slot) { return std::string(1, "xyz"[slot]); }), "(min(x, y)*abs(z))");
+  EXPECT_EQ(g_.to_string(g_.derivative(parse("min(x, y)"), 0)), "(x0 <= x1 ? 1 : 0)");
+  EXPECT_EQ(g_.to_string(g_.derivative(parse("abs(x)"), 0)), "sign(x0)");
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Derivatives.
+
+TEST_F(ExprTest, EveryDerivativeRuleMatchesFiniteDifferences) {
+  struct Case {
+    const char* text;
+    std::vector<std::array<double, 3>> points;
+  };
+  const std::vector<std::array<double, 3>> general = {{0.3, 0.7, -0.4}, {-1.1, 0.2, 0.9}, {2.0, -1.3, 0.5}};
+  const std::vector<std::array<double, 3>> positive = {{0.3, 0.7, 0.4}, {1.1, 0.2, 0.9}, {2.0, 1.3, 0.5}};
+  const std::vector<std::array<double, 3>> unit = {{0.3, 0.7, -0.4}, {-0.8, 0.2, 0.9}, {0.55, -0.6, 0.5}};
+  const std::vector<Case> cases = {
+      {"x + y", general}, {"x - y", general}, {"x * y", general}, {"x / y", general}, {"y / x", general},
+      {"-x", general}, {"x^2", general}, {"x^3", general}, {"x^-2", general}, {"x^2.5", positive},
+      {"x^y", positive}, {"y^x", positive}, {"x^x", positive}, {"pow(x, a*b)", positive}, {"a^x", general},
+      {"x^(y*z)", positive}, {"sin(x)", general}, {"cos(x)", general}, {"tan(x)", general},
+      {"asin(x)", unit}, {"acos(x)", unit}, {"atan(x)", general}, {"atan2(x, y)", general},
+      {"atan2(y, x)", general}, {"atan2(x*y, x+2)", general}, {"sinh(x)", general}, {"cosh(x)", general},
+      {"tanh(x)", general}, {"exp(x)", general}, {"log(x)", positive}, {"sqrt(x)", positive},
+      {"abs(x)", general}, {"abs(x*y)", general}, {"min(x, y)", general}, {"max(x, y)", general},
+      {"min(y, x)", general}, {"max(x*x, y)", general}, {"min(x, 2*x)", positive},
+      {"sin(x*y)^2 / (1 + exp(-x))", general}, {"sqrt(x^2 + y^2 + z^2)", general},
+      {"log(cosh(x*y)) * atan(z - x)", general}, {"tan(x)*tan(x) + tan(x)", general},
+      {"sin(cos(sin(x*y)))", general}, {"exp(sin(x))^cos(y)", general}, {"a*x^2 + b*x + g", general},
+  };
+  for (const Case& c : cases) {
+    const Node f = parse(c.text);
+    for (int slot = 0; slot < 3; ++slot) {
+      const Node df = g_.derivative(f, slot);
+      if (!g_.depends_on(f, slot)) {
+        EXPECT_TRUE(g_.is_constant(df)) << c.text;
+      }
+      for (const auto& p : c.points) {
+        const double exact = eval(df, p[0], p[1], p[2]);
+        const double fd = finite_difference(f, slot, p);
+        EXPECT_NEAR(exact, fd, 1e-6 * std::max(1.0, std::fabs(fd)))
+            << "d/d" << "xyz"[slot] << " " << c.text << " at (" << p[0] << ", " << p[1] << ", " << p[2] << ")";
+      }
+    }
+  }
+}
+
+TEST_F(ExprTest, SecondDerivatives) {
+  const Node f = parse("sin(x)*exp(y) + x^3*y");
+  const Node fx = g_.derivative(f, 0);
+  const Node fxy = g_.derivative(fx, 1);
+  const Node fyx = g_.derivative(g_.derivative(f, 1), 0);
+  for (const auto& p : std::vector<std::array<double, 3>>{{0.3, 0.7, 0.0}, {-1.2, 0.4, 0.0}}) {
+    const double expected = std::cos(p[0]) * std::exp(p[1]) + 3.0 * p[0] * p[0];
+    EXPECT_NEAR(eval(fxy, p[0], p[1]), expected, 1e-12);
+    EXPECT_NEAR(eval(fyx, p[0], p[1]), expected, 1e-12);
+  }
+  // d^2/dx^2 sin(x) is literally -sin(x).
+  EXPECT_EQ(g_.derivative(g_.derivative(parse("sin(x)"), 0), 0), parse("-sin(x)"));
+}
+
+TEST_F(ExprTest, DerivativeOfExpressionNotInTheVariableIsConstantZero) {
+  for (const char* text : {"sin(x)*x", "exp(x^2)/(1+x)", "atan2(x, 2)", "min(x, 3)", "a*b", "7"}) {
+    const Node d = g_.derivative(parse(text), 1);
+    ASSERT_TRUE(g_.is_constant(d)) << text;
+    EXPECT_EQ(g_.constant_value(d), 0.0) << text;
+  }
+  // A constant mass matrix entry has constant zero derivatives in every coordinate.
+  const Node m = parse("m2 + a*b^2");
+  for (int slot = 0; slot < 3; ++slot) {
+    EXPECT_TRUE(g_.is_constant(g_.derivative(m, slot)));
+  }
+  // An expression that only seems to depend on x.
+  const Node d = g_.derivative(parse("x*y - y*x + z"), 0);
+  ASSERT_TRUE(g_.is_constant(d));
+  EXPECT_EQ(g_.constant_value(d), 0.0);
+}
+
+TEST_F(ExprTest, SimpleDerivativesAreSimplified) {
+  const Node x = parse("x");
+  const Node dx = g_.derivative(x, 0);
+  ASSERT_TRUE(g_.is_constant(dx));
+  EXPECT_EQ(g_.constant_value(dx), 1.0);
+  EXPECT_EQ(g_.derivative(parse("sin(x)"), 0), parse("cos(x)"));
+  EXPECT_EQ(g_.derivative(parse("cos(x)"), 0), parse("-sin(x)"));
+  EXPECT_EQ(g_.derivative(parse("exp(x)"), 0), parse("exp(x)"));
+  EXPECT_EQ(g_.derivative(parse("x^2"), 0), parse("2*x"));
+  EXPECT_EQ(g_.derivative(parse("x^3"), 0), parse("3*x^2"));
+  EXPECT_EQ(g_.derivative(parse("x*y"), 0), parse("y"));
+  EXPECT_EQ(g_.derivative(parse("log(x)"), 0), parse("1/x"));
+  EXPECT_EQ(g_.derivative(parse("a*x + b"), 0), parse("a"));
+}
+
+TEST_F(ExprTest, PiecewiseDerivativesAtKinks) {
+  // abs'(0) = sign(0) = 0.
+  EXPECT_EQ(eval(g_.derivative(parse("abs(x)"), 0), 0.0), 0.0);
+  EXPECT_EQ(eval(g_.derivative(parse("abs(x)"), 0), -2.0), -1.0);
+  // Ties: the derivative of the first argument.
+  EXPECT_EQ(eval(g_.derivative(parse("min(x, y)"), 0), 1.0, 1.0), 1.0);
+  EXPECT_EQ(eval(g_.derivative(parse("min(x, y)"), 1), 1.0, 1.0), 0.0);
+  EXPECT_EQ(eval(g_.derivative(parse("max(x, y)"), 0), 1.0, 1.0), 1.0);
+  EXPECT_EQ(eval(g_.derivative(parse("max(x, y)"), 1), 1.0, 1.0), 0.0);
+  EXPECT_EQ(eval(g_.derivative(parse("min(2*x, y)"), 0), 1.0, 2.0), 2.0);
+  EXPECT_EQ(eval(g_.derivative(parse("max(2*x, y)"), 1), 1.0, 3.0), 1.0);
+  // Second derivative through the select.
+  const Node d2 = g_.derivative(g_.derivative(parse("min(x^2, y)"), 0), 0);
+  EXPECT_EQ(eval(d2, 1.0, 5.0), 2.0);
+  EXPECT_EQ(eval(d2, 3.0, 5.0), 0.0);
+  EXPECT_EQ(eval(g_.derivative(g_.derivative(parse("abs(x)"), 0), 0), 0.5), 0.0);
+}
+
+TEST_F(ExprTest, RobotManipulatorMassMatrix) {
+  // Two-link arm: M12 = m2*b*cos(th2) with m2 and b parameters that resolve to constants.
+  Graph g;
+  const std::map<std::string, double> params{{"m1", 2.0}, {"m2", 1.5}, {"a", 0.8}, {"b", 0.6}, {"I1", 0.1}};
+  Graph::Resolver resolve = [&](std::string_view name) -> std::optional<Node> {
+    if (name == "th1") return g.variable(0);
+    if (name == "th2") return g.variable(1);
+    if (auto it = params.find(std::string(name)); it != params.end()) return g.constant(it->second);
+    return std::nullopt;
+  };
+  const Node m12 = g.parse("m2*b*cos(th2)", resolve);
+  const Node dm12 = g.derivative(m12, 1);
+  EXPECT_EQ(dm12, g.parse("-m2*b*sin(th2)", resolve));
+  ASSERT_TRUE(g.is_constant(g.derivative(m12, 0)));
+  EXPECT_EQ(g.constant_value(g.derivative(m12, 0)), 0.0);
+
+  const Node m11 = g.parse("I1 + m1*a^2/4 + m2*(a^2 + b^2 + 2*a*b*cos(th2))", resolve);
+  const Node m22 = g.parse("m2*b^2", resolve);
+  EXPECT_TRUE(g.is_constant(g.derivative(m22, 1)));
+  std::vector<Node> outputs{m11, m12, m22};
+  for (Node m : {m11, m12, m22}) {
+    for (int k = 0; k < 2; ++k) outputs.push_back(g.derivative(m, k));
+  }
+  const Tape tape = Tape::compile(g, outputs, 2);
+  std::vector<double> scratch(tape.scratch_size());
+  std::vector<double> out(tape.num_outputs());
+  const double q[2] = {0.4, -1.1};
+  tape.eval(q, out.data(), scratch.data());
+  const double c2 = std::cos(q[1]), s2 = std::sin(q[1]);
+  EXPECT_NEAR(out[0], 0.1 + 2.0 * 0.64 / 4 + 1.5 * (0.64 + 0.36 + 2 * 0.8 * 0.6 * c2), 1e-14);
+  EXPECT_NEAR(out[1], 1.5 * 0.6 * c2, 1e-15);
+  EXPECT_NEAR(out[2], 1.5 * 0.36, 1e-15);
+  EXPECT_EQ(out[3], 0.0);
+  EXPECT_NEAR(out[4], -1.5 * 2 * 0.8 * 0.6 * s2, 1e-14);
+  EXPECT_EQ(out[5], 0.0);
+  EXPECT_NEAR(out[6], -1.5 * 0.6 * s2, 1e-15);
+  EXPECT_EQ(out[7], 0.0);
+  EXPECT_EQ(out[8], 0.0);
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Errors and limits.
+
+TEST_F(ExprTest, ErrorMessagesAndPositions) {
+  struct Case {
+    std::string text;
+    std::string message;
+    std::size_t position;
+  };
+  const std::vector<Case> cases = {
+      {"(1+2", "expected ')'", 4},
+      {"sin(x", "expected ')'", 5},
+      {"(1 2)", "expected ')'", 3},
+      {"1 # 2", "unexpected character '#'", 2},
+      {"x + $", "unexpected character '$'", 4},
+      {"(x]", "unexpected character ']'", 2},
+      {"sinn(x)", "unknown function 'sinn'", 0},
+      {"2 * foo(1)", "unknown function 'foo'", 4},
+      {"atan2(x)", "atan2 takes 2 arguments, got 1", 0},
+      {"1 + pow(x)", "pow takes 2 arguments, got 1", 4},
+      {"sin(x, y)", "sin takes 1 argument, got 2", 0},
+      {"min(x, y, z)", "min takes 2 arguments, got 3", 0},
+      {"exp()", "exp takes 1 argument, got 0", 0},
+      {"", "empty expression", 0},
+      {" \t\n", "empty expression", 0},
+      {"1 2", "trailing input after expression", 2},
+      {"x)", "trailing input after expression", 1},
+      {"2x", "trailing input after expression", 1},
+      {"x + foo", "unknown name 'foo'", 4},
+      {"1+", "unexpected end of expression", 2},
+      {"1+*2", "expected a number, a name or '(' but found '*'", 2},
+      {"()", "expected a number, a name or '(' but found ')'", 1},
+      {"1e400", "number out of range '1e400'", 0},
+      {"x + 123456789e305", "number out of range '123456789e305'", 4},
+      {"1e", "malformed number: expected digits in the exponent", 2},
+      {"1e+", "malformed number: expected digits in the exponent", 3},
+      {".", "malformed number: expected a digit", 0},
+      {"x\xff", "unexpected byte 0xFF", 1},
+      {"\xc3\xa9", "unexpected byte 0xC3", 0},
+      {std::string("x\0y", 3), "unexpected byte 0x00", 1},
+      {"x + \x01", "unexpected byte 0x01", 4},
+  };
+  for (const Case& c : cases) {
+    const ExpressionError e = parse_error(c.text);
+    EXPECT_EQ(std::string(e.what()), c.message) << "'" << c.text << "'";
+    EXPECT_EQ(e.position(), c.position) << "'" << c.text << "'";
+  }
+}
+
+TEST_F(ExprTest, NestingLimit) {
+  auto nested = [](int depth) { return std::string(depth, '(') + "x" + std::string(depth, ')'); };
+  EXPECT_EQ(parse(nested(kMaxDepth)), parse("x"));
+  const ExpressionError e = parse_error(nested(kMaxDepth + 1));
+  EXPECT_EQ(std::string(e.what()), "nesting deeper than 128");
+  EXPECT_EQ(e.position(), static_cast<std::size_t>(kMaxDepth));
+  // Every kind of recursion counts: unary signs, exponents and function calls.
+  EXPECT_EQ(std::string(parse_error(std::string(200, '-') + "x").what()), "nesting deeper than 128");
+  std::string tower = "2";
+  for (int i = 0; i < 200; ++i) tower += "^2";
+  EXPECT_EQ(std::string(parse_error(tower).what()), "nesting deeper than 128");
+  std::string calls;
+  for (int i = 0; i < 200; ++i) calls += "sin(";
+  EXPECT_EQ(std::string(parse_error(calls + "x" + std::string(200, ')')).what()), "nesting deeper than 128");
+  // Unbalanced and very deep input: rejected quickly, without deep recursion.
+  const auto start = std::chrono::steady_clock::now();
+  EXPECT_EQ(std::string(parse_error(std::string(10000, '(')).what()), "nesting deeper than 128");
+  EXPECT_EQ(std::string(parse_error(nested(100000)).what()), "expression longer than 16384 characters");
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(1));
+}
+
+TEST_F(ExprTest, LengthLimit) {
+  // "1+1+...+1" of exactly kMaxTextLength characters (the left-deep sum needs no recursion at all).
+  std::string text = "1";
+  while (text.size() + 2 <= kMaxTextLength) text += "+1";
+  text += std::string(kMaxTextLength - text.size(), ' ');
+  ASSERT_EQ(text.size(), kMaxTextLength);
+  EXPECT_EQ(g_.constant_value(parse(text)), static_cast<double>(kMaxTextLength / 2));
+  const ExpressionError e = parse_error(text + " ");
+  EXPECT_EQ(std::string(e.what()), "expression longer than 16384 characters");
+  EXPECT_EQ(e.position(), kMaxTextLength);
+}
+
+TEST_F(ExprTest, NodeLimit) {
+  Graph g;
+  for (std::size_t i = 0; i < kMaxNodes; ++i) g.constant(static_cast<double>(i));
+  EXPECT_EQ(g.size(), kMaxNodes);
+  g.constant(5.0);  // existing nodes can still be found
+  try {
+    g.constant(-1.0);
+    FAIL() << "no error past kMaxNodes";
+  } catch (const ExpressionError& e) {
+    EXPECT_EQ(e.position(), 0u);
+    EXPECT_EQ(std::string(e.what()), "expression graph larger than 1000000 nodes");
+  }
+}
+
+TEST_F(ExprTest, BadArgumentsToTheBuilders) {
+  EXPECT_THROW(g_.variable(-1), std::invalid_argument);
+  EXPECT_THROW(g_.unary(Op::kSin, 12345), std::out_of_range);
+  EXPECT_THROW(g_.unary(Op::kAdd, parse("x")), std::invalid_argument);
+  EXPECT_THROW(g_.binary(Op::kSin, parse("x"), parse("y")), std::invalid_argument);
+  EXPECT_THROW(Tape::compile(g_, {parse("z")}, 2), std::invalid_argument);
+  Graph::Resolver bad = [](std::string_view) -> std::optional<Node> { return Node{999}; };
+  EXPECT_THROW(g_.parse("q", bad), ExpressionError);
+  EXPECT_THROW(g_.parse("q", Graph::Resolver{}), ExpressionError);
+}
+
+TEST_F(ExprTest, RandomInputNeverCrashes) {
+  // Random token soup and random bytes: every input either parses (and then evaluates and differentiates)
+  // or throws ExpressionError.
+  const std::vector<std::string> tokens = {"x", "y", "1", ".5", "2e3", "(", ")", "+", "-", "*", "/", "^", ",",
+                                           "sin(", "atan2(", "min(", "pow(", "abs(", " ", "a", "#", "\xfe", "e"};
+  std::mt19937 rng(12345);
+  int parsed = 0;
+  for (int i = 0; i < 20000; ++i) {
+    std::string text;
+    const int n = std::uniform_int_distribution<int>(0, 30)(rng);
+    for (int k = 0; k < n; ++k) {
+      if (i % 4 == 0) {
+        text += static_cast<char>(std::uniform_int_distribution<int>(0, 255)(rng));
+      } else {
+        text += tokens[std::uniform_int_distribution<std::size_t>(0, tokens.size() - 1)(rng)];
+      }
+    }
+    try {
+      const Node f = parse(text);
+      const Node df = g_.derivative(f, 0);
+      (void)eval(f, 0.3, 0.6);
+      (void)eval(df, 0.3, 0.6);
+      (void)g_.to_string(df);
+      ++parsed;
+    } catch (const ExpressionError&) {
+    }
+  }
+  EXPECT_GT(parsed, 100);
+}
+
+TEST(ExprDeepGraph, TraversalsAreIterative) {
+  // A chain far deeper than the parser allows, built with the builders: derivative, depends_on, to_string
+  // and Tape::compile must not recurse on it.
+  Graph g;
+  const Node x = g.variable(0);
+  Node f = x;
+  for (int i = 0; i < 100000; ++i) f = g.binary(Op::kAdd, g.unary(Op::kSin, f), x);
+  EXPECT_TRUE(g.depends_on(f, 0));
+  EXPECT_FALSE(g.depends_on(f, 1));
+  const Node df = g.derivative(f, 0);
+  EXPECT_FALSE(g.is_constant(df));
+  EXPECT_TRUE(g.is_constant(g.derivative(f, 1)));
+  EXPECT_GT(g.to_string(f).size(), 100000u);
+  const Tape tape = Tape::compile(g, {f, df}, 1);
+  std::vector<double> scratch(tape.scratch_size());
+  double out[2];
+  const double slot = 0.1;
+  tape.eval(&slot, out, scratch.data());
+  EXPECT_TRUE(std::isfinite(out[0]));
+  EXPECT_TRUE(std::isfinite(out[1]));
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Tapes.
+
+TEST_F(ExprTest, TapeSharesSubexpressionsAcrossOutputs) {
+  const Node f1 = parse("sin(x)*y");
+  const Node f2 = parse("sin(x) + y");
+  const Node f3 = parse("sin(x)");
+  const Tape tape = Tape::compile(g_, {f1, f2, f3}, 3);
+  EXPECT_EQ(tape.num_outputs(), 3u);
+  EXPECT_EQ(tape.num_instructions(), 3u);  // sin(x), the product and the sum; x and y are copied in bulk
+  EXPECT_EQ(tape.scratch_size(), 5u);      // one register per node
+  std::vector<double> scratch(tape.scratch_size());
+  double out[3];
+  const double slots[3] = {0.5, 2.0, 0.0};
+  tape.eval(slots, out, scratch.data());
+  EXPECT_EQ(out[0], std::sin(0.5) * 2.0);
+  EXPECT_EQ(out[1], std::sin(0.5) + 2.0);
+  EXPECT_EQ(out[2], std::sin(0.5));
+}
+
+TEST_F(ExprTest, FusedSinCosMatchesSinAndCos) {
+  // sin(u) and cos(u) of the same argument are computed by one instruction; the values must be exactly
+  // those of std::sin and std::cos, which constant folding uses.
+  const Node u = parse("x*y");
+  const Node s = g_.unary(Op::kSin, u);
+  const Node c = g_.unary(Op::kCos, u);
+  const Tape tape = Tape::compile(g_, {c, parse("x"), s, g_.binary(Op::kMul, s, c)}, 3);
+  EXPECT_EQ(tape.num_outputs(), 4u);
+  std::vector<double> scratch(tape.scratch_size());
+  std::mt19937_64 rng(7);
+  std::vector<double> points = {0.0, -0.0, 1e-300, 5e-324, 0.785398163397448, 1.5707963267948966, 3.141592653589793,
+                                -2.5, 100.0, 1e5, 1e10, 1e22, 1e300, -1e300, INFINITY, -INFINITY, NAN};
+  for (int i = 0; i < 2000; ++i) {
+    points.push_back(std::ldexp(std::uniform_real_distribution<double>(-1.0, 1.0)(rng), i % 80 - 20));
+  }
+  for (double p : points) {
+    const double slots[3] = {p, 1.0, 0.0};
+    double out[4];
+    tape.eval(slots, out, scratch.data());
+    const double es = std::sin(p), ec = std::cos(p);
+    if (std::isnan(es)) {
+      EXPECT_TRUE(std::isnan(out[2])) << p;
+      EXPECT_TRUE(std::isnan(out[0])) << p;
+      continue;
+    }
+    EXPECT_EQ(std::bit_cast<std::uint64_t>(out[2]), std::bit_cast<std::uint64_t>(es)) << p;
+    EXPECT_EQ(std::bit_cast<std::uint64_t>(out[0]), std::bit_cast<std::uint64_t>(ec)) << p;
+    EXPECT_EQ(out[1], p);
+    EXPECT_EQ(out[3], es * ec) << p;
+  }
+}
+
+TEST_F(ExprTest, TapeWithRepeatedConstantAndVariableOutputs) {
+  const Node f = parse("x*y + exp(z)");
+  const Node c = parse("a*b");
+  const Node y = parse("y");
+  const Tape tape = Tape::compile(g_, {f, c, f, y, c}, 3);
+  EXPECT_EQ(tape.num_outputs(), 5u);
+  std::vector<double> scratch(tape.scratch_size());
+  double out[5];
+  const double slots[3] = {1.5, -2.0, 0.25};
+  tape.eval(slots, out, scratch.data());
+  const double expected = 1.5 * -2.0 + std::exp(0.25);
+  EXPECT_EQ(out[0], expected);
+  EXPECT_EQ(out[2], expected);
+  EXPECT_EQ(out[1], 1.0);
+  EXPECT_EQ(out[4], 1.0);
+  EXPECT_EQ(out[3], -2.0);
+  // The same tape serves other inputs with a fresh or reused scratch buffer.
+  const double other[3] = {2.0, 3.0, 0.0};
+  tape.eval(other, out, scratch.data());
+  EXPECT_EQ(out[0], 7.0);
+
+  const Tape empty = Tape::compile(g_, {}, 3);
+  EXPECT_EQ(empty.num_outputs(), 0u);
+  EXPECT_EQ(empty.scratch_size(), 0u);
+  empty.eval(slots, nullptr, nullptr);
+  const Tape def;
+  EXPECT_EQ(def.num_instructions(), 0u);
+}
+
+TEST_F(ExprTest, TapeIsTopologicallyOrderedForDeepSharing) {
+  // x1 = x0*x0, x2 = x1*x1, ...: exponential as a tree, linear as a DAG and as a tape.
+  Node f = parse("x");
+  for (int i = 0; i < 40; ++i) f = g_.binary(Op::kMul, g_.binary(Op::kAdd, f, g_.constant(0.5)), f);
+  const Tape tape = Tape::compile(g_, {f}, 1);
+  EXPECT_EQ(tape.num_instructions(), 80u);
+  const Node df = g_.derivative(f, 0);
+  EXPECT_LT(g_.size(), 1000u);
+  (void)eval(df, 0.1);
+  // Printed as a tree, it would have about 2^40 characters: the text is cut off.
+  const std::string text = g_.to_string(f);
+  EXPECT_LT(text.size(), 2u << 20);
+  EXPECT_EQ(text.substr(text.size() - 3), "...");
+}
+
+}  // namespace
+}  // namespace moreau::expr
