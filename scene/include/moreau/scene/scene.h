@@ -1,0 +1,91 @@
+// The scene format (docs/scene-format.md): JSON -> a validated, compiled Lagrangian model plus the
+// integrator settings. Every error names the JSON pointer of the field it is about.
+#pragma once
+
+#include <memory>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "moreau/core/abl_integrator.h"
+#include "moreau/core/controller.h"
+#include "moreau/core/observer.h"
+#include "moreau/core/run_summary.h"
+#include "moreau/scene/expression.h"
+
+namespace moreau::scene {
+
+// Largest step count a scene may ask for (fixed rule) or allow (adaptive rules): 2e9 steps is about
+// 10 minutes of the manipulator at 300 ns per step. /integrator/max_steps may lower it, not raise it.
+inline constexpr std::int64_t kMaxStepsLimit = 2'000'000'000;
+// Largest number of degrees of freedom a scene may declare.
+inline constexpr int kMaxDof = 64;
+
+class SceneError : public std::runtime_error {
+ public:
+  SceneError(std::string pointer, const std::string& reason)
+      : std::runtime_error((pointer.empty() ? std::string("/") : pointer) + ": " + reason),
+        pointer_(pointer.empty() ? "/" : std::move(pointer)),
+        reason_(reason) {}
+  const std::string& pointer() const { return pointer_; }
+  const std::string& reason() const { return reason_; }
+
+ private:
+  std::string pointer_;
+  std::string reason_;
+};
+
+// Applies one `--set PATH=VALUE` override. PATH is dotted (integrator.h, system.mass.0.1) or a JSON
+// pointer (/integrator/h). VALUE is parsed as JSON; if it is not valid JSON it is taken as a string, so
+// `--set system.potential=sin(q1)` works. Missing object members are created; array indices must exist.
+void apply_override(nlohmann::json& doc, const std::string& assignment);
+
+// Reads a scene file; JSON syntax errors name the file, line and column.
+nlohmann::json read_scene_file(const std::string& path);
+
+// The compiled expressions of a Lagrangian scene: one tape for everything a step needs, one for M(q)
+// alone (the Theorem 4.2 rule) and one for V(q). Inputs of every tape: [t, q_1..q_n, v_1..v_n].
+struct CompiledLagrangian {
+  int n = 0;
+  expr::Tape step_tape;    // the non-constant entries of M, C and g = grad V + F
+  expr::Tape mass_tape;    // the non-constant entries of M
+  expr::Tape potential_tape;  // V(q), if the scene gives a potential
+  bool has_potential = false;
+  bool constant_mass = true;
+  // Constant parts, as flat arrays: M (n*n, column-major), C (n*n), g (n).
+  std::vector<double> constant_terms;
+  // step_tape output j goes to flat index step_targets[j] of [M | C | g] (several targets for a
+  // symmetric pair); likewise mass_targets for mass_tape into M.
+  std::vector<std::vector<int>> step_targets;
+  std::vector<std::vector<int>> mass_targets;
+};
+
+struct LagrangianScene {
+  std::string name;
+  int n = 0;
+  std::vector<std::string> coordinates;  // q names
+  std::vector<std::string> velocities;   // v names
+  std::shared_ptr<const CompiledLagrangian> compiled;
+  Controller<Eigen::Dynamic> controller;
+  std::vector<double> q0, v0;
+  std::string scheme = "abl";
+  AblSettings settings;
+  std::int64_t output_every = 1;
+  std::string coriolis = "christoffel";  // "christoffel", "explicit" or "none"
+  std::vector<std::string> christoffel_c;  // C(q, v) entries as text (row-major), for reports and tests
+  // Exact solution carried by textbook scenes (/exact), as expressions in t; empty when absent.
+  std::shared_ptr<const expr::Tape> exact_tape;  // outputs q_1..q_n, v_1..v_n at slot 0 = t
+  std::optional<double> exact_rest_time;
+  std::vector<double> exact_rest_q;
+};
+
+// Validates and compiles a scene. Throws SceneError naming the field.
+LagrangianScene load_scene(const nlohmann::json& doc);
+
+// Runs the scene's integrator on its compiled model (dispatching to fixed-size code for small n).
+RunSummary run_scene(const LagrangianScene& scene, RunObserver* observer);
+
+}  // namespace moreau::scene

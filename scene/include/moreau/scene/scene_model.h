@@ -1,0 +1,99 @@
+// A compiled Lagrangian scene as a model of the ABL integrator (see abl_integrator.h for the model
+// requirements). evaluate() runs one tape for every non-constant entry of M, C and g = grad V + F and
+// scatters the values over the constant parts: no allocation, no virtual call.
+#pragma once
+
+#include <algorithm>
+#include <vector>
+
+#include "moreau/scene/scene.h"
+
+namespace moreau::scene {
+
+template <int N>
+class SceneModel {
+ public:
+  static constexpr int kDof = N;
+
+  explicit SceneModel(const LagrangianScene& scene) : c_(*scene.compiled), n_(scene.n) {
+    phi_.weights = scene.controller.weights;
+    phi_.gains = scene.controller.gains;
+    phi_.norm_gain = scene.controller.norm_gain;
+    slots_.assign(static_cast<std::size_t>(1 + 2 * n_), 0.0);
+    step_values_.assign(c_.step_tape.num_outputs(), 0.0);
+    mass_values_.assign(c_.mass_tape.num_outputs(), 0.0);
+    scratch_.assign(std::max(c_.step_tape.scratch_size(), c_.mass_tape.scratch_size()), 0.0);
+    // Flatten the targets: output j of the step tape writes flat index target_index_[k] for k in
+    // [target_begin_[j], target_begin_[j+1]).
+    for (const auto& targets : c_.step_targets) {
+      step_begin_.push_back(static_cast<int>(step_index_.size()));
+      for (int t : targets) step_index_.push_back(t);
+    }
+    step_begin_.push_back(static_cast<int>(step_index_.size()));
+    for (const auto& targets : c_.mass_targets) {
+      mass_begin_.push_back(static_cast<int>(mass_index_.size()));
+      for (int t : targets) mass_index_.push_back(t);
+    }
+    mass_begin_.push_back(static_cast<int>(mass_index_.size()));
+    constant_.resize(n_);
+    load_constants(constant_);
+  }
+
+  int dof() const { return n_; }
+  const Controller<N>& controller() const { return phi_; }
+  bool constant_mass() const { return c_.constant_mass; }
+
+  void evaluate(double t, const Vec<N>& q, const Vec<N>& v, LagrangianTerms<N>& out) {
+    out.M = constant_.M;
+    out.C = constant_.C;
+    out.g = constant_.g;
+    if (step_values_.empty()) return;  // everything is constant: no tape to run
+    slots_[0] = t;
+    for (int i = 0; i < n_; ++i) {
+      slots_[1 + i] = q(i);
+      slots_[1 + n_ + i] = v(i);
+    }
+    c_.step_tape.eval(slots_.data(), step_values_.data(), scratch_.data());
+    const int nn = n_ * n_;
+    double* M = out.M.data();
+    double* C = out.C.data();
+    double* g = out.g.data();
+    for (std::size_t j = 0; j + 1 < step_begin_.size(); ++j) {
+      const double value = step_values_[j];
+      for (int k = step_begin_[j]; k < step_begin_[j + 1]; ++k) {
+        const int idx = step_index_[k];
+        if (idx < nn) M[idx] = value;
+        else if (idx < 2 * nn) C[idx - nn] = value;
+        else g[idx - 2 * nn] = value;
+      }
+    }
+  }
+
+  void mass(const Vec<N>& q, Mat<N>& M) {
+    M = constant_.M;
+    if (mass_values_.empty()) return;
+    for (int i = 0; i < n_; ++i) slots_[1 + i] = q(i);
+    c_.mass_tape.eval(slots_.data(), mass_values_.data(), scratch_.data());
+    for (std::size_t j = 0; j + 1 < mass_begin_.size(); ++j)
+      for (int k = mass_begin_[j]; k < mass_begin_[j + 1]; ++k) M.data()[mass_index_[k]] = mass_values_[j];
+  }
+
+ private:
+  void load_constants(LagrangianTerms<N>& t) const {
+    const int nn = n_ * n_;
+    for (int i = 0; i < nn; ++i) {
+      t.M.data()[i] = c_.constant_terms[i];
+      t.C.data()[i] = c_.constant_terms[nn + i];
+    }
+    for (int i = 0; i < n_; ++i) t.g(i) = c_.constant_terms[2 * nn + i];
+  }
+
+  const CompiledLagrangian& c_;
+  int n_;
+  Controller<N> phi_;
+  LagrangianTerms<N> constant_;
+  std::vector<double> slots_, step_values_, mass_values_, scratch_;
+  std::vector<int> step_begin_, step_index_, mass_begin_, mass_index_;
+};
+
+}  // namespace moreau::scene

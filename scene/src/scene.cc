@@ -1,0 +1,684 @@
+// Scene validation and compilation. See docs/scene-format.md for the format this implements.
+#include "moreau/scene/scene.h"
+
+#include <cmath>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <set>
+#include <sstream>
+
+namespace moreau::scene {
+namespace {
+
+using nlohmann::json;
+using expr::Graph;
+using expr::Node;
+using expr::Op;
+
+std::string type_name(const json& j) {
+  if (j.is_null()) return "null";
+  if (j.is_boolean()) return "a boolean";
+  if (j.is_number()) return "a number";
+  if (j.is_string()) return "a string";
+  if (j.is_array()) return "an array";
+  return "an object";
+}
+
+std::string join(const std::vector<std::string>& items) {
+  std::string out;
+  for (const auto& s : items) out += (out.empty() ? "" : ", ") + s;
+  return out;
+}
+
+bool is_identifier(const std::string& s) {
+  if (s.empty() || s.size() > 64) return false;
+  if (!(std::isalpha(static_cast<unsigned char>(s[0])) || s[0] == '_')) return false;
+  for (char c : s)
+    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_')) return false;
+  return true;
+}
+
+const std::set<std::string>& function_names() {
+  static const std::set<std::string> names = {"sin",  "cos",  "tan",  "asin", "acos", "atan", "atan2",
+                                              "sinh", "cosh", "tanh", "exp",  "log",  "sqrt", "abs",
+                                              "min",  "max",  "pow"};
+  return names;
+}
+
+// Escapes a key for a JSON pointer (RFC 6901).
+std::string escape(const std::string& key) {
+  std::string out;
+  for (char c : key) {
+    if (c == '~') out += "~0";
+    else if (c == '/') out += "~1";
+    else out += c;
+  }
+  return out;
+}
+
+void require_object(const json& j, const std::string& ptr) {
+  if (!j.is_object()) throw SceneError(ptr, "expected an object, got " + type_name(j));
+}
+
+void check_fields(const json& obj, const std::string& ptr, const std::vector<std::string>& allowed) {
+  for (auto it = obj.begin(); it != obj.end(); ++it) {
+    if (std::find(allowed.begin(), allowed.end(), it.key()) == allowed.end()) {
+      throw SceneError(ptr + "/" + escape(it.key()),
+                       "unknown field '" + it.key() + "' (expected one of: " + join(allowed) + ")");
+    }
+  }
+}
+
+// What an expression may depend on.
+enum Depends : unsigned { kParamsOnly = 0, kTime = 1, kPosition = 2, kVelocity = 4 };
+
+class Compiler {
+ public:
+  explicit Compiler(const json& doc) : doc_(doc) {}
+
+  LagrangianScene compile();
+
+ private:
+  // ---- parameters -------------------------------------------------------------------------------
+  void declare_parameters() {
+    if (!doc_.contains("parameters")) return;
+    const json& p = doc_["parameters"];
+    require_object(p, "/parameters");
+    for (auto it = p.begin(); it != p.end(); ++it) {
+      const std::string ptr = "/parameters/" + escape(it.key());
+      if (!is_identifier(it.key())) throw SceneError(ptr, "'" + it.key() + "' is not a valid name");
+      if (function_names().count(it.key()) || it.key() == "t")
+        throw SceneError(ptr, "'" + it.key() + "' is reserved (a function name or the time t)");
+      params_[it.key()] = &it.value();
+    }
+  }
+
+  Node parameter(const std::string& name) {
+    if (auto it = param_nodes_.find(name); it != param_nodes_.end()) return it->second;
+    if (resolving_.count(name)) throw SceneError("/parameters/" + escape(name), "parameter '" + name + "' depends on itself");
+    resolving_.insert(name);
+    const Node node = constant_node(*params_.at(name), "/parameters/" + escape(name));
+    resolving_.erase(name);
+    param_nodes_[name] = node;
+    return node;
+  }
+
+  // ---- expressions -------------------------------------------------------------------------------
+  Node expression(const json& j, const std::string& ptr, unsigned allowed, const std::string& what) {
+    if (j.is_number()) {
+      const double value = j.get<double>();
+      if (!std::isfinite(value)) throw SceneError(ptr, "not a finite number");
+      return graph_.constant(value);
+    }
+    if (!j.is_string()) throw SceneError(ptr, "expected a number or an expression string, got " + type_name(j));
+    const std::string text = j.get<std::string>();
+    std::string disallowed;
+    auto resolve = [&](std::string_view name_view) -> std::optional<Node> {
+      const std::string name(name_view);
+      if (name == "t") {
+        if (allowed & kTime) return graph_.variable(0);
+        disallowed = name;
+        return std::nullopt;
+      }
+      if (auto it = coord_slot_.find(name); it != coord_slot_.end()) {
+        const bool is_velocity = it->second > n_;
+        if ((is_velocity && (allowed & kVelocity)) || (!is_velocity && (allowed & kPosition)))
+          return graph_.variable(it->second);
+        disallowed = name;
+        return std::nullopt;
+      }
+      if (params_.count(name)) return parameter(name);
+      return std::nullopt;
+    };
+    try {
+      return graph_.parse(text, resolve);
+    } catch (const SceneError&) {
+      throw;
+    } catch (const expr::ExpressionError& e) {
+      if (!disallowed.empty()) {
+        throw SceneError(ptr, "'" + disallowed + "' cannot appear in " + what + " (in '" + text + "')");
+      }
+      throw SceneError(ptr, std::string(e.what()) + " at character " + std::to_string(e.position()) + " of '" +
+                                text.substr(0, 200) + "'");
+    }
+  }
+
+  Node constant_node(const json& j, const std::string& ptr) {
+    const Node node = expression(j, ptr, kParamsOnly, "a constant (parameters only)");
+    if (!graph_.is_constant(node)) throw SceneError(ptr, "must be constant");
+    if (!std::isfinite(graph_.constant_value(node))) throw SceneError(ptr, "evaluates to a non-finite value");
+    return node;
+  }
+
+  double constant(const json& j, const std::string& ptr) { return graph_.constant_value(constant_node(j, ptr)); }
+
+  double positive(const json& j, const std::string& ptr) {
+    const double v = constant(j, ptr);
+    if (!(v > 0.0)) throw SceneError(ptr, "must be > 0, got " + format(v));
+    return v;
+  }
+
+  static std::string format(double v) {
+    std::ostringstream os;
+    os.precision(17);
+    os << v;
+    return os.str();
+  }
+
+  const json& array_of(const json& j, const std::string& ptr, std::size_t size, const std::string& what) {
+    if (!j.is_array()) throw SceneError(ptr, "expected " + what + ", got " + type_name(j));
+    if (j.size() != size)
+      throw SceneError(ptr, "expected " + std::to_string(size) + " entries (one per coordinate), got " + std::to_string(j.size()));
+    return j;
+  }
+
+  std::vector<double> constant_vector(const json& j, const std::string& ptr) {
+    array_of(j, ptr, static_cast<std::size_t>(n_), "an array of " + std::to_string(n_) + " numbers");
+    std::vector<double> out;
+    for (int i = 0; i < n_; ++i) out.push_back(constant(j[i], ptr + "/" + std::to_string(i)));
+    return out;
+  }
+
+  // ---- parts ----------------------------------------------------------------------------------
+  void coordinates(const json& system) {
+    if (!system.contains("mass")) throw SceneError("/system", "missing required field 'mass'");
+    const json& mass = system["mass"];
+    if (!mass.is_array() || mass.empty())
+      throw SceneError("/system/mass", "expected a square array of arrays (the n x n mass matrix), got " + type_name(mass));
+    if (system.contains("coordinates")) {
+      const json& c = system["coordinates"];
+      if (!c.is_array() || c.empty()) throw SceneError("/system/coordinates", "expected a non-empty array of names");
+      n_ = static_cast<int>(c.size());
+    } else {
+      n_ = static_cast<int>(mass.size());
+    }
+    if (n_ > kMaxDof) throw SceneError("/system/mass", "more than " + std::to_string(kMaxDof) + " degrees of freedom");
+    std::set<std::string> seen;
+    for (int i = 0; i < n_; ++i) {
+      std::string q = "q" + std::to_string(i + 1), v = "v" + std::to_string(i + 1);
+      if (system.contains("coordinates")) {
+        const std::string ptr = "/system/coordinates/" + std::to_string(i);
+        const json& name = system["coordinates"][i];
+        if (!name.is_string() || !is_identifier(name.get<std::string>()))
+          throw SceneError(ptr, "expected a name (letters, digits, _), got " + name.dump());
+        q = name.get<std::string>();
+        v = q + "_dot";
+        if (function_names().count(q) || q == "t") throw SceneError(ptr, "'" + q + "' is reserved");
+      }
+      for (const std::string& name : {q, v})
+        if (params_.count(name))
+          throw SceneError("/parameters/" + escape(name), "'" + name + "' is also the name of a coordinate or velocity");
+      if (!seen.insert(q).second || !seen.insert(v).second)
+        throw SceneError("/system/coordinates/" + std::to_string(i), "duplicate name '" + q + "'");
+      coord_names_.push_back(q);
+      vel_names_.push_back(v);
+      coord_slot_[q] = 1 + i;
+      coord_slot_[v] = 1 + n_ + i;
+    }
+  }
+
+  void mass_matrix(const json& mass) {
+    if (mass.size() != static_cast<std::size_t>(n_))
+      throw SceneError("/system/mass", "expected " + std::to_string(n_) + " rows (one per coordinate), got " + std::to_string(mass.size()));
+    M_.assign(static_cast<std::size_t>(n_ * n_), 0);
+    for (int i = 0; i < n_; ++i) {
+      const std::string row_ptr = "/system/mass/" + std::to_string(i);
+      array_of(mass[i], row_ptr, static_cast<std::size_t>(n_), "a row of " + std::to_string(n_) + " entries");
+      for (int j = 0; j < n_; ++j)
+        M_[i * n_ + j] = expression(mass[i][j], row_ptr + "/" + std::to_string(j), kPosition, "the mass matrix (M depends on q only)");
+    }
+  }
+
+  void coriolis(const json& system, LagrangianScene& scene) {
+    C_.assign(static_cast<std::size_t>(n_ * n_), graph_.constant(0.0));
+    std::string mode = "christoffel";
+    if (system.contains("coriolis")) {
+      const json& c = system["coriolis"];
+      if (c.is_string()) {
+        mode = c.get<std::string>();
+        if (mode != "christoffel" && mode != "none")
+          throw SceneError("/system/coriolis", "expected \"christoffel\", \"none\" or an n x n matrix, got \"" + mode + "\"");
+      } else if (c.is_array()) {
+        mode = "explicit";
+        array_of(c, "/system/coriolis", static_cast<std::size_t>(n_), "an n x n matrix");
+        for (int i = 0; i < n_; ++i) {
+          const std::string row_ptr = "/system/coriolis/" + std::to_string(i);
+          array_of(c[i], row_ptr, static_cast<std::size_t>(n_), "a row");
+          for (int j = 0; j < n_; ++j)
+            C_[i * n_ + j] = expression(c[i][j], row_ptr + "/" + std::to_string(j), kPosition | kVelocity,
+                                        "the Coriolis matrix (C depends on q and v only)");
+        }
+      } else {
+        throw SceneError("/system/coriolis", "expected \"christoffel\", \"none\" or an n x n matrix, got " + type_name(c));
+      }
+    }
+    scene.coriolis = mode;
+    if (mode == "christoffel") {
+      // (1.4)-(1.5): C_jk = sum_i C_ijk v_i, C_ijk = 1/2 (dM_jk/dq_i + dM_ji/dq_k - dM_ik/dq_j), exact.
+      auto dM = [&](int a, int b, int i) { return graph_.derivative(sym(a, b), 1 + i); };
+      for (int j = 0; j < n_; ++j) {
+        for (int k = 0; k < n_; ++k) {
+          Node sum = graph_.constant(0.0);
+          for (int i = 0; i < n_; ++i) {
+            Node cijk = graph_.binary(Op::kSub, graph_.binary(Op::kAdd, dM(j, k, i), dM(j, i, k)), dM(i, k, j));
+            cijk = graph_.binary(Op::kMul, graph_.constant(0.5), cijk);
+            sum = graph_.binary(Op::kAdd, sum, graph_.binary(Op::kMul, cijk, graph_.variable(1 + n_ + i)));
+          }
+          C_[j * n_ + k] = sum;
+        }
+      }
+    }
+    for (int i = 0; i < n_ * n_; ++i) scene.christoffel_c.push_back(graph_.to_string(C_[i]));
+  }
+
+  // The symmetric mass entry used everywhere: the upper triangle (the lower one is checked equal).
+  Node sym(int i, int j) const { return i <= j ? M_[i * n_ + j] : M_[j * n_ + i]; }
+
+  void forces(const json& system, LagrangianScene& scene) {
+    g_.assign(static_cast<std::size_t>(n_), graph_.constant(0.0));
+    if (system.contains("potential") && system.contains("potential_gradient"))
+      throw SceneError("/system/potential_gradient", "give either 'potential' or 'potential_gradient', not both");
+    potential_ = -1;
+    if (system.contains("potential")) {
+      potential_ = expression(system["potential"], "/system/potential", kPosition, "the potential (V depends on q only)");
+      for (int i = 0; i < n_; ++i) g_[i] = graph_.derivative(potential_, 1 + i);
+    }
+    if (system.contains("potential_gradient")) {
+      const json& pg = array_of(system["potential_gradient"], "/system/potential_gradient", static_cast<std::size_t>(n_), "an array");
+      for (int i = 0; i < n_; ++i)
+        g_[i] = expression(pg[i], "/system/potential_gradient/" + std::to_string(i), kPosition,
+                           "the potential gradient (depends on q only)");
+    }
+    if (system.contains("force")) {
+      const json& f = array_of(system["force"], "/system/force", static_cast<std::size_t>(n_), "an array");
+      for (int i = 0; i < n_; ++i)
+        g_[i] = graph_.binary(Op::kAdd, g_[i],
+                              expression(f[i], "/system/force/" + std::to_string(i), kTime | kPosition | kVelocity, "the force"));
+    }
+    (void)scene;
+  }
+
+  void controller(const json& system, LagrangianScene& scene) {
+    auto& phi = scene.controller;
+    phi = Controller<Eigen::Dynamic>::zero(n_);
+    if (!system.contains("controller")) return;
+    const json& c = system["controller"];
+    if (!c.is_array()) throw SceneError("/system/controller", "expected an array of terms, got " + type_name(c));
+    for (std::size_t k = 0; k < c.size(); ++k) {
+      const std::string ptr = "/system/controller/" + std::to_string(k);
+      require_object(c[k], ptr);
+      if (!c[k].contains("type") || !c[k]["type"].is_string())
+        throw SceneError(ptr + "/type", "missing term type (quadratic, abs or norm)");
+      const std::string type = c[k]["type"].get<std::string>();
+      auto nonnegative = [&](const json& j, const std::string& p) {
+        const double v = constant(j, p);
+        if (v < 0.0) throw SceneError(p, "must be >= 0 (Phi must be convex), got " + format(v));
+        return v;
+      };
+      if (type == "quadratic") {
+        check_fields(c[k], ptr, {"type", "weights"});
+        if (!c[k].contains("weights")) throw SceneError(ptr, "missing 'weights'");
+        const json& w = array_of(c[k]["weights"], ptr + "/weights", static_cast<std::size_t>(n_), "an array");
+        for (int i = 0; i < n_; ++i) phi.weights(i) += nonnegative(w[i], ptr + "/weights/" + std::to_string(i));
+      } else if (type == "abs") {
+        check_fields(c[k], ptr, {"type", "gains"});
+        if (!c[k].contains("gains")) throw SceneError(ptr, "missing 'gains'");
+        const json& a = array_of(c[k]["gains"], ptr + "/gains", static_cast<std::size_t>(n_), "an array");
+        for (int i = 0; i < n_; ++i) phi.gains(i) += nonnegative(a[i], ptr + "/gains/" + std::to_string(i));
+      } else if (type == "norm") {
+        check_fields(c[k], ptr, {"type", "gain"});
+        if (!c[k].contains("gain")) throw SceneError(ptr, "missing 'gain'");
+        phi.norm_gain += nonnegative(c[k]["gain"], ptr + "/gain");
+      } else {
+        throw SceneError(ptr + "/type", "unknown controller term '" + type + "' (expected quadratic, abs or norm)");
+      }
+    }
+  }
+
+  void integrator(LagrangianScene& scene) {
+    if (!doc_.contains("integrator")) throw SceneError("/integrator", "missing required field 'integrator' (h and t_end)");
+    const json& in = doc_["integrator"];
+    require_object(in, "/integrator");
+    check_fields(in, "/integrator", {"scheme", "h", "t_end", "t0", "step_rule", "k1", "k3", "max_steps"});
+    if (in.contains("scheme")) {
+      if (!in["scheme"].is_string()) throw SceneError("/integrator/scheme", "expected a string");
+      scene.scheme = in["scheme"].get<std::string>();
+      if (scene.scheme != "abl") throw SceneError("/integrator/scheme", "unknown scheme '" + scene.scheme + "' (expected: abl)");
+    }
+    AblSettings& s = scene.settings;
+    if (!in.contains("h")) throw SceneError("/integrator", "missing required field 'h'");
+    if (!in.contains("t_end")) throw SceneError("/integrator", "missing required field 't_end'");
+    s.h = positive(in["h"], "/integrator/h");
+    s.t0 = in.contains("t0") ? constant(in["t0"], "/integrator/t0") : 0.0;
+    s.t_end = constant(in["t_end"], "/integrator/t_end");
+    if (!(s.t_end > s.t0)) throw SceneError("/integrator/t_end", "must be > t0 (" + format(s.t0) + "), got " + format(s.t_end));
+    if (in.contains("step_rule")) {
+      const json& r = in["step_rule"];
+      const std::string rule = r.is_string() ? r.get<std::string>() : "";
+      if (rule == "fixed") s.step_rule = StepRule::kFixed;
+      else if (rule == "theorem-4.1") s.step_rule = StepRule::kTheorem41;
+      else if (rule == "theorem-4.2") s.step_rule = StepRule::kTheorem42;
+      else throw SceneError("/integrator/step_rule", "expected \"fixed\", \"theorem-4.1\" or \"theorem-4.2\", got " + r.dump());
+    }
+    if (in.contains("k1")) s.k1 = positive(in["k1"], "/integrator/k1");
+    if (in.contains("k3")) s.k3 = positive(in["k3"], "/integrator/k3");
+    s.max_steps = kMaxStepsLimit;
+    if (in.contains("max_steps")) {
+      const double m = positive(in["max_steps"], "/integrator/max_steps");
+      if (m != std::floor(m) || m > static_cast<double>(kMaxStepsLimit))
+        throw SceneError("/integrator/max_steps", "must be a whole number <= " + std::to_string(kMaxStepsLimit));
+      s.max_steps = static_cast<std::int64_t>(m);
+    }
+    const double steps = std::ceil((s.t_end - s.t0) / s.h * (1.0 - 1e-12));
+    if (s.step_rule == StepRule::kFixed && steps > static_cast<double>(s.max_steps)) {
+      throw SceneError("/integrator/h", "h = " + format(s.h) + " over [" + format(s.t0) + ", " + format(s.t_end) + "] needs " +
+                                            format(steps) + " steps, more than the limit of " + std::to_string(s.max_steps));
+    }
+    if (s.step_rule == StepRule::kTheorem42 && scene.controller.eta() <= 0.0 && !constant_mass_) {
+      throw SceneError("/integrator/step_rule",
+                       "theorem-4.2 needs eta > 0 in Assumption 4.1: give every coordinate a quadratic controller weight");
+    }
+  }
+
+  void output(LagrangianScene& scene) {
+    if (!doc_.contains("output")) return;
+    const json& o = doc_["output"];
+    require_object(o, "/output");
+    check_fields(o, "/output", {"every"});
+    if (o.contains("every")) {
+      const double e = positive(o["every"], "/output/every");
+      if (e != std::floor(e) || e > 1e15) throw SceneError("/output/every", "must be a whole number >= 1");
+      scene.output_every = static_cast<std::int64_t>(e);
+    }
+  }
+
+  void initial(LagrangianScene& scene) {
+    if (!doc_.contains("initial")) throw SceneError("/initial", "missing required field 'initial' (q, and optionally v)");
+    const json& in = doc_["initial"];
+    require_object(in, "/initial");
+    check_fields(in, "/initial", {"q", "v"});
+    if (!in.contains("q")) throw SceneError("/initial", "missing required field 'q'");
+    scene.q0 = constant_vector(in["q"], "/initial/q");
+    scene.v0 = in.contains("v") ? constant_vector(in["v"], "/initial/v") : std::vector<double>(n_, 0.0);
+  }
+
+  void exact(LagrangianScene& scene) {
+    if (!doc_.contains("exact")) return;
+    const json& ex = doc_["exact"];
+    require_object(ex, "/exact");
+    check_fields(ex, "/exact", {"q", "v", "rest_time", "rest_q", "note"});
+    if (ex.contains("q") != ex.contains("v")) throw SceneError("/exact", "give both 'q' and 'v' of the exact solution, or neither");
+    if (ex.contains("q")) {
+      std::vector<Node> outs;
+      for (const char* part : {"q", "v"}) {
+        const std::string ptr = std::string("/exact/") + part;
+        const json& arr = array_of(ex[part], ptr, static_cast<std::size_t>(n_), "an array of expressions in t");
+        for (int i = 0; i < n_; ++i) outs.push_back(expression(arr[i], ptr + "/" + std::to_string(i), kTime, "an exact solution (a function of t)"));
+      }
+      scene.exact_tape = std::make_shared<expr::Tape>(expr::Tape::compile(graph_, outs, 1 + 2 * n_));
+    }
+    if (ex.contains("rest_time")) scene.exact_rest_time = constant(ex["rest_time"], "/exact/rest_time");
+    if (ex.contains("rest_q")) scene.exact_rest_q = constant_vector(ex["rest_q"], "/exact/rest_q");
+  }
+
+  // Evaluates M, C, g at the initial state: finite, symmetric, positive definite.
+  void check_at_initial_state(const LagrangianScene& scene) {
+    std::vector<Node> outs;
+    for (int i = 0; i < n_ * n_; ++i) outs.push_back(M_[i]);
+    for (int i = 0; i < n_; ++i) outs.push_back(g_[i]);
+    for (int i = 0; i < n_ * n_; ++i) outs.push_back(C_[i]);
+    const expr::Tape tape = expr::Tape::compile(graph_, outs, 1 + 2 * n_);
+    std::vector<double> slots(1 + 2 * n_), values(outs.size()), scratch(tape.scratch_size());
+    auto eval_at = [&](const std::vector<double>& q, const std::vector<double>& v) {
+      slots[0] = scene.settings.t0;
+      for (int i = 0; i < n_; ++i) {
+        slots[1 + i] = q[i];
+        slots[1 + n_ + i] = v[i];
+      }
+      tape.eval(slots.data(), values.data(), scratch.data());
+    };
+    eval_at(scene.q0, scene.v0);
+    for (int i = 0; i < n_; ++i)
+      for (int j = 0; j < n_; ++j)
+        if (!std::isfinite(values[i * n_ + j]))
+          throw SceneError("/system/mass/" + std::to_string(i) + "/" + std::to_string(j), "is not finite at the initial state");
+    for (int i = 0; i < n_; ++i)
+      if (!std::isfinite(values[n_ * n_ + i]))
+        throw SceneError(doc_["system"].contains("force") ? "/system/force/" + std::to_string(i) : "/system/potential",
+                         "the generalized force grad V + F is not finite at the initial state (component " + std::to_string(i) + ")");
+    for (int i = 0; i < n_ * n_; ++i)
+      if (!std::isfinite(values[n_ * n_ + n_ + i]))
+        throw SceneError("/system/coriolis", "C(q, v) is not finite at the initial state");
+
+    // Symmetry: structurally equal entries are; others are compared at the initial state and at a few
+    // deterministic points around it.
+    std::vector<std::vector<double>> points = {scene.q0};
+    for (int p = 1; p <= 6; ++p) {
+      std::vector<double> q = scene.q0;
+      for (int i = 0; i < n_; ++i) q[i] += std::sin(1.7 * p + 2.3 * i) * 2.0;
+      points.push_back(q);
+    }
+    for (const auto& q : points) {
+      eval_at(q, scene.v0);
+      for (int i = 0; i < n_; ++i) {
+        for (int j = i + 1; j < n_; ++j) {
+          if (M_[i * n_ + j] == M_[j * n_ + i]) continue;
+          const double a = values[i * n_ + j], b = values[j * n_ + i];
+          if (std::abs(a - b) > 1e-12 * (std::abs(a) + std::abs(b)) && std::abs(a - b) > 1e-300) {
+            throw SceneError("/system/mass/" + std::to_string(j) + "/" + std::to_string(i),
+                             "M is not symmetric: M[" + std::to_string(i) + "][" + std::to_string(j) + "] = " + format(a) +
+                                 " but M[" + std::to_string(j) + "][" + std::to_string(i) + "] = " + format(b) +
+                                 (q == scene.q0 ? std::string(" at the initial state") : std::string(" at another q")));
+          }
+        }
+      }
+    }
+    eval_at(scene.q0, scene.v0);
+    Eigen::MatrixXd M(n_, n_);
+    for (int i = 0; i < n_; ++i)
+      for (int j = 0; j < n_; ++j) M(i, j) = values[std::min(i, j) * n_ + std::max(i, j)];
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(M, Eigen::EigenvaluesOnly);
+    const double lmin = eig.eigenvalues()(0);
+    if (!(lmin > 0.0))
+      throw SceneError("/system/mass", "M is not positive definite at the initial state (smallest eigenvalue " + format(lmin) + ")");
+  }
+
+  // Builds the three tapes and the constant parts.
+  std::shared_ptr<CompiledLagrangian> build() {
+    auto c = std::make_shared<CompiledLagrangian>();
+    c->n = n_;
+    const int nn = n_ * n_;
+    c->constant_terms.assign(static_cast<std::size_t>(2 * nn + n_), 0.0);
+    std::vector<Node> step_outputs, mass_outputs;
+    auto place = [&](Node node, std::vector<int> targets, bool is_mass) {
+      if (graph_.is_constant(node)) {
+        for (int t : targets) c->constant_terms[t] = graph_.constant_value(node);
+        return;
+      }
+      step_outputs.push_back(node);
+      c->step_targets.push_back(targets);
+      if (is_mass) {
+        mass_outputs.push_back(node);
+        c->mass_targets.push_back(targets);
+        c->constant_mass = false;
+      }
+    };
+    for (int i = 0; i < n_; ++i)
+      for (int j = i; j < n_; ++j)
+        place(sym(i, j), i == j ? std::vector<int>{i + j * n_} : std::vector<int>{i + j * n_, j + i * n_}, true);
+    for (int i = 0; i < n_; ++i)
+      for (int j = 0; j < n_; ++j) place(C_[i * n_ + j], {nn + i + j * n_}, false);
+    for (int i = 0; i < n_; ++i) place(g_[i], {2 * nn + i}, false);
+    c->step_tape = expr::Tape::compile(graph_, step_outputs, 1 + 2 * n_);
+    c->mass_tape = expr::Tape::compile(graph_, mass_outputs, 1 + 2 * n_);
+    if (potential_ >= 0) {
+      c->has_potential = true;
+      c->potential_tape = expr::Tape::compile(graph_, {potential_}, 1 + 2 * n_);
+    }
+    return c;
+  }
+
+  const json& doc_;
+  Graph graph_;
+  int n_ = 0;
+  std::map<std::string, const json*> params_;
+  std::map<std::string, Node> param_nodes_;
+  std::set<std::string> resolving_;
+  std::map<std::string, int> coord_slot_;
+  std::vector<std::string> coord_names_, vel_names_;
+  std::vector<Node> M_, C_, g_;
+  Node potential_ = -1;
+  bool constant_mass_ = true;
+};
+
+LagrangianScene Compiler::compile() {
+  require_object(doc_, "");
+  check_fields(doc_, "", {"name", "description", "parameters", "system", "initial", "integrator", "output", "exact", "units"});
+  LagrangianScene scene;
+  if (doc_.contains("name")) {
+    if (!doc_["name"].is_string()) throw SceneError("/name", "expected a string, got " + type_name(doc_["name"]));
+    scene.name = doc_["name"].get<std::string>();
+  }
+  declare_parameters();
+  if (!doc_.contains("system")) throw SceneError("/system", "missing required field 'system'");
+  const json& system = doc_["system"];
+  require_object(system, "/system");
+  if (!system.contains("type") || !system["type"].is_string())
+    throw SceneError("/system/type", "missing system type (expected \"lagrangian\")");
+  if (system["type"].get<std::string>() != "lagrangian")
+    throw SceneError("/system/type", "unknown system type '" + system["type"].get<std::string>() + "' (expected: lagrangian)");
+  check_fields(system, "/system", {"type", "coordinates", "mass", "coriolis", "potential", "potential_gradient", "force", "controller"});
+  coordinates(system);
+  scene.n = n_;
+  scene.coordinates = coord_names_;
+  scene.velocities = vel_names_;
+  mass_matrix(system["mass"]);
+  for (int i = 0; i < n_ * n_; ++i)
+    if (!graph_.is_constant(M_[i])) constant_mass_ = false;
+  coriolis(system, scene);
+  forces(system, scene);
+  controller(system, scene);
+  initial(scene);
+  integrator(scene);
+  output(scene);
+  exact(scene);
+  check_at_initial_state(scene);
+  scene.compiled = build();
+  return scene;
+}
+
+// Splits a dotted path or a JSON pointer into tokens.
+std::vector<std::string> path_tokens(const std::string& path) {
+  std::vector<std::string> tokens;
+  if (!path.empty() && path[0] == '/') {
+    const json::json_pointer ptr(path);  // throws on a malformed pointer
+    std::string rest = path.substr(1);
+    std::size_t start = 0;
+    while (true) {
+      const std::size_t slash = rest.find('/', start);
+      std::string tok = rest.substr(start, slash == std::string::npos ? std::string::npos : slash - start);
+      std::string unescaped;
+      for (std::size_t i = 0; i < tok.size(); ++i) {
+        if (tok[i] == '~' && i + 1 < tok.size()) {
+          unescaped += tok[i + 1] == '1' ? '/' : '~';
+          ++i;
+        } else {
+          unescaped += tok[i];
+        }
+      }
+      tokens.push_back(unescaped);
+      if (slash == std::string::npos) break;
+      start = slash + 1;
+    }
+    return tokens;
+  }
+  std::stringstream ss(path);
+  std::string tok;
+  while (std::getline(ss, tok, '.')) tokens.push_back(tok);
+  return tokens;
+}
+
+}  // namespace
+
+void apply_override(nlohmann::json& doc, const std::string& assignment) {
+  const std::size_t eq = assignment.find('=');
+  if (eq == std::string::npos || eq == 0)
+    throw SceneError("/", "override '" + assignment + "' is not of the form PATH=VALUE (e.g. integrator.h=1e-4)");
+  const std::string path = assignment.substr(0, eq);
+  const std::string text = assignment.substr(eq + 1);
+  nlohmann::json value = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
+  if (value.is_discarded()) value = text;  // an expression or a bare word
+  std::vector<std::string> tokens;
+  try {
+    tokens = path_tokens(path);
+  } catch (const nlohmann::json::exception&) {
+    throw SceneError(path, "override path is not a valid JSON pointer");
+  }
+  nlohmann::json* node = &doc;
+  std::string ptr;
+  for (std::size_t i = 0; i < tokens.size(); ++i) {
+    const std::string& tok = tokens[i];
+    if (tok.empty()) throw SceneError(ptr + "/", "override path '" + path + "' has an empty component");
+    ptr += "/" + escape(tok);
+    if (node->is_array()) {
+      std::size_t idx = 0;
+      try {
+        std::size_t used = 0;
+        idx = std::stoul(tok, &used);
+        if (used != tok.size()) throw std::invalid_argument("index");
+      } catch (const std::exception&) {
+        throw SceneError(ptr, "override path: '" + tok + "' is not an array index");
+      }
+      if (idx >= node->size()) throw SceneError(ptr, "override path: index " + tok + " is out of range (size " + std::to_string(node->size()) + ")");
+      node = &(*node)[idx];
+    } else if (node->is_object() || node->is_null()) {
+      node = &(*node)[tok];
+    } else {
+      throw SceneError(ptr, "override path goes through a " + type_name(*node) + ", not an object or array");
+    }
+  }
+  *node = value;
+}
+
+nlohmann::json read_scene_file(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw SceneError("/", "cannot open scene file '" + path + "'");
+  std::ostringstream buf;
+  buf << in.rdbuf();
+  const std::string text = buf.str();
+  try {
+    return nlohmann::json::parse(text);
+  } catch (const nlohmann::json::parse_error& e) {
+    // Turn the byte offset into line and column.
+    std::size_t line = 1, col = 1;
+    for (std::size_t i = 0; i + 1 < e.byte && i < text.size(); ++i) {
+      if (text[i] == '\n') {
+        ++line;
+        col = 1;
+      } else {
+        ++col;
+      }
+    }
+    std::string what = e.what();
+    const std::size_t pos = what.find("parse error");
+    if (pos != std::string::npos) what = what.substr(pos);
+    throw SceneError("/", "'" + path + "' is not valid JSON (line " + std::to_string(line) + ", column " +
+                              std::to_string(col) + "): " + what);
+  }
+}
+
+LagrangianScene load_scene(const nlohmann::json& doc) {
+  Compiler compiler(doc);
+  try {
+    return compiler.compile();
+  } catch (const SceneError&) {
+    throw;
+  } catch (const expr::ExpressionError& e) {
+    throw SceneError("/", std::string("expression limit: ") + e.what());
+  } catch (const nlohmann::json::exception& e) {
+    throw SceneError("/", std::string("malformed scene: ") + e.what());
+  }
+}
+
+}  // namespace moreau::scene
