@@ -1,0 +1,64 @@
+// Figure builders for the plots Moreau draws. They take plain data (no integrator types) and return
+// a Figure description, to be rendered with render.h.
+#pragma once
+
+#include <cstddef>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "moreau/render/figure.h"
+
+namespace moreau::render {
+
+// A simulated trajectory. q[i] and v[i] hold coordinate i over time (same length as t). h holds the
+// step sizes: either one per entry of t, or one per step (t.size() - 1, step k from t[k]).
+struct TimeSeriesData {
+  std::vector<double> t, h;
+  std::vector<std::string> q_names, v_names;  // optional; default q1, q2, ... and v1, v2, ...
+  std::vector<std::vector<double>> q, v;
+  std::vector<double> energy;
+  std::optional<double> converged_time;  // finite-time convergence, marked by a dashed line
+  std::vector<double> impact_times;      // marked by ticks along the time axis
+  std::string energy_label;              // default "energy"
+};
+
+struct FigureOptions {
+  int width_px = 1200;
+  int height_px = 800;
+  std::string title;
+  std::vector<std::size_t> coordinates;  // indices into q/v; empty = all
+  std::optional<double> t0, t1;          // time window; unset = the data's extent
+  std::optional<Scale> y_scale;          // unset = the figure kind's default
+};
+
+// Positions (top panel) and velocities (bottom panel) against time, one line per coordinate.
+Figure state_figure(const TimeSeriesData& data, const FigureOptions& options = {});
+// Energy against time, log y axis by default. A log axis cannot show values <= 0: they are dropped,
+// and the legend label says how many.
+Figure energy_figure(const TimeSeriesData& data, const FigureOptions& options = {});
+// Step size h_k against t_k, log y axis by default.
+Figure step_figure(const TimeSeriesData& data, const FigureOptions& options = {});
+// Phase portrait: v against q, one curve per coordinate.
+Figure phase_figure(const TimeSeriesData& data, const FigureOptions& options = {});
+
+// One scheme of a convergence or work-precision study: a run per step size.
+struct SchemeRuns {
+  std::string scheme;
+  std::vector<double> h, error, run_time_s;  // equal lengths (run_time_s may be empty for order_figure)
+};
+
+// Error against run time, log-log, one line per scheme.
+Figure work_figure(const std::vector<SchemeRuns>& runs, const FigureOptions& options = {});
+// Error against h, log-log, one line per scheme; the legend gives the fitted order.
+Figure order_figure(const std::vector<SchemeRuns>& runs, const FigureOptions& options = {});
+
+// Least-squares fit of log10(error) = slope * log10(h) + intercept over the pairs where both are
+// positive and finite. NaN slope if fewer than two such pairs or all h equal.
+struct OrderFit {
+  double slope = 0, intercept = 0;
+  std::size_t points = 0;
+};
+OrderFit fit_order(const std::vector<double>& h, const std::vector<double>& error);
+
+}  // namespace moreau::render

@@ -1,0 +1,349 @@
+// Figure builders (figures.h): plain trajectory and study data -> Figure descriptions.
+#include "moreau/render/figures.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <numeric>
+
+namespace moreau::render {
+namespace {
+
+std::string fmt(double v, const char* spec = "%.3g") {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, spec, v);
+  return buf;
+}
+
+std::string coordinate_name(const std::vector<std::string>& names, std::size_t i, const char* prefix) {
+  if (i < names.size() && !names[i].empty()) return names[i];
+  return prefix + std::to_string(i + 1);
+}
+
+void require(bool ok, const std::string& what) {
+  if (!ok) throw FigureError(what);
+}
+
+// The indices [begin, end) of the samples inside the time window, plus one neighbour on each side
+// so lines run to the edges of the plot.
+struct Window {
+  std::size_t begin = 0, end = 0;
+  double t0 = 0, t1 = 0;
+};
+
+Window time_window(const std::vector<double>& t, const FigureOptions& o, const char* who) {
+  require(!t.empty(), std::string(who) + ": no time samples (t is empty)");
+  Window w;
+  w.t0 = o.t0.value_or(t.front());
+  w.t1 = o.t1.value_or(t.back());
+  require(std::isfinite(w.t0) && std::isfinite(w.t1) && w.t0 <= w.t1,
+          std::string(who) + ": time window [" + fmt(w.t0) + ", " + fmt(w.t1) + "] is empty or not finite");
+  const auto first = std::lower_bound(t.begin(), t.end(), w.t0);
+  const auto last = std::upper_bound(t.begin(), t.end(), w.t1);
+  w.begin = static_cast<std::size_t>(first - t.begin());
+  w.end = static_cast<std::size_t>(last - t.begin());
+  // A window between two samples still shows the segment joining them.
+  require(w.begin < w.end || (w.begin > 0 && w.begin < t.size()),
+          std::string(who) + ": time window [" + fmt(w.t0) + ", " + fmt(w.t1) + "] contains no samples (data spans [" +
+              fmt(t.front()) + ", " + fmt(t.back()) + "])");
+  if (w.begin > 0) --w.begin;
+  if (w.end < t.size()) ++w.end;
+  return w;
+}
+
+std::vector<double> slice(const std::vector<double>& v, const Window& w) {
+  return {v.begin() + static_cast<std::ptrdiff_t>(w.begin), v.begin() + static_cast<std::ptrdiff_t>(w.end)};
+}
+
+Axis time_axis(const Window& w) {
+  Axis a;
+  a.padding = 0;
+  if (w.t1 > w.t0) {
+    a.min = w.t0;
+    a.max = w.t1;
+  }
+  return a;
+}
+
+std::vector<std::size_t> pick_coordinates(const TimeSeriesData& d, const FigureOptions& o, const char* who) {
+  const std::size_t n = std::max(d.q.size(), d.v.size());
+  std::vector<std::size_t> idx = o.coordinates;
+  if (idx.empty()) {
+    idx.resize(n);
+    std::iota(idx.begin(), idx.end(), std::size_t{0});
+  }
+  for (std::size_t i : idx)
+    require(i < n, std::string(who) + ": coordinate index " + std::to_string(i) + " is out of range (the data has " +
+                       std::to_string(n) + " coordinates)");
+  require(!idx.empty(), std::string(who) + ": no coordinates to plot");
+  return idx;
+}
+
+void check_length(const std::vector<double>& v, std::size_t n, const std::string& what, const char* who) {
+  require(v.size() == n, std::string(who) + ": " + what + " has " + std::to_string(v.size()) +
+                             " values but t has " + std::to_string(n));
+}
+
+// On a log axis, values <= 0 cannot be drawn: drop those points and say so in the label.
+void keep_positive_y(Series& s) {
+  std::size_t kept = 0, dropped = 0;
+  for (std::size_t i = 0; i < s.y.size(); ++i) {
+    if (s.y[i] > 0) {
+      s.x[kept] = s.x[i];
+      s.y[kept] = s.y[i];
+      ++kept;
+    } else {
+      ++dropped;
+    }
+  }
+  s.x.resize(kept);
+  s.y.resize(kept);
+  if (dropped) s.label += " (" + std::to_string(dropped) + (dropped == 1 ? " value" : " values") + " \u2264 0 not shown)";
+}
+
+void keep_positive_xy(Series& s, const char* what) {
+  std::size_t kept = 0, dropped = 0;
+  for (std::size_t i = 0; i < s.y.size(); ++i) {
+    if (s.x[i] > 0 && s.y[i] > 0 && std::isfinite(s.x[i]) && std::isfinite(s.y[i])) {
+      s.x[kept] = s.x[i];
+      s.y[kept] = s.y[i];
+      ++kept;
+    } else {
+      ++dropped;
+    }
+  }
+  s.x.resize(kept);
+  s.y.resize(kept);
+  if (dropped) s.label += " (" + std::to_string(dropped) + " " + what + " not shown)";
+}
+
+void add_events(Panel& panel, const TimeSeriesData& d, const Window& w, bool label_convergence) {
+  for (double t : d.impact_times)
+    if (t >= w.t0 && t <= w.t1) panel.markers.push_back({t, "impacts", Marker::Kind::tick, std::nullopt});
+  if (d.converged_time && *d.converged_time >= w.t0 && *d.converged_time <= w.t1) {
+    panel.markers.push_back({*d.converged_time,
+                             label_convergence ? "converged t=" + fmt(*d.converged_time) : std::string(),
+                             Marker::Kind::line, std::nullopt});
+  }
+}
+
+Figure base_figure(const FigureOptions& o) {
+  Figure f;
+  f.width_px = o.width_px;
+  f.height_px = o.height_px;
+  f.title = o.title;
+  return f;
+}
+
+// Drops empty series (e.g. all values dropped on a log axis) so the figure still renders.
+void drop_empty(Panel& p) {
+  std::erase_if(p.series, [](const Series& s) { return s.x.empty(); });
+}
+
+}  // namespace
+
+Figure state_figure(const TimeSeriesData& d, const FigureOptions& o) {
+  const char* who = "state_figure";
+  const Window w = time_window(d.t, o, who);
+  const std::vector<std::size_t> coords = pick_coordinates(d, o, who);
+  const Scale scale = o.y_scale.value_or(Scale::linear);
+  Figure f = base_figure(o);
+  const std::vector<double> t = slice(d.t, w);
+
+  auto make_panel = [&](const std::vector<std::vector<double>>& data, const std::vector<std::string>& names,
+                        const char* prefix, const char* title, const char* y_label, bool first) {
+    Panel p;
+    p.title = title;
+    p.x_label = "t";
+    p.y_label = y_label;
+    p.x_axis = time_axis(w);
+    p.y_axis.scale = scale;
+    for (std::size_t k = 0; k < coords.size(); ++k) {
+      const std::size_t i = coords[k];
+      if (i >= data.size()) continue;
+      check_length(data[i], d.t.size(), std::string(prefix) + "[" + std::to_string(i) + "]", who);
+      Series s;
+      s.label = coordinate_name(names, i, prefix);
+      s.x = t;
+      s.y = slice(data[i], w);
+      s.color = static_cast<int>(k);
+      if (scale == Scale::log) keep_positive_y(s);
+      p.series.push_back(std::move(s));
+    }
+    drop_empty(p);
+    add_events(p, d, w, first);
+    return p;
+  };
+  if (!d.q.empty()) f.panels.push_back(make_panel(d.q, d.q_names, "q", "Positions", "q", true));
+  if (!d.v.empty()) f.panels.push_back(make_panel(d.v, d.v_names, "v", "Velocities", "v", d.q.empty()));
+  require(!f.panels.empty(), std::string(who) + ": neither positions nor velocities given");
+  return f;
+}
+
+Figure energy_figure(const TimeSeriesData& d, const FigureOptions& o) {
+  const char* who = "energy_figure";
+  const Window w = time_window(d.t, o, who);
+  check_length(d.energy, d.t.size(), "energy", who);
+  Figure f = base_figure(o);
+  Panel p;
+  const std::string label = d.energy_label.empty() ? "energy" : d.energy_label;
+  p.x_label = "t";
+  p.y_label = label;
+  p.x_axis = time_axis(w);
+  p.y_axis.scale = o.y_scale.value_or(Scale::log);
+  Series s;
+  s.label = label;
+  s.x = slice(d.t, w);
+  s.y = slice(d.energy, w);
+  if (p.y_axis.scale == Scale::log) {
+    keep_positive_y(s);
+    if (s.x.empty()) {  // nothing positive: a log axis would be empty, fall back to linear
+      s.label = label;
+      s.x = slice(d.t, w);
+      s.y = slice(d.energy, w);
+      p.y_axis.scale = Scale::linear;
+      s.label += " (no positive values: linear axis)";
+    }
+  }
+  p.series.push_back(std::move(s));
+  add_events(p, d, w, true);
+  f.panels.push_back(std::move(p));
+  return f;
+}
+
+Figure step_figure(const TimeSeriesData& d, const FigureOptions& o) {
+  const char* who = "step_figure";
+  require(!d.h.empty(), std::string(who) + ": no step sizes (h is empty)");
+  require(d.h.size() == d.t.size() || d.h.size() + 1 == d.t.size(),
+          std::string(who) + ": h has " + std::to_string(d.h.size()) + " values; expected " +
+              std::to_string(d.t.size()) + " (one per sample) or " + std::to_string(d.t.size() - 1) +
+              " (one per step)");
+  const std::vector<double> t(d.t.begin(), d.t.begin() + static_cast<std::ptrdiff_t>(d.h.size()));
+  FigureOptions oo = o;
+  if (!oo.t1) oo.t1 = d.t.back();
+  const Window w = time_window(t, oo, who);
+  Figure f = base_figure(o);
+  Panel p;
+  p.x_label = "t";
+  p.y_label = "h";
+  p.x_axis = time_axis(w);
+  p.y_axis.scale = o.y_scale.value_or(Scale::log);
+  Series s;
+  s.label = "step size h\u2096";
+  s.x = slice(t, w);
+  s.y = slice(d.h, w);
+  s.style = s.x.size() <= 300 ? SeriesStyle::line_points : SeriesStyle::line;
+  if (p.y_axis.scale == Scale::log) keep_positive_y(s);
+  p.series.push_back(std::move(s));
+  drop_empty(p);
+  add_events(p, d, w, true);
+  f.panels.push_back(std::move(p));
+  return f;
+}
+
+Figure phase_figure(const TimeSeriesData& d, const FigureOptions& o) {
+  const char* who = "phase_figure";
+  const Window w = time_window(d.t, o, who);
+  const std::vector<std::size_t> coords = pick_coordinates(d, o, who);
+  Figure f = base_figure(o);
+  Panel p;
+  p.x_label = "q";
+  p.y_label = "v";
+  p.y_axis.scale = o.y_scale.value_or(Scale::linear);
+  for (std::size_t k = 0; k < coords.size(); ++k) {
+    const std::size_t i = coords[k];
+    require(i < d.q.size() && i < d.v.size(),
+            std::string(who) + ": coordinate " + std::to_string(i) + " needs both q and v");
+    check_length(d.q[i], d.t.size(), "q[" + std::to_string(i) + "]", who);
+    check_length(d.v[i], d.t.size(), "v[" + std::to_string(i) + "]", who);
+    Series s;
+    const std::string qn = coordinate_name(d.q_names, i, "q"), vn = coordinate_name(d.v_names, i, "v");
+    s.label = "(" + qn + ", " + vn + ")";
+    s.x = slice(d.q[i], w);
+    s.y = slice(d.v[i], w);
+    s.color = static_cast<int>(k);
+    if (p.y_axis.scale == Scale::log) keep_positive_y(s);
+    p.series.push_back(std::move(s));
+    if (coords.size() == 1) {
+      p.x_label = qn;
+      p.y_label = vn;
+    }
+  }
+  drop_empty(p);
+  f.panels.push_back(std::move(p));
+  return f;
+}
+
+OrderFit fit_order(const std::vector<double>& h, const std::vector<double>& error) {
+  OrderFit fit;
+  double sx = 0, sy = 0, sxx = 0, sxy = 0;
+  const std::size_t n = std::min(h.size(), error.size());
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!(h[i] > 0 && error[i] > 0 && std::isfinite(h[i]) && std::isfinite(error[i]))) continue;
+    const double x = std::log10(h[i]), y = std::log10(error[i]);
+    sx += x;
+    sy += y;
+    sxx += x * x;
+    sxy += x * y;
+    ++fit.points;
+  }
+  const double m = static_cast<double>(fit.points);
+  const double den = m * sxx - sx * sx;
+  if (fit.points < 2 || !(std::abs(den) > 1e-12 * std::max(1.0, m * sxx))) {
+    fit.slope = fit.intercept = std::numeric_limits<double>::quiet_NaN();
+    return fit;
+  }
+  fit.slope = (m * sxy - sx * sy) / den;
+  fit.intercept = (sy - fit.slope * sx) / m;
+  return fit;
+}
+
+namespace {
+
+Figure study_figure(const std::vector<SchemeRuns>& runs, const FigureOptions& o, bool work) {
+  const char* who = work ? "work_figure" : "order_figure";
+  require(!runs.empty(), std::string(who) + ": no schemes");
+  Figure f = base_figure(o);
+  Panel p;
+  p.x_label = work ? "run time [s]" : "step size h";
+  p.y_label = "error";
+  p.x_axis.scale = Scale::log;
+  p.y_axis.scale = o.y_scale.value_or(Scale::log);
+  for (std::size_t k = 0; k < runs.size(); ++k) {
+    const SchemeRuns& r = runs[k];
+    const std::vector<double>& xs = work ? r.run_time_s : r.h;
+    require(xs.size() == r.error.size(), std::string(who) + ": scheme '" + r.scheme + "' has " +
+                                             std::to_string(xs.size()) + (work ? " run times" : " step sizes") +
+                                             " but " + std::to_string(r.error.size()) + " errors");
+    Series s;
+    s.label = r.scheme.empty() ? "scheme " + std::to_string(k + 1) : r.scheme;
+    if (!work) {
+      const OrderFit fit = fit_order(r.h, r.error);
+      if (std::isfinite(fit.slope)) s.label += " (slope " + fmt(fit.slope, "%.2f") + ")";
+    }
+    std::vector<std::size_t> order(xs.size());
+    std::iota(order.begin(), order.end(), std::size_t{0});
+    std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return xs[a] < xs[b]; });
+    for (std::size_t i : order) {
+      s.x.push_back(xs[i]);
+      s.y.push_back(r.error[i]);
+    }
+    s.style = SeriesStyle::line_points;
+    s.color = static_cast<int>(k);
+    keep_positive_xy(s, "runs with zero error or time");
+    p.series.push_back(std::move(s));
+  }
+  drop_empty(p);
+  require(!p.series.empty(), std::string(who) + ": no run has a positive error");
+  f.panels.push_back(std::move(p));
+  return f;
+}
+
+}  // namespace
+
+Figure work_figure(const std::vector<SchemeRuns>& runs, const FigureOptions& o) { return study_figure(runs, o, true); }
+
+Figure order_figure(const std::vector<SchemeRuns>& runs, const FigureOptions& o) { return study_figure(runs, o, false); }
+
+}  // namespace moreau::render

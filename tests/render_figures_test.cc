@@ -1,0 +1,208 @@
+// render/: the figure builders (state, energy, step, phase, work, order) on synthetic trajectories.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "moreau/render/figures.h"
+#include "moreau/render/render.h"
+#include "synthetic.h"
+
+using namespace moreau::render;
+using ::testing::HasSubstr;
+
+namespace {
+
+TimeSeriesData small_trajectory() { return synthetic::trajectory(2001); }
+
+std::size_t count_markers(const Panel& p, Marker::Kind kind) {
+  return static_cast<std::size_t>(
+      std::count_if(p.markers.begin(), p.markers.end(), [&](const Marker& m) { return m.kind == kind; }));
+}
+
+std::vector<SchemeRuns> power_law_study() {
+  std::vector<SchemeRuns> runs(2);
+  runs[0].scheme = "first";
+  runs[1].scheme = "second";
+  for (int k = 0; k < 6; ++k) {
+    const double h = 0.1 / std::pow(2.0, k);
+    runs[0].h.push_back(h);
+    runs[0].error.push_back(3.0 * h);
+    runs[0].run_time_s.push_back(1e-3 / h);
+    runs[1].h.push_back(h);
+    runs[1].error.push_back(0.5 * h * h);
+    runs[1].run_time_s.push_back(3e-3 / h);
+  }
+  return runs;
+}
+
+}  // namespace
+
+TEST(RenderFigures, StateFigureHasPositionAndVelocityPanels) {
+  const TimeSeriesData d = small_trajectory();
+  const Figure f = state_figure(d);
+  ASSERT_EQ(f.panels.size(), 2u);
+  const Panel& q = f.panels[0];
+  const Panel& v = f.panels[1];
+  ASSERT_EQ(q.series.size(), 2u);
+  ASSERT_EQ(v.series.size(), 2u);
+  EXPECT_EQ(q.series[0].label, "ball height");
+  EXPECT_EQ(v.series[1].label, "oscillator v");
+  EXPECT_EQ(q.series[0].x.size(), d.t.size());
+  EXPECT_EQ(q.series[1].color, 1);
+  // One convergence line per panel, labelled in the first; impacts as ticks.
+  EXPECT_EQ(count_markers(q, Marker::Kind::line), 1u);
+  EXPECT_EQ(count_markers(v, Marker::Kind::line), 1u);
+  EXPECT_EQ(count_markers(q, Marker::Kind::tick), d.impact_times.size());
+  const auto conv = std::find_if(q.markers.begin(), q.markers.end(),
+                                 [](const Marker& m) { return m.kind == Marker::Kind::line; });
+  EXPECT_DOUBLE_EQ(conv->x, *d.converged_time);
+  EXPECT_THAT(conv->label, HasSubstr("converged t=4.06"));
+  // Time runs edge to edge.
+  EXPECT_EQ(q.x_axis.min, 0.0);
+  EXPECT_EQ(q.x_axis.max, 5.0);
+  validate(f);
+}
+
+TEST(RenderFigures, StateFigureSelectsCoordinatesAndTimeWindow) {
+  const TimeSeriesData d = small_trajectory();
+  FigureOptions o;
+  o.coordinates = {1};
+  o.t0 = 1.0;
+  o.t1 = 2.0;
+  const Figure f = state_figure(d, o);
+  ASSERT_EQ(f.panels[0].series.size(), 1u);
+  const Series& s = f.panels[0].series[0];
+  EXPECT_EQ(s.label, "oscillator x");
+  EXPECT_EQ(f.panels[0].x_axis.min, 1.0);
+  EXPECT_EQ(f.panels[0].x_axis.max, 2.0);
+  // The window's samples plus one neighbour each side.
+  EXPECT_LT(s.x.front(), 1.0);
+  EXPECT_GT(s.x.back(), 2.0);
+  EXPECT_LT(s.x.size(), 450u);
+  for (const Marker& m : f.panels[0].markers) {
+    EXPECT_GE(m.x, 1.0);
+    EXPECT_LE(m.x, 2.0);
+  }
+}
+
+TEST(RenderFigures, BuilderErrorsAreClear) {
+  TimeSeriesData d = small_trajectory();
+  FigureOptions o;
+  o.coordinates = {5};
+  try {
+    state_figure(d, o);
+    FAIL();
+  } catch (const FigureError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("coordinate index 5 is out of range (the data has 2 coordinates)"));
+  }
+  d.q[1].pop_back();
+  try {
+    state_figure(d);
+    FAIL();
+  } catch (const FigureError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("q[1] has 2000 values but t has 2001"));
+  }
+  d = small_trajectory();
+  o = {};
+  o.t0 = 10;
+  o.t1 = 11;
+  EXPECT_THROW(state_figure(d, o), FigureError);
+  d.h = {1, 2, 3};
+  EXPECT_THROW(step_figure(d), FigureError);
+}
+
+TEST(RenderFigures, EnergyOnALogAxisDropsZerosAndSaysSo) {
+  const TimeSeriesData d = small_trajectory();
+  const Figure f = energy_figure(d);
+  ASSERT_EQ(f.panels.size(), 1u);
+  const Panel& p = f.panels[0];
+  EXPECT_EQ(p.y_axis.scale, Scale::log);
+  ASSERT_EQ(p.series.size(), 1u);
+  const std::size_t zeros = static_cast<std::size_t>(std::count(d.energy.begin(), d.energy.end(), 0.0));
+  ASSERT_GT(zeros, 0u);
+  EXPECT_EQ(p.series[0].x.size(), d.t.size() - zeros);
+  EXPECT_THAT(p.series[0].label, HasSubstr("ball energy (" + std::to_string(zeros) + " values"));
+  EXPECT_THAT(p.series[0].label, HasSubstr("not shown"));
+  validate(f);
+
+  TimeSeriesData zero = d;
+  std::fill(zero.energy.begin(), zero.energy.end(), 0.0);
+  const Figure g = energy_figure(zero);
+  EXPECT_EQ(g.panels[0].y_axis.scale, Scale::linear);
+  EXPECT_THAT(g.panels[0].series[0].label, HasSubstr("linear axis"));
+  validate(g);
+}
+
+TEST(RenderFigures, StepAndPhaseFigures) {
+  const TimeSeriesData d = small_trajectory();
+  const Figure s = step_figure(d);
+  ASSERT_EQ(s.panels[0].series.size(), 1u);
+  EXPECT_EQ(s.panels[0].series[0].y.size(), d.h.size());
+  EXPECT_EQ(s.panels[0].x_axis.max, d.t.back());
+  validate(s);
+
+  FigureOptions o;
+  o.coordinates = {0};
+  const Figure p = phase_figure(d, o);
+  ASSERT_EQ(p.panels[0].series.size(), 1u);
+  EXPECT_EQ(p.panels[0].series[0].x, d.q[0]);
+  EXPECT_EQ(p.panels[0].series[0].y, d.v[0]);
+  EXPECT_EQ(p.panels[0].x_label, "ball height");
+  EXPECT_EQ(p.panels[0].y_label, "ball velocity");
+  validate(p);
+}
+
+TEST(RenderFigures, FitOrderRecoversThePowerLaw) {
+  const auto runs = power_law_study();
+  const OrderFit a = fit_order(runs[0].h, runs[0].error);
+  EXPECT_NEAR(a.slope, 1.0, 1e-12);
+  EXPECT_NEAR(a.intercept, std::log10(3.0), 1e-12);
+  EXPECT_EQ(a.points, 6u);
+  const OrderFit b = fit_order(runs[1].h, runs[1].error);
+  EXPECT_NEAR(b.slope, 2.0, 1e-12);
+  // Zero errors are skipped; fewer than two usable points give NaN.
+  EXPECT_EQ(fit_order({0.1, 0.05, 0.025}, {1e-2, 0.0, 2.5e-3}).points, 2u);
+  EXPECT_TRUE(std::isnan(fit_order({0.1}, {1e-2}).slope));
+  EXPECT_TRUE(std::isnan(fit_order({0.1, 0.1}, {1e-2, 2e-2}).slope));
+}
+
+TEST(RenderFigures, OrderAndWorkFiguresAreLogLog) {
+  const auto runs = power_law_study();
+  const Figure o = order_figure(runs);
+  const Panel& p = o.panels[0];
+  EXPECT_EQ(p.x_axis.scale, Scale::log);
+  EXPECT_EQ(p.y_axis.scale, Scale::log);
+  ASSERT_EQ(p.series.size(), 2u);
+  EXPECT_EQ(p.series[0].label, "first (slope 1.00)");
+  EXPECT_EQ(p.series[1].label, "second (slope 2.00)");
+  EXPECT_TRUE(std::is_sorted(p.series[0].x.begin(), p.series[0].x.end()));
+  validate(o);
+
+  const Figure w = work_figure(runs);
+  EXPECT_EQ(w.panels[0].series[1].label, "second");
+  EXPECT_TRUE(std::is_sorted(w.panels[0].series[1].x.begin(), w.panels[0].series[1].x.end()));
+  EXPECT_EQ(w.panels[0].x_label, "run time [s]");
+  validate(w);
+
+  auto bad = runs;
+  bad[0].run_time_s.pop_back();
+  EXPECT_THROW(work_figure(bad), FigureError);
+}
+
+TEST(RenderFigures, EveryKindRendersToPngAndSvg) {
+  const TimeSeriesData d = small_trajectory();
+  FigureOptions o;
+  o.width_px = 480;
+  o.height_px = 360;
+  const Figure figures[] = {state_figure(d, o), energy_figure(d, o), step_figure(d, o), phase_figure(d, o),
+                            work_figure(power_law_study(), o), order_figure(power_law_study(), o)};
+  for (const Figure& f : figures) {
+    const Image im = decode_png(render_png_bytes(f));
+    EXPECT_EQ(im.width, 480);
+    EXPECT_EQ(im.height, 360);
+    EXPECT_THAT(render_svg(f), HasSubstr("<polyline"));
+  }
+}
