@@ -10,8 +10,8 @@
 
 #include <CLI/CLI.hpp>
 
-#include "report.h"
-#include "trajectory_csv.h"
+#include "moreau/scene/report.h"
+#include "moreau/scene/trajectory_csv.h"
 
 namespace {
 
@@ -76,8 +76,8 @@ int run_command(const RunOptions& opt) {
     return 2;
   }
 
-  cli::ObserverFan fan;
-  std::optional<cli::TrajectoryCsvWriter> csv;
+  scene::ObserverFan fan;
+  std::optional<scene::TrajectoryCsvWriter> csv;
   if (!opt.out_csv.empty()) {
     try {
       csv.emplace(opt.out_csv, sc.coordinates, sc.velocities);
@@ -110,9 +110,9 @@ int run_command(const RunOptions& opt) {
     summary.add_phase("write", write_s);
   }
   if (opt.json) {
-    std::cout << cli::report_json(sc, summary).dump(2) << "\n";
+    std::cout << scene::report_json(sc, summary).dump(2) << "\n";
   } else {
-    std::cout << cli::report_text(sc, summary);
+    std::cout << scene::report_text(sc, summary);
   }
   return summary.status == RunStatus::kCompleted ? 0 : 1;
 }

@@ -128,6 +128,10 @@ class AblIntegrator {
     if (fixed && fixed_steps > settings_.max_steps) {
       return fail(s, q, v, t, k, clock_start, "the step count exceeds max_steps");
     }
+    // The last fixed step lands on t_end; it is h itself when t_end - t0 is a whole number of steps.
+    const double span = settings_.t_end - settings_.t0;
+    const double remainder = span - static_cast<double>(fixed_steps - 1) * settings_.h;
+    const double last_fixed_h = std::abs(remainder - settings_.h) <= 1e-9 * settings_.h ? settings_.h : remainder;
     double h_prev = settings_.h;
     std::int64_t last_emitted = 0;
     double h_k = settings_.h;
@@ -135,8 +139,7 @@ class AblIntegrator {
     while (true) {
       if (fixed) {
         if (k >= fixed_steps) break;
-        h_k = (k + 1 == fixed_steps) ? settings_.t_end - (settings_.t0 + static_cast<double>(k) * settings_.h)
-                                      : settings_.h;
+        h_k = (k + 1 == fixed_steps) ? last_fixed_h : settings_.h;
       } else {
         if (t >= settings_.t_end) break;
         if (k >= settings_.max_steps) return fail(s, q, v, t, k, clock_start, "max_steps reached before t_end");

@@ -1,9 +1,9 @@
-#include "report.h"
+#include "moreau/scene/report.h"
 
 #include <cstdio>
 #include <sstream>
 
-namespace moreau::cli {
+namespace moreau::scene {
 namespace {
 
 const char* rule_name(StepRule r) {
@@ -32,7 +32,7 @@ nlohmann::json num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlo
 
 }  // namespace
 
-nlohmann::json report_json(const scene::LagrangianScene& scene, const RunSummary& s) {
+nlohmann::json report_json(const LagrangianScene& scene, const RunSummary& s) {
   nlohmann::json j;
   j["scene"] = scene.name;
   j["status"] = to_string(s.status);
@@ -66,7 +66,7 @@ nlohmann::json report_json(const scene::LagrangianScene& scene, const RunSummary
   return j;
 }
 
-std::string report_text(const scene::LagrangianScene& scene, const RunSummary& s) {
+std::string report_text(const LagrangianScene& scene, const RunSummary& s) {
   std::ostringstream os;
   std::string names;
   for (std::size_t i = 0; i < scene.coordinates.size(); ++i) names += (i ? ", " : "") + scene.coordinates[i];
@@ -92,8 +92,11 @@ std::string report_text(const scene::LagrangianScene& scene, const RunSummary& s
   }
   os << "  energy        E_k = 1/2 <M(Q^k) V^k, V^k> " << (s.energy_nonincreasing ? "non-increasing" : "increased")
      << ": E_0 = " << fmt(s.energy_initial) << ", E_N = " << fmt(s.energy_final);
-  if (!s.energy_nonincreasing)
+  if (!s.energy_nonincreasing) {
     os << " (" << s.energy_increases << " rises, largest " << fmt(s.energy_max_increase) << ")";
+    os << "\n                Theorem 4.2 promises a non-increasing E_k only with step_rule theorem-4.2 and\n"
+          "                Assumption 4.1 (||F|| <= beta < alpha, ||grad V|| <= (alpha - beta)/2)";
+  }
   os << "\n";
   os << "  solver        max " << s.solver.max_iterations << " iterations per step, " << s.solver.total_iterations
      << " in all, max residual " << fmt(s.solver.max_residual) << ", " << s.solver.rest_steps << " steps at rest, "
@@ -104,4 +107,4 @@ std::string report_text(const scene::LagrangianScene& scene, const RunSummary& s
   return os.str();
 }
 
-}  // namespace moreau::cli
+}  // namespace moreau::scene

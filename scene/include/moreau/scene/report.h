@@ -8,9 +8,9 @@
 #include "moreau/core/run_summary.h"
 #include "moreau/scene/scene.h"
 
-namespace moreau::cli {
+namespace moreau::scene {
 
-nlohmann::json report_json(const scene::LagrangianScene& scene, const RunSummary& summary);
-std::string report_text(const scene::LagrangianScene& scene, const RunSummary& summary);
+nlohmann::json report_json(const LagrangianScene& scene, const RunSummary& summary);
+std::string report_text(const LagrangianScene& scene, const RunSummary& summary);
 
-}  // namespace moreau::cli
+}  // namespace moreau::scene

@@ -9,7 +9,7 @@
 
 #include "moreau/core/observer.h"
 
-namespace moreau::cli {
+namespace moreau::scene {
 
 class TrajectoryCsvWriter : public RunObserver {
  public:
@@ -52,4 +52,4 @@ class ObserverFan : public RunObserver {
   std::vector<RunObserver*> observers_;
 };
 
-}  // namespace moreau::cli
+}  // namespace moreau::scene

@@ -1,4 +1,4 @@
-#include "trajectory_csv.h"
+#include "moreau/scene/trajectory_csv.h"
 
 #include <cerrno>
 #include <charconv>
@@ -6,7 +6,7 @@
 #include <cstring>
 #include <stdexcept>
 
-namespace moreau::cli {
+namespace moreau::scene {
 namespace {
 constexpr std::size_t kBufferBytes = 1 << 20;
 constexpr std::size_t kMaxRowBytes = 64;  // per value, including the separator
@@ -71,4 +71,4 @@ void TrajectoryCsvWriter::close() {
   if (failed_ || !flushed || !closed) throw std::runtime_error("writing '" + path_ + "' failed (disk full?)");
 }
 
-}  // namespace moreau::cli
+}  // namespace moreau::scene
