@@ -180,7 +180,7 @@ class Builder {
     const FontMetrics fig_m = font_metrics(st_.figure_title_px, true);
 
     double top = st_.pad * 0.6;
-    if (!f_.title.empty()) top = st_.pad * 0.8 + fig_m.line_height() + st_.pad * 0.5;
+    if (!f_.title.empty()) top = st_.pad * 0.8 + fig_m.line_height() + st_.pad * 0.9;
     const double bottom = st_.pad * 0.5;
     const double slot = (f_.height_px - top - bottom) / static_cast<double>(n);
 
