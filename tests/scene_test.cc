@@ -118,7 +118,9 @@ TEST(Scene, DampedRelayMatchesItsClosedForm) {
     const auto ex = Exact(sc, rec.t[k]);
     EXPECT_NEAR(rec.q[k], ex[0], 3 * sc.settings.h) << rec.t[k];
     EXPECT_NEAR(rec.v[k], ex[1], 3 * sc.settings.h) << rec.t[k];
-    if (rec.t[k] > *s.converged_time) ASSERT_EQ(rec.v[k], 0.0);
+    if (rec.t[k] > *s.converged_time) {
+      ASSERT_EQ(rec.v[k], 0.0);
+    }
   }
 }
 

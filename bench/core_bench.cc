@@ -1,0 +1,118 @@
+// Per-step cost of the ABL scheme, end to end through the integrator (model evaluation, step rule,
+// one-step solver, state update, energy and convergence bookkeeping). Each benchmark runs a whole
+// simulation per iteration and reports time per step (items_per_second is steps per second).
+//
+// The "moving" variants stop before the system reaches rest, so every step does the full work; the
+// "to_rest" variants run the paper's 10 s, most of it at rest, where the y = 0 closed form makes a step
+// cheaper.
+#include <benchmark/benchmark.h>
+
+#include "moreau/core/abl_integrator.h"
+#include "moreau/core/models/manipulator.h"
+#include "moreau/scene/scene.h"
+
+namespace {
+
+using namespace moreau;
+
+scene::LagrangianScene LoadScene(const char* file, double t_end) {
+  nlohmann::json doc = scene::read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/" + file);
+  doc["integrator"]["t_end"] = t_end;
+  return scene::load_scene(doc);
+}
+
+void SetPerStep(benchmark::State& state, std::int64_t steps_per_run) {
+  state.SetItemsProcessed(state.iterations() * steps_per_run);
+  state.counters["ns_per_step"] = benchmark::Counter(static_cast<double>(state.iterations() * steps_per_run),
+                                                     benchmark::Counter::kIsRate | benchmark::Counter::kInvert,
+                                                     benchmark::Counter::kIs1000);
+}
+
+void ManipulatorScene(benchmark::State& state, double t_end) {
+  const scene::LagrangianScene sc = LoadScene("manipulator.json", t_end);
+  std::int64_t steps = 0;
+  for (auto _ : state) {
+    const RunSummary s = scene::run_scene(sc, nullptr);
+    steps = s.steps;
+    benchmark::DoNotOptimize(s.q_final.data());
+  }
+  SetPerStep(state, steps);
+}
+void BM_ManipulatorJsonScene_moving(benchmark::State& state) { ManipulatorScene(state, 1.0); }
+void BM_ManipulatorJsonScene_to_rest(benchmark::State& state) { ManipulatorScene(state, 10.0); }
+
+void ManipulatorCompiled(benchmark::State& state, double t_end) {
+  models::Manipulator model;
+  AblSettings settings;
+  settings.h = 1e-3;
+  settings.t_end = t_end;
+  std::int64_t steps = 0;
+  for (auto _ : state) {
+    AblIntegrator<models::Manipulator> integrator(model, settings);
+    const RunSummary s = integrator.run(Vec<2>(3.0, -1.0), Vec<2>(-1.0, 1.0));
+    steps = s.steps;
+    benchmark::DoNotOptimize(s.q_final.data());
+  }
+  SetPerStep(state, steps);
+}
+void BM_ManipulatorCompiled_moving(benchmark::State& state) { ManipulatorCompiled(state, 1.0); }
+void BM_ManipulatorCompiled_to_rest(benchmark::State& state) { ManipulatorCompiled(state, 10.0); }
+
+// The 1-DOF damped relay m x'' = -c x' - a Sign(x') as a compiled model; it stops at t* = 3.665 s.
+struct DampedRelay {
+  static constexpr int kDof = 1;
+  Controller<1> phi;
+  DampedRelay() {
+    phi.weights = Vec<1>(0.5);
+    phi.gains = Vec<1>(1.0);
+  }
+  int dof() const { return 1; }
+  const Controller<1>& controller() const { return phi; }
+  bool constant_mass() const { return true; }
+  void mass(const Vec<1>&, Mat<1>& M) const { M(0, 0) = 2.0; }
+  void evaluate(double, const Vec<1>&, const Vec<1>&, LagrangianTerms<1>& out) const {
+    out.M(0, 0) = 2.0;
+    out.C(0, 0) = 0.0;
+    out.g(0) = 0.0;
+  }
+};
+
+void BM_DampedRelayCompiled_moving(benchmark::State& state) {
+  DampedRelay model;
+  AblSettings settings;
+  settings.h = 1e-4;
+  settings.t_end = 3.6;
+  std::int64_t steps = 0;
+  for (auto _ : state) {
+    AblIntegrator<DampedRelay> integrator(model, settings);
+    const RunSummary s = integrator.run(Vec<1>(0.0), Vec<1>(3.0));
+    steps = s.steps;
+    benchmark::DoNotOptimize(s.q_final.data());
+  }
+  SetPerStep(state, steps);
+}
+
+void BM_DampedRelayJsonScene_moving(benchmark::State& state) {
+  nlohmann::json doc = scene::read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/damped-relay.json");
+  doc["integrator"]["t_end"] = 3.6;
+  doc["integrator"]["h"] = 1e-4;
+  const scene::LagrangianScene sc = scene::load_scene(doc);
+  std::int64_t steps = 0;
+  for (auto _ : state) {
+    const RunSummary s = scene::run_scene(sc, nullptr);
+    steps = s.steps;
+    benchmark::DoNotOptimize(s.q_final.data());
+  }
+  SetPerStep(state, steps);
+}
+
+BENCHMARK(BM_ManipulatorJsonScene_moving)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_ManipulatorJsonScene_to_rest)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_ManipulatorCompiled_moving)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_ManipulatorCompiled_to_rest)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_DampedRelayCompiled_moving)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_DampedRelayJsonScene_moving)->Unit(benchmark::kMicrosecond);
+
+}  // namespace
+
+BENCHMARK_MAIN();

@@ -1,0 +1,72 @@
+// The integrator's hot loop allocates nothing: the number of heap allocations of a run does not depend
+// on its number of steps (fixed-size and dynamic-size models, with and without a decimated observer).
+// This is its own test binary because it replaces the global operator new.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cstdlib>
+#include <new>
+
+#include "moreau/scene/scene.h"
+
+namespace {
+std::atomic<long> g_allocations{0};
+}
+
+void* operator new(std::size_t size) {
+  ++g_allocations;
+  if (void* p = std::malloc(size ? size : 1)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+
+namespace moreau::scene {
+namespace {
+
+struct Decimated : RunObserver {
+  long samples = 0;
+  void on_sample(const Sample&) override { ++samples; }
+};
+
+long AllocationsOfRun(const nlohmann::json& doc, double t_end, RunObserver* observer) {
+  nlohmann::json d = doc;
+  d["integrator"]["t_end"] = t_end;
+  const LagrangianScene sc = load_scene(d);
+  const long before = g_allocations.load();
+  const RunSummary s = run_scene(sc, observer);
+  EXPECT_EQ(s.status, RunStatus::kCompleted) << s.message;
+  return g_allocations.load() - before;
+}
+
+TEST(Allocation, FixedSizeRunDoesNotAllocatePerStep) {
+  const auto doc = read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/manipulator.json");
+  Decimated obs;
+  const long short_run = AllocationsOfRun(doc, 0.5, &obs);
+  const long long_run = AllocationsOfRun(doc, 5.0, &obs);
+  EXPECT_EQ(short_run, long_run);
+}
+
+TEST(Allocation, DynamicSizeRunDoesNotAllocatePerStep) {
+  // Five coupled coordinates: beyond the fixed-size dispatch, so Eigen::Dynamic code runs.
+  nlohmann::json doc = read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/manipulator.json");
+  doc["system"]["coordinates"] = {"y1", "y2", "y3", "y4", "y5"};
+  nlohmann::json mass = nlohmann::json::array();
+  for (int i = 0; i < 5; ++i) {
+    nlohmann::json row = nlohmann::json::array();
+    for (int j = 0; j < 5; ++j) row.push_back(i == j ? "3 + cos(y1)" : (std::abs(i - j) == 1 ? "0.5*cos(y2 - y3)" : "0"));
+    mass.push_back(row);
+  }
+  doc["system"]["mass"] = mass;
+  doc["system"]["potential"] = "sin(y1) + 0.1*y5^2";
+  doc["system"]["controller"] = {{{"type", "quadratic"}, {"weights", {1, 1, 1, 1, 1}}},
+                                 {{"type", "abs"}, {"gains", {1, 1, 1, 1, 1}}}};
+  doc["initial"] = {{"q", {0.1, 0.2, 0.3, 0.4, 0.5}}, {"v", {1, -2, 3, -1, 2}}};
+  Decimated obs;
+  const long short_run = AllocationsOfRun(doc, 0.2, &obs);
+  const long long_run = AllocationsOfRun(doc, 2.0, &obs);
+  EXPECT_EQ(short_run, long_run);
+}
+
+}  // namespace
+}  // namespace moreau::scene
