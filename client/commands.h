@@ -1,0 +1,14 @@
+// Each `moreau` subcommand registers itself on the CLI11 app and sets the process exit code when it
+// runs. main.cc only wires them together.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+namespace moreau::cli {
+
+// The exit code of the subcommand that ran: 0 success, 1 the run or request failed, 2 bad input.
+int& exit_code();
+
+void register_run_command(CLI::App& app);
+
+}  // namespace moreau::cli
