@@ -134,6 +134,7 @@ struct LegendEntry {
   Rgba color;
 };
 
+// Vertical budget of one panel's slot: title band above the plot, ticks and labels below.
 struct PanelGeometry {
   double slot_top = 0, slot_height = 0;
   double title_height = 0, bottom_height = 0;
@@ -187,16 +188,15 @@ class Builder {
     scene_.layout.width = f_.width_px;
     scene_.layout.height = f_.height_px;
     scene_.layout.panels.resize(n);
-    geometry_.resize(n);
     bool any_y_label = false;
     for (const Panel& p : f_.panels) any_y_label |= !p.y_label.empty();
 
     for (std::size_t i = 0; i < n; ++i) {
       const Panel& panel = f_.panels[i];
-      PanelGeometry& g = geometry_[i];
+      PanelGeometry g;
       g.slot_top = top + slot * static_cast<double>(i);
       g.slot_height = slot;
-      g.title_height = panel.title.empty() ? st_.pad * 0.7 : title_m.line_height() + st_.pad * 0.55;
+      g.title_height = panel.title.empty() ? st_.pad * 0.7 : title_m.line_height() + st_.pad * 0.5;
       g.bottom_height = st_.frame_width + st_.tick_length + st_.tick_px * 0.3 + tick_m.line_height();
       if (!panel.x_label.empty()) g.bottom_height += st_.tick_px * 0.3 + label_m.line_height();
       if (i + 1 < n) g.bottom_height += st_.pad * 0.9;
@@ -259,7 +259,6 @@ class Builder {
   void draw_panel(std::size_t index) {
     const Panel& panel = f_.panels[index];
     const PanelLayout& pl = scene_.layout.panels[index];
-    const PanelGeometry& g = geometry_[index];
     const Rect plot = pl.plot;
     const double fw = st_.frame_width;
     const FontMetrics tick_m = font_metrics(st_.tick_px, false);
@@ -429,9 +428,9 @@ class Builder {
     }
     if (!panel.title.empty()) {
       const FontMetrics tm = font_metrics(st_.title_px, true);
-      const double base = std::round(g.slot_top + (g.title_height - st_.pad * 0.55) / 2 + st_.pad * 0.2 +
-                                     (tm.ascender - tm.descender) / 2.0 + tm.descender / 2.0);
-      add(Text{panel.title, {}, std::round(plot.x + plot.w / 2), std::min(base, plot.y - fw - tm.descender - 2),
+      // Just above the axes box: the descenders clear it by a third of the padding.
+      const double base = std::round(plot.y - fw - st_.pad * 0.3 - tm.descender);
+      add(Text{panel.title, {}, std::round(plot.x + plot.w / 2), base,
                st_.title_px, true, false, Text::Align::center, kText});
     }
 
@@ -584,7 +583,6 @@ class Builder {
   const Figure& f_;
   Style st_;
   Scene scene_;
-  std::vector<PanelGeometry> geometry_;
   std::vector<std::pair<Rect, Text>> pending_texts_;
 };
 
