@@ -161,7 +161,7 @@ class Compiler {
 
   static std::string format(double v) {
     std::ostringstream os;
-    os.precision(17);
+    os.precision(12);
     os << v;
     return os.str();
   }
@@ -370,7 +370,8 @@ class Compiler {
         throw SceneError("/integrator/max_steps", "must be a whole number <= " + std::to_string(kMaxStepsLimit));
       s.max_steps = static_cast<std::int64_t>(m);
     }
-    const double steps = std::ceil((s.t_end - s.t0) / s.h * (1.0 - 1e-12));
+    const double ratio = (s.t_end - s.t0) / s.h;
+    const double steps = ratio > 9e18 ? ratio : static_cast<double>(fixed_step_count(s.t0, s.t_end, s.h));
     if (s.step_rule == StepRule::kFixed && steps > static_cast<double>(s.max_steps)) {
       throw SceneError("/integrator/h", "h = " + format(s.h) + " over [" + format(s.t0) + ", " + format(s.t_end) + "] needs " +
                                             format(steps) + " steps, more than the limit of " + std::to_string(s.max_steps));
