@@ -94,6 +94,9 @@ TEST(RenderTicks, LabelFormats) {
   EXPECT_EQ(format_tick(1500, 500), "1500");
   EXPECT_EQ(format_tick(2.5e-5, 5e-6), "2.5e-5");
   EXPECT_EQ(format_tick(2e6, 1e6), "2e6");
+  EXPECT_EQ(format_tick(0, 5e-8, 1e-7), "0");
+  EXPECT_EQ(format_tick(5e4, 5e4, 2e5), "5e4");  // the axis reaches 2e5: one style for all labels
+  EXPECT_EQ(format_tick(1e15 + 2e4, 1e4), "1.00000000002e15");
   EXPECT_EQ(decade_label(-3), "10\u207B\u00B3");
   EXPECT_EQ(decade_label(0), "10\u2070");
   EXPECT_EQ(decade_label(12), "10\u00B9\u00B2");
@@ -330,6 +333,27 @@ TEST(RenderLayout, TooManyPanelsForTheHeightThrows) {
   } catch (const FigureError& e) {
     EXPECT_THAT(e.what(), HasSubstr("too small for 6 panel(s)"));
   }
+}
+
+TEST(RenderLayout, RangesBeyondDoublePrecisionAreRejected) {
+  Figure f = one_series_figure({0, 1}, {-1e308, 1e308});
+  try {
+    compute_layout(f);
+    FAIL() << "expected FigureError";
+  } catch (const FigureError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("panel 0 'main', y axis: the range"));
+    EXPECT_THAT(e.what(), HasSubstr("too wide"));
+  }
+  f = one_series_figure({0, 1}, {0, 1});
+  f.panels[0].x_axis.min = 1e30;
+  f.panels[0].x_axis.max = std::nextafter(1e30, 1e31);
+  EXPECT_THROW(compute_layout(f), FigureError);
+  // Far from the origin but resolvable: fine, and the ticks stay few.
+  f.panels[0].x_axis.min = 1e15;
+  f.panels[0].x_axis.max = 1e15 + 1e5;
+  const FigureLayout l = compute_layout(f);
+  EXPECT_GE(l.panels[0].x_ticks.size(), 1u);
+  EXPECT_LE(l.panels[0].x_ticks.size(), 12u);
 }
 
 TEST(RenderLayout, XTickLabelsDoNotOverlap) {

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <sstream>
 #include <unordered_set>
 
 #include "font.h"
@@ -52,7 +53,7 @@ struct Range {
   bool empty() const { return !(lo <= hi); }
 };
 
-Limits axis_limits(const Axis& axis, Range data) {
+Limits axis_limits(const Axis& axis, Range data, const std::string& where) {
   if (data.empty()) data = axis.scale == Scale::log ? Range{1, 10} : Range{0, 1};
   Limits lim = auto_limits(data.lo, data.hi, axis.scale, axis.padding);
   if (axis.min) lim.lo = *axis.min;
@@ -66,6 +67,18 @@ Limits axis_limits(const Axis& axis, Range data) {
       if (axis.min) lim.hi = lim.lo + w;
       else lim.lo = lim.hi - w;
     }
+  }
+  // Both ends and the span must be representable, and the span resolvable in double precision.
+  const bool log = axis.scale == Scale::log;
+  const double a = log ? std::log10(lim.lo) : lim.lo, b = log ? std::log10(lim.hi) : lim.hi;
+  const double span = b - a;
+  if (!std::isfinite(a) || !std::isfinite(b) || !std::isfinite(span) ||
+      !(span > 1e-12 * std::max({std::abs(a), std::abs(b), log ? 1.0 : 0.0}))) {
+    std::ostringstream os;
+    os.precision(12);
+    os << where << ": the range [" << lim.lo << ", " << lim.hi << "] is too " << (std::isfinite(span) ? "narrow" : "wide")
+       << " to draw";
+    throw FigureError(os.str());
   }
   return lim;
 }
@@ -216,8 +229,10 @@ class Builder {
         for (double v : s.x) xr.add(v);
         for (double v : s.y) yr.add(v);
       }
-      const Limits xl = axis_limits(panel.x_axis, xr);
-      const Limits yl = axis_limits(panel.y_axis, yr);
+      const std::string where =
+          "panel " + std::to_string(i) + (panel.title.empty() ? std::string() : " '" + panel.title + "'");
+      const Limits xl = axis_limits(panel.x_axis, xr, where + ", x axis");
+      const Limits yl = axis_limits(panel.y_axis, yr, where + ", y axis");
       pl.x = AxisMap{panel.x_axis.scale, xl.lo, xl.hi, 0, 1};
       pl.y = AxisMap{panel.y_axis.scale, yl.lo, yl.hi, pl.plot.bottom(), pl.plot.y};
       pl.y_ticks = fit_y_ticks(panel.y_axis, pl.y, pl.plot.h, st_);

@@ -54,14 +54,16 @@ double nice_step(double lo, double hi, int max_ticks) {
   return range;
 }
 
-std::string format_tick(double v, double step) {
+std::string format_tick(double v, double step, double magnitude) {
   const int step_exp = static_cast<int>(std::floor(std::log10(step) + 1e-9));
   if (std::abs(v) < step * 1e-9) v = 0;
   const double mag = std::abs(v);
+  if (magnitude <= 0) magnitude = mag;
   char buf[64];
-  if (mag != 0 && (mag >= 1e5 || mag < 1e-3)) {
+  if (magnitude >= 1e5 || step < 1e-4) {
+    if (mag == 0) return "0";
     const int e = static_cast<int>(std::floor(std::log10(mag) + 1e-12));
-    const int decimals = std::clamp(e - step_exp, 0, 8);
+    const int decimals = std::clamp(e - step_exp, 0, 15);
     std::snprintf(buf, sizeof buf, "%.*f", decimals, v / std::pow(10.0, e));
     std::string mant = trim_zeros(buf);
     if (mant == "10" || mant == "-10") {  // rounding carried into the next decade
@@ -82,10 +84,12 @@ std::vector<Tick> linear_ticks(double lo, double hi, int max_ticks) {
   const double eps = 1e-9;
   const double first = std::ceil(lo / step - eps);
   const double last = std::floor(hi / step + eps);
-  for (double i = first; i <= last; i += 1) {
-    double v = i * step;
+  const auto count = static_cast<long>(std::min(last - first + 1, 1000.0));
+  const double magnitude = std::max(std::abs(first * step), std::abs(last * step));
+  for (long j = 0; j < count; ++j) {
+    double v = (first + static_cast<double>(j)) * step;
     if (std::abs(v) < step * 1e-9) v = 0;
-    ticks.push_back({v, format_tick(v, step), true});
+    ticks.push_back({v, format_tick(v, step, magnitude), true});
   }
   return ticks;
 }

@@ -22,8 +22,7 @@ struct Tick {
 
 // Step from the 1-2-5 sequence (times a power of ten) giving at most max_ticks ticks over [lo, hi].
 double nice_step(double lo, double hi, int max_ticks);
-// Ticks at the multiples of nice_step(lo, hi, max_ticks) inside [lo, hi]; labels carry as many
-// decimals as the step needs, and switch to 2.5e-05 style for very large or small magnitudes.
+// Ticks at the multiples of nice_step(lo, hi, max_ticks) inside [lo, hi], labelled by format_tick.
 std::vector<Tick> linear_ticks(double lo, double hi, int max_ticks);
 // Major ticks at the decades 10^k inside [lo, hi] (every n-th decade if there are more than
 // max_major), labelled 10^k with superscript digits ("10⁻³"); minor ticks at 2..9 x 10^k when each
@@ -31,8 +30,10 @@ std::vector<Tick> linear_ticks(double lo, double hi, int max_ticks);
 std::vector<Tick> log_ticks(double lo, double hi, int max_major);
 // "10⁻³" (UTF-8, superscript digits and minus).
 std::string decade_label(int exponent);
-// A tick label for v on a linear axis with the given step.
-std::string format_tick(double v, double step);
+// A tick label for v on a linear axis with the given step: as many decimals as the step needs, or
+// 2.5e-5 style when the axis' largest magnitude is >= 1e5 or the step < 1e-4 (0 is then "0").
+// magnitude: the largest |tick| on the axis (0: |v|), so all labels of an axis share one style.
+std::string format_tick(double v, double step, double magnitude = 0);
 
 struct Limits {
   double lo = 0, hi = 1;
