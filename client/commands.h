@@ -10,5 +10,6 @@ namespace moreau::cli {
 int& exit_code();
 
 void register_run_command(CLI::App& app);
+void register_plot_command(CLI::App& app);
 
 }  // namespace moreau::cli

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "commands.h"
+#include "figure_output.h"
 #include "moreau/scene/simulation.h"
 #include "moreau/scene/trajectory_csv.h"
 #include "progress_bar.h"
@@ -26,6 +27,8 @@ struct RunOptions {
   bool json = false;
   std::string out_csv;
   std::string progress = "auto";
+  std::vector<std::string> figures;
+  FigureFlags figure_flags;
 };
 
 int run(const RunOptions& opt) {
@@ -50,6 +53,18 @@ int run(const RunOptions& opt) {
     }
     fan.add(&*csv);
   }
+  std::optional<TimeSeriesRecorder> recorder;
+  for (const auto& spec : opt.figures) {
+    const std::string kind = parse_figure_spec(spec).first;
+    if (kind != "state" && kind != "energy" && kind != "step" && kind != "phase") {
+      std::cerr << "moreau: --figure " << spec << ": unknown kind '" << kind << "' (expected state, energy, step or phase)\n";
+      return 2;
+    }
+  }
+  if (!opt.figures.empty()) {
+    recorder.emplace(sim->position_names(), sim->velocity_names());
+    fan.add(&*recorder);
+  }
   const bool show_progress = opt.progress == "always" || (opt.progress == "auto" && isatty(STDERR_FILENO));
   ProgressBar progress(sim->t0(), sim->t_end(), show_progress);
   fan.add(&progress);
@@ -70,6 +85,20 @@ int run(const RunOptions& opt) {
       if (name == "integrate") s = std::max(0.0, s - csv->seconds());
     summary.add_phase("write", csv->seconds() + since(t_close));
   }
+  if (recorder) {
+    const auto t_fig = Clock::now();
+    if (summary.converged_time) recorder->data().converged_time = *summary.converged_time;
+    for (const auto& spec : opt.figures) {
+      const auto [kind, path] = parse_figure_spec(spec);
+      try {
+        write_figure(kind, recorder->data(), opt.figure_flags, path);
+      } catch (const std::exception& e) {
+        std::cerr << "moreau: figure " << path << ": " << e.what() << "\n";
+        return 1;
+      }
+    }
+    summary.add_phase("figures", since(t_fig));
+  }
   if (opt.json) {
     std::cout << sim->report_json(summary).dump(2) << "\n";
   } else {
@@ -89,6 +118,10 @@ void register_run_command(CLI::App& app) {
   cmd->add_option("--out", opt->out_csv, "Write the trajectory as CSV: t, h, q..., v..., energy");
   cmd->add_option("--progress", opt->progress, "Progress bar on stderr: auto (when stderr is a terminal), always, never")
       ->check(CLI::IsMember({"auto", "always", "never"}));
+  cmd->add_option("--figure", opt->figures,
+                  "Draw a figure: FILE (state figure) or KIND=FILE, KIND one of state, energy, step, phase; "
+                  ".png through OSMesa or .svg");
+  opt->figure_flags.add_to(cmd);
   cmd->callback([opt] { exit_code() = run(*opt); });
 }
 

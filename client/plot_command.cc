@@ -1,0 +1,34 @@
+// moreau plot traj.csv --kind state -o state.png : figures from a trajectory written by `moreau run --out`.
+#include <iostream>
+#include <memory>
+
+#include "commands.h"
+#include "figure_output.h"
+
+namespace moreau::cli {
+
+void register_plot_command(CLI::App& app) {
+  struct Options {
+    std::string csv, kind = "state", out;
+    FigureFlags flags;
+  };
+  auto opt = std::make_shared<Options>();
+  auto* cmd = app.add_subcommand("plot", "Draw a figure of a trajectory CSV (PNG through OSMesa, or SVG)");
+  cmd->add_option("trajectory", opt->csv, "Trajectory CSV from `moreau run --out`")->required();
+  cmd->add_option("--kind", opt->kind, "state, energy, step or phase")
+      ->check(CLI::IsMember({"state", "energy", "step", "phase"}))
+      ->capture_default_str();
+  cmd->add_option("-o,--output", opt->out, "Output file (.png or .svg)")->required();
+  opt->flags.add_to(cmd);
+  cmd->callback([opt] {
+    try {
+      write_figure(opt->kind, read_trajectory_csv(opt->csv), opt->flags, opt->out);
+      exit_code() = 0;
+    } catch (const std::exception& e) {
+      std::cerr << "moreau plot: " << e.what() << "\n";
+      exit_code() = 2;
+    }
+  });
+}
+
+}  // namespace moreau::cli
