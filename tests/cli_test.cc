@@ -1,0 +1,113 @@
+// The `moreau` command end to end, as a user runs it: the report (text and JSON), the trajectory CSV,
+// overrides, exit codes and error messages for bad scenes, and figures.
+#include <gtest/gtest.h>
+
+#include <sys/wait.h>
+
+#include <array>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+namespace {
+
+struct Result {
+  int status;
+  std::string out;  // stdout and stderr together
+};
+
+Result Moreau(const std::string& args) {
+  const std::string cmd = std::string(MOREAU_BINARY) + " " + args + " 2>&1";
+  FILE* pipe = popen(cmd.c_str(), "r");
+  std::string out;
+  std::array<char, 4096> buf{};
+  while (std::size_t n = std::fread(buf.data(), 1, buf.size(), pipe)) out.append(buf.data(), n);
+  const int rc = pclose(pipe);
+  return {WIFEXITED(rc) ? WEXITSTATUS(rc) : -1, out};
+}
+
+const std::string kScene = std::string(MOREAU_SOURCE_DIR) + "/scenes/manipulator.json";
+
+TEST(Cli, RunPrintsAReadableReport) {
+  const Result r = Moreau("run " + kScene);
+  ASSERT_EQ(r.status, 0) << r.out;
+  for (const char* part : {"completed: 10000 steps", "v == 0.0 exactly from step", "equilibrium", "energy",
+                           "solver", "wall time"})
+    EXPECT_NE(r.out.find(part), std::string::npos) << part << "\n" << r.out;
+}
+
+TEST(Cli, JsonReportHasTheDocumentedFields) {
+  const Result r = Moreau("run " + kScene + " --json");
+  ASSERT_EQ(r.status, 0) << r.out;
+  const auto j = nlohmann::json::parse(r.out);
+  for (const char* key : {"steps", "t_final", "converged_step", "converged_time", "final", "energy_nonincreasing",
+                          "equilibrium", "solver", "wall_seconds"})
+    EXPECT_TRUE(j.contains(key)) << key;
+  EXPECT_EQ(j["steps"], 10000);
+  EXPECT_DOUBLE_EQ(j["t_final"].get<double>(), 10.0);
+  ASSERT_TRUE(j["converged_step"].is_number_integer());
+  EXPECT_EQ(j["final"]["v"], nlohmann::json({0.0, 0.0}));
+  EXPECT_TRUE(j["equilibrium"].contains("residual") && j["equilibrium"].contains("interior"));
+  EXPECT_TRUE(j["solver"].contains("max_iterations") && j["solver"].contains("max_residual"));
+}
+
+TEST(Cli, TrajectoryCsvAndOverrides) {
+  const std::string csv = ::testing::TempDir() + "/traj.csv";
+  const Result r = Moreau("run " + kScene + " --set integrator.h=1e-2 --set integrator.t_end=2 --set 'initial.v=[0,1]' --out " + csv);
+  ASSERT_EQ(r.status, 0) << r.out;
+  std::ifstream in(csv);
+  std::string header;
+  std::getline(in, header);
+  EXPECT_EQ(header, "t,h,x1,th2,x1_dot,th2_dot,energy");
+  std::string first;
+  std::getline(in, first);
+  EXPECT_EQ(first.rfind("0,0.01,3,-1,0,1,", 0), 0u) << first;
+  int rows = 1;
+  for (std::string line; std::getline(in, line);) ++rows;
+  EXPECT_EQ(rows, 201);  // t = 0, 0.01, ..., 2
+}
+
+TEST(Cli, BadSceneNamesTheFieldAndExitsWith2) {
+  Result r = Moreau("run " + kScene + " --set integrator.h=0");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.out.find("/integrator/h: must be > 0"), std::string::npos) << r.out;
+  r = Moreau("run " + kScene + " --set 'system.mass.0.1=cos(th3)'");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.out.find("/system/mass/0/1: unknown name 'th3'"), std::string::npos) << r.out;
+  r = Moreau("run /nonexistent.json");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.out.find("cannot open"), std::string::npos) << r.out;
+}
+
+TEST(Cli, FiguresArePngOfTheRequestedSize) {
+  const std::string png = ::testing::TempDir() + "/state.png";
+  const std::string svg = ::testing::TempDir() + "/energy.svg";
+  const Result r = Moreau("run " + kScene + " --figure " + png + " --figure energy=" + svg + " --size 800x600");
+  ASSERT_EQ(r.status, 0) << r.out;
+  std::ifstream in(png, std::ios::binary);
+  std::array<unsigned char, 24> head{};
+  in.read(reinterpret_cast<char*>(head.data()), head.size());
+  ASSERT_EQ(head[1], 'P');
+  const auto be32 = [&](int at) { return (head[at] << 24) | (head[at + 1] << 16) | (head[at + 2] << 8) | head[at + 3]; };
+  EXPECT_EQ(be32(16), 800);
+  EXPECT_EQ(be32(20), 600);
+  std::ifstream s(svg);
+  std::stringstream ss;
+  ss << s.rdbuf();
+  EXPECT_NE(ss.str().find("<svg"), std::string::npos);
+}
+
+TEST(Cli, PlotReadsTheCsvBack) {
+  const std::string csv = ::testing::TempDir() + "/p.csv";
+  ASSERT_EQ(Moreau("run " + kScene + " --out " + csv).status, 0);
+  const Result r = Moreau("plot " + csv + " --kind phase -o " + ::testing::TempDir() + "/phase.png");
+  EXPECT_EQ(r.status, 0) << r.out;
+  const Result bad = Moreau("plot " + kScene + " -o /tmp/x.png");
+  EXPECT_EQ(bad.status, 2);
+  EXPECT_NE(bad.out.find("not a Moreau trajectory"), std::string::npos) << bad.out;
+}
+
+}  // namespace
