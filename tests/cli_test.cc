@@ -111,3 +111,15 @@ TEST(Cli, PlotReadsTheCsvBack) {
 }
 
 }  // namespace
+
+namespace {
+// A run longer than a second draws a progress bar on stderr (forced on, since the test's stderr is not
+// a terminal), and clears it at the end.
+TEST(Cli, ProgressBarForLongRuns) {
+  const Result r = Moreau("run " + kScene + " --set integrator.h=1e-7 --set integrator.t_end=4 --progress always");
+  ASSERT_EQ(r.status, 0) << r.out.substr(0, 2000);
+  EXPECT_NE(r.out.find("%  t = "), std::string::npos) << r.out.substr(0, 2000);
+  const Result quiet = Moreau("run " + kScene + " --progress always");
+  EXPECT_EQ(quiet.out.find("%  t = "), std::string::npos) << "a short run draws no bar";
+}
+}  // namespace
