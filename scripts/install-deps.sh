@@ -10,6 +10,7 @@ packages=(
   liblcm-dev liblcm-bin libglib2.0-dev  # live state (lcm.pc needs glib-2.0 and gthread-2.0)
   libosmesa6-dev libfreetype-dev libpng-dev fonts-dejavu-core  # figures
   libcpp-httplib-dev                 # server
+  libboost-dev                       # Boost.Odeint (rosenbrock4), the stiff peer of studies
   libgtest-dev libgmock-dev libbenchmark-dev  # tests, benchmarks
 )
 

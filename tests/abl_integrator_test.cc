@@ -252,3 +252,30 @@ TEST(AblIntegrator, ObserverCanCancel) {
 
 }  // namespace
 }  // namespace moreau
+
+namespace moreau {
+namespace {
+// The explicit peer chatters: on the damped relay its velocity never rests at 0.0 but keeps changing
+// sign with an amplitude of order h a / m, where the implicit scheme is exactly 0.0.
+TEST(AblIntegrator, ExplicitPeerChattersWhereTheImplicitSchemeRests) {
+  Oscillator1 model(2.0, 0.0, 0.0, 0.5, 1.0);
+  AblSettings settings = Fixed(1e-2, 6.0);
+  settings.velocity_update = VelocityUpdate::kExplicit;
+  AblIntegrator<Oscillator1> integrator(model, settings);
+  Recorder rec;
+  const RunSummary s = integrator.run(Vec<1>(0.0), Vec<1>(3.0), &rec);
+  ASSERT_EQ(s.status, RunStatus::kCompleted);
+  int sign_changes = 0;
+  double amplitude = 0.0;
+  for (std::size_t k = 1; k < rec.v.size(); ++k) {
+    if (rec.t[k] < 4.0) continue;  // after the exact stop time t* = 3.665
+    if (rec.v[k] * rec.v[k - 1] < 0.0) ++sign_changes;
+    amplitude = std::max(amplitude, std::abs(rec.v[k]));
+  }
+  EXPECT_GT(sign_changes, 100);
+  EXPECT_GT(amplitude, 0.0);
+  EXPECT_LE(amplitude, 1e-2 * 1.0 / 2.0 * 1.01);  // |V| <= h a / m after the first overshoot
+  EXPECT_FALSE(s.converged_step.has_value());
+}
+}  // namespace
+}  // namespace moreau

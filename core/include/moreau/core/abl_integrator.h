@@ -50,11 +50,18 @@ namespace moreau {
 
 enum class StepRule { kFixed, kTheorem41, kTheorem42 };
 
+// How V^{k+1} is computed. kImplicit is the scheme (0.2). kExplicit is the peer a user would otherwise
+// pick, for studies: everything at (Q^k, V^k) with the single-valued sign (sgn 0 = 0),
+//   M(Q^k) (V^{k+1} - V^k)/h_k = -(C V^k + grad V + F + W V^k + A sgn(V^k) + a_norm V^k/||V^k||),
+// which chatters around v = 0 instead of resting there (Acary and Brogliato 2010).
+enum class VelocityUpdate { kImplicit, kExplicit };
+
 struct AblSettings {
   double h = 1e-3;      // the step h (fixed rule) or its upper bound (Theorems 4.1, 4.2), seconds
   double t0 = 0.0;      // initial time, seconds
   double t_end = 1.0;   // final time, seconds
   StepRule step_rule = StepRule::kFixed;
+  VelocityUpdate velocity_update = VelocityUpdate::kImplicit;
   std::optional<double> k1;  // lower bound of M(q) (Assumption 3.1); local value if absent
   std::optional<double> k3;  // bound ||C(u, v)|| <= k3 ||v|| (Assumption 3.2); local value if absent
   std::int64_t max_steps = 2'000'000'000;
@@ -89,6 +96,7 @@ class AblIntegrator {
     Mv_.setZero(n);
     zero_.setZero(n);
     q_trial_.setZero(n);
+    if constexpr (N == Eigen::Dynamic) mass_lu_ = Eigen::PartialPivLU<Mat<N>>(n);
   }
 
   // Runs from (Q^0, V^0) at t0 to t_end. Never throws for numerical trouble: a failing step (solver not
@@ -154,12 +162,17 @@ class AblIntegrator {
 
       // One step of (0.2): the inclusion (6.5) for V^{k+1}.
       const double inv_h = 1.0 / h_k;
-      P_.noalias() = inv_h * terms_.M;
-      P_ += terms_.C;
-      P_.diagonal() += weights_;
-      x_ = terms_.g - inv_h * Mv_;
+      if (settings_.velocity_update == VelocityUpdate::kImplicit) {
+        P_.noalias() = inv_h * terms_.M;
+        P_ += terms_.C;
+        P_.diagonal() += weights_;
+        x_ = terms_.g - inv_h * Mv_;
+      }
       OneStepStats st;
-      if (!solver_.solve(P_, x_, y_, st)) {
+      if (settings_.velocity_update == VelocityUpdate::kExplicit) {
+        explicit_velocity(v, h_k);
+        st.iterations = 1;  // one linear solve with M
+      } else if (!solver_.solve(P_, x_, y_, st)) {
         return fail(s, q, v, t, k, clock_start,
                     "the one-step inclusion (6.5) was not solved to round-off (residual " +
                         std::to_string(st.residual) + ", tolerance " + std::to_string(st.tolerance) + ")");
@@ -262,6 +275,20 @@ class AblIntegrator {
     return s;
   }
 
+  // The explicit peer's velocity update (see VelocityUpdate::kExplicit) into y_.
+  void explicit_velocity(const Vec<N>& v, double h) {
+    const Controller<N>& phi = model_.controller();
+    x_.noalias() = terms_.C * v;
+    x_ += terms_.g;
+    x_ += weights_.cwiseProduct(v);
+    for (int i = 0; i < x_.size(); ++i) x_(i) += phi.gains(i) * (v(i) > 0.0 ? 1.0 : (v(i) < 0.0 ? -1.0 : 0.0));
+    const double vn = v.norm();
+    if (phi.norm_gain > 0.0 && vn > 0.0) x_ += (phi.norm_gain / vn) * v;
+    mass_lu_.compute(terms_.M);
+    y_.noalias() = mass_lu_.solve(x_);
+    y_ = v - h * y_;
+  }
+
   // Smallest eigenvalue of a symmetric matrix, and the spectral norm of any square matrix.
   double min_eigenvalue(const Mat<N>& S) {
     if constexpr (N == 1) {
@@ -339,6 +366,7 @@ class AblIntegrator {
   Mat<N> P_, Mtrial_, eps_;
   Vec<N> x_, y_, Mv_, zero_, q_trial_;
   Eigen::SelfAdjointEigenSolver<Mat<N>> eig_;
+  Eigen::PartialPivLU<Mat<N>> mass_lu_;
 };
 
 }  // namespace moreau

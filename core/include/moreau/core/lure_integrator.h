@@ -1,0 +1,323 @@
+// The theta-method for Lur'e systems with maximal monotone feedback, eq. (4) of Brogliato (2003):
+//
+//   x' = A x - B y_L,   y = C x,   y_L in d phi(y),   d phi(y) = (G_1(y_1), ..., G_m(y_m))        (4)
+//
+// each G_i a piecewise-linear maximal monotone graph (maximal_monotone_graph.h, Figure 3).
+//
+// Update rule (theta in [1/2, 1]; the multiplier is fully implicit):
+//
+//   x_{k+1} = x_k + h (A x_{k+theta} - B w_{k+1}),   x_{k+theta} = theta x_{k+1} + (1 - theta) x_k,
+//   w_{k+1} in d phi(y_{k+1}),   y_{k+1} = C x_{k+1}.
+//
+// With Wt = (I - h theta A)^{-1}: x_{k+1} = x_free - h Wt B w_{k+1}, x_free = Wt (I + h (1-theta) A) x_k, so
+// the step is the generalized equation (GE) of graph_inclusion_solver.h,
+//
+//   u + D w = q,   w_i in G_i(u_i),   u = y_{k+1},  D = h C Wt B,  q = C x_free,
+//
+// solved exactly: an output at rest comes out as the vertex abscissa itself (y_i == 0.0). The state then
+// inherits the exact value where it can: x_j = u_i / C_ij when row i of C has a single non-zero entry
+// C_ij, and x = C^{-1} u when every output is on a vertical piece and C is square and invertible (so that
+// x' = -x - Sign(x) reaches x == 0.0 bit-exactly at the discrete time of ln(1 + x0), and stays there).
+//
+// Order: 1 (theta = 1; 2 on smooth stretches for theta = 1/2). Lemma 1 (existence, uniqueness) and Lemma 2
+// (W = 1/2 x^T P x non-increasing, x -> 0) hold when (A, B, C) is strictly positive real with P = P^T > 0,
+// PA + A^T P < 0, B^T P = C (absolute_stability.h); then D + D^T is positive definite for every h, so the
+// step has a unique solution. For theta = 1 the discrete W_k is non-increasing as well:
+// W_{k+1} - W_k = -1/2 h x_{k+1}^T Q x_{k+1} - h <y_{k+1}, w_{k+1}> - 1/2 |x_{k+1} - x_k|_P^2 <= 0 when
+// (0, 0) is on every graph. For theta < 1 the term (1-theta) <y_k, w_{k+1}> has no sign; the report says
+// what happened.
+//
+// No allocation and no virtual call per step; the observer sees x as positions and the discrete
+// derivative (x_{k+1} - x_k)/h as velocities (for theta = 1 exactly A x_{k+1} - B w_{k+1}, an element of
+// the right-hand side of (4) at x_{k+1}); row 0 holds A x_0 - B w_0 with w_0 the least-norm element of
+// d phi(C x_0). The sample's energy is W_k (or |x_k|^2 / 2 without a storage matrix).
+#pragma once
+
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <limits>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "moreau/core/abl_integrator.h"  // fixed_step_count
+#include "moreau/core/graph_inclusion_solver.h"
+#include "moreau/core/maximal_monotone_graph.h"
+#include "moreau/core/observer.h"
+#include "moreau/core/run_diagnostics.h"
+#include "moreau/core/run_summary.h"
+#include "moreau/core/types.h"
+
+namespace moreau {
+
+struct LureSettings {
+  double h = 1e-3;
+  double t0 = 0.0;
+  double t_end = 1.0;
+  double theta = 1.0;  // in [1/2, 1]
+  std::int64_t max_steps = 2'000'000'000;
+  std::int64_t output_every = 1;
+};
+
+template <int N, int Mo>
+class LureIntegrator {
+ public:
+  using MatB = Eigen::Matrix<double, N, Mo>;
+  using MatC = Eigen::Matrix<double, Mo, N>;
+  using MatD = Mat<Mo>;
+
+  // graphs: one per output; P (optional) the storage matrix of W = 1/2 x^T P x.
+  LureIntegrator(const Mat<N>& A, const MatB& B, const MatC& C, const std::vector<MonotoneGraph>& graphs,
+                 const LureSettings& settings, const std::optional<Mat<N>>& P = std::nullopt)
+      : A_(A), B_(B), C_(C), graphs_(graphs), settings_(settings), P_(P) {
+    n_ = static_cast<int>(A.rows());
+    m_ = static_cast<int>(C.rows());
+    graph_ptrs_.resize(graphs_.size());
+    for (std::size_t i = 0; i < graphs_.size(); ++i) graph_ptrs_[i] = &graphs_[i];
+    solver_.configure(m_);
+    xf_.setZero(n_);
+    xn_.setZero(n_);
+    v_.setZero(n_);
+    q_.setZero(m_);
+    u_.setZero(m_);
+    w_.setZero(m_);
+    // Exact-value transfer from outputs to states: row i of C with one non-zero entry.
+    unit_col_.assign(static_cast<std::size_t>(m_), -1);
+    for (int i = 0; i < m_; ++i) {
+      int nz = 0, col = -1;
+      for (int j = 0; j < n_; ++j)
+        if (C_(i, j) != 0.0) {
+          ++nz;
+          col = j;
+        }
+      if (nz == 1) unit_col_[i] = col;
+    }
+    square_invertible_ = false;
+    if (m_ == n_) {
+      Eigen::FullPivLU<Eigen::MatrixXd> full(Eigen::MatrixXd(C_.template cast<double>()));
+      if (full.rank() == n_) {
+        c_square_.setZero(n_, n_);
+        for (int i = 0; i < n_; ++i)
+          for (int j = 0; j < n_; ++j) c_square_(i, j) = C_(i, j);
+        c_lu_.compute(c_square_);
+        square_invertible_ = true;
+      }
+    }
+    cx_.setZero(n_);
+  }
+
+  RunSummary run(const Vec<N>& x0, RunObserver* observer = nullptr, LureDiagnostics* diag = nullptr) {
+    const auto clock_start = std::chrono::steady_clock::now();
+    RunSummary s;
+    LureDiagnostics local;
+    LureDiagnostics& d = diag ? *diag : local;
+    d = LureDiagnostics{};
+    d.output_rest_step.assign(static_cast<std::size_t>(m_), -1);
+    d.output_rest_time.assign(static_cast<std::size_t>(m_), 0.0);
+
+    Vec<N> x = x0;
+    double t = settings_.t0;
+    std::int64_t k = 0;
+    const std::int64_t every = std::max<std::int64_t>(1, settings_.output_every);
+    const std::int64_t steps = fixed_step_count(settings_.t0, settings_.t_end, settings_.h);
+    if (steps > settings_.max_steps) return fail(s, d, x, t, k, clock_start, "the step count exceeds max_steps");
+    const double span = settings_.t_end - settings_.t0;
+    const double remainder = span - static_cast<double>(steps - 1) * settings_.h;
+    const double last_h = std::abs(remainder - settings_.h) <= 1e-9 * settings_.h ? settings_.h : remainder;
+    prepare(settings_.h, main_);
+    prepare(last_h, last_);
+
+    // Row 0: y_0 = C x_0, w_0 the least-norm element of d phi(y_0).
+    u_.noalias() = C_ * x;
+    for (int i = 0; i < m_; ++i) w_(i) = graphs_[i].least_norm_value(u_(i));
+    if (!w_.allFinite()) return fail(s, d, x, t, k, clock_start, "C x0 is outside the domain of d phi (Lemma 1 needs C x(0) in dom d phi)");
+    v_.noalias() = A_ * x - B_ * w_;
+    double energy = storage(x);
+    s.energy_initial = energy;
+    if (P_) d.storage.start(energy);
+    std::vector<std::int64_t>& rest = d.output_rest_step;
+    for (int i = 0; i < m_; ++i)
+      if (u_(i) == 0.0) rest[i] = 0;
+    std::int64_t x_rest = (x.array() == 0.0).all() ? 0 : -1;
+    double x_rest_time = t;
+    s.h_min = std::numeric_limits<double>::infinity();
+    s.h_max = 0.0;
+
+    auto emit = [&](double h_used) {
+      if (observer) observer->on_sample(Sample{k, t, h_used, n_, x.data(), v_.data(), energy});
+    };
+    emit(settings_.h);
+    std::int64_t last_emitted = 0;
+    double h_k = settings_.h;
+
+    while (k < steps) {
+      const bool last = (k + 1 == steps);
+      const StepMatrices& sm = last ? last_ : main_;
+      h_k = sm.h;
+      xf_.noalias() = sm.Phi * x;
+      q_.noalias() = C_ * xf_;
+      GraphSolveStats st;
+      if (!solver_.solve(sm.D, q_, graph_ptrs_.data(), u_, w_, st)) {
+        char buf[160];
+        std::snprintf(buf, sizeof buf, "the one-step generalized equation was not solved to round-off (residual %.3g, tolerance %.3g)",
+                      st.residual, st.tolerance);
+        return fail(s, d, x, t, k, clock_start, buf);
+      }
+      s.solver.total_iterations += st.iterations;
+      s.solver.max_iterations = std::max(s.solver.max_iterations, st.iterations);
+      s.solver.max_residual = std::max(s.solver.max_residual, st.residual);
+      s.solver.fallback_steps += st.used_fallback;
+
+      xn_.noalias() = xf_ - sm.G * w_;
+      polish(xn_);
+      v_ = (xn_ - x) / h_k;
+      x = xn_;
+      ++k;
+      t = last ? settings_.t_end : settings_.t0 + static_cast<double>(k) * settings_.h;
+      s.h_min = std::min(s.h_min, h_k);
+      s.h_max = std::max(s.h_max, h_k);
+      if (!x.allFinite()) return fail(s, d, x, t, k, clock_start, "the state became non-finite");
+
+      bool all_rest = true;
+      for (int i = 0; i < m_; ++i) {
+        if (u_(i) != 0.0) {
+          rest[i] = -1;
+        } else if (rest[i] < 0) {
+          rest[i] = k;
+          d.output_rest_time[i] = t;
+        }
+      }
+      (void)all_rest;
+      if ((x.array() != 0.0).any()) {
+        x_rest = -1;
+      } else if (x_rest < 0) {
+        x_rest = k;
+        x_rest_time = t;
+      }
+      const double e_new = storage(x);
+      if (P_) d.storage.step(k, t, e_new, storage_allowance(x, energy));
+      if (e_new - energy > storage_allowance(x, energy)) {
+        ++s.energy_increases;
+        s.energy_max_increase = std::max(s.energy_max_increase, e_new - energy);
+      }
+      energy = e_new;
+
+      if (k % every == 0) {
+        emit(h_k);
+        last_emitted = k;
+      }
+      if (observer && k % RunObserver::kControlInterval == 0 && !observer->keep_going(k, t)) {
+        finish(s, d, x, t, k, energy, x_rest, x_rest_time);
+        s.status = RunStatus::kCancelled;
+        s.message = "cancelled at step " + std::to_string(k);
+        s.add_phase("integrate", seconds_since(clock_start));
+        return s;
+      }
+    }
+    if (last_emitted != k) emit(h_k);
+    finish(s, d, x, t, k, energy, x_rest, x_rest_time);
+    s.add_phase("integrate", seconds_since(clock_start));
+    return s;
+  }
+
+ private:
+  struct StepMatrices {
+    double h = 0.0;
+    Mat<N> Phi;   // Wt (I + h (1 - theta) A)
+    MatB G;       // h Wt B
+    MatD D;       // C G
+  };
+
+  void prepare(double h, StepMatrices& sm) const {
+    sm.h = h;
+    const double th = settings_.theta;
+    Mat<N> I = Mat<N>::Identity(n_, n_);
+    Eigen::PartialPivLU<Mat<N>> lu(Mat<N>(I - h * th * A_));
+    sm.Phi = lu.solve(Mat<N>(I + h * (1.0 - th) * A_));
+    sm.G = lu.solve(MatB(h * B_));
+    sm.D = C_ * sm.G;
+  }
+
+  // Exact values from the outputs on vertical pieces (see the header).
+  void polish(Vec<N>& x) {
+    bool all_vertical = m_ > 0;
+    for (int i = 0; i < m_; ++i) {
+      if (!solver_.on_vertical_piece(i)) {
+        all_vertical = false;
+        continue;
+      }
+      if (unit_col_[i] >= 0) x(unit_col_[i]) = u_(i) / C_(i, unit_col_[i]);
+    }
+    if (all_vertical && square_invertible_) {
+      for (int i = 0; i < n_; ++i) cx_(i) = u_(i);
+      x.noalias() = c_lu_.solve(cx_);
+    }
+  }
+
+  double storage(const Vec<N>& x) const { return P_ ? 0.5 * x.dot(*P_ * x) : 0.5 * x.squaredNorm(); }
+  // Round-off in W itself: a few ulps of |x|^2 ||P||.
+  double storage_allowance(const Vec<N>& x, double w_old) const {
+    const double pn = P_ ? P_->cwiseAbs().rowwise().sum().maxCoeff() : 1.0;
+    return 64.0 * std::numeric_limits<double>::epsilon() * std::max(pn * x.squaredNorm(), std::abs(w_old));
+  }
+
+  static double seconds_since(std::chrono::steady_clock::time_point start) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  }
+
+  void finish(RunSummary& s, LureDiagnostics& d, const Vec<N>& x, double t, std::int64_t k, double energy,
+              std::int64_t x_rest, double x_rest_time) {
+    s.steps = k;
+    s.t_final = t;
+    s.q_final.assign(x.data(), x.data() + x.size());
+    s.v_final.assign(v_.data(), v_.data() + v_.size());
+    s.energy_final = energy;
+    s.energy_nonincreasing = s.energy_increases == 0;
+    if (x_rest >= 0) {
+      s.converged_step = x_rest;
+      s.converged_time = x_rest_time;
+    }
+    if (k == 0) s.h_min = s.h_max = 0.0;
+    d.y_final.assign(u_.data(), u_.data() + u_.size());
+    d.y_l_final.assign(w_.data(), w_.data() + w_.size());
+    for (int i = 0; i < m_; ++i)
+      if (d.output_rest_step[i] < 0) d.output_rest_time[i] = 0.0;
+  }
+
+  RunSummary fail(RunSummary& s, LureDiagnostics& d, const Vec<N>& x, double t, std::int64_t k,
+                  std::chrono::steady_clock::time_point start, const std::string& why) {
+    s.steps = k;
+    s.t_final = t;
+    if (x.allFinite()) s.q_final.assign(x.data(), x.data() + x.size());
+    s.energy_nonincreasing = s.energy_increases == 0;
+    s.status = RunStatus::kFailed;
+    char where[96];
+    std::snprintf(where, sizeof where, "step %lld (t = %.17g): ", static_cast<long long>(k), t);
+    s.message = where + why;
+    s.add_phase("integrate", seconds_since(start));
+    d.y_final.assign(u_.data(), u_.data() + u_.size());
+    d.y_l_final.assign(w_.data(), w_.data() + w_.size());
+    return s;
+  }
+
+  Mat<N> A_;
+  MatB B_;
+  MatC C_;
+  std::vector<MonotoneGraph> graphs_;
+  std::vector<const MonotoneGraph*> graph_ptrs_;
+  LureSettings settings_;
+  std::optional<Mat<N>> P_;
+  int n_ = 0, m_ = 0;
+  StepMatrices main_, last_;
+  GraphInclusionSolver<Mo> solver_;
+  Vec<N> xf_, xn_, v_, cx_;
+  Vec<Mo> q_, u_, w_;
+  std::vector<int> unit_col_;
+  bool square_invertible_ = false;
+  Mat<N> c_square_;
+  Eigen::PartialPivLU<Mat<N>> c_lu_;
+};
+
+}  // namespace moreau

@@ -1,0 +1,108 @@
+// What the schemes of the second paper (Brogliato 2003) report beyond RunSummary: the storage function
+// of a Lur'e system (Lemma 2) and, for Lagrangian systems with unilateral constraints, the impacts, the
+// rest time, the smallest gap, the position correction and the Lagrange-Dirichlet function W of Lemma 3.
+// Plain data, filled by lure_integrator.h and moreau_jean_integrator.h; formatting lives in scene/.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <string>
+#include <vector>
+
+namespace moreau {
+
+// A scalar sequence W_k that the theory says is non-increasing, watched step by step. A rise above the
+// round-off allowance (given by the caller: a few ulps of the terms W is made of) counts as an increase.
+struct EnergyTrack {
+  bool evaluated = false;
+  double initial = 0.0;
+  double final = 0.0;
+  bool nonincreasing = true;
+  std::int64_t increases = 0;
+  double max_increase = 0.0;
+  std::int64_t first_increase_step = -1;  // the step k+1 at which W first rose, -1 if never
+  double first_increase_time = 0.0;
+
+  void start(double w) {
+    evaluated = true;
+    initial = final = w;
+  }
+  void step(std::int64_t k, double t, double w_new, double allowance) {
+    const double rise = w_new - final;
+    if (rise > allowance) {
+      if (increases == 0) {
+        first_increase_step = k;
+        first_increase_time = t;
+      }
+      ++increases;
+      max_increase = std::max(max_increase, rise);
+      nonincreasing = false;
+    }
+    final = w_new;
+  }
+};
+
+// ---- Lur'e systems (section 3) -------------------------------------------------------------------------
+struct LureDiagnostics {
+  // W = 1/2 x^T P x (Lemma 2), when a storage matrix P is known (given by the scene or found by the
+  // positive-realness test); not evaluated otherwise.
+  EnergyTrack storage;
+  std::vector<double> y_final;       // y = C x at the last step (the solver's exact value)
+  std::vector<double> y_l_final;     // y_L in d phi(y) at the last step
+  // Per output component: the first step from which y_i == 0.0 exactly to the end (-1 if none).
+  std::vector<std::int64_t> output_rest_step;
+  std::vector<double> output_rest_time;
+};
+
+// ---- Lagrangian systems with unilateral constraints (section 4) ---------------------------------------
+struct ImpactEvent {
+  std::int64_t step = 0;   // k+1: the step whose impulse carried the impact
+  double t = 0.0;          // t_{k+1}
+  int constraint = 0;
+  double pre = 0.0;        // U_k = grad h(Q^k)^T V^k < 0, the approaching normal velocity
+  double post = 0.0;       // U_{k+1} = grad h(Q^k)^T V^{k+1}
+  double impulse = 0.0;    // P_{k+1} >= 0 (the contact percussion over the step)
+  // The impact's kinetic energy change in the contact space (1/2 U^T S U with S the inverse of
+  // grad h^T M^{-1} grad h) against eq. (9), -1/2 (1-e)/(1+e) dv^T M dv for the jump dv = M^{-1} grad h S (U+ - U).
+  double kinetic_change = 0.0;
+  double eq9_change = 0.0;
+  int simultaneous = 1;    // impacts in the same step
+};
+
+struct ContactDiagnostics {
+  int constraints = 0;
+  std::int64_t impact_count = 0;
+  std::vector<ImpactEvent> impacts;  // the first max_recorded_impacts impacts
+  bool impacts_truncated = false;
+  double max_eq9_mismatch = 0.0;     // max |kinetic_change - eq9_change| over the recorded impacts
+  std::int64_t active_steps = 0;     // steps with at least one contact in the predicted active set
+  std::int64_t impulse_steps = 0;    // steps with at least one positive impulse
+
+  // The first step from which V == 0.0 exactly to the end (the system at rest), if any.
+  std::int64_t rest_step = -1;
+  double rest_time = 0.0;
+  // Per constraint: the first step from which the contact stays closed (an impulse every step, normal
+  // velocity exactly 0.0) to the end, if any.
+  std::vector<std::int64_t> settle_step;
+  std::vector<double> settle_time;
+
+  // The smallest gap min_k min_i h_i(Q^k) over the run (negative: penetration).
+  double smallest_gap = std::numeric_limits<double>::infinity();
+  double smallest_gap_time = 0.0;
+  int smallest_gap_constraint = -1;
+
+  // Position correction (projection of Q^{k+1} onto h >= 0 after the step, when enabled).
+  bool correction_enabled = false;
+  std::int64_t corrected_steps = 0;
+  double max_correction = 0.0;        // largest ||delta q||_M
+  double correction_energy = 0.0;     // sum of the potential energy changes it caused
+  double largest_violation = 0.0;     // largest -h_i(Q^{k+1}) it removed
+
+  // The Lagrange-Dirichlet function W = 1/2 <M(q) v, v> + U(q) of Lemma 3, eq. (12) on the admissible set.
+  EnergyTrack lagrange_dirichlet;
+  bool potential_known = false;       // false when the scene gives no potential U (W is then kinetic only)
+};
+
+}  // namespace moreau

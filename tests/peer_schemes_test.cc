@@ -1,0 +1,60 @@
+// The peers of the ABL scheme used by studies: the regularized ODE integrated by rosenbrock4 approaches
+// the exact solution of the damped relay as eps and the tolerance shrink, but never rests at 0.0.
+#include "moreau/core/regularized_integrator.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+namespace moreau {
+namespace {
+
+struct DampedRelay {
+  static constexpr int kDof = 1;
+  Controller<1> phi;
+  DampedRelay() {
+    phi.weights = Vec<1>(0.5);
+    phi.gains = Vec<1>(1.0);
+  }
+  int dof() const { return 1; }
+  const Controller<1>& controller() const { return phi; }
+  bool constant_mass() const { return true; }
+  void mass(const Vec<1>&, Mat<1>& M) const { M(0, 0) = 2.0; }
+  void evaluate(double, const Vec<1>&, const Vec<1>&, LagrangianTerms<1>& out) const {
+    out.M(0, 0) = 2.0;
+    out.C(0, 0) = 0.0;
+    out.g(0) = 0.0;
+  }
+};
+
+// v(t) = (v0 + a/c) e^{-ct/m} - a/c before t* = (m/c) ln(1 + c v0/a) = 4 ln 2.5.
+double ExactV(double t) { return t >= 4.0 * std::log(2.5) ? 0.0 : 5.0 * std::exp(-t / 4.0) - 2.0; }
+
+TEST(RegularizedPeer, ApproachesTheDampedRelayButNeverRests) {
+  for (auto kind : {Regularization::kTanh, Regularization::kSaturation}) {
+    DampedRelay model;
+    RegularizedSettings s;
+    s.h = 1e-4;
+    s.t_end = 6.0;
+    s.epsilon = 1e-4;
+    s.kind = kind;
+    RegularizedIntegrator<DampedRelay> integrator(model, s);
+    struct Probe : RunObserver {
+      double max_err = 0.0;
+      void on_sample(const Sample& x) override {
+        if (std::abs(x.t - 4.0 * std::log(2.5)) > 0.01) max_err = std::max(max_err, std::abs(x.v[0] - ExactV(x.t)));
+      }
+    } probe;
+    const RunSummary r = integrator.run(Vec<1>(0.0), Vec<1>(3.0), &probe);
+    ASSERT_EQ(r.status, RunStatus::kCompleted) << r.message;
+    EXPECT_LT(probe.max_err, 1e-3);
+    EXPECT_NE(r.v_final[0], 0.0) << "a regularized sign cannot hold v at exactly 0";
+    EXPECT_LT(std::abs(r.v_final[0]), 1e-4);
+    EXPECT_GT(r.solver.total_iterations, 0);
+    EXPECT_EQ(r.steps, 60000);
+    RecordProperty("rhs_evaluations", std::to_string(r.solver.total_iterations));
+  }
+}
+
+}  // namespace
+}  // namespace moreau
