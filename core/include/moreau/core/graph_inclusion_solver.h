@@ -249,7 +249,7 @@ class GraphInclusionSolver {
       t_ -= q;
       z_ = w - gamma * t_;
       for (int i = 0; i < m_; ++i) {
-        double ui, wi;
+        double ui = 0.0, wi = 0.0;
         trial_(i) = graphs_[i]->resolve(z_(i) / gamma, 1.0 / gamma, ui, wi);
         w(i) = wi;
       }
