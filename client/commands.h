@@ -11,5 +11,6 @@ int& exit_code();
 
 void register_run_command(CLI::App& app);
 void register_plot_command(CLI::App& app);
+void register_study_command(CLI::App& app);
 
 }  // namespace moreau::cli

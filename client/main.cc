@@ -14,6 +14,7 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", "moreau 0.1.0");
   moreau::cli::register_run_command(app);
   moreau::cli::register_plot_command(app);
+  moreau::cli::register_study_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -19,6 +19,7 @@
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
+#include <vector>
 
 #include <boost/numeric/odeint.hpp>
 
@@ -98,8 +99,14 @@ class RegularizedIntegrator {
     System system{this};
     Jacobian jacobian{this};
     try {
-      odeint::integrate_const(odeint::make_dense_output(s_.h, s_.h, odeint::rosenbrock4<double>()),
-                              std::make_pair(system, jacobian), x, s_.t0, s_.t_end, s_.h, observe);
+      // Output at t0 + k h and at t_end itself, so the last sample is the final state.
+      std::vector<double> times;
+      const std::int64_t count = fixed_step_count(s_.t0, s_.t_end, s_.h);
+      times.reserve(static_cast<std::size_t>(count) + 1);
+      for (std::int64_t k = 0; k < count; ++k) times.push_back(s_.t0 + static_cast<double>(k) * s_.h);
+      times.push_back(s_.t_end);
+      odeint::integrate_times(odeint::make_dense_output(s_.h, s_.h, odeint::rosenbrock4<double>()),
+                              std::make_pair(system, jacobian), x, times.begin(), times.end(), s_.h, observe);
       summary.status = RunStatus::kCompleted;
     } catch (const Cancelled&) {
       summary.status = RunStatus::kCancelled;

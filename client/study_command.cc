@@ -1,0 +1,106 @@
+// moreau study SCENE --h 1e-1:1e-5:9 --schemes abl,explicit,regularized : error against run time and the
+// order of convergence, as a table (text, JSON, CSV) and the `work` and `order` figures.
+#include <fstream>
+#include <iostream>
+#include <memory>
+
+#include "commands.h"
+#include "figure_output.h"
+#include "moreau/render/render.h"
+#include "moreau/scene/study.h"
+
+namespace moreau::cli {
+namespace {
+
+struct StudyOptions {
+  std::string scene_path, ladder = "1e-1:1e-5:9", schemes = "abl,explicit,regularized";
+  std::vector<std::string> overrides;
+  std::optional<double> reference_h;
+  double epsilon = 1e-3;
+  std::string regularization = "tanh";
+  int eval_points = 1000, repeats = 3;
+  bool json = false;
+  std::string csv, work_png, order_png;
+};
+
+std::vector<std::string> split(const std::string& s) {
+  std::vector<std::string> out;
+  std::stringstream ss(s);
+  for (std::string item; std::getline(ss, item, ',');)
+    if (!item.empty()) out.push_back(item);
+  return out;
+}
+
+void write_text(const std::string& path, const std::string& text) {
+  std::ofstream out(path, std::ios::binary);
+  out << text;
+  if (!out) throw std::runtime_error("cannot write '" + path + "'");
+}
+
+int study(const StudyOptions& opt) {
+  scene::StudyResult result;
+  try {
+    nlohmann::json doc = scene::read_scene_file(opt.scene_path);
+    for (const auto& o : opt.overrides) scene::apply_override(doc, o);
+    const scene::LagrangianScene sc = scene::load_scene(doc);
+    scene::StudySettings st;
+    st.h = scene::parse_ladder(opt.ladder);
+    st.schemes = split(opt.schemes);
+    st.reference_h = opt.reference_h;
+    st.epsilon = opt.epsilon;
+    st.regularization = opt.regularization;
+    st.eval_points = opt.eval_points;
+    st.repeats = opt.repeats;
+    result = scene::run_study(sc, st);
+  } catch (const scene::SceneError& e) {
+    std::cerr << "moreau study: " << e.what() << "\n";
+    return 2;
+  }
+  try {
+    if (!opt.csv.empty()) write_text(opt.csv, result.to_csv());
+    std::vector<render::SchemeRuns> runs;
+    for (const auto& scheme : split(opt.schemes)) {
+      render::SchemeRuns r;
+      r.scheme = scheme;
+      for (const auto& row : result.rows) {
+        if (row.scheme != scheme || row.status != "completed" || !(row.q_max_error > 0.0)) continue;
+        r.h.push_back(row.h);
+        r.error.push_back(row.q_max_error);
+        r.run_time_s.push_back(row.wall_seconds);
+      }
+      if (!r.h.empty()) runs.push_back(r);
+    }
+    render::FigureOptions fo;
+    fo.title = result.scene + ": max error of q against " + result.reference;
+    if (!opt.work_png.empty()) render::render_png(render::work_figure(runs, fo), opt.work_png);
+    if (!opt.order_png.empty()) render::render_png(render::order_figure(runs, fo), opt.order_png);
+  } catch (const std::exception& e) {
+    std::cerr << "moreau study: " << e.what() << "\n";
+    return 1;
+  }
+  std::cout << (opt.json ? result.to_json().dump(2) + "\n" : result.to_text());
+  return 0;
+}
+
+}  // namespace
+
+void register_study_command(CLI::App& app) {
+  auto opt = std::make_shared<StudyOptions>();
+  auto* cmd = app.add_subcommand("study", "Error against run time and order of convergence over a ladder of step sizes");
+  cmd->add_option("scene", opt->scene_path, "Scene file")->required();
+  cmd->add_option("--h", opt->ladder, "Step sizes: FIRST:LAST:COUNT (log-spaced) or a comma list")->capture_default_str();
+  cmd->add_option("--schemes", opt->schemes, "Comma list of abl, explicit, regularized")->capture_default_str();
+  cmd->add_option("--set", opt->overrides, "Override a scene field: PATH=VALUE");
+  cmd->add_option("--reference-h", opt->reference_h, "Use an abl run at this h as the reference (default: the exact solution if the scene has one, else min h / 10)");
+  cmd->add_option("--epsilon", opt->epsilon, "Width of the regularized sign")->capture_default_str();
+  cmd->add_option("--regularization", opt->regularization, "tanh or saturation")->check(CLI::IsMember({"tanh", "saturation"}));
+  cmd->add_option("--eval-points", opt->eval_points, "Common times at which errors are measured")->capture_default_str();
+  cmd->add_option("--repeats", opt->repeats, "Timed runs per point (the minimum is kept)")->capture_default_str();
+  cmd->add_flag("--json", opt->json, "Print the table as JSON");
+  cmd->add_option("--csv", opt->csv, "Write the table as CSV");
+  cmd->add_option("--work", opt->work_png, "Write the work figure (error against run time) as PNG");
+  cmd->add_option("--order", opt->order_png, "Write the order figure (error against h, fitted slope) as PNG");
+  cmd->callback([opt] { exit_code() = study(*opt); });
+}
+
+}  // namespace moreau::cli

@@ -1,0 +1,81 @@
+// Studies: how accurate is a scheme for the time it costs, and at what order does it converge.
+//
+// A study runs one scene over a ladder of step sizes and schemes (abl, explicit, regularized) and, for
+// each run, measures
+//  - the wall time, by the protocol of DiffEqDevTools' WorkPrecisionSet: one warm-up run, then timed runs
+//    with no observer attached (error computation is kept out of them), the minimum over `repeats` runs,
+//    or a single timed run when one takes longer than `single_run_seconds`;
+//  - the errors against a reference, at `eval_points` common times spread evenly over [t0, t_end]: max
+//    over time and L2 norm over time (sqrt of the time average of the squared Euclidean norm) of q and of v,
+//    the final-state error, and the error of the finite-step convergence time where both have one. A run's
+//    state at a common time is linearly interpolated between its two neighbouring samples (every step is
+//    sampled in the error run);
+//  - chattering: from five of the run's steps after the reference's convergence time (a first-order
+//    scheme arrives O(h) late), the number of sign changes of the velocity components and their
+//    largest magnitude. The implicit scheme shows none (Acary and Brogliato 2010).
+// The reference is the scene's exact solution when it carries one (`/exact/q`, `/exact/v`), else an abl
+// run at `reference_h` (default: the smallest h of the ladder divided by 10), stated in the result.
+// The order of each scheme is the least-squares slope of log(error) against log(h).
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "moreau/scene/scene.h"
+
+namespace moreau::scene {
+
+struct StudySettings {
+  std::vector<double> h;                                      // the ladder
+  std::vector<std::string> schemes = {"abl", "explicit", "regularized"};
+  std::optional<double> reference_h;                          // force a numerical reference at this h
+  double epsilon = 1e-3;                                      // width of the regularized sign
+  std::string regularization = "tanh";                        // or "saturation"
+  int eval_points = 1000;
+  int repeats = 3;
+  double single_run_seconds = 2.0;
+};
+
+struct StudyRow {
+  std::string scheme;
+  double h = 0.0;
+  std::string status;   // completed, failed
+  std::string message;
+  std::int64_t steps = 0;
+  double wall_seconds = 0.0;
+  int timed_runs = 0;
+  double q_max_error = 0.0, q_l2_error = 0.0, v_max_error = 0.0, v_l2_error = 0.0, final_error = 0.0;
+  std::optional<double> converged_time;
+  std::optional<double> converged_time_error;
+  std::int64_t chatter_sign_changes = 0;
+  double chatter_amplitude = 0.0;
+};
+
+struct StudyResult {
+  std::string scene;
+  std::string reference;  // "exact solution" or "abl at h = ..."
+  std::optional<double> reference_converged_time;
+  std::vector<StudyRow> rows;
+  struct Order {
+    std::string scheme;
+    double q_max = 0.0, v_max = 0.0;  // fitted slopes (NaN with fewer than two usable points)
+  };
+  std::vector<Order> orders;
+  double wall_seconds = 0.0;
+
+  nlohmann::json to_json() const;
+  std::string to_csv() const;
+  std::string to_text() const;
+};
+
+// Parses a ladder "1e-1:1e-5:9" (log-spaced, both ends included) or a list "1e-2,5e-3,1e-3".
+std::vector<double> parse_ladder(const std::string& text);
+
+// Runs the study. Throws SceneError for bad settings (unknown scheme, empty ladder, h <= 0), naming the
+// option.
+StudyResult run_study(const LagrangianScene& scene, const StudySettings& settings);
+
+}  // namespace moreau::scene

@@ -1,0 +1,358 @@
+// Studies (see study.h). Built as C++17: it instantiates the regularized peer, whose Boost 1.74 uBLAS
+// does not compile as C++20.
+#include "moreau/scene/study.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <sstream>
+
+#include "moreau/core/abl_integrator.h"
+#include "moreau/core/regularized_integrator.h"
+#include "moreau/scene/scene_model.h"
+
+namespace moreau::scene {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+// Samples a run at the common times by linear interpolation between consecutive samples, and counts
+// velocity sign changes after `chatter_from`.
+class GridSampler : public RunObserver {
+ public:
+  GridSampler(const std::vector<double>& grid, int n, double chatter_from)
+      : grid_(grid), n_(n), chatter_from_(chatter_from), q_(grid.size() * n, kNaN), v_(grid.size() * n, kNaN),
+        prev_q_(n), prev_v_(n), last_sign_(n, 0) {}
+
+  void on_sample(const Sample& s) override {
+    if (have_prev_) {
+      while (next_ < grid_.size() && grid_[next_] <= s.t) {
+        const double g = grid_[next_];
+        const double w = s.t > prev_t_ ? (g - prev_t_) / (s.t - prev_t_) : 1.0;
+        for (int i = 0; i < n_; ++i) {
+          q_[next_ * n_ + i] = prev_q_[i] + w * (s.q[i] - prev_q_[i]);
+          v_[next_ * n_ + i] = prev_v_[i] + w * (s.v[i] - prev_v_[i]);
+        }
+        ++next_;
+      }
+    } else {
+      while (next_ < grid_.size() && grid_[next_] <= s.t) {
+        for (int i = 0; i < n_; ++i) {
+          q_[next_ * n_ + i] = s.q[i];
+          v_[next_ * n_ + i] = s.v[i];
+        }
+        ++next_;
+      }
+    }
+    if (s.t > chatter_from_) {
+      for (int i = 0; i < n_; ++i) {
+        const int sign = s.v[i] > 0.0 ? 1 : (s.v[i] < 0.0 ? -1 : 0);
+        if (sign != 0 && last_sign_[i] != 0 && sign != last_sign_[i]) ++sign_changes_;
+        if (sign != 0) last_sign_[i] = sign;
+        amplitude_ = std::max(amplitude_, std::abs(s.v[i]));
+      }
+    }
+    prev_t_ = s.t;
+    for (int i = 0; i < n_; ++i) {
+      prev_q_[i] = s.q[i];
+      prev_v_[i] = s.v[i];
+    }
+    have_prev_ = true;
+  }
+
+  const std::vector<double>& q() const { return q_; }
+  const std::vector<double>& v() const { return v_; }
+  std::int64_t sign_changes() const { return sign_changes_; }
+  double amplitude() const { return amplitude_; }
+
+ private:
+  const std::vector<double>& grid_;
+  int n_;
+  double chatter_from_;
+  std::vector<double> q_, v_;
+  std::vector<double> prev_q_, prev_v_;
+  std::vector<int> last_sign_;
+  std::size_t next_ = 0;
+  double prev_t_ = 0.0;
+  bool have_prev_ = false;
+  std::int64_t sign_changes_ = 0;
+  double amplitude_ = 0.0;
+};
+
+template <int N>
+RunSummary run_scheme_fixed(const LagrangianScene& scene, const std::string& scheme, double h,
+                            const StudySettings& st, RunObserver* observer) {
+  SceneModel<N> model(scene);
+  const Vec<N> q0 = Eigen::Map<const Eigen::VectorXd>(scene.q0.data(), scene.n);
+  const Vec<N> v0 = Eigen::Map<const Eigen::VectorXd>(scene.v0.data(), scene.n);
+  if (scheme == "regularized") {
+    RegularizedSettings rs;
+    rs.h = h;
+    rs.t0 = scene.settings.t0;
+    rs.t_end = scene.settings.t_end;
+    rs.epsilon = st.epsilon;
+    rs.kind = st.regularization == "saturation" ? Regularization::kSaturation : Regularization::kTanh;
+    RegularizedIntegrator<SceneModel<N>> integrator(model, rs);
+    return integrator.run(q0, v0, observer);
+  }
+  AblSettings as = scene.settings;
+  as.h = h;
+  as.output_every = 1;
+  if (scheme == "explicit") {
+    as.velocity_update = VelocityUpdate::kExplicit;
+    as.step_rule = StepRule::kFixed;
+  }
+  AblIntegrator<SceneModel<N>> integrator(model, as);
+  return integrator.run(q0, v0, observer);
+}
+
+RunSummary run_scheme(const LagrangianScene& scene, const std::string& scheme, double h, const StudySettings& st,
+                      RunObserver* observer) {
+  switch (scene.n) {
+    case 1: return run_scheme_fixed<1>(scene, scheme, h, st, observer);
+    case 2: return run_scheme_fixed<2>(scene, scheme, h, st, observer);
+    case 3: return run_scheme_fixed<3>(scene, scheme, h, st, observer);
+    default: return run_scheme_fixed<Eigen::Dynamic>(scene, scheme, h, st, observer);
+  }
+}
+
+double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+double slope(const std::vector<double>& h, const std::vector<double>& e) {
+  double sx = 0, sy = 0, sxx = 0, sxy = 0;
+  int m = 0;
+  for (std::size_t i = 0; i < h.size(); ++i) {
+    if (!(e[i] > 0.0) || !std::isfinite(e[i])) continue;
+    const double x = std::log10(h[i]), y = std::log10(e[i]);
+    sx += x;
+    sy += y;
+    sxx += x * x;
+    sxy += x * y;
+    ++m;
+  }
+  if (m < 2) return kNaN;
+  const double den = m * sxx - sx * sx;
+  return den == 0.0 ? kNaN : (m * sxy - sx * sy) / den;
+}
+
+nlohmann::json num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+
+}  // namespace
+
+std::vector<double> parse_ladder(const std::string& text) {
+  std::vector<double> out;
+  auto number = [&](const std::string& s) {
+    char* end = nullptr;
+    const double v = std::strtod(s.c_str(), &end);
+    if (end == s.c_str() || *end != '\0' || !std::isfinite(v) || !(v > 0.0))
+      throw SceneError("--h", "'" + s + "' is not a positive step size");
+    return v;
+  };
+  if (text.find(':') != std::string::npos) {
+    std::stringstream ss(text);
+    std::string a, b, c;
+    std::getline(ss, a, ':');
+    std::getline(ss, b, ':');
+    std::getline(ss, c, ':');
+    const double hi = number(a), lo = number(b);
+    char* end = nullptr;
+    const long count = std::strtol(c.c_str(), &end, 10);
+    if (c.empty() || *end != '\0' || count < 2 || count > 100)
+      throw SceneError("--h", "a ladder is FIRST:LAST:COUNT with 2 <= COUNT <= 100, got '" + text + "'");
+    for (long i = 0; i < count; ++i)
+      out.push_back(std::pow(10.0, std::log10(hi) + (std::log10(lo) - std::log10(hi)) * i / (count - 1)));
+  } else {
+    std::stringstream ss(text);
+    std::string item;
+    while (std::getline(ss, item, ',')) out.push_back(number(item));
+  }
+  if (out.empty()) throw SceneError("--h", "empty ladder");
+  return out;
+}
+
+StudyResult run_study(const LagrangianScene& scene, const StudySettings& st) {
+  const auto start = Clock::now();
+  if (st.h.empty()) throw SceneError("--h", "empty ladder");
+  for (const auto& s : st.schemes)
+    if (s != "abl" && s != "explicit" && s != "regularized")
+      throw SceneError("--schemes", "unknown scheme '" + s + "' (expected abl, explicit, regularized)");
+  if (st.eval_points < 2) throw SceneError("--eval-points", "must be >= 2");
+  if (!(st.epsilon > 0.0)) throw SceneError("--epsilon", "must be > 0");
+  const int n = scene.n;
+  const double t0 = scene.settings.t0, t_end = scene.settings.t_end;
+  std::vector<double> grid(static_cast<std::size_t>(st.eval_points));
+  for (int j = 0; j < st.eval_points; ++j) grid[j] = j + 1 == st.eval_points ? t_end : t0 + (t_end - t0) * j / (st.eval_points - 1);
+
+  StudyResult result;
+  result.scene = scene.name;
+  std::vector<double> ref_q(grid.size() * n), ref_v(grid.size() * n);
+  if (scene.exact_tape && !st.reference_h) {
+    result.reference = "exact solution";
+    std::vector<double> slots(1 + 2 * n, 0.0), out(2 * n), scratch(scene.exact_tape->scratch_size());
+    for (std::size_t j = 0; j < grid.size(); ++j) {
+      slots[0] = grid[j];
+      scene.exact_tape->eval(slots.data(), out.data(), scratch.data());
+      for (int i = 0; i < n; ++i) {
+        ref_q[j * n + i] = out[i];
+        ref_v[j * n + i] = out[n + i];
+      }
+    }
+    result.reference_converged_time = scene.exact_rest_time;
+  } else {
+    const double h_ref = st.reference_h ? *st.reference_h : *std::min_element(st.h.begin(), st.h.end()) / 10.0;
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "abl at h = %g", h_ref);
+    result.reference = buf;
+    GridSampler sampler(grid, n, std::numeric_limits<double>::infinity());
+    const RunSummary ref = run_scheme(scene, "abl", h_ref, st, &sampler);
+    if (ref.status != RunStatus::kCompleted) throw SceneError("--reference", "the reference run failed: " + ref.message);
+    ref_q = sampler.q();
+    ref_v = sampler.v();
+    result.reference_converged_time = ref.converged_time;
+  }
+  const double chatter_from = result.reference_converged_time.value_or(std::numeric_limits<double>::infinity());
+
+  for (const auto& scheme : st.schemes) {
+    std::vector<double> hs, eq, ev;
+    for (double h : st.h) {
+      StudyRow row;
+      row.scheme = scheme;
+      row.h = h;
+      // The error run, which is also the warm-up of the timed runs.
+      // Chattering is measured once the run has had five of its own steps past the reference's
+      // convergence time: a first-order scheme arrives O(h) late.
+      GridSampler sampler(grid, n, chatter_from + 5.0 * h);
+      const RunSummary s = run_scheme(scene, scheme, h, st, &sampler);
+      row.status = to_string(s.status);
+      row.message = s.message;
+      row.steps = s.steps;
+      row.converged_time = s.converged_time;
+      double qmax = 0, qsum = 0, vmax = 0, vsum = 0;
+      for (std::size_t j = 0; j < grid.size(); ++j) {
+        double dq = 0, dv = 0;
+        for (int i = 0; i < n; ++i) {
+          dq += std::pow(sampler.q()[j * n + i] - ref_q[j * n + i], 2);
+          dv += std::pow(sampler.v()[j * n + i] - ref_v[j * n + i], 2);
+        }
+        qmax = std::max(qmax, std::sqrt(dq));
+        vmax = std::max(vmax, std::sqrt(dv));
+        qsum += dq;
+        vsum += dv;
+        if (!std::isfinite(dq) || !std::isfinite(dv)) qmax = vmax = qsum = vsum = kNaN;
+      }
+      const bool ok = s.status == RunStatus::kCompleted;
+      row.q_max_error = ok ? qmax : kNaN;
+      row.v_max_error = ok ? vmax : kNaN;
+      row.q_l2_error = ok ? std::sqrt(qsum / grid.size()) : kNaN;
+      row.v_l2_error = ok ? std::sqrt(vsum / grid.size()) : kNaN;
+      const std::size_t last = grid.size() - 1;
+      double fe = 0;
+      for (int i = 0; i < n; ++i)
+        fe += std::pow(sampler.q()[last * n + i] - ref_q[last * n + i], 2) + std::pow(sampler.v()[last * n + i] - ref_v[last * n + i], 2);
+      row.final_error = ok ? std::sqrt(fe) : kNaN;
+      if (row.converged_time && result.reference_converged_time)
+        row.converged_time_error = std::abs(*row.converged_time - *result.reference_converged_time);
+      row.chatter_sign_changes = sampler.sign_changes();
+      row.chatter_amplitude = sampler.amplitude();
+
+      // Timed runs: no observer, minimum over repeats, a single one when it is long.
+      if (ok) {
+        double best = std::numeric_limits<double>::infinity();
+        for (int r = 0; r < std::max(1, st.repeats); ++r) {
+          const auto t_run = Clock::now();
+          const RunSummary timed = run_scheme(scene, scheme, h, st, nullptr);
+          const double secs = seconds_since(t_run);
+          best = std::min(best, secs);
+          ++row.timed_runs;
+          if (secs > st.single_run_seconds || timed.status != RunStatus::kCompleted) break;
+        }
+        row.wall_seconds = best;
+      }
+      hs.push_back(h);
+      eq.push_back(row.q_max_error);
+      ev.push_back(row.v_max_error);
+      result.rows.push_back(row);
+    }
+    result.orders.push_back({scheme, slope(hs, eq), slope(hs, ev)});
+  }
+  result.wall_seconds = seconds_since(start);
+  return result;
+}
+
+nlohmann::json StudyResult::to_json() const {
+  nlohmann::json j;
+  j["scene"] = scene;
+  j["reference"] = reference;
+  j["reference_converged_time"] = reference_converged_time ? num(*reference_converged_time) : nlohmann::json(nullptr);
+  j["rows"] = nlohmann::json::array();
+  for (const auto& r : rows) {
+    j["rows"].push_back({{"scheme", r.scheme},
+                         {"h", r.h},
+                         {"status", r.status},
+                         {"message", r.message},
+                         {"steps", r.steps},
+                         {"wall_seconds", num(r.wall_seconds)},
+                         {"timed_runs", r.timed_runs},
+                         {"q_max_error", num(r.q_max_error)},
+                         {"q_l2_error", num(r.q_l2_error)},
+                         {"v_max_error", num(r.v_max_error)},
+                         {"v_l2_error", num(r.v_l2_error)},
+                         {"final_error", num(r.final_error)},
+                         {"converged_time", r.converged_time ? num(*r.converged_time) : nlohmann::json(nullptr)},
+                         {"converged_time_error", r.converged_time_error ? num(*r.converged_time_error) : nlohmann::json(nullptr)},
+                         {"chatter_sign_changes", r.chatter_sign_changes},
+                         {"chatter_amplitude", num(r.chatter_amplitude)}});
+  }
+  j["orders"] = nlohmann::json::array();
+  for (const auto& o : orders) j["orders"].push_back({{"scheme", o.scheme}, {"q_max", num(o.q_max)}, {"v_max", num(o.v_max)}});
+  j["wall_seconds"] = wall_seconds;
+  return j;
+}
+
+std::string StudyResult::to_csv() const {
+  std::ostringstream os;
+  os.precision(17);
+  os << "scheme,h,status,steps,wall_seconds,q_max_error,q_l2_error,v_max_error,v_l2_error,final_error,"
+        "converged_time,converged_time_error,chatter_sign_changes,chatter_amplitude\n";
+  auto opt = [](const std::optional<double>& v) {
+    std::ostringstream o;
+    o.precision(17);
+    if (v) o << *v;
+    return o.str();
+  };
+  for (const auto& r : rows) {
+    os << r.scheme << ',' << r.h << ',' << r.status << ',' << r.steps << ',' << r.wall_seconds << ',' << r.q_max_error << ','
+       << r.q_l2_error << ',' << r.v_max_error << ',' << r.v_l2_error << ',' << r.final_error << ',' << opt(r.converged_time)
+       << ',' << opt(r.converged_time_error) << ',' << r.chatter_sign_changes << ',' << r.chatter_amplitude << '\n';
+  }
+  return os.str();
+}
+
+std::string StudyResult::to_text() const {
+  std::ostringstream os;
+  char line[320];
+  os << "Study of " << scene << " against the " << reference << "\n";
+  std::snprintf(line, sizeof line, "  %-11s %-9s %-10s %10s %11s %11s %11s %11s %8s %10s\n", "scheme", "h", "status", "steps",
+                "wall [s]", "q max err", "v max err", "final err", "chatter", "t_conv");
+  os << line;
+  for (const auto& r : rows) {
+    char conv[32] = "-";
+    if (r.converged_time) std::snprintf(conv, sizeof conv, "%.4g", *r.converged_time);
+    std::snprintf(line, sizeof line, "  %-11s %-9.3g %-10s %10lld %11.3e %11.3e %11.3e %11.3e %8lld %10s\n", r.scheme.c_str(), r.h,
+                  r.status.c_str(), static_cast<long long>(r.steps), r.wall_seconds, r.q_max_error, r.v_max_error, r.final_error,
+                  static_cast<long long>(r.chatter_sign_changes), conv);
+    os << line;
+  }
+  for (const auto& o : orders) {
+    std::snprintf(line, sizeof line, "  order of %-11s q: %.3f   v: %.3f\n", o.scheme.c_str(), o.q_max, o.v_max);
+    os << line;
+  }
+  std::snprintf(line, sizeof line, "  study wall time %.2f s\n", wall_seconds);
+  os << line;
+  return os.str();
+}
+
+}  // namespace moreau::scene

@@ -1,0 +1,70 @@
+// Studies against a scene's exact solution: the ABL scheme's measured order on constant M is 1 and it
+// never chatters; the explicit peer chatters; the timing protocol and the table's shape.
+#include "moreau/scene/study.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+namespace moreau::scene {
+namespace {
+
+TEST(Study, LadderParsing) {
+  const auto h = parse_ladder("1e-1:1e-5:9");
+  ASSERT_EQ(h.size(), 9u);
+  EXPECT_DOUBLE_EQ(h.front(), 1e-1);
+  EXPECT_NEAR(h.back(), 1e-5, 1e-20);
+  EXPECT_NEAR(h[4], 1e-3, 1e-18);
+  EXPECT_EQ(parse_ladder("1e-2,5e-3").size(), 2u);
+  EXPECT_THROW(parse_ladder("1e-2:0:3"), SceneError);
+  EXPECT_THROW(parse_ladder("1e-2:1e-3:1"), SceneError);
+  EXPECT_THROW(parse_ladder("abc"), SceneError);
+}
+
+TEST(Study, DampedRelayAgainstItsExactSolution) {
+  const LagrangianScene sc = load_scene(read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/damped-relay.json"));
+  StudySettings st;
+  st.h = parse_ladder("1e-2:1e-4:3");
+  st.repeats = 2;
+  const StudyResult r = run_study(sc, st);
+  EXPECT_EQ(r.reference, "exact solution");
+  ASSERT_EQ(r.rows.size(), 9u);
+  for (const auto& row : r.rows) {
+    EXPECT_EQ(row.status, "completed") << row.scheme << " " << row.h << " " << row.message;
+    EXPECT_GT(row.q_max_error, 0.0);
+    EXPECT_GE(row.timed_runs, 1);
+    EXPECT_GT(row.wall_seconds, 0.0);
+    if (row.scheme == "abl") {
+      EXPECT_EQ(row.chatter_sign_changes, 0) << "the implicit scheme rests exactly";
+      EXPECT_EQ(row.chatter_amplitude, 0.0);
+      ASSERT_TRUE(row.converged_time_error.has_value());
+      EXPECT_LE(*row.converged_time_error, 2 * row.h);
+    }
+    if (row.scheme == "explicit") {
+      EXPECT_GT(row.chatter_sign_changes, 0) << row.h;
+    }
+  }
+  ASSERT_EQ(r.orders.size(), 3u);
+  EXPECT_EQ(r.orders[0].scheme, "abl");
+  EXPECT_NEAR(r.orders[0].q_max, 1.0, 0.1);  // Remark 5.1: order 1 for constant M
+  EXPECT_NEAR(r.orders[0].v_max, 1.0, 0.1);
+  const std::string csv = r.to_csv();
+  EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 10);
+  EXPECT_EQ(r.to_json()["rows"].size(), 9u);
+}
+
+TEST(Study, BadSettingsNameTheOption) {
+  const LagrangianScene sc = load_scene(read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/damped-relay.json"));
+  StudySettings st;
+  st.h = {1e-2};
+  st.schemes = {"rk4"};
+  try {
+    run_study(sc, st);
+    FAIL();
+  } catch (const SceneError& e) {
+    EXPECT_EQ(e.pointer(), "--schemes");
+  }
+}
+
+}  // namespace
+}  // namespace moreau::scene
