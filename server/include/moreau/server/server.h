@@ -1,0 +1,68 @@
+// moreau-server: the HTTP job API (docs/api.md) and live state over LCM (docs/streaming.md). It adds
+// queueing, storage, streaming and access around scene::Simulation; no numerics of its own.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+
+namespace lcm {
+class LCM;
+}
+
+namespace moreau::server {
+
+struct ServerConfig {
+  std::string host = "127.0.0.1";
+  int port = 8080;               // 0: any free port (see Server::port())
+  std::string data_dir;          // results and job records; created if missing
+  std::string scenes_dir;        // served by /v1/scenes; empty: default_scenes_dir()
+  int workers = 0;               // integrating threads; 0: one per core
+  int queue = 64;                // queued jobs beyond which POST /v1/jobs answers 429
+  int http_threads = 32;         // HTTP connections served at once (keep-alive and event streams hold one)
+  std::string lcm_url;           // empty: LCM_DEFAULT_URL, else LCM's default, opened at the first stream
+  std::string token;             // non-empty: every endpoint but /healthz needs "Authorization: Bearer TOKEN"
+  bool allow_unauthenticated_remote = false;  // start() refuses a non-loopback host without a token unless set
+  std::size_t max_body_bytes = 4u << 20;
+  std::int64_t max_steps = 100'000'000;   // integration steps per job
+  std::int64_t max_samples = 2'000'000;   // trajectory rows per job
+  int keep_alive_seconds = 5;    // idle keep-alive connections are closed after this
+  int keep_alive_requests = 10000;  // requests served on one connection before it is closed
+  bool log_requests = false;     // one line per request on stderr
+};
+
+// Where /v1/scenes reads from when ServerConfig::scenes_dir is empty: the source tree's scenes/ if it
+// exists, else /usr/share/moreau/scenes.
+std::string default_scenes_dir();
+
+class Server {
+ public:
+  // Opens (or creates) the data directory and recovers the jobs stored there: finished jobs are served
+  // again, jobs that were queued or running are marked failed with the reason. Throws
+  // std::runtime_error if the directory cannot be used or the LCM URL cannot be opened.
+  explicit Server(ServerConfig config);
+  ~Server();
+  Server(const Server&) = delete;
+  Server& operator=(const Server&) = delete;
+
+  // Binds and serves from background threads; returns the bound port. Throws if it cannot bind.
+  int start();
+  // Stops accepting requests, ends event streams, marks queued jobs failed and stops running ones
+  // (failed, "server stopped while the job was running"), then joins every thread. Idempotent.
+  void stop();
+  // Blocks until stop() has been called (from another thread or a signal handler's thread).
+  void wait();
+
+  int port() const;
+  // The LCM instance jobs publish on, or nullptr if none has been opened yet (it is opened at start
+  // when an LCM URL is configured, else at the first job that asks for streaming).
+  lcm::LCM* lcm();
+
+  class Impl;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace moreau::server

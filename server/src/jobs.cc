@@ -1,0 +1,622 @@
+#include "jobs.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <functional>
+#include <iostream>
+
+#include "moreau/scene/trajectory_csv.h"
+#include "storage.h"
+
+namespace moreau::server {
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+constexpr std::size_t kMaxEventsKept = 512;  // per job, for late subscribers; older progress is dropped
+
+const char* kReasonRestartedRunning = "server restarted while the job was running";
+const char* kReasonRestartedQueued = "server restarted before the job ran";
+const char* kReasonStoppedRunning = "server stopped while the job was running";
+const char* kReasonStoppedQueued = "server stopped before the job ran";
+
+std::optional<JobState> parse_state(const std::string& s) {
+  if (s == "queued") return JobState::kQueued;
+  if (s == "running") return JobState::kRunning;
+  if (s == "done") return JobState::kDone;
+  if (s == "failed") return JobState::kFailed;
+  if (s == "cancelled") return JobState::kCancelled;
+  return std::nullopt;
+}
+
+double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+// Everything a job's run needs besides the LCM stream: the trajectory rows at the scene's decimation
+// (the run itself may be sampled more finely for streaming), the sample limit, progress, cancellation.
+class JobObserver : public RunObserver {
+ public:
+  JobObserver(Job& job, scene::TrajectoryCsvWriter& csv, std::int64_t record_every, std::int64_t engine_every,
+              std::int64_t max_samples, StreamObserver* stream, std::function<void()> progress)
+      : job_(job),
+        csv_(csv),
+        every_(std::max<std::int64_t>(1, record_every)),
+        engine_every_(std::max<std::int64_t>(1, engine_every)),
+        max_samples_(max_samples),
+        stream_(stream),
+        progress_(std::move(progress)),
+        last_progress_(Clock::now()) {}
+
+  void on_sample(const Sample& s) override {
+    job_.t_now.store(s.t, std::memory_order_relaxed);
+    job_.step_now.store(s.step, std::memory_order_relaxed);
+    if (s.step % every_ == 0 || engine_every_ == every_) {
+      // A multiple of the decimation, or (when the run is sampled at the decimation) its final state.
+      write(s);
+    } else {
+      // Sampled finer than the decimation for streaming: hold on to it in case it is the final state.
+      pending_step_ = s.step;
+      pending_t_ = s.t;
+      pending_h_ = s.h;
+      pending_e_ = s.kinetic_energy;
+      pending_q_.assign(s.q, s.q + s.n);
+      pending_v_.assign(s.v, s.v + s.n);
+      n_ = s.n;
+    }
+    if (stream_) {
+      stream_->on_sample(s);
+      if (++since_progress_check_ >= 1024) {
+        since_progress_check_ = 0;
+        maybe_progress();
+      }
+    }
+  }
+
+  bool keep_going(std::int64_t step, double t) override {
+    job_.t_now.store(t, std::memory_order_relaxed);
+    job_.step_now.store(step, std::memory_order_relaxed);
+    maybe_progress();
+    return !job_.cancel.load(std::memory_order_relaxed) && !overflow_;
+  }
+
+  // Writes the held final state if the run ended on one.
+  void finish() {
+    if (pending_step_ > last_written_) {
+      Sample s{pending_step_, pending_t_, pending_h_, n_, pending_q_.data(), pending_v_.data(), pending_e_};
+      write(s);
+    }
+  }
+
+  bool overflow() const { return overflow_; }
+  std::int64_t rows() const { return rows_; }
+
+ private:
+  void write(const Sample& s) {
+    if (rows_ >= max_samples_) {
+      overflow_ = true;
+      return;
+    }
+    csv_.on_sample(s);
+    ++rows_;
+    last_written_ = s.step;
+  }
+  void maybe_progress() {
+    const auto now = Clock::now();
+    if (now - last_progress_ >= std::chrono::milliseconds(100)) {
+      last_progress_ = now;
+      progress_();
+    }
+  }
+
+  Job& job_;
+  scene::TrajectoryCsvWriter& csv_;
+  std::int64_t every_, engine_every_, max_samples_;
+  StreamObserver* stream_;
+  std::function<void()> progress_;
+  Clock::time_point last_progress_;
+  int since_progress_check_ = 0;
+  std::int64_t rows_ = 0, last_written_ = -1;
+  bool overflow_ = false;
+  std::int64_t pending_step_ = -1;
+  double pending_t_ = 0, pending_h_ = 0, pending_e_ = 0;
+  int n_ = 0;
+  std::vector<double> pending_q_, pending_v_;
+};
+
+json finite_or_null(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
+
+}  // namespace
+
+double unix_now() {
+  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
+
+const char* to_string(JobState s) {
+  switch (s) {
+    case JobState::kQueued: return "queued";
+    case JobState::kRunning: return "running";
+    case JobState::kDone: return "done";
+    case JobState::kFailed: return "failed";
+    case JobState::kCancelled: return "cancelled";
+  }
+  return "?";
+}
+
+bool is_final(JobState s) { return s == JobState::kDone || s == JobState::kFailed || s == JobState::kCancelled; }
+
+json job_json(const Job& job, const json* report) {
+  std::unique_lock lock(job.mu);
+  json j;
+  j["id"] = job.id;
+  j["url"] = "/v1/jobs/" + job.id;
+  j["scene"] = job.scene_name;
+  j["state"] = to_string(job.state);
+  if (!job.reason.empty()) j["reason"] = job.reason;
+  j["created"] = job.created;
+  j["started"] = job.started > 0 ? json(job.started) : json(nullptr);
+  j["finished"] = job.finished > 0 ? json(job.finished) : json(nullptr);
+  double t = job.t_now.load();
+  std::int64_t step = job.step_now.load();
+  if (job.state == JobState::kQueued) t = job.t0;
+  if (job.state == JobState::kDone) t = job.t_end;
+  if (report && report->contains("t_final") && (*report)["t_final"].is_number()) t = (*report)["t_final"].get<double>();
+  if (report && report->contains("steps") && (*report)["steps"].is_number()) step = (*report)["steps"].get<std::int64_t>();
+  const double span = job.t_end - job.t0;
+  j["progress"] = {{"t", finite_or_null(t)},
+                   {"t0", job.t0},
+                   {"t_end", job.t_end},
+                   {"step", step},
+                   {"planned_steps", job.planned_steps},
+                   {"fraction", span > 0 ? finite_or_null(std::clamp((t - job.t0) / span, 0.0, 1.0)) : json(0.0)}};
+  json links = {{"events", j["url"].get<std::string>() + "/events"}};
+  if (job.has_report) links["report"] = j["url"].get<std::string>() + "/report";
+  if (job.has_trajectory) {
+    links["trajectory"] = j["url"].get<std::string>() + "/trajectory";
+    links["figure"] = j["url"].get<std::string>() + "/figure?kind=state";
+  }
+  j["links"] = links;
+  if (job.stream.enabled) {
+    j["stream"] = {{"state_channel", job.stream.state_channel},
+                   {"event_channel", job.stream.event_channel},
+                   {"period", job.stream.period},
+                   {"realtime", job.stream.realtime}};
+  }
+  lock.unlock();
+  if (report) j["report"] = *report;
+  return j;
+}
+
+// ---- JobManager ----
+
+JobManager::JobManager(const ServerConfig& config, LcmHub& hub)
+    : config_(config), hub_(hub), jobs_dir_(fs::path(config.data_dir) / "jobs") {
+  if (config.data_dir.empty()) throw std::runtime_error("no data directory given (--data DIR)");
+  std::error_code ec;
+  fs::create_directories(jobs_dir_, ec);
+  if (ec || !fs::is_directory(jobs_dir_)) {
+    throw std::runtime_error("cannot use data directory '" + config.data_dir + "': " + (ec ? ec.message() : "not a directory"));
+  }
+}
+
+JobManager::~JobManager() { stop(); }
+
+std::shared_ptr<Job> JobManager::make_job() const {
+  auto job = std::make_shared<Job>();
+  job->id = new_job_id();
+  job->dir = jobs_dir_ / job->id;
+  job->created = unix_now();
+  return job;
+}
+
+void JobManager::write_record(const Job& job) const {
+  json r;
+  {
+    std::lock_guard lock(job.mu);
+    r = {{"id", job.id},
+         {"scene", job.scene_name},
+         {"state", to_string(job.state)},
+         {"created", job.created},
+         {"started", job.started},
+         {"finished", job.finished},
+         {"t0", job.t0},
+         {"t_end", job.t_end},
+         {"planned_steps", job.planned_steps}};
+    if (!job.reason.empty()) r["reason"] = job.reason;
+    if (job.stream.enabled) {
+      r["stream"] = {{"prefix", job.stream.prefix}, {"period", job.stream.period}, {"realtime", job.stream.realtime}};
+    }
+  }
+  try {
+    write_file_atomic(job.dir / "job.json", r.dump(2) + "\n", Durability::kRename);
+  } catch (const std::exception& e) {
+    std::cerr << "moreau-server: job " << job.id << ": " << e.what() << "\n";
+  }
+}
+
+void JobManager::recover() {
+  std::error_code ec;
+  std::vector<std::shared_ptr<Job>> found;
+  for (const auto& entry : fs::directory_iterator(jobs_dir_, ec)) {
+    const std::string name = entry.path().filename().string();
+    if (!entry.is_directory() || !is_job_id(name)) continue;
+    auto job = std::make_shared<Job>();
+    job->id = name;
+    job->dir = entry.path();
+    // Leftovers of writes interrupted by a crash.
+    for (const auto& f : fs::directory_iterator(job->dir, ec)) {
+      if (f.path().extension() == ".tmp") fs::remove(f.path(), ec);
+    }
+    json record;
+    if (auto text = read_file(job->dir / "job.json")) {
+      record = json::parse(*text, nullptr, false);
+    }
+    if (!record.is_object()) {
+      std::cerr << "moreau-server: skipping " << job->dir << ": no readable job.json\n";
+      continue;
+    }
+    job->scene_name = record.value("scene", "");
+    job->created = record.value("created", 0.0);
+    job->started = record.value("started", 0.0);
+    job->finished = record.value("finished", 0.0);
+    job->t0 = record.value("t0", 0.0);
+    job->t_end = record.value("t_end", 0.0);
+    job->planned_steps = record.value("planned_steps", std::int64_t{0});
+    job->reason = record.value("reason", "");
+    if (record.contains("stream") && record["stream"].is_object()) {
+      job->stream.enabled = true;
+      job->stream.prefix = record["stream"].value("prefix", "MOREAU");
+      job->stream.period = record["stream"].value("period", 1.0 / 64);
+      job->stream.realtime = record["stream"].value("realtime", false);
+      set_channels(job->stream, job->id);
+    }
+    job->has_report = fs::exists(job->dir / "report.json", ec);
+    job->has_trajectory = fs::exists(job->dir / "trajectory.csv", ec);
+    const std::optional<JobState> recorded = parse_state(record.value("state", ""));
+    bool rewrite = false;
+    if (recorded && is_final(*recorded)) {
+      job->state = *recorded;
+    } else if (job->has_report) {
+      // The run ended and its report was committed, but the record was not updated.
+      json report = json::parse(read_file(job->dir / "report.json").value_or(""), nullptr, false);
+      const std::string status = report.is_object() ? report.value("status", "") : "";
+      job->state = status == "completed" ? JobState::kDone : status == "cancelled" ? JobState::kCancelled : JobState::kFailed;
+      if (job->state != JobState::kDone && job->reason.empty() && report.is_object()) job->reason = report.value("message", "");
+      rewrite = true;
+    } else {
+      job->state = JobState::kFailed;
+      job->reason = recorded == JobState::kQueued ? kReasonRestartedQueued : kReasonRestartedRunning;
+      rewrite = true;
+    }
+    if (job->finished == 0 && rewrite) job->finished = unix_now();
+    if (rewrite) write_record(*job);
+    job->t_now = job->t0;
+    found.push_back(std::move(job));
+  }
+  std::sort(found.begin(), found.end(), [](const auto& a, const auto& b) {
+    return a->created != b->created ? a->created < b->created : a->id < b->id;
+  });
+  std::lock_guard lock(mu_);
+  for (auto& job : found) {
+    push_event(*job, "state", {{"id", job->id}, {"state", to_string(job->state)}});
+    jobs_.emplace(job->id, job);
+    order_.push_back(job);
+  }
+}
+
+void JobManager::start() {
+  const int n = config_.workers > 0 ? config_.workers : std::max(1u, std::thread::hardware_concurrency());
+  for (int i = 0; i < n; ++i) workers_.emplace_back([this] { worker_loop(); });
+}
+
+void JobManager::stop() {
+  if (stopping_.exchange(true)) {
+    for (auto& w : workers_)
+      if (w.joinable()) w.join();
+    return;
+  }
+  std::deque<std::shared_ptr<Job>> queued;
+  std::vector<std::shared_ptr<Job>> all;
+  {
+    std::lock_guard lock(mu_);
+    queued.swap(queue_);
+    all = order_;
+  }
+  queue_cv_.notify_all();
+  for (auto& job : queued) {
+    job->sim.reset();
+    set_state(*job, JobState::kFailed, kReasonStoppedQueued);
+  }
+  auto wake = [](Job& job) {
+    { std::lock_guard l(job.mu); }  // a waiter is either before its predicate check or blocked
+    job.cv.notify_all();
+  };
+  for (auto& job : all) {
+    job->shutdown = true;
+    job->cancel = true;
+    wake(*job);
+  }
+  for (auto& w : workers_)
+    if (w.joinable()) w.join();
+  workers_.clear();
+  for (auto& job : all) wake(*job);
+}
+
+JobManager::Submit JobManager::submit(const std::shared_ptr<Job>& job, const json& scene_doc, int* retry_after) {
+  {
+    std::lock_guard lock(mu_);
+    if (stopping_) return Submit::kStopping;
+    if (static_cast<int>(queue_.size()) >= config_.queue) {
+      std::lock_guard s(stats_mu_);
+      ++rejected_;
+      const int workers = std::max<int>(1, static_cast<int>(workers_.size()));
+      const double wait = avg_job_seconds_ * static_cast<double>(queue_.size()) / workers;
+      if (retry_after) *retry_after = std::clamp(static_cast<int>(std::ceil(wait)), 1, 60);
+      return Submit::kQueueFull;
+    }
+  }
+  fs::create_directories(job->dir);
+  write_file_atomic(job->dir / "scene.json", scene_doc.dump(2) + "\n", Durability::kRename);
+  write_record(*job);
+  push_event(*job, "state", {{"id", job->id}, {"state", "queued"}});
+  {
+    std::lock_guard lock(mu_);
+    if (stopping_) return Submit::kStopping;
+    // The queue may have filled up while the records were written: accept anyway, it is one more.
+    jobs_.emplace(job->id, job);
+    order_.push_back(job);
+    queue_.push_back(job);
+  }
+  {
+    std::lock_guard s(stats_mu_);
+    ++submitted_;
+  }
+  queue_cv_.notify_one();
+  return Submit::kQueued;
+}
+
+std::shared_ptr<Job> JobManager::find(const std::string& id) const {
+  std::lock_guard lock(mu_);
+  auto it = jobs_.find(id);
+  return it == jobs_.end() ? nullptr : it->second;
+}
+
+std::vector<std::shared_ptr<Job>> JobManager::list() const {
+  std::lock_guard lock(mu_);
+  return order_;
+}
+
+void JobManager::push_event(Job& job, const std::string& name, const json& data) {
+  {
+    std::lock_guard lock(job.mu);
+    job.events.push_back(SseEvent{job.next_event_id++, name, data.dump()});
+    if (job.events.size() > kMaxEventsKept) {
+      // Drop the oldest progress event (state changes are kept).
+      auto it = std::find_if(job.events.begin(), job.events.end(), [](const SseEvent& e) { return e.name == "progress"; });
+      job.events.erase(it != job.events.end() ? it : job.events.begin());
+    }
+  }
+  job.cv.notify_all();
+}
+
+void JobManager::set_state(Job& job, JobState state, const std::string& reason) {
+  json data = {{"id", job.id}, {"state", to_string(state)}};
+  if (!reason.empty()) data["reason"] = reason;
+  {
+    // The state and its event change together: a stream that sees a final state has its event.
+    std::lock_guard lock(job.mu);
+    job.state = state;
+    job.reason = reason;
+    if (state == JobState::kRunning) job.started = unix_now();
+    if (is_final(state)) job.finished = unix_now();
+    job.events.push_back(SseEvent{job.next_event_id++, "state", data.dump()});
+  }
+  job.cv.notify_all();
+  write_record(job);
+}
+
+JobManager::Cancel JobManager::cancel(const std::shared_ptr<Job>& job, std::chrono::milliseconds wait) {
+  bool was_queued = false;
+  {
+    std::lock_guard lock(mu_);
+    auto it = std::find(queue_.begin(), queue_.end(), job);
+    if (it != queue_.end()) {
+      queue_.erase(it);
+      was_queued = true;
+    }
+  }
+  if (was_queued) {
+    job->sim.reset();
+    set_state(*job, JobState::kCancelled, "cancelled before it ran");
+    return Cancel::kCancelled;
+  }
+  {
+    std::lock_guard lock(job->mu);
+    if (job->state == JobState::kCancelled) return Cancel::kCancelled;
+    if (is_final(job->state)) return Cancel::kAlreadyFinished;
+  }
+  job->cancel = true;
+  std::unique_lock lock(job->mu);
+  job->cv.wait_for(lock, wait, [&] { return is_final(job->state); });
+  return job->state == JobState::kDone || job->state == JobState::kFailed ? Cancel::kAlreadyFinished : Cancel::kCancelled;
+}
+
+void JobManager::wait_final(Job& job, std::chrono::milliseconds timeout) const {
+  std::unique_lock lock(job.mu);
+  job.cv.wait_for(lock, timeout, [&] { return is_final(job.state) || stopping_.load(); });
+}
+
+std::vector<SseEvent> JobManager::events_after(Job& job, std::uint64_t after, std::chrono::milliseconds timeout,
+                                               bool& done) const {
+  std::unique_lock lock(job.mu);
+  auto has_new = [&] { return !job.events.empty() && job.events.back().id > after; };
+  job.cv.wait_for(lock, timeout, [&] { return has_new() || is_final(job.state) || stopping_.load(); });
+  std::vector<SseEvent> out;
+  for (const auto& e : job.events)
+    if (e.id > after) out.push_back(e);
+  done = is_final(job.state) || stopping_.load();
+  return out;
+}
+
+void JobManager::worker_loop() {
+  while (true) {
+    std::shared_ptr<Job> job;
+    {
+      std::unique_lock lock(mu_);
+      queue_cv_.wait(lock, [&] { return !queue_.empty() || stopping_; });
+      if (stopping_) return;
+      job = std::move(queue_.front());
+      queue_.pop_front();
+    }
+    ++busy_;
+    try {
+      run(job);
+    } catch (const std::exception& e) {
+      std::cerr << "moreau-server: job " << job->id << " failed: " << e.what() << "\n";
+      job->sim.reset();
+      set_state(*job, JobState::kFailed, std::string("internal error: ") + e.what());
+    }
+    --busy_;
+  }
+}
+
+void JobManager::run(const std::shared_ptr<Job>& job) {
+  const auto wall_start = Clock::now();
+  if (job->cancel) {
+    job->sim.reset();
+    if (job->shutdown) set_state(*job, JobState::kFailed, kReasonStoppedQueued);
+    else set_state(*job, JobState::kCancelled, "cancelled before it ran");
+    return;
+  }
+  set_state(*job, JobState::kRunning, "");
+  const scene::Simulation& sim = *job->sim;
+
+  std::shared_ptr<JobStream> stream;
+  struct CloseOnExit {
+    std::shared_ptr<JobStream>& s;
+    ~CloseOnExit() {
+      if (s) s->close();
+    }
+  } close_on_exit{stream};
+  std::optional<StreamObserver> stream_observer;
+  if (job->stream.enabled) {
+    stream = std::make_shared<JobStream>(job->id, job->stream, sim.dof());
+    hub_.add(stream);
+    stream_observer.emplace(stream, sim.t0(), &job->cancel);
+    stream->push_event("started", 0, sim.t0(),
+                       "job " + job->id + " started: " + sim.name() + ", t in [" + std::to_string(sim.t0()) + ", " +
+                           std::to_string(sim.t_end()) + "]");
+  }
+
+  const fs::path csv_tmp = job->dir / "trajectory.csv.tmp";
+  scene::TrajectoryCsvWriter csv(csv_tmp.string(), sim.position_names(), sim.velocity_names());
+  auto progress = [this, &job] {
+    push_event(*job, "progress",
+               {{"t", job->t_now.load()}, {"step", job->step_now.load()}, {"t0", job->t0}, {"t_end", job->t_end}});
+  };
+  JobObserver observer(*job, csv, job->record_every, sim.output_every(), config_.max_samples,
+                       stream_observer ? &*stream_observer : nullptr, progress);
+
+  RunSummary summary = sim.run(&observer);
+  observer.finish();
+  if (stream_observer) stream_observer->flush_last();
+
+  // Results: trajectory first, then the report, which commits the job.
+  const auto t_write = Clock::now();
+  csv.close();
+  fsync_path(csv_tmp);
+  fs::rename(csv_tmp, job->dir / "trajectory.csv");
+  for (auto& [name, s] : summary.phase_seconds)
+    if (name == "integrate") s = std::max(0.0, s - csv.seconds());
+  summary.phase_seconds.insert(summary.phase_seconds.begin(), {"load", job->load_seconds});
+
+  JobState final_state = JobState::kDone;
+  std::string reason;
+  if (observer.overflow()) {
+    summary.status = RunStatus::kFailed;
+    summary.message = "the trajectory reached this server's limit of " + std::to_string(config_.max_samples) +
+                      " output samples at t = " + std::to_string(job->t_now.load()) + ": raise /output/every";
+  }
+  if (summary.status == RunStatus::kFailed) {
+    final_state = JobState::kFailed;
+    reason = summary.message;
+  } else if (summary.status == RunStatus::kCancelled) {
+    if (job->shutdown) {
+      final_state = JobState::kFailed;
+      reason = kReasonStoppedRunning;
+    } else {
+      final_state = JobState::kCancelled;
+      reason = "cancelled by request (" + summary.message + ")";
+    }
+  }
+  summary.add_phase("write", csv.seconds() + seconds_since(t_write));
+  const json report = sim.report_json(summary);
+  write_file_atomic(job->dir / "report.json", report.dump(2) + "\n", Durability::kFsync);
+  fsync_path(job->dir);
+  {
+    std::lock_guard lock(job->mu);
+    job->has_report = true;
+    job->has_trajectory = true;
+  }
+
+  if (stream) {
+    if (summary.converged_step) {
+      stream->push_event("converged", *summary.converged_step, summary.converged_time.value_or(summary.t_final),
+                         "v == 0.0 exactly from step " + std::to_string(*summary.converged_step) + " to the end");
+    }
+    const char* kind = final_state == JobState::kDone ? "finished" : final_state == JobState::kCancelled ? "cancelled" : "failed";
+    stream->push_event(kind, summary.steps, summary.t_final, reason.empty() ? summary.BriefReport() : reason);
+  }
+  job->t_now = summary.t_final;
+  job->step_now = summary.steps;
+  job->sim.reset();
+  set_state(*job, final_state, reason);
+  double integrate = 0;
+  for (const auto& [name, s] : summary.phase_seconds)
+    if (name == "integrate") integrate = s;
+  count_finished(summary.steps, integrate, seconds_since(wall_start));
+}
+
+void JobManager::count_finished(std::int64_t steps, double integrate_seconds, double wall_seconds) {
+  std::lock_guard lock(stats_mu_);
+  steps_total_ += steps;
+  integrate_total_ += integrate_seconds;
+  avg_job_seconds_ = 0.9 * avg_job_seconds_ + 0.1 * wall_seconds;
+  const auto now = Clock::now();
+  recent_steps_.emplace_back(now, steps);
+  while (!recent_steps_.empty() && now - recent_steps_.front().first > std::chrono::seconds(10)) recent_steps_.pop_front();
+}
+
+Metrics JobManager::metrics() const {
+  Metrics m;
+  for (const char* s : {"queued", "running", "done", "failed", "cancelled"}) m.jobs_by_state[s] = 0;
+  {
+    std::lock_guard lock(mu_);
+    for (const auto& job : order_) {
+      std::lock_guard jl(job->mu);
+      ++m.jobs_by_state[to_string(job->state)];
+    }
+    m.queue_length = static_cast<std::int64_t>(queue_.size());
+    m.workers = static_cast<std::int64_t>(workers_.size());
+  }
+  m.queue_capacity = config_.queue;
+  m.workers_busy = busy_.load();
+  {
+    std::lock_guard lock(stats_mu_);
+    m.submitted = submitted_;
+    m.rejected_queue_full = rejected_;
+    m.steps_total = steps_total_;
+    m.integrate_seconds_total = integrate_total_;
+    const auto now = Clock::now();
+    std::int64_t recent = 0;
+    for (const auto& [when, steps] : recent_steps_)
+      if (now - when <= std::chrono::seconds(10)) recent += steps;
+    m.steps_per_second = static_cast<double>(recent) / 10.0;
+  }
+  m.lcm_published = hub_.published();
+  m.lcm_dropped = hub_.dropped();
+  return m;
+}
+
+}  // namespace moreau::server

@@ -1,0 +1,154 @@
+// Jobs, the bounded queue, the worker pool and the job records under the data directory:
+//
+//   DATA/jobs/<id>/job.json        the job's record (state, reason, times, scene name)
+//   DATA/jobs/<id>/scene.json      the scene as run (overrides applied)
+//   DATA/jobs/<id>/trajectory.csv  t, h, q..., v..., energy (as `moreau run --out` writes it)
+//   DATA/jobs/<id>/report.json     the report (as `moreau run --json` prints it)
+//   DATA/jobs/<id>/figure-<kind>.png  figures, drawn on first request
+//
+// trajectory.csv and report.json are written to a temporary file, fsync'ed and renamed when the job
+// ends; report.json is the commit point. job.json is replaced (atomically) at each state change.
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "lcm_stream.h"
+#include "moreau/scene/simulation.h"
+#include "moreau/server/server.h"
+
+namespace moreau::server {
+
+enum class JobState { kQueued, kRunning, kDone, kFailed, kCancelled };
+const char* to_string(JobState s);
+bool is_final(JobState s);
+
+// A server-sent event: "id: <id>\nevent: <name>\ndata: <data>\n\n".
+struct SseEvent {
+  std::uint64_t id = 0;
+  std::string name;
+  std::string data;  // one line of JSON
+};
+
+struct Job {
+  // Fixed when the job is created.
+  std::string id;
+  std::filesystem::path dir;
+  std::string scene_name;
+  double t0 = 0, t_end = 0;
+  std::int64_t planned_steps = 0;
+  double created = 0;  // Unix time, seconds
+  StreamSettings stream;
+
+  // Set before the job is queued, used by its worker, released when it ends.
+  std::optional<scene::Simulation> sim;
+  std::int64_t record_every = 1;  // trajectory decimation: the scene's /output/every
+  double load_seconds = 0;        // validation and compilation at submission
+
+  std::atomic<bool> cancel{false};    // the run stops at its next check (within 4096 steps)
+  std::atomic<bool> shutdown{false};  // ... because the server is stopping
+  std::atomic<double> t_now{0};
+  std::atomic<std::int64_t> step_now{0};
+
+  mutable std::mutex mu;
+  std::condition_variable cv;  // state changes and new events
+  JobState state = JobState::kQueued;
+  std::string reason;  // why it failed or was cancelled
+  double started = 0, finished = 0;
+  bool has_report = false, has_trajectory = false;
+  std::deque<SseEvent> events;
+  std::uint64_t next_event_id = 1;
+};
+
+struct Metrics {
+  std::map<std::string, std::int64_t> jobs_by_state;
+  std::int64_t queue_length = 0, queue_capacity = 0, workers = 0, workers_busy = 0;
+  std::int64_t submitted = 0, rejected_queue_full = 0;
+  std::int64_t steps_total = 0;
+  double integrate_seconds_total = 0;
+  double steps_per_second = 0;  // over the last 10 s
+  std::uint64_t lcm_published = 0, lcm_dropped = 0;
+};
+
+class JobManager {
+ public:
+  JobManager(const ServerConfig& config, LcmHub& hub);
+  ~JobManager();
+
+  // Reads DATA/jobs: finished jobs are served again; jobs left queued or running are marked failed.
+  void recover();
+  void start();
+  // Fails the queued jobs, stops the running ones (failed: the server stopped) and joins the workers.
+  void stop();
+  bool stopping() const { return stopping_.load(); }
+
+  // A fresh job with a random id and its directory path (not yet created).
+  std::shared_ptr<Job> make_job() const;
+
+  enum class Submit { kQueued, kQueueFull, kStopping };
+  // Writes the job's records (scene.json, job.json) and queues it. On kQueueFull, *retry_after is a
+  // suggested wait in seconds.
+  Submit submit(const std::shared_ptr<Job>& job, const nlohmann::json& scene_doc, int* retry_after);
+
+  std::shared_ptr<Job> find(const std::string& id) const;
+  std::vector<std::shared_ptr<Job>> list() const;
+
+  enum class Cancel { kCancelled, kAlreadyFinished };
+  // Cancels a queued job at once, or a running one (waiting up to `wait` for it to stop).
+  Cancel cancel(const std::shared_ptr<Job>& job, std::chrono::milliseconds wait);
+  // Waits until the job is in a final state or `timeout` passed (or the server stops).
+  void wait_final(Job& job, std::chrono::milliseconds timeout) const;
+  // Events with an id above `after`, waiting up to `timeout` if there is none yet. `done` is set
+  // when the job is final and every event has been returned.
+  std::vector<SseEvent> events_after(Job& job, std::uint64_t after, std::chrono::milliseconds timeout, bool& done) const;
+
+  Metrics metrics() const;
+
+ private:
+  void worker_loop();
+  void run(const std::shared_ptr<Job>& job);
+  // Changes the state (and reason), records it in job.json and tells the event streams.
+  void set_state(Job& job, JobState state, const std::string& reason);
+  void push_event(Job& job, const std::string& name, const nlohmann::json& data);
+  void write_record(const Job& job) const;
+  void count_finished(std::int64_t steps, double integrate_seconds, double wall_seconds);
+
+  const ServerConfig& config_;
+  LcmHub& hub_;
+  std::filesystem::path jobs_dir_;
+
+  mutable std::mutex mu_;
+  std::condition_variable queue_cv_;
+  std::map<std::string, std::shared_ptr<Job>, std::less<>> jobs_;
+  std::vector<std::shared_ptr<Job>> order_;  // by creation
+  std::deque<std::shared_ptr<Job>> queue_;
+  std::vector<std::thread> workers_;
+  std::atomic<bool> stopping_{false};
+  std::atomic<std::int64_t> busy_{0};
+
+  mutable std::mutex stats_mu_;
+  std::int64_t submitted_ = 0, rejected_ = 0, steps_total_ = 0;
+  double integrate_total_ = 0;
+  double avg_job_seconds_ = 0.01;
+  std::deque<std::pair<std::chrono::steady_clock::time_point, std::int64_t>> recent_steps_;
+};
+
+// The job as GET /v1/jobs/{id} shows it (with the report when `report` is given).
+nlohmann::json job_json(const Job& job, const nlohmann::json* report);
+
+double unix_now();
+
+}  // namespace moreau::server

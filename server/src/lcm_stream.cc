@@ -1,0 +1,245 @@
+#include "lcm_stream.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdlib>
+#include <stdexcept>
+
+#include <lcm/lcm-cpp.hpp>
+#include <moreau/job_event_t.hpp>
+#include <moreau/state_t.hpp>
+
+namespace moreau::server {
+
+void set_channels(StreamSettings& s, const std::string& job_id) {
+  std::string upper = job_id;
+  for (char& c : upper) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  s.state_channel = s.prefix + "_STATE_" + upper;
+  s.event_channel = s.prefix + "_EVENT_" + upper;
+}
+
+std::int64_t utime_now() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+// ---- JobStream ----
+
+JobStream::JobStream(std::string job_id, StreamSettings settings, int n)
+    : job_id_(std::move(job_id)), settings_(std::move(settings)), n_(n) {
+  pending_.records.reserve(1024);
+  pending_.qv.reserve(1024 * 2 * static_cast<std::size_t>(n));
+}
+
+void JobStream::push_state(std::int64_t step, double t, double h, const double* q, const double* v, double energy) {
+  const std::int64_t now = utime_now();
+  std::lock_guard lock(mu_);
+  if (pending_.records.size() >= kMaxPending) {
+    dropped_.fetch_add(1, std::memory_order_relaxed);
+    return;
+  }
+  pending_.records.push_back(Record{now, step, t, h, energy, -1});
+  pending_.qv.insert(pending_.qv.end(), q, q + n_);
+  pending_.qv.insert(pending_.qv.end(), v, v + n_);
+}
+
+void JobStream::push_event(const char* kind, std::int64_t step, double t, std::string text) {
+  const std::int64_t now = utime_now();
+  std::lock_guard lock(mu_);
+  pending_.events.push_back(Event{kind, std::move(text)});
+  pending_.records.push_back(Record{now, step, t, 0.0, 0.0, static_cast<std::int32_t>(pending_.events.size() - 1)});
+}
+
+void JobStream::close() {
+  std::lock_guard lock(mu_);
+  closed_ = true;
+}
+
+bool JobStream::take(Batch& out) {
+  out.clear();
+  std::lock_guard lock(mu_);
+  std::swap(out, pending_);
+  return closed_;
+}
+
+// ---- LcmHub ----
+
+LcmHub::LcmHub(std::string url) : url_(std::move(url)) {
+  if (url_.empty()) {
+    if (const char* env = std::getenv("LCM_DEFAULT_URL"); env && *env) url_ = env;
+  }
+}
+
+LcmHub::~LcmHub() { stop(); }
+
+lcm::LCM& LcmHub::open() {
+  std::lock_guard lock(open_mu_);
+  if (!lcm_) {
+    auto l = std::make_unique<lcm::LCM>(url_);
+    if (!l->good()) {
+      throw std::runtime_error("cannot open LCM URL '" + (url_.empty() ? std::string("(LCM's default)") : url_) + "'");
+    }
+    lcm_ = std::move(l);
+    lcm_ptr_.store(lcm_.get());
+  }
+  return *lcm_;
+}
+
+lcm::LCM* LcmHub::get() { return lcm_ptr_.load(); }
+
+void LcmHub::add(std::shared_ptr<JobStream> stream) {
+  open();
+  std::lock_guard lock(mu_);
+  if (!thread_.joinable() && !stopping_) thread_ = std::thread([this] { loop(); });
+  streams_.push_back(std::move(stream));
+  cv_.notify_one();
+}
+
+void LcmHub::stop() {
+  {
+    std::lock_guard lock(mu_);
+    stopping_ = true;
+  }
+  cv_.notify_all();
+  if (thread_.joinable()) thread_.join();
+}
+
+void LcmHub::loop() {
+  JobStream::Batch batch;
+  std::vector<std::shared_ptr<JobStream>> current;
+  while (true) {
+    bool stopping = false;
+    {
+      std::unique_lock lock(mu_);
+      cv_.wait(lock, [&] { return !streams_.empty() || stopping_; });
+      stopping = stopping_;
+      current = streams_;
+    }
+    std::vector<JobStream*> finished;
+    for (auto& s : current) {
+      const bool closed = s->take(batch);
+      drain(*s, batch);
+      // close() comes after the last push, so a closed stream has nothing left once taken.
+      if (closed) finished.push_back(s.get());
+    }
+    if (!finished.empty()) {
+      std::lock_guard lock(mu_);
+      std::erase_if(streams_, [&](const std::shared_ptr<JobStream>& s) {
+        return std::find(finished.begin(), finished.end(), s.get()) != finished.end();
+      });
+    }
+    current.clear();
+    if (stopping) {
+      std::lock_guard lock(mu_);
+      for (auto& s : streams_) {
+        s->take(batch);
+        drain(*s, batch);
+      }
+      streams_.clear();
+      return;
+    }
+    // Publish about once a millisecond: a paced (realtime) viewer sees states within a millisecond of
+    // their wall-clock time, and a fast job's states go out in batches.
+    std::unique_lock lock(mu_);
+    cv_.wait_for(lock, std::chrono::milliseconds(1), [&] { return stopping_; });
+  }
+}
+
+void LcmHub::drain(JobStream& s, JobStream::Batch& batch) {
+  if (batch.records.empty()) return;
+  lcm::LCM* l = get();
+  if (!l) return;
+  dropped_.fetch_add(static_cast<std::uint64_t>(s.dropped_.exchange(0)));
+  moreau::state_t state;
+  state.job_id = s.job_id();
+  state.n = s.n();
+  moreau::job_event_t event;
+  event.job_id = s.job_id();
+  const std::size_t n = static_cast<std::size_t>(s.n());
+  std::size_t qv_at = 0;
+  for (const auto& r : batch.records) {
+    int size = 0;
+    const std::string* channel = nullptr;
+    if (r.event < 0) {
+      state.utime = r.utime;
+      state.step = r.step;
+      state.t = r.t;
+      state.h = r.h;
+      state.energy = r.energy;
+      state.q.assign(batch.qv.begin() + static_cast<std::ptrdiff_t>(qv_at), batch.qv.begin() + static_cast<std::ptrdiff_t>(qv_at + n));
+      state.v.assign(batch.qv.begin() + static_cast<std::ptrdiff_t>(qv_at + n),
+                     batch.qv.begin() + static_cast<std::ptrdiff_t>(qv_at + 2 * n));
+      qv_at += 2 * n;
+      size = state.getEncodedSize();
+      buffer_.resize(static_cast<std::size_t>(size));
+      state.encode(buffer_.data(), 0, size);
+      channel = &s.settings().state_channel;
+    } else {
+      const auto& e = batch.events[static_cast<std::size_t>(r.event)];
+      event.utime = r.utime;
+      event.kind = e.kind;
+      event.step = r.step;
+      event.t = r.t;
+      event.text = e.text;
+      size = event.getEncodedSize();
+      buffer_.resize(static_cast<std::size_t>(size));
+      event.encode(buffer_.data(), 0, size);
+      channel = &s.settings().event_channel;
+    }
+    if (l->publish(*channel, buffer_.data(), static_cast<unsigned>(size)) == 0) published_.fetch_add(1);
+  }
+  batch.clear();
+}
+
+// ---- StreamObserver ----
+
+StreamObserver::StreamObserver(std::shared_ptr<JobStream> stream, double t0, const std::atomic<bool>* cancel)
+    : stream_(std::move(stream)),
+      t0_(t0),
+      period_(stream_->settings().period),
+      realtime_(stream_->settings().realtime),
+      cancel_(cancel),
+      next_t_(t0),
+      wall_start_(std::chrono::steady_clock::now()),
+      last_q_(static_cast<std::size_t>(stream_->n())),
+      last_v_(static_cast<std::size_t>(stream_->n())) {}
+
+void StreamObserver::on_sample(const Sample& s) {
+  last_step_ = s.step;
+  last_t_ = s.t;
+  last_h_ = s.h;
+  last_energy_ = s.kinetic_energy;
+  std::copy(s.q, s.q + s.n, last_q_.begin());
+  std::copy(s.v, s.v + s.n, last_v_.begin());
+  if (!any_ || s.t >= next_t_ - 1e-9 * period_) {
+    any_ = true;
+    publish(s);
+    // The next multiple of the period after t (robust to steps that do not divide the period).
+    next_t_ = t0_ + period_ * (std::floor((s.t - t0_) / period_ + 1e-9) + 1.0);
+  }
+}
+
+void StreamObserver::publish(const Sample& s) {
+  if (realtime_) {
+    // Sleep in short slices so that a cancellation is seen within a few milliseconds.
+    const auto target = wall_start_ + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                          std::chrono::duration<double>(s.t - t0_));
+    while (!(cancel_ && cancel_->load(std::memory_order_relaxed))) {
+      const auto now = std::chrono::steady_clock::now();
+      if (now >= target) break;
+      std::this_thread::sleep_for(std::min<std::chrono::steady_clock::duration>(target - now, std::chrono::milliseconds(5)));
+    }
+  }
+  stream_->push_state(s.step, s.t, s.h, s.q, s.v, s.kinetic_energy);
+  last_published_step_ = s.step;
+}
+
+void StreamObserver::flush_last() {
+  if (last_step_ >= 0 && last_step_ != last_published_step_) {
+    stream_->push_state(last_step_, last_t_, last_h_, last_q_.data(), last_v_.data(), last_energy_);
+    last_published_step_ = last_step_;
+  }
+}
+
+}  // namespace moreau::server

@@ -1,0 +1,151 @@
+// Live state over LCM. A job's worker thread never publishes: its observer appends the states it
+// wants to send (one per simulation-time period) to the job's JobStream, which costs a lock and a copy
+// of 2n + 4 numbers, and one hub thread per server encodes and publishes them. The integrator thus
+// pays almost nothing for streaming (docs/streaming.md has the measured overhead).
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "moreau/core/observer.h"
+
+namespace lcm {
+class LCM;
+}
+
+namespace moreau::server {
+
+struct StreamSettings {
+  bool enabled = false;
+  std::string prefix = "MOREAU";  // channels: <prefix>_STATE_<ID>, <prefix>_EVENT_<ID>
+  double period = 1.0 / 64.0;     // simulation seconds between published states
+  bool realtime = false;          // pace the job so that simulation time follows wall-clock time
+  std::string state_channel, event_channel;
+};
+
+// "MOREAU_STATE_" + the job id in upper case, and the event channel likewise.
+void set_channels(StreamSettings& s, const std::string& job_id);
+
+// Microseconds since the Unix epoch.
+std::int64_t utime_now();
+
+// The messages of one job, in order, waiting for the hub thread.
+class JobStream {
+ public:
+  JobStream(std::string job_id, StreamSettings settings, int n);
+  void push_state(std::int64_t step, double t, double h, const double* q, const double* v, double energy);
+  void push_event(const char* kind, std::int64_t step, double t, std::string text);
+  // No more messages will be pushed: the hub publishes what is left and forgets the stream.
+  void close();
+
+  const std::string& job_id() const { return job_id_; }
+  const StreamSettings& settings() const { return settings_; }
+  int n() const { return n_; }
+
+ private:
+  friend class LcmHub;
+  struct Record {
+    std::int64_t utime;
+    std::int64_t step;
+    double t, h, energy;
+    std::int32_t event;  // index into events_, or -1 for a state (values in qv_)
+  };
+  struct Event {
+    std::string kind, text;
+  };
+  struct Batch {
+    std::vector<Record> records;
+    std::vector<double> qv;  // 2n per state record, in order
+    std::vector<Event> events;
+    void clear() {
+      records.clear();
+      qv.clear();
+      events.clear();
+    }
+  };
+  // Swaps the pending batch into `out` (cleared first); returns whether the stream is closed.
+  bool take(Batch& out);
+
+  static constexpr std::size_t kMaxPending = 1 << 18;  // states held at most; beyond, new ones are dropped
+
+  std::string job_id_;
+  StreamSettings settings_;
+  int n_;
+  std::mutex mu_;
+  Batch pending_;
+  bool closed_ = false;
+  std::atomic<std::int64_t> dropped_{0};
+};
+
+// Owns the LCM instance and the thread that publishes every job's stream.
+class LcmHub {
+ public:
+  explicit LcmHub(std::string url);  // empty: LCM_DEFAULT_URL, else LCM's default; opened lazily
+  ~LcmHub();
+  LcmHub(const LcmHub&) = delete;
+  LcmHub& operator=(const LcmHub&) = delete;
+
+  // Opens the LCM instance (once). Throws std::runtime_error naming the URL if LCM cannot open it.
+  lcm::LCM& open();
+  lcm::LCM* get();
+  const std::string& url() const { return url_; }
+
+  void add(std::shared_ptr<JobStream> stream);
+  // Publishes what every stream holds and joins the thread.
+  void stop();
+
+  std::uint64_t published() const { return published_.load(); }
+  std::uint64_t dropped() const { return dropped_.load(); }
+
+ private:
+  void loop();
+  void drain(JobStream& s, JobStream::Batch& batch);
+
+  std::string url_;
+  std::mutex open_mu_;
+  std::unique_ptr<lcm::LCM> lcm_;
+  std::atomic<lcm::LCM*> lcm_ptr_{nullptr};
+
+  std::mutex mu_;
+  std::condition_variable cv_;
+  std::vector<std::shared_ptr<JobStream>> streams_;
+  bool stopping_ = false;
+  std::thread thread_;
+  std::vector<std::uint8_t> buffer_;
+  std::atomic<std::uint64_t> published_{0}, dropped_{0};
+};
+
+// The job-side half: sees the run's samples and pushes one state per period (and the last state).
+// With `realtime`, on_sample sleeps so that t - t0 follows the wall clock (waking early if `cancel`
+// becomes true).
+class StreamObserver : public RunObserver {
+ public:
+  StreamObserver(std::shared_ptr<JobStream> stream, double t0, const std::atomic<bool>* cancel);
+  void on_sample(const Sample& s) override;
+  // Pushes the last state seen if it was not published yet.
+  void flush_last();
+
+ private:
+  void publish(const Sample& s);
+  std::shared_ptr<JobStream> stream_;
+  double t0_, period_;
+  bool realtime_;
+  const std::atomic<bool>* cancel_;
+  double next_t_;
+  bool any_ = false;
+  std::int64_t last_published_step_ = -1;
+  std::chrono::steady_clock::time_point wall_start_;
+  // The last sample seen (copied, since the integrator's buffers move on).
+  std::int64_t last_step_ = -1;
+  double last_t_ = 0, last_h_ = 0, last_energy_ = 0;
+  std::vector<double> last_q_, last_v_;
+};
+
+}  // namespace moreau::server

@@ -1,0 +1,74 @@
+// moreau-server: serves the job API (docs/api.md) and streams live state over LCM (docs/streaming.md).
+#include <csignal>
+#include <cstdlib>
+#include <iostream>
+#include <thread>
+
+#include <CLI/CLI.hpp>
+
+#include "moreau/server/server.h"
+
+namespace {
+
+sigset_t termination_signals() {
+  sigset_t set;
+  sigemptyset(&set);
+  sigaddset(&set, SIGINT);
+  sigaddset(&set, SIGTERM);
+  return set;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  moreau::server::ServerConfig cfg;
+  cfg.data_dir = "moreau-data";
+  if (const char* t = std::getenv("MOREAU_TOKEN"); t && *t) cfg.token = t;
+
+  CLI::App app{"moreau-server: the Moreau job API over HTTP/JSON, with live state over LCM"};
+  app.set_version_flag("--version", "moreau-server 0.1.0");
+  app.add_option("--host", cfg.host, "Address to bind (a non-loopback one needs --token)")->capture_default_str();
+  app.add_option("--port", cfg.port, "TCP port (0: any free port, printed at start)")->capture_default_str();
+  app.add_option("--data", cfg.data_dir, "Directory for job records and results")->capture_default_str();
+  app.add_option("--scenes", cfg.scenes_dir, "Directory served by /v1/scenes (default: " + moreau::server::default_scenes_dir() + ")");
+  app.add_option("--workers", cfg.workers, "Jobs integrated at once (0: one per core)")->capture_default_str();
+  app.add_option("--queue", cfg.queue, "Queued jobs beyond which submissions get 429")->capture_default_str()->check(CLI::Range(0, 1000000));
+  app.add_option("--http-threads", cfg.http_threads, "HTTP connections served at once")->capture_default_str()->check(CLI::Range(2, 4096));
+  app.add_option("--lcm-url", cfg.lcm_url, "LCM URL for live state (default: LCM_DEFAULT_URL, else LCM's default)");
+  app.add_option("--token", cfg.token, "Require 'Authorization: Bearer TOKEN' (default: MOREAU_TOKEN)");
+  app.add_flag("--allow-unauthenticated-remote", cfg.allow_unauthenticated_remote,
+               "Allow a non-loopback --host without a token");
+  app.add_option("--max-body", cfg.max_body_bytes, "Largest request body, bytes (larger: 413)")->capture_default_str();
+  app.add_option("--max-steps", cfg.max_steps, "Integration steps per job at most")->capture_default_str()->check(CLI::PositiveNumber);
+  app.add_option("--max-samples", cfg.max_samples, "Trajectory rows per job at most")->capture_default_str()->check(CLI::Range(std::int64_t{3}, std::int64_t{1} << 40));
+  app.add_option("--keep-alive", cfg.keep_alive_seconds, "Seconds an idle keep-alive connection stays open")->capture_default_str();
+  app.add_flag("--log-requests", cfg.log_requests, "One line per request on stderr");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+
+  // Block SIGINT and SIGTERM in every thread; one thread waits for them and stops the server.
+  sigset_t signals = termination_signals();
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+
+  try {
+    moreau::server::Server server(cfg);
+    const int port = server.start();
+    std::cout << "moreau-server: listening on http://" << (cfg.host.find(':') != std::string::npos ? "[" + cfg.host + "]" : cfg.host)
+              << ":" << port << " (data " << cfg.data_dir << (cfg.token.empty() ? ", no token" : ", token required") << ")"
+              << std::endl;
+    std::thread([&server, signals] {
+      int sig = 0;
+      sigwait(&signals, &sig);
+      std::cerr << "moreau-server: signal " << sig << ", stopping\n";
+      server.stop();
+    }).detach();
+    server.wait();
+  } catch (const std::exception& e) {
+    std::cerr << "moreau-server: " << e.what() << "\n";
+    return 1;
+  }
+  return 0;
+}

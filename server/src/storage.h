@@ -1,0 +1,31 @@
+// Files under the data directory. Results are written atomically: a temporary file next to the target,
+// flushed to disk, then renamed over it, so a reader (or a restarted server) sees the old file or the
+// whole new one, never a part.
+#pragma once
+
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <string_view>
+
+namespace moreau::server {
+
+enum class Durability {
+  kRename,  // atomic against a crash of the process (rename), not against a power loss
+  kFsync,   // also fsync the file before the rename
+};
+
+// Writes `bytes` to `path` through `path`.tmp and a rename. Throws std::runtime_error naming the file.
+void write_file_atomic(const std::filesystem::path& path, std::string_view bytes, Durability durability);
+
+// fsync of a file or directory (a directory: so that renames inside it survive a power loss).
+void fsync_path(const std::filesystem::path& path);
+
+// The whole file, or nullopt if it cannot be opened.
+std::optional<std::string> read_file(const std::filesystem::path& path);
+
+// Job ids: 32 lowercase hex digits (128 random bits).
+bool is_job_id(std::string_view s);
+std::string new_job_id();
+
+}  // namespace moreau::server

@@ -1,0 +1,123 @@
+// Test support: a real moreau-server in-process on an ephemeral 127.0.0.1 port with its own temporary
+// data directory, and keep-alive HTTP clients for it. The server is stopped (and the directory
+// removed) when the fixture goes out of scope.
+#pragma once
+
+#include <stdlib.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <thread>
+
+#include <nlohmann/json.hpp>
+
+#include "moreau/scene/simulation.h"
+#include "moreau/server/server.h"
+
+// httplib.h after Eigen (simulation.h): its <resolv.h> defines a `_res` macro that breaks Eigen.
+#include <httplib.h>
+
+namespace moreau::server::testing {
+
+inline std::filesystem::path make_temp_dir(const std::string& tag) {
+  std::string pattern = (std::filesystem::temp_directory_path() / ("moreau-" + tag + "-XXXXXX")).string();
+  if (!mkdtemp(pattern.data())) throw std::runtime_error("mkdtemp failed");
+  return pattern;
+}
+
+inline nlohmann::json read_json_file(const std::string& path) {
+  std::ifstream in(path);
+  return nlohmann::json::parse(in);
+}
+
+// scenes/manipulator.json (tests run from the source tree).
+inline nlohmann::json manipulator() { return read_json_file("scenes/manipulator.json"); }
+
+class TestServer {
+ public:
+  explicit TestServer(ServerConfig cfg = {}, std::filesystem::path data = {}) {
+    owns_data_ = data.empty();
+    data_ = owns_data_ ? make_temp_dir("server") : data;
+    cfg.data_dir = data_.string();
+    cfg.host = "127.0.0.1";
+    cfg.port = 0;
+    if (cfg.workers == 0) cfg.workers = 2;
+    cfg.keep_alive_seconds = 1;
+    cfg_ = cfg;
+    server_ = std::make_unique<Server>(cfg);
+    port_ = server_->start();
+  }
+  ~TestServer() {
+    stop();
+    if (owns_data_ && keep_data_ == false) {
+      std::error_code ec;
+      std::filesystem::remove_all(data_, ec);
+    }
+  }
+  void stop() {
+    if (server_) server_->stop();
+  }
+  // Leaves the data directory in place (for a restart) and hands its ownership to the caller.
+  std::filesystem::path release_data() {
+    keep_data_ = true;
+    return data_;
+  }
+
+  int port() const { return port_; }
+  Server& server() { return *server_; }
+  const std::filesystem::path& data() const { return data_; }
+
+  std::unique_ptr<httplib::Client> client(const std::string& token = "") const {
+    auto c = std::make_unique<httplib::Client>("127.0.0.1", port_);
+    c->set_tcp_nodelay(true);
+    c->set_keep_alive(true);
+    c->set_read_timeout(30, 0);
+    if (!token.empty()) c->set_bearer_token_auth(token);
+    return c;
+  }
+
+ private:
+  ServerConfig cfg_;
+  std::filesystem::path data_;
+  bool owns_data_ = true, keep_data_ = false;
+  std::unique_ptr<Server> server_;
+  int port_ = 0;
+};
+
+// POSTs {scene, overrides?, stream?} to /v1/jobs.
+inline httplib::Result submit(httplib::Client& c, const nlohmann::json& request) {
+  return c.Post("/v1/jobs", request.dump(), "application/json");
+}
+
+// The job's JSON once it is final (long-polls ?wait=).
+inline nlohmann::json wait_final(httplib::Client& c, const std::string& id, double seconds = 30) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+  while (true) {
+    auto r = c.Get("/v1/jobs/" + id + "?wait=5");
+    if (!r || r->status != 200) throw std::runtime_error("GET job failed");
+    auto j = nlohmann::json::parse(r->body);
+    const std::string s = j["state"];
+    if (s == "done" || s == "failed" || s == "cancelled") return j;
+    if (std::chrono::steady_clock::now() > deadline) throw std::runtime_error("job did not finish in time");
+  }
+}
+
+// Polls until the job is running (or final).
+inline std::string wait_running(httplib::Client& c, const std::string& id, double seconds = 10) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+  while (std::chrono::steady_clock::now() < deadline) {
+    auto r = c.Get("/v1/jobs/" + id);
+    if (r && r->status == 200) {
+      const std::string s = nlohmann::json::parse(r->body)["state"];
+      if (s != "queued") return s;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  return "queued";
+}
+
+}  // namespace moreau::server::testing

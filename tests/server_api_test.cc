@@ -1,0 +1,370 @@
+// moreau-server over HTTP, in-process on an ephemeral port: the life of a job, bad requests, limits,
+// cancellation, a full queue and authentication.
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <thread>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "moreau/scene/simulation.h"
+#include "moreau/scene/trajectory_csv.h"
+#include "server_fixture.h"
+
+namespace {
+
+using moreau::server::ServerConfig;
+using moreau::server::testing::manipulator;
+using moreau::server::testing::submit;
+using moreau::server::testing::TestServer;
+using moreau::server::testing::wait_final;
+using moreau::server::testing::wait_running;
+using json = nlohmann::json;
+using Clock = std::chrono::steady_clock;
+namespace fs = std::filesystem;
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::ostringstream os;
+  os << in.rdbuf();
+  return os.str();
+}
+
+std::size_t count_lines(const std::string& s) { return static_cast<std::size_t>(std::count(s.begin(), s.end(), '\n')); }
+
+json error_of(const httplib::Result& r) { return json::parse(r->body); }
+
+// What `moreau run scenes/manipulator.json --out FILE` gives: the report and the trajectory CSV.
+struct LocalRun {
+  json report;
+  std::string csv;
+};
+LocalRun run_locally(const json& doc) {
+  auto sim = moreau::scene::Simulation::from_json(doc);
+  const fs::path csv_path = moreau::server::testing::make_temp_dir("local") / "traj.csv";
+  moreau::scene::TrajectoryCsvWriter csv(csv_path.string(), sim.position_names(), sim.velocity_names());
+  const auto summary = sim.run(&csv);
+  csv.close();
+  LocalRun out{sim.report_json(summary), slurp(csv_path)};
+  fs::remove_all(csv_path.parent_path());
+  return out;
+}
+
+TEST(ServerApi, JobLifeFromSubmissionToResults) {
+  TestServer ts;
+  auto c = ts.client();
+  const json scene = manipulator();
+
+  auto r = submit(*c, {{"scene", scene}});
+  ASSERT_TRUE(r);
+  ASSERT_EQ(r->status, 202) << r->body;
+  const json accepted = json::parse(r->body);
+  const std::string id = accepted["id"];
+  EXPECT_THAT(id, ::testing::MatchesRegex("[0-9a-f]{32}"));
+  EXPECT_EQ(accepted["url"], "/v1/jobs/" + id);
+  EXPECT_EQ(r->get_header_value("Location"), "/v1/jobs/" + id);
+  EXPECT_THAT(accepted["state"].get<std::string>(), ::testing::AnyOf("queued", "running", "done"));
+
+  const json job = wait_final(*c, id);
+  ASSERT_EQ(job["state"], "done") << job.dump(2);
+  EXPECT_EQ(job["scene"], "manipulator");
+  EXPECT_DOUBLE_EQ(job["progress"]["t"].get<double>(), 10.0);
+  EXPECT_DOUBLE_EQ(job["progress"]["fraction"].get<double>(), 1.0);
+  EXPECT_EQ(job["progress"]["step"], 10000);
+
+  // The same numbers as a local run (what `moreau run` prints), and the same trajectory bytes.
+  const LocalRun local = run_locally(scene);
+  const json& report = job["report"];
+  ASSERT_TRUE(local.report["converged_step"].is_number());
+  EXPECT_EQ(report["converged_step"], local.report["converged_step"]);
+  EXPECT_EQ(report["converged_time"], local.report["converged_time"]);
+  EXPECT_EQ(report["final"], local.report["final"]);
+  EXPECT_EQ(report["steps"], 10000);
+  EXPECT_EQ(report["status"], "completed");
+
+  // The raw report is the file on disk, and the job's JSON embeds the same document.
+  auto raw = c->Get("/v1/jobs/" + id + "/report");
+  ASSERT_EQ(raw->status, 200);
+  EXPECT_EQ(json::parse(raw->body), report);
+  EXPECT_EQ(raw->body, slurp(ts.data() / "jobs" / id / "report.json"));
+
+  auto csv = c->Get("/v1/jobs/" + id + "/trajectory?format=csv");
+  ASSERT_EQ(csv->status, 200);
+  EXPECT_EQ(csv->get_header_value("Content-Type"), "text/csv");
+  EXPECT_EQ(csv->body, local.csv);
+  EXPECT_EQ(count_lines(csv->body), 10002u);  // header + 10001 states
+  EXPECT_EQ(csv->body.substr(0, csv->body.find('\n')), "t,h,x1,th2,x1_dot,th2_dot,energy");
+
+  auto tj = c->Get("/v1/jobs/" + id + "/trajectory");
+  ASSERT_EQ(tj->status, 200);
+  const json traj = json::parse(tj->body);
+  EXPECT_EQ(traj["columns"], json({"t", "h", "x1", "th2", "x1_dot", "th2_dot", "energy"}));
+  EXPECT_EQ(traj["rows"], 10001);
+  ASSERT_EQ(traj["data"]["t"].size(), 10001u);
+  EXPECT_DOUBLE_EQ(traj["data"]["t"][10000].get<double>(), 10.0);
+  EXPECT_DOUBLE_EQ(traj["data"]["x1"][0].get<double>(), 3.0);
+  EXPECT_EQ(traj["data"]["x1"][10000], report["final"]["q"][0]);
+
+  // Server-sent events: the state changes in order, and the stream ends with the final state.
+  auto ev = c->Get("/v1/jobs/" + id + "/events");
+  ASSERT_EQ(ev->status, 200);
+  EXPECT_THAT(ev->get_header_value("Content-Type"), ::testing::StartsWith("text/event-stream"));
+  const std::string& events = ev->body;
+  const auto queued = events.find("\"state\":\"queued\"");
+  const auto running = events.find("\"state\":\"running\"");
+  const auto done = events.find("\"state\":\"done\"");
+  ASSERT_NE(queued, std::string::npos) << events;
+  ASSERT_NE(running, std::string::npos) << events;
+  ASSERT_NE(done, std::string::npos) << events;
+  EXPECT_LT(queued, running);
+  EXPECT_LT(running, done);
+  EXPECT_THAT(events, ::testing::HasSubstr("event: state\n"));
+
+  // Listed, and counted by /metrics.
+  auto list = json::parse(c->Get("/v1/jobs")->body);
+  ASSERT_EQ(list["count"], 1);
+  EXPECT_EQ(list["jobs"][0]["id"], id);
+  EXPECT_EQ(json::parse(c->Get("/v1/jobs?state=done")->body)["count"], 1);
+  EXPECT_EQ(json::parse(c->Get("/v1/jobs?state=running")->body)["count"], 0);
+  auto metrics = c->Get("/metrics");
+  ASSERT_EQ(metrics->status, 200);
+  EXPECT_THAT(metrics->body, ::testing::HasSubstr("moreau_jobs{state=\"done\"} 1\n"));
+  EXPECT_THAT(metrics->body, ::testing::HasSubstr("moreau_steps_total 10000\n"));
+  EXPECT_THAT(metrics->body, ::testing::HasSubstr("moreau_queue_length 0\n"));
+
+  // A figure: PNG from render/, or 501 when the build has no render/.
+  auto fig = c->Get("/v1/jobs/" + id + "/figure?kind=energy");
+  ASSERT_TRUE(fig);
+  if (fig->status == 200) {
+    EXPECT_EQ(fig->get_header_value("Content-Type"), "image/png");
+    EXPECT_EQ(fig->body.substr(0, 8), std::string("\x89PNG\r\n\x1a\n", 8));
+    EXPECT_TRUE(fs::exists(ts.data() / "jobs" / id / "figure-energy.png"));
+  } else {
+    EXPECT_EQ(fig->status, 501) << fig->body;
+  }
+  EXPECT_EQ(c->Get("/v1/jobs/" + id + "/figure?kind=nope")->status, 400);
+}
+
+TEST(ServerApi, ShippedScenesByNameWithOverrides) {
+  TestServer ts;
+  auto c = ts.client();
+  auto list = c->Get("/v1/scenes");
+  ASSERT_EQ(list->status, 200);
+  const json scenes = json::parse(list->body);
+  bool found = false;
+  for (const auto& s : scenes["scenes"]) found = found || s["name"] == "manipulator";
+  EXPECT_TRUE(found) << scenes.dump(2);
+  auto one = c->Get("/v1/scenes/manipulator");
+  ASSERT_EQ(one->status, 200);
+  EXPECT_EQ(one->body, slurp("scenes/manipulator.json"));
+  EXPECT_EQ(c->Get("/v1/scenes/nope")->status, 404);
+  EXPECT_EQ(c->Get("/v1/scenes/..%2F..%2Fetc%2Fpasswd")->status, 404);
+
+  // By name, with overrides in both forms.
+  auto r = submit(*c, {{"scene", "manipulator"}, {"overrides", {"integrator.t_end=1"}}});
+  ASSERT_EQ(r->status, 202) << r->body;
+  json job = wait_final(*c, json::parse(r->body)["id"]);
+  EXPECT_EQ(job["report"]["steps"], 1000);
+  r = submit(*c, {{"scene", "manipulator"}, {"overrides", {{"integrator.t_end", 0.5}, {"/integrator/h", 0.01}}}});
+  ASSERT_EQ(r->status, 202) << r->body;
+  job = wait_final(*c, json::parse(r->body)["id"]);
+  EXPECT_EQ(job["report"]["steps"], 50);
+}
+
+TEST(ServerApi, BadRequestsGetClearErrors) {
+  ServerConfig cfg;
+  cfg.max_body_bytes = 64 * 1024;
+  cfg.max_steps = 1'000'000;
+  cfg.max_samples = 100'000;
+  TestServer ts(cfg);
+  auto c = ts.client();
+
+  // A scene error names the field.
+  json scene = manipulator();
+  scene["integrator"]["h"] = 0;
+  auto r = submit(*c, {{"scene", scene}});
+  ASSERT_EQ(r->status, 400);
+  EXPECT_EQ(error_of(r)["pointer"], "/integrator/h");
+  EXPECT_EQ(error_of(r)["where"], "scene");
+  EXPECT_THAT(error_of(r)["reason"].get<std::string>(), ::testing::HasSubstr("> 0"));
+  EXPECT_EQ(error_of(r)["error"], "invalid scene");
+
+  r = c->Post("/v1/jobs", "{\"scene\": {", "application/json");
+  ASSERT_EQ(r->status, 400);
+  EXPECT_EQ(error_of(r)["error"], "malformed JSON");
+
+  r = c->Post("/v1/jobs", manipulator().dump(), "text/plain");
+  ASSERT_EQ(r->status, 415);
+  EXPECT_THAT(error_of(r)["reason"].get<std::string>(), ::testing::HasSubstr("application/json"));
+  EXPECT_EQ(c->Post("/v1/jobs", json({{"scene", manipulator()}}).dump(), "application/json; charset=utf-8")->status, 202);
+
+  r = c->Post("/v1/jobs", std::string(100 * 1024, ' '), "application/json");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 413);
+
+  r = submit(*c, {{"scene", manipulator()}, {"colour", "blue"}});
+  ASSERT_EQ(r->status, 400);
+  EXPECT_EQ(error_of(r)["pointer"], "/colour");
+  EXPECT_EQ(error_of(r)["where"], "request");
+  r = submit(*c, {{"overrides", json::array()}});
+  ASSERT_EQ(r->status, 400);
+  EXPECT_EQ(error_of(r)["pointer"], "/scene");
+  r = submit(*c, {{"scene", "no-such-scene"}});
+  ASSERT_EQ(r->status, 400);
+  EXPECT_EQ(error_of(r)["pointer"], "/scene");
+  r = submit(*c, {{"scene", manipulator()}, {"overrides", {"integrator.nope=1"}}});
+  ASSERT_EQ(r->status, 400);
+  EXPECT_EQ(error_of(r)["pointer"], "/integrator/nope");
+  r = submit(*c, {{"scene", manipulator()}, {"stream", {{"period", -1}}}});
+  ASSERT_EQ(r->status, 400);
+  EXPECT_EQ(error_of(r)["pointer"], "/stream/period");
+  r = submit(*c, {{"scene", manipulator()}, {"stream", {{"channel", "lower-case"}}}});
+  ASSERT_EQ(r->status, 400);
+  EXPECT_EQ(error_of(r)["pointer"], "/stream/channel");
+
+  // Limits: steps per job and trajectory rows, each naming the field to change.
+  scene = manipulator();
+  scene["integrator"]["t_end"] = 10000;  // 1e7 steps
+  r = submit(*c, {{"scene", scene}});
+  ASSERT_EQ(r->status, 400);
+  EXPECT_EQ(error_of(r)["pointer"], "/integrator/h");
+  EXPECT_THAT(error_of(r)["reason"].get<std::string>(), ::testing::HasSubstr("at most 1000000 steps"));
+  scene = manipulator();
+  scene["integrator"]["t_end"] = 500;  // 5e5 steps, every one recorded: more than 1e5 rows
+  r = submit(*c, {{"scene", scene}});
+  ASSERT_EQ(r->status, 400);
+  EXPECT_EQ(error_of(r)["pointer"], "/output/every");
+  EXPECT_THAT(error_of(r)["reason"].get<std::string>(), ::testing::HasSubstr("at least 6"));
+  scene["output"]["every"] = 6;
+  EXPECT_EQ(submit(*c, {{"scene", scene}})->status, 202);
+
+  // Unknown ids: 404, whether well formed or not, and nothing is created on disk for them.
+  const auto before = std::distance(fs::directory_iterator(ts.data() / "jobs"), fs::directory_iterator());
+  for (const std::string id : {"0123456789abcdef0123456789abcdef", "0123456789ABCDEF0123456789ABCDEF", "..", "x",
+                               "0123456789abcdef0123456789abcdef0", "%2e%2e%2f%2e%2e"}) {
+    for (const std::string suffix : {"", "/report", "/trajectory", "/events", "/figure"}) {
+      auto g = c->Get("/v1/jobs/" + id + suffix);
+      ASSERT_TRUE(g);
+      EXPECT_EQ(g->status, 404) << id << suffix;
+      EXPECT_THAT(error_of(g)["error"].get<std::string>(), ::testing::AnyOf("no such job", "not found"));
+    }
+    EXPECT_EQ(c->Delete("/v1/jobs/" + id)->status, 404);
+  }
+  EXPECT_EQ(std::distance(fs::directory_iterator(ts.data() / "jobs"), fs::directory_iterator()), before);
+  EXPECT_EQ(c->Get("/v1/nothing")->status, 404);
+  EXPECT_EQ(c->Get("/v1/jobs?state=bogus")->status, 400);
+}
+
+TEST(ServerApi, CancellingARunningJobTakesMilliseconds) {
+  ServerConfig cfg;
+  cfg.max_steps = 2'000'000'000;
+  cfg.max_samples = 1'000'000;
+  TestServer ts(cfg);
+  auto c = ts.client();
+  json scene = manipulator();
+  scene["integrator"]["t_end"] = 1e6;  // 1e9 steps: minutes of work
+  scene["output"]["every"] = 10000;
+  auto r = submit(*c, {{"scene", scene}});
+  ASSERT_EQ(r->status, 202) << r->body;
+  const std::string id = json::parse(r->body)["id"];
+  ASSERT_EQ(wait_running(*c, id), "running");
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+
+  const auto t0 = Clock::now();
+  auto d = c->Delete("/v1/jobs/" + id);
+  const double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+  ASSERT_EQ(d->status, 200) << d->body;
+  EXPECT_EQ(json::parse(d->body)["state"], "cancelled");
+  EXPECT_LT(ms, 100.0) << "DELETE took " << ms << " ms";
+
+  const json job = wait_final(*c, id);
+  EXPECT_EQ(job["state"], "cancelled");
+  EXPECT_THAT(job["reason"].get<std::string>(), ::testing::HasSubstr("cancelled"));
+  EXPECT_EQ(job["report"]["status"], "cancelled");
+  EXPECT_LT(job["report"]["t_final"].get<double>(), 1e6);
+  // A cancelled job keeps the trajectory it had; cancelling again is harmless.
+  EXPECT_EQ(c->Get("/v1/jobs/" + id + "/trajectory?format=csv")->status, 200);
+  EXPECT_EQ(c->Delete("/v1/jobs/" + id)->status, 200);
+}
+
+TEST(ServerApi, FullQueueAnswers429WithRetryAfter) {
+  ServerConfig cfg;
+  cfg.workers = 1;
+  cfg.queue = 2;
+  cfg.max_steps = 2'000'000'000;
+  TestServer ts(cfg);
+  auto c = ts.client();
+  json long_scene = manipulator();
+  long_scene["integrator"]["t_end"] = 1e6;
+  long_scene["output"]["every"] = 100000;
+  auto r = submit(*c, {{"scene", long_scene}});
+  ASSERT_EQ(r->status, 202);
+  const std::string running = json::parse(r->body)["id"];
+  ASSERT_EQ(wait_running(*c, running), "running");
+
+  std::vector<std::string> queued;
+  for (int i = 0; i < 2; ++i) {
+    r = submit(*c, {{"scene", long_scene}});
+    ASSERT_EQ(r->status, 202) << r->body;
+    queued.push_back(json::parse(r->body)["id"]);
+  }
+  r = submit(*c, {{"scene", manipulator()}});
+  ASSERT_EQ(r->status, 429) << r->body;
+  ASSERT_TRUE(r->has_header("Retry-After"));
+  EXPECT_GE(std::stoi(r->get_header_value("Retry-After")), 1);
+  EXPECT_EQ(error_of(r)["error"], "queue full");
+  EXPECT_THAT(c->Get("/metrics")->body, ::testing::HasSubstr("moreau_jobs_rejected_total{reason=\"queue_full\"} 1\n"));
+
+  // A queued job is cancelled at once, which frees a place.
+  auto d = c->Delete("/v1/jobs/" + queued[0]);
+  ASSERT_EQ(d->status, 200);
+  EXPECT_EQ(json::parse(d->body)["state"], "cancelled");
+  EXPECT_EQ(submit(*c, {{"scene", manipulator()}})->status, 202);
+  for (const auto& id : {running, queued[1]}) EXPECT_EQ(c->Delete("/v1/jobs/" + id)->status, 200);
+}
+
+TEST(ServerApi, TokenGuardsEveryEndpointButHealthz) {
+  ServerConfig cfg;
+  cfg.token = "correct horse battery staple";
+  TestServer ts(cfg);
+  auto anonymous = ts.client();
+  auto wrong = ts.client("correct horse battery stapler");
+  auto good = ts.client(cfg.token);
+
+  EXPECT_EQ(anonymous->Get("/healthz")->status, 200);
+  for (const std::string path : {"/v1/jobs", "/v1/scenes", "/metrics", "/v1/jobs/0123456789abcdef0123456789abcdef"}) {
+    auto r = anonymous->Get(path);
+    ASSERT_TRUE(r);
+    EXPECT_EQ(r->status, 401) << path;
+    EXPECT_EQ(r->get_header_value("WWW-Authenticate"), "Bearer realm=\"moreau\"");
+    EXPECT_EQ(wrong->Get(path)->status, 401) << path;
+  }
+  EXPECT_EQ(anonymous->Post("/v1/jobs", json({{"scene", manipulator()}}).dump(), "application/json")->status, 401);
+  EXPECT_EQ(good->Get("/v1/jobs")->status, 200);
+  EXPECT_EQ(good->Get("/metrics")->status, 200);
+  auto r = submit(*good, {{"scene", manipulator()}, {"overrides", {"integrator.t_end=1"}}});
+  ASSERT_EQ(r->status, 202);
+  EXPECT_EQ(wait_final(*good, json::parse(r->body)["id"])["state"], "done");
+}
+
+TEST(ServerApi, RemoteAddressNeedsATokenOrAnExplicitFlag) {
+  const fs::path data = moreau::server::testing::make_temp_dir("remote");
+  ServerConfig cfg;
+  cfg.data_dir = data.string();
+  cfg.host = "0.0.0.0";
+  cfg.port = 0;
+  moreau::server::Server s(cfg);
+  try {
+    s.start();
+    FAIL() << "started on 0.0.0.0 without a token";
+  } catch (const std::runtime_error& e) {
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("--allow-unauthenticated-remote"));
+  }
+  s.stop();
+  fs::remove_all(data);
+}
+
+}  // namespace
