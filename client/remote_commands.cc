@@ -1,0 +1,429 @@
+// Talking to a moreau-server (docs/api.md): moreau submit, status, result, figure, cancel, jobs, scenes.
+// The server URL comes from --server, else MOREAU_SERVER, else http://127.0.0.1:8080; a token from
+// --token, else MOREAU_TOKEN.
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "commands.h"
+#include "moreau/scene/scene.h"
+
+// After Eigen (through scene.h): httplib.h brings <resolv.h>, whose `_res` macro breaks Eigen.
+#include <httplib.h>
+
+namespace moreau::cli {
+namespace {
+
+using json = nlohmann::json;
+
+struct Remote {
+  std::string server;
+  std::string token;
+  bool json_output = false;
+
+  void add_to(CLI::App* cmd) {
+    cmd->add_option("--server", server, "Server URL (default: MOREAU_SERVER, else http://127.0.0.1:8080)");
+    cmd->add_option("--token", token, "Bearer token (default: MOREAU_TOKEN)");
+  }
+  std::string url() const {
+    if (!server.empty()) return server;
+    if (const char* e = std::getenv("MOREAU_SERVER"); e && *e) return e;
+    return "http://127.0.0.1:8080";
+  }
+  std::unique_ptr<httplib::Client> client() const {
+    auto c = std::make_unique<httplib::Client>(url());
+    c->set_tcp_nodelay(true);
+    c->set_keep_alive(true);
+    c->set_connection_timeout(5, 0);
+    c->set_read_timeout(90, 0);
+    std::string t = token;
+    if (t.empty()) {
+      if (const char* e = std::getenv("MOREAU_TOKEN"); e && *e) t = e;
+    }
+    if (!t.empty()) c->set_bearer_token_auth(t);
+    return c;
+  }
+};
+
+// A failed request: prints why and gives the exit code (2: the request was refused as invalid, 1 otherwise).
+int report_failure(const Remote& remote, const httplib::Result& r, const std::string& what) {
+  if (!r) {
+    std::cerr << "moreau: cannot reach " << remote.url() << " (" << what << "): " << httplib::to_string(r.error()) << "\n";
+    return 1;
+  }
+  std::string message = "HTTP " + std::to_string(r->status);
+  const json body = json::parse(r->body, nullptr, false);
+  if (body.is_object() && body.contains("error")) {
+    message += ": " + body.value("error", "");
+    if (body.contains("pointer")) message += " at " + body.value("pointer", "") + (body.value("where", "") == "request" ? " (request)" : "");
+    if (body.contains("reason")) message += ": " + body.value("reason", "");
+  }
+  if (r->status == 429 && r->has_header("Retry-After")) message += " (retry after " + r->get_header_value("Retry-After") + " s)";
+  std::cerr << "moreau: " << what << ": " << message << "\n";
+  return r->status == 400 || r->status == 404 || r->status == 409 || r->status == 413 || r->status == 415 ? 2 : 1;
+}
+
+bool ok(const httplib::Result& r, int status = 200) { return r && r->status == status; }
+
+std::string fmt(double v) {
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%.10g", v);
+  return buf;
+}
+
+bool is_final(const std::string& state) { return state == "done" || state == "failed" || state == "cancelled"; }
+
+// A few lines for a person: state, progress, and the report's main facts.
+void print_job(const json& job) {
+  std::cout << "job " << job.value("id", "?") << "  " << job.value("scene", "") << "  " << job.value("state", "?");
+  if (job.contains("reason")) std::cout << " (" << job.value("reason", "") << ")";
+  std::cout << "\n";
+  if (job.contains("progress")) {
+    const json& p = job["progress"];
+    if (p["t"].is_number() && p["fraction"].is_number()) {
+      std::cout << "  progress      t = " << fmt(p["t"].get<double>()) << " of [" << fmt(p.value("t0", 0.0)) << ", "
+                << fmt(p.value("t_end", 0.0)) << "] (" << fmt(std::round(1000 * p["fraction"].get<double>()) / 10)
+                << "%), step " << p.value("step", std::int64_t{0}) << "\n";
+    }
+  }
+  if (job.contains("stream")) {
+    std::cout << "  stream        " << job["stream"].value("state_channel", "") << ", " << job["stream"].value("event_channel", "")
+              << "\n";
+  }
+  if (!job.contains("report")) return;
+  const json& r = job["report"];
+  std::cout << "  status        " << r.value("status", "?") << ": " << r.value("steps", std::int64_t{0}) << " steps to t = "
+            << (r["t_final"].is_number() ? fmt(r["t_final"].get<double>()) : "?") << "\n";
+  if (r.contains("message")) std::cout << "  message       " << r.value("message", "") << "\n";
+  if (r.contains("final")) std::cout << "  final state   q = " << r["final"]["q"].dump() << ", v = " << r["final"]["v"].dump() << "\n";
+  if (r["converged_step"].is_number()) {
+    std::cout << "  convergence   v == 0.0 exactly from step " << r["converged_step"].get<std::int64_t>() << " (t = "
+              << fmt(r["converged_time"].get<double>()) << ") to the end\n";
+  } else {
+    std::cout << "  convergence   v is not exactly 0 at the last step\n";
+  }
+  if (r.contains("energy") && r["energy"]["initial"].is_number() && r["energy"]["final"].is_number()) {
+    std::cout << "  energy        E_0 = " << fmt(r["energy"]["initial"].get<double>()) << ", E_N = "
+              << fmt(r["energy"]["final"].get<double>()) << (r.value("energy_nonincreasing", false) ? " (non-increasing)" : "")
+              << "\n";
+  }
+}
+
+// Long-polls the job until it is final; draws a progress line on stderr when it is a terminal.
+std::optional<json> wait_for(const Remote& remote, httplib::Client& c, const std::string& id, int& code) {
+  const bool tty = isatty(STDERR_FILENO);
+  bool drawn = false;
+  while (true) {
+    auto r = c.Get("/v1/jobs/" + id + "?wait=" + (tty ? "0.5" : "30"));
+    if (!ok(r)) {
+      code = report_failure(remote, r, "status of " + id);
+      return std::nullopt;
+    }
+    json job = json::parse(r->body);
+    const std::string state = job.value("state", "");
+    if (is_final(state)) {
+      if (drawn) std::fprintf(stderr, "\r%*s\r", 72, "");
+      return job;
+    }
+    if (tty) {
+      const double f = job["progress"]["fraction"].is_number() ? job["progress"]["fraction"].get<double>() : 0.0;
+      std::fprintf(stderr, "\r%-8s %5.1f%%  t = %-12.6g", state.c_str(), 100.0 * f,
+                   job["progress"]["t"].is_number() ? job["progress"]["t"].get<double>() : 0.0);
+      std::fflush(stderr);
+      drawn = true;
+    }
+  }
+}
+
+// ---- submit ----
+
+struct SubmitOptions {
+  Remote remote;
+  std::string scene;
+  std::vector<std::string> overrides;
+  bool wait = false;
+  bool stream = false, realtime = false;
+  std::optional<double> period;
+  std::string channel;
+};
+
+int submit(const SubmitOptions& o) {
+  json request;
+  // A file, or the name of a scene the server ships (GET /v1/scenes).
+  std::error_code ec;
+  if (std::filesystem::exists(o.scene, ec)) {
+    try {
+      request["scene"] = scene::read_scene_file(o.scene);
+    } catch (const std::exception& e) {
+      std::cerr << "moreau: " << e.what() << "\n";
+      return 2;
+    }
+  } else if (o.scene.find('/') == std::string::npos && o.scene.find(".json") == std::string::npos) {
+    request["scene"] = o.scene;
+  } else {
+    std::cerr << "moreau: no such scene file '" << o.scene << "'\n";
+    return 2;
+  }
+  if (!o.overrides.empty()) request["overrides"] = o.overrides;
+  if (o.stream || o.realtime || o.period || !o.channel.empty()) {
+    json s = json::object();
+    if (o.period) s["period"] = *o.period;
+    if (o.realtime) s["realtime"] = true;
+    if (!o.channel.empty()) s["channel"] = o.channel;
+    request["stream"] = s;
+  }
+  auto c = o.remote.client();
+  auto r = c->Post("/v1/jobs", request.dump(), "application/json");
+  if (!ok(r, 202)) return report_failure(o.remote, r, "submit " + o.scene);
+  const json accepted = json::parse(r->body);
+  const std::string id = accepted.value("id", "");
+  if (!o.wait) {
+    if (o.remote.json_output) std::cout << accepted.dump(2) << "\n";
+    else std::cout << id << "\n";
+    return 0;
+  }
+  if (!o.remote.json_output) std::cerr << "submitted " << id << "\n";
+  int code = 0;
+  auto job = wait_for(o.remote, *c, id, code);
+  if (!job) return code;
+  if (o.remote.json_output) std::cout << job->dump(2) << "\n";
+  else print_job(*job);
+  return job->value("state", "") == "done" ? 0 : 1;
+}
+
+// ---- status ----
+
+struct IdOptions {
+  Remote remote;
+  std::string id;
+  bool wait = false;
+};
+
+int status(const IdOptions& o) {
+  auto c = o.remote.client();
+  std::optional<json> job;
+  if (o.wait) {
+    int code = 0;
+    job = wait_for(o.remote, *c, o.id, code);
+    if (!job) return code;
+  } else {
+    auto r = c->Get("/v1/jobs/" + o.id);
+    if (!ok(r)) return report_failure(o.remote, r, "status of " + o.id);
+    job = json::parse(r->body);
+  }
+  if (o.remote.json_output) std::cout << job->dump(2) << "\n";
+  else print_job(*job);
+  const std::string state = job->value("state", "");
+  return state == "failed" || state == "cancelled" ? 1 : 0;
+}
+
+// ---- result ----
+
+struct ResultOptions {
+  Remote remote;
+  std::string id;
+  std::string out;
+  std::string format;
+};
+
+bool write_file(const std::string& path, const std::string& bytes) {
+  std::ofstream f(path, std::ios::binary);
+  f << bytes;
+  f.close();
+  if (!f) {
+    std::cerr << "moreau: cannot write '" << path << "'\n";
+    return false;
+  }
+  return true;
+}
+
+int result(const ResultOptions& o) {
+  auto c = o.remote.client();
+  if (o.out.empty()) {
+    auto r = c->Get("/v1/jobs/" + o.id + "/report");
+    if (!ok(r)) return report_failure(o.remote, r, "report of " + o.id);
+    std::cout << r->body;
+    return 0;
+  }
+  std::string format = o.format;
+  if (format.empty()) format = o.out.size() > 5 && o.out.substr(o.out.size() - 5) == ".json" ? "json" : "csv";
+  auto r = c->Get("/v1/jobs/" + o.id + "/trajectory?format=" + format);
+  if (!ok(r)) return report_failure(o.remote, r, "trajectory of " + o.id);
+  if (!write_file(o.out, r->body)) return 1;
+  std::cerr << "wrote " << o.out << " (" << r->body.size() << " bytes)\n";
+  return 0;
+}
+
+// ---- figure ----
+
+struct FigureOptions {
+  Remote remote;
+  std::string id;
+  std::string kind = "state";
+  std::string out;
+  std::string size;
+};
+
+int figure(const FigureOptions& o) {
+  std::string query = "?kind=" + o.kind;
+  if (!o.size.empty()) {
+    const auto x = o.size.find('x');
+    if (x == std::string::npos) {
+      std::cerr << "moreau: --size must be WIDTHxHEIGHT, got '" << o.size << "'\n";
+      return 2;
+    }
+    query += "&width=" + o.size.substr(0, x) + "&height=" + o.size.substr(x + 1);
+  }
+  auto c = o.remote.client();
+  auto r = c->Get("/v1/jobs/" + o.id + "/figure" + query);
+  if (!ok(r)) return report_failure(o.remote, r, o.kind + " figure of " + o.id);
+  if (!write_file(o.out, r->body)) return 1;
+  std::cerr << "wrote " << o.out << "\n";
+  return 0;
+}
+
+// ---- cancel ----
+
+int cancel(const IdOptions& o) {
+  auto c = o.remote.client();
+  auto r = c->Delete("/v1/jobs/" + o.id);
+  if (!ok(r)) return report_failure(o.remote, r, "cancel " + o.id);
+  const json job = json::parse(r->body);
+  if (o.remote.json_output) std::cout << job.dump(2) << "\n";
+  else std::cout << o.id << " " << job.value("state", "?") << "\n";
+  return 0;
+}
+
+// ---- jobs, scenes ----
+
+struct ListOptions {
+  Remote remote;
+  std::string state;
+  int limit = 0;
+};
+
+int jobs(const ListOptions& o) {
+  auto c = o.remote.client();
+  std::string query = "?";
+  if (!o.state.empty()) query += "state=" + o.state + "&";
+  if (o.limit > 0) query += "limit=" + std::to_string(o.limit);
+  auto r = c->Get("/v1/jobs" + query);
+  if (!ok(r)) return report_failure(o.remote, r, "list jobs");
+  const json list = json::parse(r->body);
+  if (o.remote.json_output) {
+    std::cout << list.dump(2) << "\n";
+    return 0;
+  }
+  for (const auto& job : list["jobs"]) {
+    const double f = job["progress"]["fraction"].is_number() ? job["progress"]["fraction"].get<double>() : 0.0;
+    std::printf("%s  %-9s %5.1f%%  %s\n", job.value("id", "?").c_str(), job.value("state", "?").c_str(), 100.0 * f,
+                job.value("scene", "").c_str());
+  }
+  return 0;
+}
+
+int scenes(const ListOptions& o) {
+  auto c = o.remote.client();
+  auto r = c->Get("/v1/scenes");
+  if (!ok(r)) return report_failure(o.remote, r, "list scenes");
+  const json list = json::parse(r->body);
+  if (o.remote.json_output) {
+    std::cout << list.dump(2) << "\n";
+    return 0;
+  }
+  for (const auto& s : list["scenes"]) {
+    std::string d = s.value("description", "");
+    if (d.size() > 90) d = d.substr(0, 87) + "...";
+    std::printf("%-24s %s\n", s.value("name", "?").c_str(), d.c_str());
+  }
+  return 0;
+}
+
+}  // namespace
+
+void register_remote_commands(CLI::App& app) {
+  {
+    auto o = std::make_shared<SubmitOptions>();
+    auto* cmd = app.add_subcommand("submit", "Submit a scene to a moreau-server; prints the job id");
+    cmd->add_option("scene", o->scene, "Scene file, or the name of a scene the server ships (moreau scenes)")->required();
+    cmd->add_option("--set", o->overrides, "Override a scene field: PATH=VALUE (applied and checked by the server)");
+    cmd->add_flag("--wait", o->wait, "Wait for the job to finish and print its report");
+    cmd->add_flag("--stream", o->stream, "Publish the live state over LCM (see moreau watch)");
+    cmd->add_option("--period", o->period, "Streaming period in simulation seconds (default 1/64)");
+    cmd->add_flag("--realtime", o->realtime, "Stream paced to wall-clock time");
+    cmd->add_option("--channel", o->channel, "LCM channel prefix (default MOREAU: MOREAU_STATE_<ID>)");
+    cmd->add_flag("--json", o->remote.json_output, "Print the job as JSON");
+    o->remote.add_to(cmd);
+    cmd->callback([o] { exit_code() = submit(*o); });
+  }
+  {
+    auto o = std::make_shared<IdOptions>();
+    auto* cmd = app.add_subcommand("status", "Show a job's state, progress and report");
+    cmd->add_option("id", o->id, "Job id")->required();
+    cmd->add_flag("--wait", o->wait, "Wait until the job has finished");
+    cmd->add_flag("--json", o->remote.json_output, "Print the job as JSON");
+    o->remote.add_to(cmd);
+    cmd->callback([o] { exit_code() = status(*o); });
+  }
+  {
+    auto o = std::make_shared<ResultOptions>();
+    auto* cmd = app.add_subcommand("result", "Print a finished job's report, or save its trajectory with --out");
+    cmd->add_option("id", o->id, "Job id")->required();
+    cmd->add_option("--out", o->out, "Write the trajectory here (CSV; JSON if the name ends in .json)");
+    cmd->add_option("--format", o->format, "Trajectory format: csv or json")->check(CLI::IsMember({"csv", "json"}));
+    o->remote.add_to(cmd);
+    cmd->callback([o] { exit_code() = result(*o); });
+  }
+  {
+    auto o = std::make_shared<FigureOptions>();
+    auto* cmd = app.add_subcommand("figure", "Save a figure of a finished job (PNG drawn by the server)");
+    cmd->add_option("id", o->id, "Job id")->required();
+    cmd->add_option("--kind", o->kind, "state, energy, step or phase")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"state", "energy", "step", "phase"}));
+    cmd->add_option("-o,--out", o->out, "PNG file to write")->required();
+    cmd->add_option("--size", o->size, "WIDTHxHEIGHT in pixels (default 1200x800)");
+    o->remote.add_to(cmd);
+    cmd->callback([o] { exit_code() = figure(*o); });
+  }
+  {
+    auto o = std::make_shared<IdOptions>();
+    auto* cmd = app.add_subcommand("cancel", "Cancel a queued or running job");
+    cmd->add_option("id", o->id, "Job id")->required();
+    cmd->add_flag("--json", o->remote.json_output, "Print the job as JSON");
+    o->remote.add_to(cmd);
+    cmd->callback([o] { exit_code() = cancel(*o); });
+  }
+  {
+    auto o = std::make_shared<ListOptions>();
+    auto* cmd = app.add_subcommand("jobs", "List the server's jobs");
+    cmd->add_option("--state", o->state, "Only jobs in this state")
+        ->check(CLI::IsMember({"queued", "running", "done", "failed", "cancelled"}));
+    cmd->add_option("--limit", o->limit, "Only the most recent N");
+    cmd->add_flag("--json", o->remote.json_output, "Print the list as JSON");
+    o->remote.add_to(cmd);
+    cmd->callback([o] { exit_code() = jobs(*o); });
+  }
+  {
+    auto o = std::make_shared<ListOptions>();
+    auto* cmd = app.add_subcommand("scenes", "List the scenes a server ships");
+    cmd->add_flag("--json", o->remote.json_output, "Print the list as JSON");
+    o->remote.add_to(cmd);
+    cmd->callback([o] { exit_code() = scenes(*o); });
+  }
+}
+
+}  // namespace moreau::cli

@@ -1,0 +1,279 @@
+// Live state over LCM: a job's stream on memq:// (in-process), decoded and checked; the same written
+// to a file:// log and read back with lcm::LogFile; realtime pacing and its cancellation; and one
+// udpm:// test between processes inside a private network namespace.
+#include <sys/wait.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "server_fixture.h"
+
+#include <lcm/lcm-cpp.hpp>
+#include <moreau/job_event_t.hpp>
+#include <moreau/state_t.hpp>
+
+namespace {
+
+using moreau::server::ServerConfig;
+using moreau::server::testing::make_temp_dir;
+using moreau::server::testing::manipulator;
+using moreau::server::testing::submit;
+using moreau::server::testing::TestServer;
+using moreau::server::testing::wait_final;
+using moreau::server::testing::wait_running;
+using json = nlohmann::json;
+using Clock = std::chrono::steady_clock;
+namespace fs = std::filesystem;
+
+std::string upper(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  return s;
+}
+
+// Everything received on the MOREAU_* channels, decoded.
+struct Received {
+  std::vector<moreau::state_t> states;
+  std::vector<moreau::job_event_t> events;
+  std::vector<std::string> state_channels, event_channels;
+  std::size_t undecodable = 0;
+
+  void add(const std::string& channel, const void* data, int size) {
+    moreau::state_t s;
+    moreau::job_event_t e;
+    if (s.decode(data, 0, size) == size) {
+      states.push_back(s);
+      state_channels.push_back(channel);
+    } else if (e.decode(data, 0, size) == size) {
+      events.push_back(e);
+      event_channels.push_back(channel);
+    } else {
+      ++undecodable;
+    }
+  }
+  bool finished() const {
+    return std::any_of(events.begin(), events.end(),
+                       [](const auto& e) { return e.kind == "finished" || e.kind == "failed" || e.kind == "cancelled"; });
+  }
+};
+
+// Checks a whole stream of the manipulator (t in [0, t_end], h = 1e-3) published every `period`.
+void check_stream(const Received& got, const std::string& id, const json& report, double period, double t_end) {
+  ASSERT_EQ(got.undecodable, 0u);
+  ASSERT_FALSE(got.states.empty());
+  for (const auto& ch : got.state_channels) EXPECT_EQ(ch, "MOREAU_STATE_" + upper(id));
+  for (const auto& ch : got.event_channels) EXPECT_EQ(ch, "MOREAU_EVENT_" + upper(id));
+  // One state per period from t0, and the last state.
+  const auto expected = static_cast<std::size_t>(std::llround(t_end / period)) + 1;
+  EXPECT_EQ(got.states.size(), expected);
+  EXPECT_EQ(got.states.front().step, 0);
+  EXPECT_DOUBLE_EQ(got.states.front().t, 0.0);
+  EXPECT_DOUBLE_EQ(got.states.front().q[0], 3.0);
+  for (std::size_t i = 1; i < got.states.size(); ++i) {
+    const auto& a = got.states[i - 1];
+    const auto& b = got.states[i];
+    ASSERT_GT(b.step, a.step) << i;
+    ASSERT_GT(b.t, a.t) << i;
+    ASSERT_GE(b.utime, a.utime) << i;
+    EXPECT_LE(b.t - a.t, period + 1.5e-3) << i;
+  }
+  for (const auto& s : got.states) {
+    EXPECT_EQ(s.job_id, id);
+    EXPECT_EQ(s.n, 2);
+    EXPECT_EQ(s.q.size(), 2u);
+    EXPECT_EQ(s.v.size(), 2u);
+    EXPECT_DOUBLE_EQ(s.h, 1e-3);
+    EXPECT_GE(s.energy, 0.0);
+  }
+  const auto& last = got.states.back();
+  EXPECT_EQ(last.step, report["steps"]);
+  EXPECT_DOUBLE_EQ(last.t, t_end);
+  EXPECT_EQ(json(last.q), report["final"]["q"]);
+  EXPECT_EQ(json(last.v), report["final"]["v"]);
+
+  // Events: started, converged (the report's step), finished last.
+  ASSERT_GE(got.events.size(), 3u);
+  EXPECT_EQ(got.events.front().kind, "started");
+  EXPECT_EQ(got.events.back().kind, "finished");
+  EXPECT_EQ(got.events.back().step, report["steps"]);
+  auto conv = std::find_if(got.events.begin(), got.events.end(), [](const auto& e) { return e.kind == "converged"; });
+  ASSERT_NE(conv, got.events.end());
+  EXPECT_EQ(conv->step, report["converged_step"]);
+  EXPECT_DOUBLE_EQ(conv->t, report["converged_time"].get<double>());
+  for (const auto& e : got.events) EXPECT_EQ(e.job_id, id);
+}
+
+class Collector {
+ public:
+  void handle(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
+    got.add(channel, rbuf->data, static_cast<int>(rbuf->data_size));
+  }
+  Received got;
+};
+
+TEST(LcmStream, MemqStreamDecodesInOrderWithTheFinalEvent) {
+  ServerConfig cfg;
+  cfg.lcm_url = "memq://";
+  TestServer ts(cfg);
+  lcm::LCM* l = ts.server().lcm();
+  ASSERT_NE(l, nullptr);
+  Collector col;
+  l->subscribe("MOREAU_.*", &Collector::handle, &col);
+
+  auto c = ts.client();
+  auto r = submit(*c, {{"scene", manipulator()}, {"stream", {{"period", 1.0 / 64}}}});
+  ASSERT_EQ(r->status, 202) << r->body;
+  const json accepted = json::parse(r->body);
+  const std::string id = accepted["id"];
+  EXPECT_EQ(accepted["stream"]["state_channel"], "MOREAU_STATE_" + upper(id));
+  EXPECT_EQ(accepted["stream"]["event_channel"], "MOREAU_EVENT_" + upper(id));
+  const json job = wait_final(*c, id);
+  ASSERT_EQ(job["state"], "done");
+
+  // The hub publishes within about a millisecond of the job's end.
+  const auto deadline = Clock::now() + std::chrono::seconds(5);
+  while (!col.got.finished() && Clock::now() < deadline) l->handleTimeout(10);
+  while (l->handleTimeout(0) > 0) {
+  }
+  check_stream(col.got, id, job["report"], 1.0 / 64, 10.0);
+
+  // Streaming does not change the trajectory: every step recorded as without it.
+  const std::string csv = c->Get("/v1/jobs/" + id + "/trajectory?format=csv")->body;
+  EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 10002);
+  EXPECT_THAT(c->Get("/metrics")->body, ::testing::HasSubstr("moreau_lcm_dropped_total 0\n"));
+}
+
+TEST(LcmStream, CoarseTrajectoryDecimationStillStreamsEveryPeriod) {
+  ServerConfig cfg;
+  cfg.lcm_url = "memq://";
+  TestServer ts(cfg);
+  lcm::LCM* l = ts.server().lcm();
+  Collector col;
+  l->subscribe("MOREAU_.*", &Collector::handle, &col);
+  auto c = ts.client();
+
+  // Without streaming, for reference.
+  json scene = manipulator();
+  scene["output"]["every"] = 100;
+  auto r = submit(*c, {{"scene", scene}});
+  const std::string plain = json::parse(r->body)["id"];
+  wait_final(*c, plain);
+  const std::string plain_csv = c->Get("/v1/jobs/" + plain + "/trajectory?format=csv")->body;
+  EXPECT_EQ(std::count(plain_csv.begin(), plain_csv.end(), '\n'), 102);  // header + 101 rows
+
+  r = submit(*c, {{"scene", scene}, {"stream", {{"period", 0.05}}}});
+  ASSERT_EQ(r->status, 202) << r->body;
+  const std::string id = json::parse(r->body)["id"];
+  const json job = wait_final(*c, id);
+  const auto deadline = Clock::now() + std::chrono::seconds(5);
+  while (!col.got.finished() && Clock::now() < deadline) l->handleTimeout(10);
+  check_stream(col.got, id, job["report"], 0.05, 10.0);
+  EXPECT_EQ(c->Get("/v1/jobs/" + id + "/trajectory?format=csv")->body, plain_csv);
+  // The scene as stored keeps its own decimation.
+  const json stored = json::parse(std::ifstream(ts.data() / "jobs" / id / "scene.json"));
+  EXPECT_EQ(stored["output"]["every"], 100);
+}
+
+TEST(LcmStream, FileLogIsWrittenAndReadBack) {
+  const fs::path dir = make_temp_dir("lcmlog");
+  const fs::path log = dir / "stream.log";
+  std::string id;
+  json report;
+  {
+    ServerConfig cfg;
+    cfg.lcm_url = "file://" + log.string() + "?mode=w";
+    TestServer ts(cfg);
+    auto c = ts.client();
+    auto r = submit(*c, {{"scene", manipulator()}, {"overrides", {"integrator.t_end=4"}}, {"stream", true}});
+    ASSERT_EQ(r->status, 202) << r->body;
+    id = json::parse(r->body)["id"];
+    const json job = wait_final(*c, id);
+    report = job["report"];
+    c.reset();
+  }  // stopping the server publishes what is left and closes the log
+
+  lcm::LogFile file(log.string(), "r");
+  ASSERT_TRUE(file.good());
+  Received got;
+  std::int64_t last_timestamp = 0;
+  while (const lcm::LogEvent* e = file.readNextEvent()) {
+    EXPECT_GE(e->timestamp, last_timestamp);
+    last_timestamp = e->timestamp;
+    got.add(e->channel, e->data, e->datalen);
+  }
+  check_stream(got, id, report, 1.0 / 64, 4.0);
+  fs::remove_all(dir);
+}
+
+TEST(LcmStream, RealtimeIsPacedAndStillCancelsQuickly) {
+  ServerConfig cfg;
+  cfg.lcm_url = "memq://";
+  TestServer ts(cfg);
+  auto c = ts.client();
+  // 0.3 s of simulated time takes 0.3 s of wall-clock time.
+  auto t0 = Clock::now();
+  auto r = submit(*c, {{"scene", manipulator()}, {"overrides", {"integrator.t_end=0.3"}}, {"stream", {{"realtime", true}}}});
+  ASSERT_EQ(r->status, 202) << r->body;
+  EXPECT_EQ(wait_final(*c, json::parse(r->body)["id"])["state"], "done");
+  const double took = std::chrono::duration<double>(Clock::now() - t0).count();
+  EXPECT_GE(took, 0.28);
+  EXPECT_LT(took, 2.0);
+
+  // A paced job sleeps between states; cancelling it wakes it.
+  r = submit(*c, {{"scene", manipulator()}, {"overrides", {"integrator.t_end=100"}}, {"stream", {{"realtime", true}}}});
+  const std::string id = json::parse(r->body)["id"];
+  ASSERT_EQ(wait_running(*c, id), "running");
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  t0 = Clock::now();
+  auto d = c->Delete("/v1/jobs/" + id);
+  const double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+  ASSERT_EQ(d->status, 200) << d->body;
+  EXPECT_EQ(json::parse(d->body)["state"], "cancelled");
+  EXPECT_LT(ms, 100.0);
+}
+
+// ---- udpm:// between processes, inside a private network namespace ----
+
+int run_shell(const std::string& cmd) {
+  const int status = std::system(cmd.c_str());
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+TEST(LcmStream, UdpmBetweenProcessesInAPrivateNetworkNamespace) {
+#ifndef MOREAU_CLIENT_BINARY
+  GTEST_SKIP() << "the moreau client is not part of this build";
+#else
+  // Multicast is only ever sent inside a network namespace of our own, never on the real network.
+  if (run_shell("unshare -rn true >/dev/null 2>&1") != 0) {
+    GTEST_SKIP() << "network namespaces are not available here (unshare -rn failed): the udpm:// test needs one "
+                    "so that no multicast reaches the real network";
+  }
+  const fs::path dir = make_temp_dir("udpm");
+  const std::string cmd = std::string("sh ") + MOREAU_NETNS_SCRIPT + " " + MOREAU_SERVER_BINARY + " " + MOREAU_CLIENT_BINARY +
+                          " " + dir.string() + " > " + (dir / "script.out").string() + " 2>&1";
+  const int rc = run_shell(cmd);
+  std::ifstream out_file(dir / "script.out");
+  const std::string out((std::istreambuf_iterator<char>(out_file)), std::istreambuf_iterator<char>());
+  ASSERT_EQ(rc, 0) << out;
+
+  const json report = json::parse(std::ifstream(dir / "report.json"));
+  const std::string id = report.at("id");
+  lcm::LogFile file((dir / "watch.log").string(), "r");
+  ASSERT_TRUE(file.good()) << out;
+  Received got;
+  while (const lcm::LogEvent* e = file.readNextEvent()) got.add(e->channel, e->data, e->datalen);
+  // Paced at 64 states per second, nothing is lost on the loopback interface.
+  check_stream(got, id, report.at("report"), 1.0 / 64, 1.5);
+  fs::remove_all(dir);
+#endif
+}
+
+}  // namespace

@@ -1,0 +1,53 @@
+#!/bin/sh
+# LCM over udpm:// between two processes, inside a private network namespace.
+#
+#   tests/lcm_udpm_netns.sh MOREAU_SERVER_BINARY MOREAU_BINARY DIR
+#
+# Creates a user and network namespace (unshare -rn) that has nothing but its own loopback interface,
+# turns multicast on for it and routes 224.0.0.0/4 there, then runs moreau-server (publishing on
+# udpm://239.255.76.67:7667?ttl=0) and `moreau watch --log` as separate processes, submits a streamed,
+# realtime job with `moreau submit` and waits for it. No packet can reach the machine's real network.
+# Leaves DIR/watch.log (what the watcher received) and DIR/report.json (the finished job) for
+# tests/lcm_stream_test.cc to decode. Run from the source tree (it submits scenes/manipulator.json).
+set -eu
+[ $# -eq 3 ] || { echo "usage: $0 MOREAU_SERVER_BINARY MOREAU_BINARY DIR" >&2; exit 2; }
+
+exec unshare -rn sh -eu -c '
+server=$1 client=$2 dir=$3
+ip link set lo up
+ip link set lo multicast on
+ip route add 224.0.0.0/4 dev lo
+url="udpm://239.255.76.67:7667?ttl=0"
+export MOREAU_SERVER=http://127.0.0.1:18080
+
+"$server" --port 18080 --data "$dir/data" --lcm-url "$url" --workers 1 >"$dir/server.out" 2>&1 &
+server_pid=$!
+watch_pid=
+cleanup() {
+  [ -z "$watch_pid" ] || kill "$watch_pid" 2>/dev/null || true
+  kill "$server_pid" 2>/dev/null || true
+  wait 2>/dev/null || true
+}
+trap cleanup EXIT
+
+i=0
+until "$client" scenes >/dev/null 2>&1; do
+  i=$((i + 1))
+  if [ $i -ge 200 ]; then echo "moreau-server did not start:"; cat "$dir/server.out"; exit 1; fi
+  sleep 0.05
+done
+
+"$client" watch --lcm-url "$url" --log "$dir/watch.log" --until-finished --timeout 30 --plain >"$dir/watch.out" 2>&1 &
+watch_pid=$!
+i=0
+until grep -q "listening on" "$dir/watch.out" 2>/dev/null; do
+  i=$((i + 1))
+  if [ $i -ge 200 ]; then echo "moreau watch did not start:"; cat "$dir/watch.out"; exit 1; fi
+  sleep 0.05
+done
+
+"$client" submit scenes/manipulator.json --set integrator.t_end=1.5 --stream --realtime --wait --json >"$dir/report.json"
+wait "$watch_pid"
+watch_pid=
+echo "watch:"; cat "$dir/watch.out"
+' sh "$1" "$2" "$3"
