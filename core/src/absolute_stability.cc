@@ -20,8 +20,9 @@ Eigen::VectorXd sym_eigenvalues(const Eigen::MatrixXd& S) {
   return eig.eigenvalues();
 }
 
-// lambda_min(G(jw) + G(jw)^H), G(jw) = C (jw I - A)^{-1} B.
-double frequency_eigenvalue(const Eigen::MatrixXd& A, const Eigen::MatrixXd& B, const Eigen::MatrixXd& C, double w) {
+// (1 + (w/wc)^2) lambda_min(G(jw) + G(jw)^H), G(jw) = C (jw I - A)^{-1} B: the sign of lambda_min, scaled
+// so that its high-frequency limit is finite (G + G^H decays like 1/w^2 for a strictly proper G).
+double frequency_eigenvalue(const Eigen::MatrixXd& A, const Eigen::MatrixXd& B, const Eigen::MatrixXd& C, double w, double wc) {
   const int n = static_cast<int>(A.rows());
   Eigen::MatrixXcd Z = -A.cast<std::complex<double>>();
   for (int i = 0; i < n; ++i) Z(i, i) += std::complex<double>(0.0, w);
@@ -29,7 +30,7 @@ double frequency_eigenvalue(const Eigen::MatrixXd& A, const Eigen::MatrixXd& B, 
   const Eigen::MatrixXcd G = C.cast<std::complex<double>>() * X;
   const Eigen::MatrixXcd H = G + G.adjoint();
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXcd> eig(H, Eigen::EigenvaluesOnly);
-  return eig.eigenvalues()(0);
+  return (1.0 + (w / wc) * (w / wc)) * eig.eigenvalues()(0);
 }
 
 int rank(const Eigen::MatrixXd& X) {
@@ -163,13 +164,13 @@ PositiveRealnessTest test_strict_positive_realness(const Eigen::MatrixXd& A, con
   r.omega_min = 1e-6 * wc;
   r.omega_max = 1e6 * wc;
   const int K = 1201;
-  double fmin = frequency_eigenvalue(A, B, C, 0.0);
+  double fmin = frequency_eigenvalue(A, B, C, 0.0, wc);
   double wmin = 0.0;
   int jmin = -1;
   std::vector<double> grid(K);
   for (int j = 0; j < K; ++j) {
     grid[j] = r.omega_min * std::pow(10.0, 12.0 * j / (K - 1));
-    const double f = frequency_eigenvalue(A, B, C, grid[j]);
+    const double f = frequency_eigenvalue(A, B, C, grid[j], wc);
     if (f < fmin) {
       fmin = f;
       wmin = grid[j];
@@ -181,7 +182,7 @@ PositiveRealnessTest test_strict_positive_realness(const Eigen::MatrixXd& A, con
     double a = grid[std::max(0, jmin - 1)], b = grid[std::min(K - 1, jmin + 1)];
     const double g = 0.5 * (std::sqrt(5.0) - 1.0);
     double x1 = b - g * (b - a), x2 = a + g * (b - a);
-    double f1 = frequency_eigenvalue(A, B, C, x1), f2 = frequency_eigenvalue(A, B, C, x2);
+    double f1 = frequency_eigenvalue(A, B, C, x1, wc), f2 = frequency_eigenvalue(A, B, C, x2, wc);
     r.frequencies += 2;
     for (int it = 0; it < 60; ++it) {
       if (f1 < f2) {
@@ -189,13 +190,13 @@ PositiveRealnessTest test_strict_positive_realness(const Eigen::MatrixXd& A, con
         x2 = x1;
         f2 = f1;
         x1 = b - g * (b - a);
-        f1 = frequency_eigenvalue(A, B, C, x1);
+        f1 = frequency_eigenvalue(A, B, C, x1, wc);
       } else {
         a = x1;
         x1 = x2;
         f1 = f2;
         x2 = a + g * (b - a);
-        f2 = frequency_eigenvalue(A, B, C, x2);
+        f2 = frequency_eigenvalue(A, B, C, x2, wc);
       }
       ++r.frequencies;
     }
@@ -210,10 +211,10 @@ PositiveRealnessTest test_strict_positive_realness(const Eigen::MatrixXd& A, con
   r.spr = r.hurwitz && r.frequency && r.cb_symmetric_positive && r.high_frequency;
   char buf[512];
   std::snprintf(buf, sizeof buf,
-                "frequency domain (strictly proper G): A Hurwitz from its eigenvalues; lambda_min(G(jw) + G(jw)^H) > 0 "
-                "at w = 0 and %d log-spaced w in [%.3g, %.3g], refined by golden-section search (%d evaluations of "
-                "G(jw) in all); CB = (CB)^T > 0 and -(CAB + (CAB)^T) > 0 for the limit w -> infinity",
-                K, r.omega_min, r.omega_max, r.frequencies);
+                "frequency domain (strictly proper G): A Hurwitz from its eigenvalues; (1 + (w/wc)^2) lambda_min(G(jw) + "
+                "G(jw)^H) > 0 at w = 0 and %d log-spaced w in [%.3g, %.3g] (wc = %.3g), refined by golden-section search "
+                "(%d evaluations of G(jw) in all); CB = (CB)^T > 0 and -(CAB + (CAB)^T) > 0 for the limit w -> infinity",
+                K, r.omega_min, r.omega_max, wc, r.frequencies);
   r.method = buf;
 
   // A certificate P on {P = P^T, B^T P = C}.

@@ -1,5 +1,6 @@
 #include "moreau/scene/report.h"
 
+#include <algorithm>
 #include <cstdio>
 #include <sstream>
 
@@ -30,9 +31,157 @@ std::string vec(const std::vector<double>& v) {
 // JSON has no NaN or Inf: a non-finite value becomes null rather than an invalid document.
 nlohmann::json num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
 
+
+nlohmann::json energy_json(const EnergyTrack& e) {
+  if (!e.evaluated) return nullptr;
+  nlohmann::json j = {{"initial", num(e.initial)},
+                      {"final", num(e.final)},
+                      {"nonincreasing", e.nonincreasing},
+                      {"increases", e.increases},
+                      {"max_increase", num(e.max_increase)}};
+  if (e.first_increase_step >= 0) {
+    j["first_increase_step"] = e.first_increase_step;
+    j["first_increase_time"] = num(e.first_increase_time);
+  }
+  return j;
+}
+
+nlohmann::json matrix_json(const Eigen::MatrixXd& M) {
+  nlohmann::json rows = nlohmann::json::array();
+  for (int i = 0; i < M.rows(); ++i) {
+    nlohmann::json row = nlohmann::json::array();
+    for (int k = 0; k < M.cols(); ++k) row.push_back(num(M(i, k)));
+    rows.push_back(row);
+  }
+  return rows;
+}
+
+std::string name_of(const LagrangianScene& scene, int i) {
+  return i >= 0 && i < static_cast<int>(scene.constraint_names.size()) ? scene.constraint_names[i] : "?";
+}
+
+void add_contacts(nlohmann::json& j, const LagrangianScene& scene, const ContactDiagnostics* c) {
+  nlohmann::json cons = nlohmann::json::array();
+  for (std::size_t i = 0; i < scene.constraint_names.size(); ++i)
+    cons.push_back({{"name", scene.constraint_names[i]}, {"gap", scene.constraint_gaps[i]}, {"restitution", scene.restitution[i]}});
+  j["constraints"] = cons;
+  j["position_update"] = scene.position_update;
+  if (!c) return;
+  nlohmann::json impacts = nlohmann::json::array();
+  for (const ImpactEvent& e : c->impacts) {
+    impacts.push_back({{"step", e.step},
+                       {"t", num(e.t)},
+                       {"constraint", name_of(scene, e.constraint)},
+                       {"pre_velocity", num(e.pre)},
+                       {"post_velocity", num(e.post)},
+                       {"impulse", num(e.impulse)},
+                       {"kinetic_energy_change", num(e.kinetic_change)},
+                       {"eq9_kinetic_energy_change", num(e.eq9_change)},
+                       {"simultaneous", e.simultaneous}});
+  }
+  nlohmann::json settle = nlohmann::json::array();
+  for (int i = 0; i < c->constraints; ++i) {
+    settle.push_back({{"constraint", name_of(scene, i)},
+                      {"step", c->settle_step[i] >= 0 ? nlohmann::json(c->settle_step[i]) : nlohmann::json(nullptr)},
+                      {"time", c->settle_step[i] >= 0 ? num(c->settle_time[i]) : nlohmann::json(nullptr)}});
+  }
+  j["contacts"] = {
+      {"impact_count", c->impact_count},
+      {"impacts", impacts},
+      {"impacts_truncated", c->impacts_truncated},
+      {"max_eq9_mismatch", num(c->max_eq9_mismatch)},
+      {"rest_step", c->rest_step >= 0 ? nlohmann::json(c->rest_step) : nlohmann::json(nullptr)},
+      {"rest_time", c->rest_step >= 0 ? num(c->rest_time) : nlohmann::json(nullptr)},
+      {"closed_from", settle},
+      {"smallest_gap",
+       {{"value", num(c->smallest_gap)}, {"t", num(c->smallest_gap_time)}, {"constraint", name_of(scene, c->smallest_gap_constraint)}}},
+      {"active_steps", c->active_steps},
+      {"impulse_steps", c->impulse_steps},
+      {"position_correction",
+       {{"mode", scene.position_correction},
+        {"corrected_steps", c->corrected_steps},
+        {"max_correction", num(c->max_correction)},
+        {"largest_violation_removed", num(c->largest_violation)},
+        {"potential_energy_added", num(c->correction_energy)}}}};
+  nlohmann::json ld = energy_json(c->lagrange_dirichlet);
+  if (ld.is_object()) ld["potential_known"] = c->potential_known;
+  j["lagrange_dirichlet"] = ld;
+}
+
+std::string contact_text(const LagrangianScene& scene, const RunSummary& s, const ContactDiagnostics* c) {
+  std::ostringstream os;
+  std::string names;
+  for (std::size_t i = 0; i < scene.coordinates.size(); ++i) names += (i ? ", " : "") + scene.coordinates[i];
+  os << "Moreau: " << (scene.name.empty() ? "scene" : scene.name) << " (" << scene.n << " DOF: " << names
+     << "), scheme moreau-jean, fixed h = " << fmt(scene.settings.h) << ", t in [" << fmt(scene.settings.t0) << ", "
+     << fmt(scene.settings.t_end) << "]\n";
+  os << "  status        " << to_string(s.status) << ": " << s.steps << " steps to t = " << fmt(s.t_final) << "\n";
+  if (!s.message.empty()) os << "  message       " << s.message << "\n";
+  os << "  final state   q = " << vec(s.q_final) << "\n";
+  os << "                v = " << vec(s.v_final) << "\n";
+  for (std::size_t i = 0; i < scene.constraint_names.size(); ++i) {
+    os << (i == 0 ? "  constraints   " : "                ") << scene.constraint_names[i] << ": " << scene.constraint_gaps[i]
+       << " >= 0, e = " << fmt(scene.restitution[i]) << "\n";
+  }
+  if (c) {
+    os << "  impacts       " << c->impact_count << " impact" << (c->impact_count == 1 ? "" : "s");
+    if (!c->impacts.empty()) os << " (t, constraint, U-, U+, impulse, dT, dT of eq. 9)";
+    os << "\n";
+    const std::size_t shown = std::min<std::size_t>(c->impacts.size(), 12);
+    for (std::size_t k = 0; k < shown; ++k) {
+      const ImpactEvent& e = c->impacts[k];
+      char line[256];
+      std::snprintf(line, sizeof line, "                t = %-10.6g %-8s U- = %-11.5g U+ = %-11.5g P = %-11.5g dT = %-11.5g eq.9 %.5g\n",
+                    e.t, name_of(scene, e.constraint).c_str(), e.pre, e.post, e.impulse, e.kinetic_change, e.eq9_change);
+      os << line;
+    }
+    if (c->impact_count > static_cast<std::int64_t>(shown))
+      os << "                ... " << c->impact_count - static_cast<std::int64_t>(shown) << " more (all in --json"
+         << (c->impacts_truncated ? ", up to the recording limit" : "") << ")\n";
+    if (!c->impacts.empty())
+      os << "                eq. (9) against the measured kinetic energy change: largest difference " << fmt(c->max_eq9_mismatch) << "\n";
+    if (c->rest_step >= 0) {
+      os << "  rest          v == 0.0 exactly from step " << c->rest_step << " (t = " << fmt(c->rest_time) << ") to the end\n";
+    } else {
+      os << "  rest          v is not exactly 0 at the last step\n";
+    }
+    for (int i = 0; i < c->constraints; ++i) {
+      if (c->settle_step[i] >= 0)
+        os << "                contact " << name_of(scene, i) << " closed (impulse every step, U == 0.0) from t = " << fmt(c->settle_time[i])
+           << "\n";
+    }
+    os << "  smallest gap  " << fmt(c->smallest_gap) << " (" << name_of(scene, c->smallest_gap_constraint) << ", t = "
+       << fmt(c->smallest_gap_time) << ")" << (c->smallest_gap < 0.0 ? ": penetration" : "") << "\n";
+    os << "  positions     update " << scene.position_update << "; correction " << scene.position_correction;
+    if (c->correction_enabled) {
+      os << ": " << c->corrected_steps << " steps projected onto h >= 0";
+      if (c->corrected_steps > 0)
+        os << " (largest violation " << fmt(c->largest_violation) << ", largest |dq|_M " << fmt(c->max_correction)
+           << ", potential energy added " << fmt(c->correction_energy) << ")";
+    }
+    os << "\n";
+    const EnergyTrack& w = c->lagrange_dirichlet;
+    os << "  Lemma 3       W = 1/2 <M v, v> + U(q)" << (c->potential_known ? "" : " (no potential given: kinetic only)") << " "
+       << (w.nonincreasing ? "non-increasing" : "increased") << " including impacts: W_0 = " << fmt(w.initial)
+       << ", W_N = " << fmt(w.final);
+    if (!w.nonincreasing)
+      os << " (" << w.increases << " rises, largest " << fmt(w.max_increase) << ", first at t = " << fmt(w.first_increase_time) << ")";
+    os << "\n";
+  }
+  os << "  solver        max " << s.solver.max_iterations << " iterations per step, " << s.solver.total_iterations
+     << " in all, max residual " << fmt(s.solver.max_residual) << ", " << s.solver.fallback_steps << " fallback steps\n";
+  os << "  wall time     ";
+  for (const auto& [name, seconds] : s.phase_seconds) os << name << " " << fmt(seconds * 1e3) << " ms, ";
+  os << "total " << fmt(s.wall_seconds() * 1e3) << " ms\n";
+  return os.str();
+}
+
 }  // namespace
 
-nlohmann::json report_json(const LagrangianScene& scene, const RunSummary& s) {
+nlohmann::json report_json(const LagrangianScene& scene, const RunSummary& s) { return report_json(scene, s, nullptr); }
+std::string report_text(const LagrangianScene& scene, const RunSummary& s) { return report_text(scene, s, nullptr); }
+
+nlohmann::json report_json(const LagrangianScene& scene, const RunSummary& s, const ContactDiagnostics* contacts) {
   nlohmann::json j;
   j["scene"] = scene.name;
   j["status"] = to_string(s.status);
@@ -51,7 +200,12 @@ nlohmann::json report_json(const LagrangianScene& scene, const RunSummary& s) {
                  {"final", num(s.energy_final)},
                  {"max_increase", num(s.energy_max_increase)},
                  {"increases", s.energy_increases}};
-  j["equilibrium"] = {{"residual", num(s.equilibrium.residual)}, {"interior", s.equilibrium.interior}};
+  if (scene.scheme == "moreau-jean") {
+    j["system"] = "lagrangian";
+    add_contacts(j, scene, contacts);
+  } else {
+    j["equilibrium"] = {{"residual", num(s.equilibrium.residual)}, {"interior", s.equilibrium.interior}};
+  }
   j["solver"] = {{"max_iterations", s.solver.max_iterations},
                  {"max_residual", num(s.solver.max_residual)},
                  {"total_iterations", s.solver.total_iterations},
@@ -66,7 +220,8 @@ nlohmann::json report_json(const LagrangianScene& scene, const RunSummary& s) {
   return j;
 }
 
-std::string report_text(const LagrangianScene& scene, const RunSummary& s) {
+std::string report_text(const LagrangianScene& scene, const RunSummary& s, const ContactDiagnostics* contacts) {
+  if (scene.scheme == "moreau-jean") return contact_text(scene, s, contacts);
   std::ostringstream os;
   std::string names;
   for (std::size_t i = 0; i < scene.coordinates.size(); ++i) names += (i ? ", " : "") + scene.coordinates[i];
@@ -101,6 +256,144 @@ std::string report_text(const LagrangianScene& scene, const RunSummary& s) {
   os << "  solver        max " << s.solver.max_iterations << " iterations per step, " << s.solver.total_iterations
      << " in all, max residual " << fmt(s.solver.max_residual) << ", " << s.solver.rest_steps << " steps at rest, "
      << s.solver.fallback_steps << " fallback steps\n";
+  os << "  wall time     ";
+  for (const auto& [name, seconds] : s.phase_seconds) os << name << " " << fmt(seconds * 1e3) << " ms, ";
+  os << "total " << fmt(s.wall_seconds() * 1e3) << " ms\n";
+  return os.str();
+}
+
+namespace {
+
+nlohmann::json stability_json(const LureScene& sc) {
+  nlohmann::json j;
+  if (sc.P) {
+    const StorageMatrixCheck& c = sc.p_check;
+    j["P"] = "given";
+    j["P_symmetric"] = {{"holds", c.symmetric}, {"asymmetry", num(c.asymmetry)}};
+    j["P_positive_definite"] = {{"holds", c.positive_definite}, {"min_eigenvalue", num(c.min_eigenvalue)}};
+    j["PA_plus_AtP_negative_definite"] = {{"holds", c.dissipative}, {"max_eigenvalue", num(c.max_eigenvalue_pa)}};
+    j["BtP_equals_C"] = {{"holds", c.output_matches}, {"relative_residual", num(c.output_residual)}};
+    j["lemma_hypotheses_hold"] = c.all();
+    return j;
+  }
+  const PositiveRealnessTest& t = sc.spr;
+  j["P"] = "not given";
+  j["strictly_positive_real"] = t.spr;
+  j["test"] = t.method;
+  j["A_hurwitz"] = {{"holds", t.hurwitz}, {"spectral_abscissa", num(t.spectral_abscissa)}};
+  j["frequency_condition"] = {{"holds", t.frequency}, {"min_eigenvalue", num(t.min_frequency_eigenvalue)}, {"at_omega", num(t.argmin_omega)},
+                              {"evaluations", t.frequencies}};
+  j["CB_symmetric_positive_definite"] = {{"holds", t.cb_symmetric_positive}, {"min_eigenvalue", num(t.cb_min_eigenvalue)}};
+  j["high_frequency_condition"] = {{"holds", t.high_frequency}, {"min_eigenvalue", num(t.high_frequency_min_eigenvalue)}};
+  j["minimal"] = {{"controllable", t.controllable}, {"observable", t.observable}};
+  nlohmann::json cert = {{"attempted", t.storage_attempted}, {"found", t.storage_found}, {"method", t.storage_method}};
+  if (t.storage_found) cert["P"] = matrix_json(t.P);
+  j["certificate"] = cert;
+  j["lemma_hypotheses_hold"] = t.spr && t.storage_found && t.controllable && t.observable;
+  return j;
+}
+
+}  // namespace
+
+nlohmann::json report_json(const LureScene& sc, const RunSummary& s, const LureDiagnostics* d) {
+  nlohmann::json j;
+  j["scene"] = sc.name;
+  j["system"] = "lure";
+  j["status"] = to_string(s.status);
+  if (!s.message.empty()) j["message"] = s.message;
+  j["scheme"] = sc.scheme;
+  j["theta"] = sc.settings.theta;
+  j["h"] = sc.settings.h;
+  j["states"] = sc.states;
+  j["feedback"] = sc.feedback_types;
+  j["steps"] = s.steps;
+  j["t_final"] = num(s.t_final);
+  j["converged_step"] = s.converged_step ? nlohmann::json(*s.converged_step) : nlohmann::json(nullptr);
+  j["converged_time"] = s.converged_time ? num(*s.converged_time) : nlohmann::json(nullptr);
+  nlohmann::json fin = {{"x", s.q_final}, {"x_dot", s.v_final}};
+  if (d) {
+    fin["y"] = d->y_final;
+    fin["y_L"] = d->y_l_final;
+    nlohmann::json rest = nlohmann::json::array();
+    for (std::size_t i = 0; i < d->output_rest_step.size(); ++i)
+      rest.push_back({{"output", i},
+                      {"step", d->output_rest_step[i] >= 0 ? nlohmann::json(d->output_rest_step[i]) : nlohmann::json(nullptr)},
+                      {"time", d->output_rest_step[i] >= 0 ? num(d->output_rest_time[i]) : nlohmann::json(nullptr)}});
+    j["outputs_at_rest"] = rest;
+  }
+  j["final"] = fin;
+  j["absolute_stability"] = stability_json(sc);
+  nlohmann::json w = d ? energy_json(d->storage) : nlohmann::json(nullptr);
+  if (w.is_object()) {
+    w["P_source"] = sc.storage_source;
+    w["P"] = matrix_json(*sc.storage);
+  }
+  j["storage_function"] = w;
+  j["solver"] = {{"max_iterations", s.solver.max_iterations},
+                 {"max_residual", num(s.solver.max_residual)},
+                 {"total_iterations", s.solver.total_iterations},
+                 {"fallback_steps", s.solver.fallback_steps}};
+  nlohmann::json phases = nlohmann::json::object();
+  for (const auto& [name, seconds] : s.phase_seconds) phases[name] = seconds;
+  j["phase_seconds"] = phases;
+  j["wall_seconds"] = s.wall_seconds();
+  return j;
+}
+
+std::string report_text(const LureScene& sc, const RunSummary& s, const LureDiagnostics* d) {
+  std::ostringstream os;
+  std::string names, fb;
+  for (std::size_t i = 0; i < sc.states.size(); ++i) names += (i ? ", " : "") + sc.states[i];
+  for (std::size_t i = 0; i < sc.feedback_types.size(); ++i) fb += (i ? ", " : "") + sc.feedback_types[i];
+  os << "Moreau: " << (sc.name.empty() ? "scene" : sc.name) << " (Lur'e system, " << sc.n << (sc.n == 1 ? " state: " : " states: ") << names << "; " << sc.m
+     << " output" << (sc.m == 1 ? "" : "s") << ", feedback " << fb << "), scheme implicit-euler, theta = " << fmt(sc.settings.theta)
+     << ", h = " << fmt(sc.settings.h) << ", t in [" << fmt(sc.settings.t0) << ", " << fmt(sc.settings.t_end) << "]\n";
+  os << "  status        " << to_string(s.status) << ": " << s.steps << " steps to t = " << fmt(s.t_final) << "\n";
+  if (!s.message.empty()) os << "  message       " << s.message << "\n";
+  os << "  final state   x = " << vec(s.q_final) << "\n";
+  if (d) {
+    os << "                y = " << vec(d->y_final) << ", y_L = " << vec(d->y_l_final) << "\n";
+  }
+  if (s.converged_step) {
+    os << "  rest          x == 0.0 exactly from step " << *s.converged_step << " (t = " << fmt(*s.converged_time) << ") to the end\n";
+  } else if (d) {
+    bool any = false;
+    for (std::size_t i = 0; i < d->output_rest_step.size(); ++i) {
+      if (d->output_rest_step[i] < 0) continue;
+      os << (any ? "                " : "  rest          ") << "y_" << i + 1 << " == 0.0 exactly from step " << d->output_rest_step[i]
+         << " (t = " << fmt(d->output_rest_time[i]) << ")\n";
+      any = true;
+    }
+    if (!any) os << "  rest          neither x nor any output is exactly 0 at the last step\n";
+  }
+  if (sc.P) {
+    const StorageMatrixCheck& c = sc.p_check;
+    os << "  Lemmas 1-2    P given: P = P^T " << (c.symmetric ? "holds" : "FAILS") << "; P > 0 " << (c.positive_definite ? "holds" : "FAILS")
+       << " (lambda_min " << fmt(c.min_eigenvalue) << "); PA + A^T P < 0 " << (c.dissipative ? "holds" : "FAILS") << " (lambda_max "
+       << fmt(c.max_eigenvalue_pa) << "); B^T P = C " << (c.output_matches ? "holds" : "FAILS") << " (residual "
+       << fmt(c.output_residual) << ")\n";
+  } else {
+    const PositiveRealnessTest& t = sc.spr;
+    os << "  Lemmas 1-2    P not given; (A, B, C) strictly positive real: " << (t.spr ? "yes" : "no") << "\n";
+    os << "                A Hurwitz " << (t.hurwitz ? "yes" : "no") << " (max Re lambda " << fmt(t.spectral_abscissa)
+       << "); min (1 + (w/wc)^2) lambda(G(jw) + G(jw)^H) = " << fmt(t.min_frequency_eigenvalue) << " at w = " << fmt(t.argmin_omega)
+       << "; CB = (CB)^T > 0 " << (t.cb_symmetric_positive ? "yes" : "no") << "; -(CAB + (CAB)^T) > 0 " << (t.high_frequency ? "yes" : "no")
+       << "; minimal " << (t.controllable && t.observable ? "yes" : "no") << "\n";
+    os << "                how: " << t.method << "\n";
+    os << "                certificate: " << t.storage_method << "\n";
+  }
+  if (d && d->storage.evaluated) {
+    const EnergyTrack& w = d->storage;
+    os << "  storage       W = 1/2 x^T P x (P " << (sc.storage_source == "scene" ? "from the scene" : "found by the test") << ") "
+       << (w.nonincreasing ? "non-increasing" : "increased") << ": W_0 = " << fmt(w.initial) << ", W_N = " << fmt(w.final);
+    if (!w.nonincreasing)
+      os << " (" << w.increases << " rises, largest " << fmt(w.max_increase) << ", first at t = " << fmt(w.first_increase_time) << ")";
+    os << "\n";
+  } else {
+    os << "  storage       no storage matrix P: W not evaluated\n";
+  }
+  os << "  solver        max " << s.solver.max_iterations << " iterations per step, " << s.solver.total_iterations
+     << " in all, max residual " << fmt(s.solver.max_residual) << ", " << s.solver.fallback_steps << " fallback steps\n";
   os << "  wall time     ";
   for (const auto& [name, seconds] : s.phase_seconds) os << name << " " << fmt(seconds * 1e3) << " ms, ";
   os << "total " << fmt(s.wall_seconds() * 1e3) << " ms\n";

@@ -78,6 +78,7 @@ class Compiler {
   explicit Compiler(const json& doc) : doc_(doc) {}
 
   LagrangianScene compile();
+  LureScene compile_lure();
 
  private:
   // ---- parameters -------------------------------------------------------------------------------
@@ -336,15 +337,94 @@ class Compiler {
     }
   }
 
+  // /system/constraints: unilateral constraints h_i(q) >= 0 with Newton restitution e_i (eq. 8 of
+  // Brogliato 2003). The gradients are exact symbolic derivatives.
+  void constraints(const json& system, LagrangianScene& scene) {
+    if (!system.contains("constraints")) return;
+    const json& c = system["constraints"];
+    if (!c.is_array())
+      throw SceneError("/system/constraints", "expected an array of {\"gap\": h(q), \"restitution\": e}, got " + type_name(c));
+    if (c.size() > static_cast<std::size_t>(kMaxConstraints))
+      throw SceneError("/system/constraints", "more than " + std::to_string(kMaxConstraints) + " constraints");
+    std::set<std::string> names;
+    for (std::size_t k = 0; k < c.size(); ++k) {
+      const std::string ptr = "/system/constraints/" + std::to_string(k);
+      require_object(c[k], ptr);
+      check_fields(c[k], ptr, {"gap", "restitution", "name"});
+      if (!c[k].contains("gap")) throw SceneError(ptr, "missing 'gap' (an expression h(q), >= 0 on the admissible set)");
+      const Node h = expression(c[k]["gap"], ptr + "/gap", kPosition, "a gap (h depends on q only)");
+      if (graph_.is_constant(h)) throw SceneError(ptr + "/gap", "is constant: a gap h(q) must depend on the coordinates");
+      double e = 0.0;
+      if (c[k].contains("restitution")) {
+        e = constant(c[k]["restitution"], ptr + "/restitution");
+        if (!(e >= 0.0 && e <= 1.0))
+          throw SceneError(ptr + "/restitution", "must be in [0, 1] (Newton's impact law U+ = -e U-), got " + format(e));
+      }
+      std::string name = "h" + std::to_string(k + 1);
+      if (c[k].contains("name")) {
+        if (!c[k]["name"].is_string() || c[k]["name"].get<std::string>().empty())
+          throw SceneError(ptr + "/name", "expected a non-empty string");
+        name = c[k]["name"].get<std::string>();
+      }
+      if (!names.insert(name).second) throw SceneError(ptr + "/name", "duplicate constraint name '" + name + "'");
+      gaps_.push_back(h);
+      for (int j = 0; j < n_; ++j) gap_gradients_.push_back(graph_.derivative(h, 1 + j));
+      scene.constraint_names.push_back(name);
+      scene.constraint_gaps.push_back(c[k]["gap"].is_string() ? c[k]["gap"].get<std::string>() : c[k]["gap"].dump());
+      scene.restitution.push_back(e);
+    }
+  }
+
   void integrator(LagrangianScene& scene) {
     if (!doc_.contains("integrator")) throw SceneError("/integrator", "missing required field 'integrator' (h and t_end)");
     const json& in = doc_["integrator"];
     require_object(in, "/integrator");
-    check_fields(in, "/integrator", {"scheme", "h", "t_end", "t0", "step_rule", "k1", "k3", "max_steps"});
+    check_fields(in, "/integrator", {"scheme", "h", "t_end", "t0", "step_rule", "k1", "k3", "max_steps", "position_correction",
+                                     "position_update", "theta"});
+    const bool constrained = !scene.constraint_names.empty();
+    scene.scheme = constrained ? "moreau-jean" : "abl";
     if (in.contains("scheme")) {
       if (!in["scheme"].is_string()) throw SceneError("/integrator/scheme", "expected a string");
       scene.scheme = in["scheme"].get<std::string>();
-      if (scene.scheme != "abl") throw SceneError("/integrator/scheme", "unknown scheme '" + scene.scheme + "' (expected: abl)");
+      if (scene.scheme == "implicit-euler")
+        throw SceneError("/integrator/scheme", "the implicit-euler scheme is for lure systems; a lagrangian system takes abl or moreau-jean");
+      if (scene.scheme != "abl" && scene.scheme != "moreau-jean")
+        throw SceneError("/integrator/scheme", "unknown scheme '" + scene.scheme + "' (expected: abl, moreau-jean)");
+      if (scene.scheme == "abl" && constrained)
+        throw SceneError("/integrator/scheme",
+                         "the abl scheme (0.2) cannot integrate unilateral constraints (/system/constraints): its explicit "
+                         "position update has no contact law and would pass through h(q) = 0 silently; use \"moreau-jean\"");
+    }
+    const bool mj = scene.scheme == "moreau-jean";
+    if (in.contains("theta"))
+      throw SceneError("/integrator/theta", "theta belongs to the implicit-euler scheme of lure systems; " + scene.scheme + " takes none");
+    for (const char* field : {"position_correction", "position_update"}) {
+      if (!in.contains(field)) continue;
+      const std::string ptr = std::string("/integrator/") + field;
+      if (!mj) throw SceneError(ptr, std::string(field) + " belongs to the moreau-jean scheme");
+      const json& f = in[field];
+      const std::string value = f.is_string() ? f.get<std::string>() : "";
+      if (std::string(field) == "position_correction") {
+        if (value != "none" && value != "projection")
+          throw SceneError(ptr, "expected \"none\" or \"projection\", got " + f.dump());
+        scene.position_correction = value;
+      } else {
+        if (value != "mdi" && value != "standard") throw SceneError(ptr, "expected \"mdi\" or \"standard\", got " + f.dump());
+        scene.position_update = value;
+      }
+    }
+    if (mj) {
+      for (const char* field : {"k1", "k3"})
+        if (in.contains(field))
+          throw SceneError(std::string("/integrator/") + field, "k1 and k3 belong to the step rules of the abl scheme; moreau-jean uses a fixed step");
+      if (scene.controller.norm_gain > 0.0) {
+        const json& c = doc_["system"]["controller"];
+        std::string ptr = "/system/controller";
+        for (std::size_t k = 0; k < c.size(); ++k)
+          if (c[k].contains("type") && c[k]["type"] == "norm") ptr += "/" + std::to_string(k) + "/type";
+        throw SceneError(ptr, "the norm controller term is not separable and is not supported by the moreau-jean scheme "
+                              "(use quadratic and abs terms)");
+      }
     }
     AblSettings& s = scene.settings;
     if (!in.contains("h")) throw SceneError("/integrator", "missing required field 'h'");
@@ -360,6 +440,8 @@ class Compiler {
       else if (rule == "theorem-4.1") s.step_rule = StepRule::kTheorem41;
       else if (rule == "theorem-4.2") s.step_rule = StepRule::kTheorem42;
       else throw SceneError("/integrator/step_rule", "expected \"fixed\", \"theorem-4.1\" or \"theorem-4.2\", got " + r.dump());
+      if (mj && s.step_rule != StepRule::kFixed)
+        throw SceneError("/integrator/step_rule", "the moreau-jean scheme uses a fixed step; the theorem rules belong to abl");
     }
     if (in.contains("k1")) s.k1 = positive(in["k1"], "/integrator/k1");
     if (in.contains("k3")) s.k3 = positive(in["k3"], "/integrator/k3");
@@ -380,6 +462,13 @@ class Compiler {
       throw SceneError("/integrator/step_rule",
                        "theorem-4.2 needs eta > 0 in Assumption 4.1: give every coordinate a quadratic controller weight");
     }
+    MoreauJeanSettings& c = scene.contact_settings;
+    c.h = s.h;
+    c.t0 = s.t0;
+    c.t_end = s.t_end;
+    c.max_steps = s.max_steps;
+    c.position_update = scene.position_update == "standard" ? PositionUpdate::kStandard : PositionUpdate::kMdi;
+    c.correct_positions = scene.position_correction == "projection";
   }
 
   void output(LagrangianScene& scene) {
@@ -421,6 +510,171 @@ class Compiler {
     }
     if (ex.contains("rest_time")) scene.exact_rest_time = constant(ex["rest_time"], "/exact/rest_time");
     if (ex.contains("rest_q")) scene.exact_rest_q = constant_vector(ex["rest_q"], "/exact/rest_q");
+  }
+
+  // ---- Lur'e systems ------------------------------------------------------------------------------
+  Eigen::MatrixXd constant_matrix(const json& j, const std::string& ptr, int rows, int cols, const std::string& what) {
+    if (!j.is_array() || j.empty() || !j[0].is_array())
+      throw SceneError(ptr, "expected " + what + " as an array of rows, got " + type_name(j));
+    if (rows >= 0 && j.size() != static_cast<std::size_t>(rows))
+      throw SceneError(ptr, "expected " + std::to_string(rows) + " rows (" + what + "), got " + std::to_string(j.size()));
+    const int r = static_cast<int>(j.size());
+    if (r > kMaxDof) throw SceneError(ptr, "more than " + std::to_string(kMaxDof) + " rows");
+    const int c = cols >= 0 ? cols : static_cast<int>(j[0].size());
+    if (c == 0 || c > kMaxDof) throw SceneError(ptr + "/0", "expected between 1 and " + std::to_string(kMaxDof) + " columns");
+    Eigen::MatrixXd M(r, c);
+    for (int i = 0; i < r; ++i) {
+      const std::string row = ptr + "/" + std::to_string(i);
+      if (!j[i].is_array()) throw SceneError(row, "expected a row (an array of numbers), got " + type_name(j[i]));
+      if (j[i].size() != static_cast<std::size_t>(c))
+        throw SceneError(row, "expected " + std::to_string(c) + " entries (" + what + "), got " + std::to_string(j[i].size()));
+      for (int k = 0; k < c; ++k) M(i, k) = constant(j[i][k], row + "/" + std::to_string(k));
+    }
+    return M;
+  }
+
+  MonotoneGraph feedback_graph(const json& f, const std::string& ptr, std::string& type) {
+    require_object(f, ptr);
+    static const char* kTypes = "relay, coulomb, saturation, dead_zone, complementarity, mos, adhesive, graph";
+    if (!f.contains("type") || !f["type"].is_string())
+      throw SceneError(ptr + "/type", std::string("missing feedback type (") + kTypes + ")");
+    type = f["type"].get<std::string>();
+    auto value = [&](const char* key, bool required, double fallback) {
+      if (!f.contains(key)) {
+        if (required) throw SceneError(ptr, std::string("missing '") + key + "' for a " + type + " feedback");
+        return fallback;
+      }
+      return constant(f[key], ptr + "/" + key);
+    };
+    auto nonnegative = [&](const char* key, bool required, double fallback) {
+      const double v = value(key, required, fallback);
+      if (!(v >= 0.0)) throw SceneError(ptr + "/" + key, "must be >= 0 (the graph must be monotone), got " + format(v));
+      return v;
+    };
+    auto positive_value = [&](const char* key, bool required, double fallback) {
+      const double v = value(key, required, fallback);
+      if (!(v > 0.0)) throw SceneError(ptr + "/" + key, "must be > 0, got " + format(v));
+      return v;
+    };
+    if (type == "relay") {
+      check_fields(f, ptr, {"type", "gain"});
+      return MonotoneGraph::relay(nonnegative("gain", true, 0.0));
+    }
+    if (type == "coulomb") {
+      check_fields(f, ptr, {"type", "gain", "slope"});
+      const double a = nonnegative("gain", true, 0.0);
+      return MonotoneGraph::coulomb(a, nonnegative("slope", false, 0.0));
+    }
+    if (type == "saturation") {
+      check_fields(f, ptr, {"type", "slope", "limit"});
+      const double k = positive_value("slope", true, 0.0);
+      return MonotoneGraph::saturation(k, positive_value("limit", true, 0.0));
+    }
+    if (type == "dead_zone") {
+      check_fields(f, ptr, {"type", "width", "slope"});
+      const double d = nonnegative("width", true, 0.0);
+      return MonotoneGraph::dead_zone(d, positive_value("slope", true, 0.0));
+    }
+    if (type == "complementarity") {
+      check_fields(f, ptr, {"type"});
+      return MonotoneGraph::complementarity();
+    }
+    if (type == "mos") {
+      check_fields(f, ptr, {"type", "threshold", "limit", "slope"});
+      const double b = nonnegative("threshold", false, 0.0);
+      const double a = positive_value("limit", true, 0.0);
+      if (!(a > b)) throw SceneError(ptr + "/limit", "must be > threshold (" + format(b) + "), got " + format(a));
+      return MonotoneGraph::mos(b, a, nonnegative("slope", true, 0.0));
+    }
+    if (type == "adhesive") {
+      check_fields(f, ptr, {"type", "force", "stiffness"});
+      const double force = nonnegative("force", true, 0.0);
+      const double k = f.contains("stiffness") ? positive_value("stiffness", true, 0.0) : 0.0;
+      return MonotoneGraph::adhesive(force, k);
+    }
+    if (type == "graph") {
+      check_fields(f, ptr, {"type", "vertices", "left", "right"});
+      if (!f.contains("vertices")) throw SceneError(ptr, "missing 'vertices' ([[u0, w0], [u1, w1], ...])");
+      const json& vs = f["vertices"];
+      if (!vs.is_array() || vs.empty())
+        throw SceneError(ptr + "/vertices", "expected a non-empty array of vertices [u, w], got " + type_name(vs));
+      if (vs.size() > 1024) throw SceneError(ptr + "/vertices", "more than 1024 vertices");
+      std::vector<double> u, w;
+      for (std::size_t k = 0; k < vs.size(); ++k) {
+        const std::string vp = ptr + "/vertices/" + std::to_string(k);
+        if (!vs[k].is_array() || vs[k].size() != 2) throw SceneError(vp, "expected a vertex [u, w], got " + vs[k].dump());
+        u.push_back(constant(vs[k][0], vp + "/0"));
+        w.push_back(constant(vs[k][1], vp + "/1"));
+      }
+      auto end = [&](const char* key, MonotoneGraph::End& kind, double& slope) {
+        kind = MonotoneGraph::End::kSlope;
+        slope = 0.0;
+        if (!f.contains(key)) return;
+        const json& e = f[key];
+        if (e.is_string() && e.get<std::string>() == "wall") {
+          kind = MonotoneGraph::End::kWall;
+          return;
+        }
+        if (e.is_string() && !e.get<std::string>().empty() && std::isalpha(static_cast<unsigned char>(e.get<std::string>()[0])) &&
+            !params_.count(e.get<std::string>()))
+          throw SceneError(ptr + "/" + key, "expected \"wall\" or the slope of the ray (a number >= 0), got " + e.dump());
+        slope = constant(e, ptr + "/" + key);
+      };
+      MonotoneGraph::End left, right;
+      double sl, sr;
+      end("left", left, sl);
+      end("right", right, sr);
+      MonotoneGraph::Problem problem;
+      if (!MonotoneGraph::check(u, w, left, sl, right, sr, &problem)) {
+        std::string where = ptr + "/" + problem.field;
+        if (problem.index >= 0) where += "/" + std::to_string(problem.index);
+        if (problem.coordinate >= 0) where += "/" + std::to_string(problem.coordinate);
+        throw SceneError(where, problem.reason);
+      }
+      return MonotoneGraph(u, w, left, sl, right, sr);
+    }
+    throw SceneError(ptr + "/type", "unknown feedback type '" + type + "' (expected one of: " + kTypes + ")");
+  }
+
+  void lure_integrator(LureScene& scene) {
+    if (!doc_.contains("integrator")) throw SceneError("/integrator", "missing required field 'integrator' (h and t_end)");
+    const json& in = doc_["integrator"];
+    require_object(in, "/integrator");
+    check_fields(in, "/integrator", {"scheme", "h", "t_end", "t0", "theta", "step_rule", "max_steps"});
+    if (in.contains("scheme")) {
+      if (!in["scheme"].is_string()) throw SceneError("/integrator/scheme", "expected a string");
+      const std::string sch = in["scheme"].get<std::string>();
+      if (sch == "abl" || sch == "moreau-jean")
+        throw SceneError("/integrator/scheme", "the " + sch + " scheme is for lagrangian systems; a lure system takes implicit-euler");
+      if (sch != "implicit-euler") throw SceneError("/integrator/scheme", "unknown scheme '" + sch + "' (expected: implicit-euler)");
+    }
+    LureSettings& s = scene.settings;
+    if (!in.contains("h")) throw SceneError("/integrator", "missing required field 'h'");
+    if (!in.contains("t_end")) throw SceneError("/integrator", "missing required field 't_end'");
+    s.h = positive(in["h"], "/integrator/h");
+    s.t0 = in.contains("t0") ? constant(in["t0"], "/integrator/t0") : 0.0;
+    s.t_end = constant(in["t_end"], "/integrator/t_end");
+    if (!(s.t_end > s.t0)) throw SceneError("/integrator/t_end", "must be > t0 (" + format(s.t0) + "), got " + format(s.t_end));
+    if (in.contains("theta")) {
+      s.theta = constant(in["theta"], "/integrator/theta");
+      if (!(s.theta >= 0.5 && s.theta <= 1.0))
+        throw SceneError("/integrator/theta", "must be in [1/2, 1] (the theta-method is unstable below 1/2), got " + format(s.theta));
+    }
+    if (in.contains("step_rule") && in["step_rule"] != "fixed")
+      throw SceneError("/integrator/step_rule", "the implicit-euler scheme uses a fixed step (\"fixed\"), got " + in["step_rule"].dump());
+    s.max_steps = kMaxStepsLimit;
+    if (in.contains("max_steps")) {
+      const double m = positive(in["max_steps"], "/integrator/max_steps");
+      if (m != std::floor(m) || m > static_cast<double>(kMaxStepsLimit))
+        throw SceneError("/integrator/max_steps", "must be a whole number <= " + std::to_string(kMaxStepsLimit));
+      s.max_steps = static_cast<std::int64_t>(m);
+    }
+    const double ratio = (s.t_end - s.t0) / s.h;
+    const double steps = ratio > 9e18 ? ratio : static_cast<double>(fixed_step_count(s.t0, s.t_end, s.h));
+    if (steps > static_cast<double>(s.max_steps)) {
+      throw SceneError("/integrator/h", "h = " + format(s.h) + " over [" + format(s.t0) + ", " + format(s.t_end) + "] needs " +
+                                            format(steps) + " steps, more than the limit of " + std::to_string(s.max_steps));
+    }
   }
 
   // Evaluates M, C, g at the initial state: finite, symmetric, positive definite.
@@ -475,6 +729,30 @@ class Compiler {
         }
       }
     }
+    if (!gaps_.empty()) {
+      std::vector<Node> cons = gaps_;
+      cons.insert(cons.end(), gap_gradients_.begin(), gap_gradients_.end());
+      const expr::Tape ct = expr::Tape::compile(graph_, cons, 1 + 2 * n_);
+      std::vector<double> cs(1 + 2 * n_, 0.0), cv(cons.size()), cscr(ct.scratch_size());
+      for (int i = 0; i < n_; ++i) cs[1 + i] = scene.q0[i];
+      ct.eval(cs.data(), cv.data(), cscr.data());
+      const int nc = static_cast<int>(gaps_.size());
+      for (int i = 0; i < nc; ++i) {
+        const std::string ptr = "/system/constraints/" + std::to_string(i) + "/gap";
+        if (!std::isfinite(cv[i])) throw SceneError(ptr, "h(q) is not finite at the initial state");
+        double norm = 0.0;
+        for (int j = 0; j < n_; ++j) {
+          const double g = cv[nc + i * n_ + j];
+          if (!std::isfinite(g)) throw SceneError(ptr, "the gradient of h is not finite at the initial state");
+          norm += g * g;
+        }
+        if (cv[i] < 0.0)
+          throw SceneError("/initial/q", "violates constraint '" + scene.constraint_names[i] + "': h(q0) = " + format(cv[i]) +
+                                             " < 0 (the initial position must be admissible, h(q0) >= 0)");
+        if (cv[i] == 0.0 && norm == 0.0)
+          throw SceneError(ptr, "the gradient of h vanishes at the initial contact (the paper assumes grad h != 0 where h = 0)");
+      }
+    }
     eval_at(scene.q0, scene.v0);
     Eigen::MatrixXd M(n_, n_);
     for (int i = 0; i < n_; ++i)
@@ -517,6 +795,12 @@ class Compiler {
       c->has_potential = true;
       c->potential_tape = expr::Tape::compile(graph_, {potential_}, 1 + 2 * n_);
     }
+    if (!gaps_.empty()) {
+      std::vector<Node> cons = gaps_;
+      cons.insert(cons.end(), gap_gradients_.begin(), gap_gradients_.end());
+      c->num_constraints = static_cast<int>(gaps_.size());
+      c->constraint_tape = expr::Tape::compile(graph_, cons, 1 + 2 * n_);
+    }
     return c;
   }
 
@@ -531,6 +815,7 @@ class Compiler {
   std::vector<Node> M_, C_, g_;
   Node potential_ = -1;
   bool constant_mass_ = true;
+  std::vector<Node> gaps_, gap_gradients_;  // h_i(q) and dh_i/dq_j (row-major)
 };
 
 LagrangianScene Compiler::compile() {
@@ -547,9 +832,11 @@ LagrangianScene Compiler::compile() {
   require_object(system, "/system");
   if (!system.contains("type") || !system["type"].is_string())
     throw SceneError("/system/type", "missing system type (expected \"lagrangian\")");
-  if (system["type"].get<std::string>() != "lagrangian")
-    throw SceneError("/system/type", "unknown system type '" + system["type"].get<std::string>() + "' (expected: lagrangian)");
-  check_fields(system, "/system", {"type", "coordinates", "mass", "coriolis", "potential", "potential_gradient", "force", "controller"});
+  const std::string type = system["type"].get<std::string>();
+  if (type == "lure") throw SceneError("/system/type", "a lure system: load it with load_lure_scene() or through Simulation");
+  if (type != "lagrangian") throw SceneError("/system/type", "unknown system type '" + type + "' (expected: lagrangian, lure)");
+  check_fields(system, "/system",
+               {"type", "coordinates", "mass", "coriolis", "potential", "potential_gradient", "force", "controller", "constraints"});
   coordinates(system);
   scene.n = n_;
   scene.coordinates = coord_names_;
@@ -560,12 +847,121 @@ LagrangianScene Compiler::compile() {
   coriolis(system, scene);
   forces(system, scene);
   controller(system, scene);
+  constraints(system, scene);
   initial(scene);
   integrator(scene);
   output(scene);
   exact(scene);
   check_at_initial_state(scene);
   scene.compiled = build();
+  return scene;
+}
+
+LureScene Compiler::compile_lure() {
+  require_object(doc_, "");
+  check_fields(doc_, "", {"name", "description", "parameters", "system", "initial", "integrator", "output", "exact", "units"});
+  LureScene scene;
+  if (doc_.contains("name")) {
+    if (!doc_["name"].is_string()) throw SceneError("/name", "expected a string, got " + type_name(doc_["name"]));
+    scene.name = doc_["name"].get<std::string>();
+  }
+  declare_parameters();
+  if (!doc_.contains("system")) throw SceneError("/system", "missing required field 'system'");
+  const json& system = doc_["system"];
+  require_object(system, "/system");
+  if (!system.contains("type") || system["type"] != "lure") throw SceneError("/system/type", "expected \"lure\"");
+  check_fields(system, "/system", {"type", "states", "A", "B", "C", "feedback", "P"});
+  for (const char* f : {"A", "B", "C", "feedback"})
+    if (!system.contains(f)) throw SceneError("/system", std::string("missing required field '") + f + "' (x' = A x - B y_L, y = C x, y_L in d phi(y))");
+  scene.A = constant_matrix(system["A"], "/system/A", -1, -1, "the n x n matrix A");
+  const int n = static_cast<int>(scene.A.rows());
+  if (scene.A.cols() != n) throw SceneError("/system/A/0", "A must be square: " + std::to_string(n) + " rows but " + std::to_string(scene.A.cols()) + " columns");
+  scene.B = constant_matrix(system["B"], "/system/B", n, -1, "B has one row per state");
+  const int m = static_cast<int>(scene.B.cols());
+  if (m > kMaxConstraints) throw SceneError("/system/B", "more than " + std::to_string(kMaxConstraints) + " feedback components");
+  scene.C = constant_matrix(system["C"], "/system/C", m, n, "C is m x n: one row per column of B, one column per state");
+  scene.n = n;
+  scene.m = m;
+  n_ = n;
+  const json& fb = system["feedback"];
+  if (!fb.is_array()) throw SceneError("/system/feedback", "expected an array with one graph per output, got " + type_name(fb));
+  if (fb.size() != static_cast<std::size_t>(m))
+    throw SceneError("/system/feedback", "expected " + std::to_string(m) + " graphs (one per output y = C x), got " + std::to_string(fb.size()));
+  for (int i = 0; i < m; ++i) {
+    std::string type;
+    scene.feedback.push_back(feedback_graph(fb[i], "/system/feedback/" + std::to_string(i), type));
+    scene.feedback_types.push_back(type);
+  }
+  std::set<std::string> seen;
+  for (int i = 0; i < n; ++i) {
+    std::string name = "x" + std::to_string(i + 1);
+    if (system.contains("states")) {
+      const json& st = system["states"];
+      if (!st.is_array() || st.size() != static_cast<std::size_t>(n))
+        throw SceneError("/system/states", "expected " + std::to_string(n) + " names (one per state)");
+      const std::string ptr = "/system/states/" + std::to_string(i);
+      if (!st[i].is_string() || !is_identifier(st[i].get<std::string>()))
+        throw SceneError(ptr, "expected a name (letters, digits, _), got " + st[i].dump());
+      name = st[i].get<std::string>();
+    }
+    if (!seen.insert(name).second) throw SceneError("/system/states/" + std::to_string(i), "duplicate name '" + name + "'");
+    scene.states.push_back(name);
+    scene.state_rates.push_back(name + "_dot");
+  }
+  if (system.contains("P")) scene.P = constant_matrix(system["P"], "/system/P", n, n, "P is n x n");
+
+  if (!doc_.contains("initial")) throw SceneError("/initial", "missing required field 'initial' (x)");
+  const json& ini = doc_["initial"];
+  require_object(ini, "/initial");
+  check_fields(ini, "/initial", {"x"});
+  if (!ini.contains("x")) throw SceneError("/initial", "missing required field 'x'");
+  scene.x0 = constant_vector(ini["x"], "/initial/x");
+  lure_integrator(scene);
+  if (doc_.contains("output")) {
+    const json& o = doc_["output"];
+    require_object(o, "/output");
+    check_fields(o, "/output", {"every"});
+    if (o.contains("every")) {
+      const double e = positive(o["every"], "/output/every");
+      if (e != std::floor(e) || e > 1e15) throw SceneError("/output/every", "must be a whole number >= 1");
+      scene.settings.output_every = static_cast<std::int64_t>(e);
+    }
+  }
+  if (doc_.contains("exact")) {
+    const json& ex = doc_["exact"];
+    require_object(ex, "/exact");
+    check_fields(ex, "/exact", {"x", "rest_time", "rest_x", "note"});
+    if (ex.contains("x")) {
+      std::vector<Node> outs;
+      const json& arr = array_of(ex["x"], "/exact/x", static_cast<std::size_t>(n), "an array of expressions in t");
+      for (int i = 0; i < n; ++i) outs.push_back(expression(arr[i], "/exact/x/" + std::to_string(i), kTime, "an exact solution (a function of t)"));
+      scene.exact_tape = std::make_shared<expr::Tape>(expr::Tape::compile(graph_, outs, 1));
+    }
+    if (ex.contains("rest_time")) scene.exact_rest_time = constant(ex["rest_time"], "/exact/rest_time");
+    if (ex.contains("rest_x")) scene.exact_rest_x = constant_vector(ex["rest_x"], "/exact/rest_x");
+  }
+
+  // Lemma 1 needs C x(0) in dom d phi.
+  const Eigen::VectorXd x0 = Eigen::Map<const Eigen::VectorXd>(scene.x0.data(), n);
+  const Eigen::VectorXd y0 = scene.C * x0;
+  for (int i = 0; i < m; ++i) {
+    if (!scene.feedback[i].in_domain(y0(i)))
+      throw SceneError("/initial/x", "y0 = C x0 has component " + std::to_string(i) + " = " + format(y0(i)) +
+                                         ", outside the domain of /system/feedback/" + std::to_string(i) +
+                                         " (Lemma 1 needs C x(0) in dom d phi)");
+  }
+  // Lemmas 1-2: the given P, or a strict positive realness test.
+  if (scene.P) {
+    scene.p_check = check_storage_matrix(scene.A, scene.B, scene.C, *scene.P);
+    scene.storage = scene.P;
+    scene.storage_source = "scene";
+  } else {
+    scene.spr = test_strict_positive_realness(scene.A, scene.B, scene.C);
+    if (scene.spr.storage_found) {
+      scene.storage = scene.spr.P;
+      scene.storage_source = "found";
+    }
+  }
   return scene;
 }
 
@@ -673,6 +1069,26 @@ LagrangianScene load_scene(const nlohmann::json& doc) {
   Compiler compiler(doc);
   try {
     return compiler.compile();
+  } catch (const SceneError&) {
+    throw;
+  } catch (const expr::ExpressionError& e) {
+    throw SceneError("/", std::string("expression limit: ") + e.what());
+  } catch (const nlohmann::json::exception& e) {
+    throw SceneError("/", std::string("malformed scene: ") + e.what());
+  }
+}
+
+std::string system_type(const nlohmann::json& doc) {
+  if (doc.is_object() && doc.contains("system") && doc["system"].is_object() && doc["system"].contains("type") &&
+      doc["system"]["type"].is_string())
+    return doc["system"]["type"].get<std::string>();
+  return "lagrangian";
+}
+
+LureScene load_lure_scene(const nlohmann::json& doc) {
+  Compiler compiler(doc);
+  try {
+    return compiler.compile_lure();
   } catch (const SceneError&) {
     throw;
   } catch (const expr::ExpressionError& e) {

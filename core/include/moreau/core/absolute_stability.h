@@ -5,8 +5,9 @@
 //
 //  - check_storage_matrix(): given P, checks each of the three conditions (and reports its margin).
 //  - test_strict_positive_realness(): without P, tests SPR in the frequency domain, for a strictly proper
-//    G (Tao and Ioannou 1988): A Hurwitz; G(jw) + G(jw)^H > 0 for every real w, evaluated at w = 0 and
-//    on a logarithmic grid refined by golden-section search around its smallest value; and the
+//    G (Tao and Ioannou 1988): A Hurwitz; G(jw) + G(jw)^H > 0 for every real w, evaluated (scaled by
+//    1 + (w/wc)^2, wc = max(1, spectral radius of A), so that the decay like 1/w^2 does not hide the margin)
+//    at w = 0 and on a logarithmic grid refined by golden-section search around its smallest value; and the
 //    high-frequency conditions CB = (CB)^T > 0 and lim w^2 (G(jw) + G(jw)^H) = -(CAB + (CAB)^T) > 0.
 //    Controllability and observability (minimality) are reported as well. Then it looks for a
 //    certificate: a symmetric P on the affine set {B^T P = C}, maximising
@@ -47,7 +48,7 @@ struct PositiveRealnessTest {
   bool high_frequency = false;          // -(CAB + (CAB)^T) > 0
   double high_frequency_min_eigenvalue = 0.0;
   bool frequency = false;               // lambda_min(G(jw) + G(jw)^H) > 0 on the sweep
-  double min_frequency_eigenvalue = 0.0;
+  double min_frequency_eigenvalue = 0.0;  // min over the sweep of (1 + (w/wc)^2) lambda_min(G + G^H)
   double argmin_omega = 0.0;
   int frequencies = 0;                  // evaluations of G(jw)
   double omega_min = 0.0, omega_max = 0.0;

@@ -1,5 +1,7 @@
-// The scene format (docs/scene-format.md): JSON -> a validated, compiled Lagrangian model plus the
-// integrator settings. Every error names the JSON pointer of the field it is about.
+// The scene format (docs/scene-format.md): JSON -> a validated, compiled model plus the integrator
+// settings. Two system types: "lagrangian" (eq. 0.1 of Adly, Brogliato and Le 2016, optionally with the
+// unilateral constraints of eq. 8 of Brogliato 2003) and "lure" (eq. 4 of Brogliato 2003). Every error
+// names the JSON pointer of the field it is about.
 #pragma once
 
 #include <memory>
@@ -11,8 +13,13 @@
 #include <nlohmann/json.hpp>
 
 #include "moreau/core/abl_integrator.h"
+#include "moreau/core/absolute_stability.h"
 #include "moreau/core/controller.h"
+#include "moreau/core/lure_integrator.h"
+#include "moreau/core/maximal_monotone_graph.h"
+#include "moreau/core/moreau_jean_integrator.h"
 #include "moreau/core/observer.h"
+#include "moreau/core/run_diagnostics.h"
 #include "moreau/core/run_summary.h"
 #include "moreau/scene/expression.h"
 
@@ -23,6 +30,8 @@ namespace moreau::scene {
 inline constexpr std::int64_t kMaxStepsLimit = 2'000'000'000;
 // Largest number of degrees of freedom a scene may declare.
 inline constexpr int kMaxDof = 64;
+// Largest number of unilateral constraints (and of Lur'e outputs) a scene may declare.
+inline constexpr int kMaxConstraints = 64;
 
 class SceneError : public std::runtime_error {
  public:
@@ -61,6 +70,9 @@ struct CompiledLagrangian {
   // symmetric pair); likewise mass_targets for mass_tape into M.
   std::vector<std::vector<int>> step_targets;
   std::vector<std::vector<int>> mass_targets;
+  // Unilateral constraints: outputs h_1..h_m(q), then the exact gradients dh_i/dq_j (row-major, m x n).
+  int num_constraints = 0;
+  expr::Tape constraint_tape;
 };
 
 struct LagrangianScene {
@@ -80,12 +92,58 @@ struct LagrangianScene {
   std::shared_ptr<const expr::Tape> exact_tape;  // outputs q_1..q_n, v_1..v_n at slot 0 = t
   std::optional<double> exact_rest_time;
   std::vector<double> exact_rest_q;
+  // Unilateral constraints h_i(q) >= 0 with Newton restitution e_i (/system/constraints), integrated by
+  // the moreau-jean scheme; contact_settings carries its options (h, t0, t_end, max_steps: from settings).
+  std::vector<std::string> constraint_names;
+  std::vector<std::string> constraint_gaps;  // h_i(q) as text, for reports
+  std::vector<double> restitution;
+  MoreauJeanSettings contact_settings;
+  std::string position_correction = "none";  // or "projection"
+  std::string position_update = "mdi";       // or "standard"
 };
 
-// Validates and compiles a scene. Throws SceneError naming the field.
+// Validates and compiles a Lagrangian scene. Throws SceneError naming the field (a "lure" scene gets
+// one at /system/type: load it with load_lure_scene or Simulation).
 LagrangianScene load_scene(const nlohmann::json& doc);
 
-// Runs the scene's integrator on its compiled model (dispatching to fixed-size code for small n).
+// Runs the scene's integrator on its compiled model (dispatching to fixed-size code for small n): the abl
+// scheme, or moreau-jean (which also fills `contacts` when given).
 RunSummary run_scene(const LagrangianScene& scene, RunObserver* observer);
+RunSummary run_scene(const LagrangianScene& scene, RunObserver* observer, ContactDiagnostics* contacts);
+
+// ---- Lur'e systems (eq. 4 of Brogliato 2003) ------------------------------------------------------------
+struct LureScene {
+  std::string name;
+  int n = 0;  // states
+  int m = 0;  // outputs (= feedback components)
+  std::vector<std::string> states;       // x names (default x1..xn)
+  std::vector<std::string> state_rates;  // <name>_dot: the discrete derivative columns
+  Eigen::MatrixXd A, B, C;
+  std::vector<MonotoneGraph> feedback;
+  std::vector<std::string> feedback_types;  // "relay", "graph", ... per component
+  std::optional<Eigen::MatrixXd> P;         // /system/P, when given
+  std::vector<double> x0;
+  std::string scheme = "implicit-euler";
+  LureSettings settings;
+  // Lemmas 1-2: the check of the given P, or the strict positive realness test without one.
+  StorageMatrixCheck p_check;
+  PositiveRealnessTest spr;
+  // The storage matrix of W = 1/2 x^T P x: the scene's P, or the certificate the SPR test found.
+  std::optional<Eigen::MatrixXd> storage;
+  std::string storage_source;  // "scene", "found" or "" (none)
+  // Exact solution carried by textbook scenes (/exact): x_1..x_n as expressions in t.
+  std::shared_ptr<const expr::Tape> exact_tape;
+  std::optional<double> exact_rest_time;
+  std::vector<double> exact_rest_x;
+};
+
+// The /system/type of a scene document ("lagrangian" when absent or not a string; validation comes later).
+std::string system_type(const nlohmann::json& doc);
+
+// Validates a Lur'e scene. Throws SceneError naming the field.
+LureScene load_lure_scene(const nlohmann::json& doc);
+
+// Runs the theta-method (lure_integrator.h), dispatching to fixed-size code for n <= 4.
+RunSummary run_lure_scene(const LureScene& scene, RunObserver* observer, LureDiagnostics* diagnostics);
 
 }  // namespace moreau::scene

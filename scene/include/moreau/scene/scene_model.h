@@ -1,6 +1,8 @@
 // A compiled Lagrangian scene as a model of the ABL integrator (see abl_integrator.h for the model
-// requirements). evaluate() runs one tape for every non-constant entry of M, C and g = grad V + F and
-// scatters the values over the constant parts: no allocation, no virtual call.
+// requirements) and of the Moreau-Jean integrator (moreau_jean_integrator.h: constraints, restitution,
+// potential). evaluate() runs one tape for every non-constant entry of M, C and g = grad V + F and
+// scatters the values over the constant parts; constraints() runs one tape for the gaps h_i(q) and their
+// exact gradients: no allocation, no virtual call.
 #pragma once
 
 #include <algorithm>
@@ -15,14 +17,17 @@ class SceneModel {
  public:
   static constexpr int kDof = N;
 
-  explicit SceneModel(const LagrangianScene& scene) : c_(*scene.compiled), n_(scene.n) {
+  explicit SceneModel(const LagrangianScene& scene) : c_(*scene.compiled), n_(scene.n), restitution_(scene.restitution) {
     phi_.weights = scene.controller.weights;
     phi_.gains = scene.controller.gains;
     phi_.norm_gain = scene.controller.norm_gain;
     slots_.assign(static_cast<std::size_t>(1 + 2 * n_), 0.0);
     step_values_.assign(c_.step_tape.num_outputs(), 0.0);
     mass_values_.assign(c_.mass_tape.num_outputs(), 0.0);
-    scratch_.assign(std::max(c_.step_tape.scratch_size(), c_.mass_tape.scratch_size()), 0.0);
+    scratch_.assign(std::max({c_.step_tape.scratch_size(), c_.mass_tape.scratch_size(), c_.potential_tape.scratch_size(),
+                              c_.constraint_tape.scratch_size()}),
+                    0.0);
+    constraint_values_.assign(c_.constraint_tape.num_outputs(), 0.0);
     // Flatten the targets: output j of the step tape writes flat index target_index_[k] for k in
     // [target_begin_[j], target_begin_[j+1]).
     for (const auto& targets : c_.step_targets) {
@@ -69,6 +74,30 @@ class SceneModel {
     }
   }
 
+  int num_constraints() const { return c_.num_constraints; }
+  double restitution(int i) const { return restitution_[i]; }
+  bool has_potential() const { return c_.has_potential; }
+
+  double potential(const Vec<N>& q) {
+    for (int i = 0; i < n_; ++i) slots_[1 + i] = q(i);
+    double value = 0.0;
+    c_.potential_tape.eval(slots_.data(), &value, scratch_.data());
+    return value;
+  }
+
+  // gap(i) = h_i(q), H.row(i) = grad h_i(q)^T.
+  template <class Rows>
+  void constraints(const Vec<N>& q, Eigen::VectorXd& gap, Rows& H) {
+    const int m = c_.num_constraints;
+    if (m == 0) return;
+    for (int i = 0; i < n_; ++i) slots_[1 + i] = q(i);
+    c_.constraint_tape.eval(slots_.data(), constraint_values_.data(), scratch_.data());
+    for (int i = 0; i < m; ++i) {
+      gap(i) = constraint_values_[i];
+      for (int j = 0; j < n_; ++j) H(i, j) = constraint_values_[m + i * n_ + j];
+    }
+  }
+
   void mass(const Vec<N>& q, Mat<N>& M) {
     M = constant_.M;
     if (mass_values_.empty()) return;
@@ -92,7 +121,8 @@ class SceneModel {
   int n_;
   Controller<N> phi_;
   LagrangianTerms<N> constant_;
-  std::vector<double> slots_, step_values_, mass_values_, scratch_;
+  std::vector<double> restitution_;
+  std::vector<double> slots_, step_values_, mass_values_, scratch_, constraint_values_;
   std::vector<int> step_begin_, step_index_, mass_begin_, mass_index_;
 };
 

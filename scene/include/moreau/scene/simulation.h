@@ -1,19 +1,32 @@
 // A scene of any system type, validated and compiled, ready to run: the one entry point that the
 // command line, the server and studies use. It owns the choice of model and scheme for the scene's
-// system type (today: Lagrangian systems with a set-valued controller and the ABL scheme).
+// system type:
+//   - "lagrangian": the ABL scheme (eq. 0.2 of Adly, Brogliato and Le 2016), or moreau-jean when the
+//     scene has unilateral constraints (eq. 8 of Brogliato 2003);
+//   - "lure": the theta-method for x' = A x - B y_L, y = C x, y_L in d phi(y) (eq. 4 of Brogliato 2003).
+// For a Lur'e system the trajectory's positions are the states x and its velocities the discrete
+// derivative (x_{k+1} - x_k)/h (names x1..xn and x1_dot..xn_dot, or the scene's /system/states).
 #pragma once
 
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
 #include "moreau/core/observer.h"
+#include "moreau/core/run_diagnostics.h"
 #include "moreau/core/run_summary.h"
 #include "moreau/scene/scene.h"
 
 namespace moreau::scene {
+
+// What a run reports beyond RunSummary, by system type.
+struct RunDiagnostics {
+  std::optional<ContactDiagnostics> contacts;  // a lagrangian scene on moreau-jean
+  std::optional<LureDiagnostics> lure;         // a lure scene
+};
 
 class Simulation {
  public:
@@ -23,7 +36,9 @@ class Simulation {
   static Simulation from_file(const std::string& path, const std::vector<std::string>& overrides = {});
 
   const std::string& name() const;
-  int dof() const;
+  const std::string& system_type() const;  // "lagrangian" or "lure"
+  const std::string& scheme() const;       // "abl", "moreau-jean" or "implicit-euler"
+  int dof() const;                         // coordinates, or states of a Lur'e system
   // Column names of a trajectory: positions then velocities.
   const std::vector<std::string>& position_names() const;
   const std::vector<std::string>& velocity_names() const;
@@ -34,17 +49,28 @@ class Simulation {
   // The number of steps a fixed-step run takes (an upper bound's estimate for adaptive rules).
   std::int64_t planned_steps() const;
 
-  // Runs to t_end; the observer sees every output_every-th state and may cancel.
+  // Runs to t_end; the observer sees every output_every-th state and may cancel. The run's diagnostics
+  // (impacts, storage function, ...) are kept with this Simulation for report_json(summary) and
+  // report_text(summary): those two report on the most recent run. Callers running one Simulation from
+  // several threads at once should pass their own RunDiagnostics instead.
   RunSummary run(RunObserver* observer) const;
+  RunSummary run(RunObserver* observer, RunDiagnostics* diagnostics) const;
 
   nlohmann::json report_json(const RunSummary& summary) const;
   std::string report_text(const RunSummary& summary) const;
+  nlohmann::json report_json(const RunSummary& summary, const RunDiagnostics& diagnostics) const;
+  std::string report_text(const RunSummary& summary, const RunDiagnostics& diagnostics) const;
 
   // The underlying scene for Lagrangian systems (nullptr for other system types).
   const LagrangianScene* lagrangian() const { return lagrangian_.get(); }
+  // The underlying scene for Lur'e systems (nullptr for other system types).
+  const LureScene* lure() const { return lure_.get(); }
 
  private:
+  struct Latest;
   std::shared_ptr<const LagrangianScene> lagrangian_;
+  std::shared_ptr<const LureScene> lure_;
+  std::shared_ptr<Latest> latest_;
 };
 
 }  // namespace moreau::scene

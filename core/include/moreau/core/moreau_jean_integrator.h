@@ -1,0 +1,554 @@
+// The Moreau-Jean time-stepping scheme for Lagrangian systems with unilateral constraints and impacts,
+// eq. (8) of Brogliato (2003), with the set-valued controller Phi of Adly, Brogliato and Le (2016):
+//
+//   M(q) dv + (C(q, v) v + grad U(q) + F(t, q, v)) dt + dPhi(v) dt  in  grad h(q) dP,
+//   0 <= h(q) perp P >= 0,   Newton's law U(t+) = -e U(t-) on impacts (U = grad h(q)^T v),        (8)
+//
+// i.e. Moreau's second-order sweeping process (10) discretised as in Jean and Moreau's method (theta = 1):
+//
+//   M(Q^k) (V^{k+1} - V^k) + h C(Q^k, V^k) V^{k+1} + h g(t_k, Q^k, V^k) + h dPhi(V^{k+1})  in  H^T P^{k+1}
+//   for i in I_k:  0 <= U_i^{k+1} + e_i min(U_i^k, 0)  perp  P_i^{k+1} >= 0;   P_i^{k+1} = 0 otherwise,
+//   Q^{k+1} = Q^k + h V_pos^{k+1},
+//
+// with g = grad U + F (the forces of the core scene format, explicit), H = grad h(Q^k)^T, U^k = H V^k and
+// the predicted active set I_k = {i : h_i(Q^k) + h grad h_i(Q^k)^T V_free <= 0}, V_free the velocity the
+// step would have without contact and controller impulses (so a free step never ends below a linear
+// gap). The restitution acts on approaching contacts only (min(U^k, 0)): a contact that is closed and
+// not approaching gets 0 <= U^{k+1} (no rebound out of a resting contact).
+//
+// Writing Phi(v) = 1/2 <W v, v> + sum a_j |v_j|, the step is the generalized equation (GE) of
+// graph_inclusion_solver.h in m = (#a_j > 0) + (#constraints) unknowns: u = G_v V^{k+1} + b, w the impulses,
+// V^{k+1} = V_free - Wm^{-1} G_f^T w, Wm = M + h (C + W), each row either a controlled velocity
+// (u_j = v_j, w_j in a_j Sign(u_j), impulse h w_j) or a contact (u_i = U_i^{k+1} + e_i min(U_i^k, 0),
+// w_i = -P_i in d psi_{R+}(u_i), the corner law, for i in I_k; w_i = 0 otherwise). Solved exactly by
+// GraphInclusionSolver: a velocity at rest is 0.0, a closed contact has U == -e min(U^k, 0) exactly when
+// its gradient involves one coordinate. An unsolved step stops the run (RunStatus::kFailed).
+//
+// Position update (`PositionUpdate`):
+//  - kMdi (default): V_pos = V^{k+1}, except that the contacts that carried a positive impulse and
+//    rebound (U_i^{k+1} = -e_i U_i^k != 0) move with normal velocity 0, the velocity w = (U+ + e U-)/(1+e)
+//    at which the paper's measure differential inclusion (10) imposes the constraint: V_pos = V^{k+1} -
+//    M^{-1} H_R^T (H_R M^{-1} H_R^T)^{-1} U_R^{k+1}. The impulsive part of a step does not move the
+//    position (dq = v dt has no atom). With constant M, a linear gap and linear forces this makes
+//    W = 1/2 <M v, v> + U(q) non-increasing at every step, impacts included: free steps lose
+//    1/2 |V^{k+1} - V^k|_M^2, impact steps lose 1/2 (1 - e^2) U^2 / (grad h^T M^{-1} grad h) (eq. 9).
+//  - kStandard: V_pos = V^{k+1}, the textbook Moreau-Jean update. Its W can rise at a low-velocity impact
+//    with e > 0 by up to e |U^k| P (the gravity impulse absorbed by the contact, paid back as rebound).
+// Optional position correction (`correct_positions`): after the step, if some h_i(Q^{k+1}) < 0, Q^{k+1}
+// is projected onto {h >= 0} in the kinetic metric (Newton steps on the linearised constraints, each an
+// LCP solved by the same solver); the diagnostics count the corrections and the potential energy they added.
+//
+// Order 1 away from impacts; impact times within O(h). Zeno accumulations (the bouncing ball with e < 1)
+// are passed through: once a rebound velocity falls below the step's gravity increment the contact closes
+// with U == 0.0 and stays closed.
+//
+// Model requirements (the ABL model of abl_integrator.h plus the constraints):
+//   static constexpr int kDof;  int dof() const;  const Controller<kDof>& controller() const;  (norm_gain 0)
+//   bool constant_mass() const;  void evaluate(t, q, v, LagrangianTerms<N>&);  void mass(q, Mat<N>&);
+//   int num_constraints() const;  double restitution(int i) const;
+//   void constraints(const Vec<N>& q, Eigen::VectorXd& gap, Eigen::Matrix<double, Eigen::Dynamic, N>& H);
+//   bool has_potential() const;  double potential(const Vec<N>& q);
+#pragma once
+
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "moreau/core/abl_integrator.h"  // fixed_step_count
+#include "moreau/core/controller.h"
+#include "moreau/core/graph_inclusion_solver.h"
+#include "moreau/core/maximal_monotone_graph.h"
+#include "moreau/core/observer.h"
+#include "moreau/core/run_diagnostics.h"
+#include "moreau/core/run_summary.h"
+#include "moreau/core/types.h"
+
+namespace moreau {
+
+enum class PositionUpdate { kMdi, kStandard };
+
+struct MoreauJeanSettings {
+  double h = 1e-3;
+  double t0 = 0.0;
+  double t_end = 1.0;
+  std::int64_t max_steps = 2'000'000'000;
+  std::int64_t output_every = 1;
+  PositionUpdate position_update = PositionUpdate::kMdi;
+  bool correct_positions = false;
+  int max_recorded_impacts = 10000;
+};
+
+namespace detail {
+// Solves A x = b in place for the leading r x r block (partial pivoting); A and b are overwritten.
+// Returns false on a zero pivot. Allocation-free, for the small systems of impact steps.
+inline bool solve_small_in_place(Eigen::MatrixXd& A, Eigen::VectorXd& b, int r) {
+  for (int c = 0; c < r; ++c) {
+    int p = c;
+    for (int i = c + 1; i < r; ++i)
+      if (std::abs(A(i, c)) > std::abs(A(p, c))) p = i;
+    if (A(p, c) == 0.0) return false;
+    if (p != c) {
+      for (int j = 0; j < r; ++j) std::swap(A(c, j), A(p, j));
+      std::swap(b(c), b(p));
+    }
+    for (int i = c + 1; i < r; ++i) {
+      const double f = A(i, c) / A(c, c);
+      if (f == 0.0) continue;
+      for (int j = c; j < r; ++j) A(i, j) -= f * A(c, j);
+      b(i) -= f * b(c);
+    }
+  }
+  for (int c = r - 1; c >= 0; --c) {
+    double s = b(c);
+    for (int j = c + 1; j < r; ++j) s -= A(c, j) * b(j);
+    b(c) = s / A(c, c);
+  }
+  return true;
+}
+}  // namespace detail
+
+template <class Model>
+class MoreauJeanIntegrator {
+ public:
+  static constexpr int N = Model::kDof;
+  using RowsN = Eigen::Matrix<double, Eigen::Dynamic, N>;
+  using ColsN = Eigen::Matrix<double, N, Eigen::Dynamic>;
+
+  MoreauJeanIntegrator(const MoreauJeanIntegrator&) = delete;  // holds pointers into itself
+  MoreauJeanIntegrator& operator=(const MoreauJeanIntegrator&) = delete;
+
+  MoreauJeanIntegrator(Model& model, const MoreauJeanSettings& settings) : model_(model), settings_(settings) {
+    n_ = model_.dof();
+    nc_ = model_.num_constraints();
+    const Controller<N>& phi = model_.controller();
+    weights_ = phi.weights;
+    for (int j = 0; j < n_; ++j) {
+      if (phi.gains(j) > 0.0) {
+        ctrl_dof_.push_back(j);
+        relay_.push_back(MonotoneGraph::relay(phi.gains(j)));
+      }
+    }
+    norm_gain_ = phi.norm_gain;
+    na_ = static_cast<int>(ctrl_dof_.size());
+    m_ = na_ + nc_;
+    restitution_.resize(static_cast<std::size_t>(nc_));
+    for (int i = 0; i < nc_; ++i) restitution_[i] = model_.restitution(i);
+    terms_.resize(n_);
+    Wm_.setZero(n_, n_);
+    Mq_.setZero(n_, n_);
+    vf_.setZero(n_);
+    vn_.setZero(n_);
+    vpos_.setZero(n_);
+    rhs_.setZero(n_);
+    qn_.setZero(n_);
+    dq_.setZero(n_);
+    if constexpr (N == Eigen::Dynamic) {
+      lu_ = Eigen::PartialPivLU<Mat<N>>(n_);
+      mlu_ = Eigen::PartialPivLU<Mat<N>>(n_);
+    }
+    gap_.setZero(nc_);
+    gap_new_.setZero(nc_);
+    H_.setZero(nc_, n_);
+    H_new_.setZero(nc_, n_);
+    U_.setZero(nc_);
+    Un_.setZero(nc_);
+    active_.assign(static_cast<std::size_t>(nc_), 0);
+    Gv_.setZero(m_, n_);
+    Gf_.setZero(m_, n_);
+    b_.setZero(m_);
+    Y_.setZero(n_, m_);
+    D_.setZero(m_, m_);
+    qv_.setZero(m_);
+    u_.setZero(m_);
+    w_.setZero(m_);
+    ptrs_.assign(static_cast<std::size_t>(m_), &zero_);
+    for (int r = 0; r < na_; ++r) ptrs_[r] = &relay_[r];
+    solver_.configure(m_);
+    // Impact steps and position correction.
+    Z_.setZero(n_, nc_);
+    S_.setZero(nc_, nc_);
+    s_.setZero(nc_);
+    rows_.assign(static_cast<std::size_t>(nc_), 0);
+    corr_ptrs_.assign(static_cast<std::size_t>(nc_), &corner_);
+    corr_solver_.configure(nc_);
+    Dc_.setZero(nc_, nc_);
+    qc_.setZero(nc_);
+    uc_.setZero(nc_);
+    wc_.setZero(nc_);
+  }
+
+  RunSummary run(const Vec<N>& q0, const Vec<N>& v0, RunObserver* observer = nullptr, ContactDiagnostics* diag = nullptr) {
+    const auto clock_start = std::chrono::steady_clock::now();
+    RunSummary s;
+    ContactDiagnostics local;
+    ContactDiagnostics& d = diag ? *diag : local;
+    d = ContactDiagnostics{};
+    d.constraints = nc_;
+    d.impacts.reserve(static_cast<std::size_t>(std::max(0, settings_.max_recorded_impacts)));
+    d.settle_step.assign(static_cast<std::size_t>(nc_), -1);
+    d.settle_time.assign(static_cast<std::size_t>(nc_), 0.0);
+    d.correction_enabled = settings_.correct_positions;
+    d.potential_known = model_.has_potential();
+
+    Vec<N> q = q0, v = v0;
+    double t = settings_.t0;
+    std::int64_t k = 0;
+    const std::int64_t every = std::max<std::int64_t>(1, settings_.output_every);
+    if (norm_gain_ > 0.0) return fail(s, q, v, t, k, clock_start, "the norm controller term is not supported by the moreau-jean scheme");
+    const std::int64_t steps = fixed_step_count(settings_.t0, settings_.t_end, settings_.h);
+    if (steps > settings_.max_steps) return fail(s, q, v, t, k, clock_start, "the step count exceeds max_steps");
+    const double span = settings_.t_end - settings_.t0;
+    const double remainder = span - static_cast<double>(steps - 1) * settings_.h;
+    const double last_h = std::abs(remainder - settings_.h) <= 1e-9 * settings_.h ? settings_.h : remainder;
+
+    model_.evaluate(t, q, v, terms_);
+    if (!terms_.M.allFinite() || !terms_.C.allFinite() || !terms_.g.allFinite())
+      return fail(s, q, v, t, k, clock_start, "model terms are not finite at the initial state");
+    if (nc_ > 0) model_.constraints(q, gap_, H_);
+    note_gaps(d, t);
+    double kinetic = 0.5 * v.dot(terms_.M * v);
+    double potential = d.potential_known ? model_.potential(q) : 0.0;
+    s.energy_initial = kinetic;
+    d.lagrange_dirichlet.start(kinetic + potential);
+    std::int64_t rest_from = (v.array() == 0.0).all() ? 0 : -1;
+    double rest_time = t;
+    s.h_min = std::numeric_limits<double>::infinity();
+    s.h_max = 0.0;
+
+    auto emit = [&](double h_used) {
+      if (observer) observer->on_sample(Sample{k, t, h_used, n_, q.data(), v.data(), kinetic});
+    };
+    emit(settings_.h);
+    std::int64_t last_emitted = 0;
+    double h = settings_.h;
+
+    while (k < steps) {
+      const bool last = (k + 1 == steps);
+      h = last ? last_h : settings_.h;
+
+      // Free velocity: Wm V_free = M V^k - h g.
+      Wm_ = terms_.M;
+      Wm_.noalias() += h * terms_.C;
+      Wm_.diagonal() += h * weights_;
+      lu_.compute(Wm_);
+      rhs_.noalias() = terms_.M * v;
+      rhs_ -= h * terms_.g;
+      vf_.noalias() = lu_.solve(rhs_);
+
+      // Predicted active set and the rows of (GE).
+      bool any_active = false;
+      if (nc_ > 0) {
+        U_.noalias() = H_ * v;
+        for (int i = 0; i < nc_; ++i) {
+          const double predicted = gap_(i) + h * H_.row(i).dot(vf_);
+          active_[i] = predicted <= 0.0;
+          any_active = any_active || active_[i];
+        }
+      }
+      d.active_steps += any_active;
+      if (m_ > 0 && (na_ > 0 || any_active)) {
+        for (int r = 0; r < na_; ++r) {
+          Gv_.row(r).setZero();
+          Gv_(r, ctrl_dof_[r]) = 1.0;
+          Gf_.row(r).setZero();
+          Gf_(r, ctrl_dof_[r]) = h;
+          b_(r) = 0.0;
+        }
+        for (int i = 0; i < nc_; ++i) {
+          const int r = na_ + i;
+          Gv_.row(r) = H_.row(i);
+          Gf_.row(r) = H_.row(i);
+          b_(r) = active_[i] ? restitution_[i] * std::min(U_(i), 0.0) : 0.0;
+          ptrs_[r] = active_[i] ? &corner_ : &zero_;
+        }
+        Y_.noalias() = lu_.solve(Gf_.transpose());
+        D_.noalias() = Gv_ * Y_;
+        qv_.noalias() = Gv_ * vf_;
+        qv_ += b_;
+        GraphSolveStats st;
+        if (!solver_.solve(D_, qv_, ptrs_.data(), u_, w_, st)) {
+          char buf[200];
+          std::snprintf(buf, sizeof buf,
+                        "the one-step complementarity problem was not solved to round-off (residual %.3g, tolerance %.3g)",
+                        st.residual, st.tolerance);
+          return fail(s, q, v, t, k, clock_start, buf);
+        }
+        s.solver.total_iterations += st.iterations;
+        s.solver.max_iterations = std::max(s.solver.max_iterations, st.iterations);
+        s.solver.max_residual = std::max(s.solver.max_residual, st.residual);
+        s.solver.fallback_steps += st.used_fallback;
+        vn_ = vf_;
+        vn_.noalias() -= Y_ * w_;
+        polish(vn_);
+      } else {
+        vn_ = vf_;
+        w_.setZero();
+        s.solver.total_iterations += 1;
+        s.solver.max_iterations = std::max(s.solver.max_iterations, 1);
+      }
+
+      // Impulses, impacts, position velocity.
+      vpos_ = vn_;
+      bool any_impulse = false;
+      int rebounds = 0;
+      if (nc_ > 0) {
+        Un_.noalias() = H_ * vn_;
+        int impacts_now = 0;
+        for (int i = 0; i < nc_; ++i) {
+          const double P = -w_(na_ + i);
+          if (!(P > 0.0)) continue;
+          any_impulse = true;
+          if (U_(i) < 0.0) ++impacts_now;
+          if (Un_(i) != 0.0) rows_[rebounds++] = i;
+        }
+        if (impacts_now > 0 || (rebounds > 0 && settings_.position_update == PositionUpdate::kMdi)) mlu_.compute(terms_.M);
+        if (impacts_now > 0) record_impacts(d, k + 1, last ? settings_.t_end : settings_.t0 + static_cast<double>(k + 1) * settings_.h, impacts_now);
+        if (rebounds > 0 && settings_.position_update == PositionUpdate::kMdi) {
+          // V_pos = V^{k+1} - M^{-1} H_R^T (H_R M^{-1} H_R^T)^{-1} U_R^{k+1}.
+          for (int a = 0; a < rebounds; ++a) {
+            rhs_ = H_.row(rows_[a]).transpose();
+            Z_.col(a).noalias() = mlu_.solve(rhs_);
+          }
+          for (int a = 0; a < rebounds; ++a) {
+            for (int b = 0; b < rebounds; ++b) S_(a, b) = H_.row(rows_[a]).dot(Z_.col(b));
+            s_(a) = Un_(rows_[a]);
+          }
+          if (!detail::solve_small_in_place(S_, s_, rebounds))
+            return fail(s, q, v, t, k, clock_start, "the gradients of the rebounding contacts are dependent");
+          for (int a = 0; a < rebounds; ++a) vpos_ -= s_(a) * Z_.col(a);
+        }
+      }
+      d.impulse_steps += any_impulse;
+
+      qn_ = q + h * vpos_;
+      ++k;
+      t = last ? settings_.t_end : settings_.t0 + static_cast<double>(k) * settings_.h;
+      s.h_min = std::min(s.h_min, h);
+      s.h_max = std::max(s.h_max, h);
+      if (!qn_.allFinite() || !vn_.allFinite()) return fail(s, q, v, t, k, clock_start, "the state became non-finite");
+
+      if (nc_ > 0) {
+        model_.constraints(qn_, gap_, H_);
+        if (settings_.correct_positions && gap_.minCoeff() < 0.0) {
+          if (!correct(d, qn_)) return fail(s, q, v, t, k, clock_start, "the position correction did not converge");
+        }
+      }
+      q = qn_;
+      v = vn_;
+
+      // Settled contacts and rest.
+      for (int i = 0; i < nc_; ++i) {
+        const bool closed = -w_(na_ + i) > 0.0 && Un_(i) == 0.0;
+        if (!closed) {
+          d.settle_step[i] = -1;
+        } else if (d.settle_step[i] < 0) {
+          d.settle_step[i] = k;
+          d.settle_time[i] = t;
+        }
+      }
+      if ((v.array() != 0.0).any()) {
+        rest_from = -1;
+      } else if (rest_from < 0) {
+        rest_from = k;
+        rest_time = t;
+      }
+
+      model_.evaluate(t, q, v, terms_);
+      if (!terms_.M.allFinite() || !terms_.C.allFinite() || !terms_.g.allFinite())
+        return fail(s, q, v, t, k, clock_start, "model terms are not finite (an expression left its domain)");
+      note_gaps(d, t);
+      const double kin_new = 0.5 * v.dot(terms_.M * v);
+      const double pot_new = d.potential_known ? model_.potential(q) : 0.0;
+      const double allowance = 64.0 * std::numeric_limits<double>::epsilon() *
+                               (kinetic + std::abs(potential) + kin_new + std::abs(pot_new));
+      d.lagrange_dirichlet.step(k, t, kin_new + pot_new, allowance);
+      if (kin_new - kinetic > 64.0 * std::numeric_limits<double>::epsilon() * std::max(kin_new, s.energy_initial)) {
+        ++s.energy_increases;
+        s.energy_max_increase = std::max(s.energy_max_increase, kin_new - kinetic);
+      }
+      kinetic = kin_new;
+      potential = pot_new;
+
+      if (k % every == 0) {
+        emit(h);
+        last_emitted = k;
+      }
+      if (observer && k % RunObserver::kControlInterval == 0 && !observer->keep_going(k, t)) {
+        finish(s, d, q, v, t, k, kinetic, rest_from, rest_time);
+        s.status = RunStatus::kCancelled;
+        s.message = "cancelled at step " + std::to_string(k);
+        s.add_phase("integrate", seconds_since(clock_start));
+        return s;
+      }
+    }
+    if (last_emitted != k) emit(h);
+    finish(s, d, q, v, t, k, kinetic, rest_from, rest_time);
+    s.add_phase("integrate", seconds_since(clock_start));
+    return s;
+  }
+
+ private:
+  static double seconds_since(std::chrono::steady_clock::time_point start) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  }
+
+  // Exact values: a row on a vertical piece whose velocity map involves one coordinate fixes it.
+  void polish(Vec<N>& v) {
+    for (int r = 0; r < m_; ++r) {
+      if (!solver_.on_vertical_piece(r)) continue;
+      int nz = 0, col = -1;
+      for (int j = 0; j < n_; ++j)
+        if (Gv_(r, j) != 0.0) {
+          ++nz;
+          col = j;
+        }
+      if (nz == 1) v(col) = (u_(r) - b_(r)) / Gv_(r, col);
+    }
+  }
+
+  void note_gaps(ContactDiagnostics& d, double t) const {
+    for (int i = 0; i < nc_; ++i) {
+      if (gap_(i) < d.smallest_gap) {
+        d.smallest_gap = gap_(i);
+        d.smallest_gap_time = t;
+        d.smallest_gap_constraint = i;
+      }
+    }
+  }
+
+  // The impacts of this step: contacts with a positive impulse that were approaching (U^k < 0). The
+  // energy change is measured in the contact space of each contact (its effective mass 1/s).
+  void record_impacts(ContactDiagnostics& d, std::int64_t step, double t, int simultaneous) {
+    for (int i = 0; i < nc_; ++i) {
+      const double P = -w_(na_ + i);
+      if (!(P > 0.0) || !(U_(i) < 0.0)) continue;
+      ++d.impact_count;
+      if (static_cast<int>(d.impacts.size()) >= settings_.max_recorded_impacts) {
+        d.impacts_truncated = true;
+        continue;
+      }
+      rhs_ = H_.row(i).transpose();
+      dq_.noalias() = mlu_.solve(rhs_);
+      const double sinv = H_.row(i).dot(dq_);  // grad h^T M^{-1} grad h
+      const double e = restitution_[i];
+      ImpactEvent ev;
+      ev.step = step;
+      ev.t = t;
+      ev.constraint = i;
+      ev.pre = U_(i);
+      ev.post = Un_(i);
+      ev.impulse = P;
+      ev.kinetic_change = 0.5 * (Un_(i) * Un_(i) - U_(i) * U_(i)) / sinv;
+      const double jump = Un_(i) - U_(i);
+      ev.eq9_change = -0.5 * (1.0 - e) / (1.0 + e) * jump * jump / sinv;
+      ev.simultaneous = simultaneous;
+      d.max_eq9_mismatch = std::max(d.max_eq9_mismatch, std::abs(ev.kinetic_change - ev.eq9_change));
+      d.impacts.push_back(ev);
+    }
+  }
+
+  // Projects qn_ onto {h >= 0} in the metric of M(Q^k): Newton steps on the linearised constraints,
+  // each the LCP 0 <= h + H M^{-1} H^T mu perp mu >= 0, delta q = M^{-1} H^T mu.
+  bool correct(ContactDiagnostics& d, Vec<N>& qn) {
+    mlu_.compute(terms_.M);
+    const double before = d.potential_known ? model_.potential(qn) : 0.0;
+    d.largest_violation = std::max(d.largest_violation, -gap_.minCoeff());
+    double total_norm2 = 0.0;
+    dq_.setZero();
+    for (int it = 0; it < 20; ++it) {
+      for (int i = 0; i < nc_; ++i) {
+        rhs_ = H_.row(i).transpose();
+        Z_.col(i).noalias() = mlu_.solve(rhs_);
+      }
+      Dc_.noalias() = H_ * Z_.leftCols(nc_);
+      qc_ = gap_;
+      GraphSolveStats st;
+      if (!corr_solver_.solve(Dc_, qc_, corr_ptrs_.data(), uc_, wc_, st)) return false;
+      rhs_.noalias() = -(Z_.leftCols(nc_) * wc_);  // delta q = M^{-1} H^T mu, mu = -w
+      qn += rhs_;
+      dq_ += rhs_;
+      model_.constraints(qn, gap_, H_);
+      // Linear gaps land on 0 up to the round-off of h(q) itself.
+      const double allowance = 64.0 * std::numeric_limits<double>::epsilon() *
+                               (1.0 + qn.cwiseAbs().maxCoeff() * H_.cwiseAbs().maxCoeff());
+      if (gap_.minCoeff() >= -allowance) break;
+      if (it == 19) return false;
+    }
+    total_norm2 = dq_.dot(terms_.M * dq_);
+    ++d.corrected_steps;
+    d.max_correction = std::max(d.max_correction, std::sqrt(std::max(0.0, total_norm2)));
+    if (d.potential_known) d.correction_energy += model_.potential(qn) - before;
+    return true;
+  }
+
+  void finish(RunSummary& s, ContactDiagnostics& d, const Vec<N>& q, const Vec<N>& v, double t, std::int64_t k,
+              double kinetic, std::int64_t rest_from, double rest_time) {
+    s.steps = k;
+    s.t_final = t;
+    s.q_final.assign(q.data(), q.data() + q.size());
+    s.v_final.assign(v.data(), v.data() + v.size());
+    s.energy_final = kinetic;
+    s.energy_nonincreasing = s.energy_increases == 0;
+    if (rest_from >= 0) {
+      s.converged_step = rest_from;
+      s.converged_time = rest_time;
+      d.rest_step = rest_from;
+      d.rest_time = rest_time;
+    }
+    if (k == 0) s.h_min = s.h_max = 0.0;
+  }
+
+  RunSummary fail(RunSummary& s, const Vec<N>& q, const Vec<N>& v, double t, std::int64_t k,
+                  std::chrono::steady_clock::time_point start, const std::string& why) {
+    s.steps = k;
+    s.t_final = t;
+    if (q.allFinite()) s.q_final.assign(q.data(), q.data() + q.size());
+    if (v.allFinite()) s.v_final.assign(v.data(), v.data() + v.size());
+    s.energy_nonincreasing = s.energy_increases == 0;
+    s.status = RunStatus::kFailed;
+    char where[96];
+    std::snprintf(where, sizeof where, "step %lld (t = %.17g): ", static_cast<long long>(k), t);
+    s.message = where + why;
+    s.add_phase("integrate", seconds_since(start));
+    return s;
+  }
+
+  Model& model_;
+  MoreauJeanSettings settings_;
+  int n_ = 0, nc_ = 0, na_ = 0, m_ = 0;
+  Vec<N> weights_;
+  double norm_gain_ = 0.0;
+  std::vector<int> ctrl_dof_;
+  std::vector<MonotoneGraph> relay_;
+  MonotoneGraph corner_ = MonotoneGraph::complementarity();
+  MonotoneGraph zero_ = MonotoneGraph::zero();
+  std::vector<double> restitution_;
+  LagrangianTerms<N> terms_;
+  Mat<N> Wm_, Mq_;
+  Eigen::PartialPivLU<Mat<N>> lu_, mlu_;
+  Vec<N> vf_, vn_, vpos_, rhs_, qn_, dq_;
+  Eigen::VectorXd gap_, gap_new_, U_, Un_;
+  RowsN H_, H_new_;
+  std::vector<char> active_;
+  RowsN Gv_, Gf_;
+  Eigen::VectorXd b_;
+  ColsN Y_;
+  Eigen::MatrixXd D_;
+  Eigen::VectorXd qv_, u_, w_;
+  std::vector<const MonotoneGraph*> ptrs_;
+  GraphInclusionSolver<Eigen::Dynamic> solver_;
+  ColsN Z_;
+  Eigen::MatrixXd S_;
+  Eigen::VectorXd s_;
+  std::vector<int> rows_;
+  std::vector<const MonotoneGraph*> corr_ptrs_;
+  GraphInclusionSolver<Eigen::Dynamic> corr_solver_;
+  Eigen::MatrixXd Dc_;
+  Eigen::VectorXd qc_, uc_, wc_;
+};
+
+}  // namespace moreau
