@@ -13,6 +13,7 @@ void register_run_command(CLI::App& app);
 void register_plot_command(CLI::App& app);
 void register_study_command(CLI::App& app);
 void register_stress_command(CLI::App& app);
+void register_sweep_command(CLI::App& app);
 // moreau submit, status, result, figure, cancel, jobs, scenes (remote_commands.cc); moreau watch
 // (watch_command.cc).
 void register_remote_commands(CLI::App& app);

@@ -16,6 +16,7 @@ int main(int argc, char** argv) {
   moreau::cli::register_plot_command(app);
   moreau::cli::register_study_command(app);
   moreau::cli::register_stress_command(app);
+  moreau::cli::register_sweep_command(app);
 #ifdef MOREAU_HAVE_REMOTE_COMMANDS
   moreau::cli::register_remote_commands(app);
   moreau::cli::register_watch_command(app);

@@ -6,6 +6,7 @@
 
 #include <array>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -121,5 +122,36 @@ TEST(Cli, ProgressBarForLongRuns) {
   EXPECT_NE(r.out.find("%  t = "), std::string::npos) << r.out.substr(0, 2000);
   const Result quiet = Moreau("run " + kScene + " --progress always");
   EXPECT_EQ(quiet.out.find("%  t = "), std::string::npos) << "a short run draws no bar";
+}
+}  // namespace
+
+namespace {
+// A sweep split over three shards and merged gives every point once; a missing shard is an error.
+TEST(Cli, SweepShardsAndMerge) {
+  const std::string dir = ::testing::TempDir() + "/sweep";
+  std::filesystem::remove_all(dir);
+  for (int i = 0; i < 3; ++i) {
+    const Result r = Moreau("sweep " + kScene + " --vary parameters.g=0:9.81:4 --vary 'initial.v=[0,1];[1,0]' --set integrator.t_end=2 --shard " +
+                            std::to_string(i) + "/3 --out " + dir);
+    ASSERT_EQ(r.status, 0) << r.out;
+  }
+  const std::string csv = dir + "/merged.csv";
+  Result m = Moreau("sweep --merge " + dir + " --csv " + csv);
+  ASSERT_EQ(m.status, 0) << m.out;
+  std::ifstream in(csv);
+  std::string line;
+  std::getline(in, line);
+  EXPECT_EQ(line.rfind("index,parameters.g,initial.v,status", 0), 0u) << line;
+  int rows = 0;
+  while (std::getline(in, line)) {
+    EXPECT_EQ(line.rfind(std::to_string(rows) + ",", 0), 0u) << line;
+    EXPECT_NE(line.find(",completed,"), std::string::npos) << line;
+    ++rows;
+  }
+  EXPECT_EQ(rows, 8);
+  std::filesystem::remove(dir + "/shard-1-of-3.jsonl");
+  m = Moreau("sweep --merge " + dir);
+  EXPECT_EQ(m.status, 2);
+  EXPECT_NE(m.out.find("shard 1/3 is missing"), std::string::npos) << m.out;
 }
 }  // namespace

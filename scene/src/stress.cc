@@ -57,7 +57,7 @@ std::vector<StressCase> stress_cases() {
        "Thm 4.1: the rule keeps P = M/h + C + W positive definite, so every step is well posed"});
   add({"large-step-fixed", "the manipulator with a fixed h = 1 at high speed",
        manipulator(9.81, {-20, 30}, 1.0, 50.0, "fixed"), true, std::nullopt, std::nullopt, false,
-       "outside Thm 4.1 (h > k1 / (2 k3 |V|)): uniqueness is not guaranteed; the report shows what happened"});
+       "outside Thm 4.1 (h > k1 / (2 k3 norm(V))): uniqueness is not guaranteed; the report shows what happened"});
   add({"tiny-step", "h = 1e-9 over 1e-3 s: 1e6 steps of 1 ns",
        one_dof(1.0, 1.0, 1.0, 0.0, 1.0, 1e-9, 1e-3), true, true, false, true,
        "constant M: E_k non-increasing; the horizon is far shorter than the rest time ln(2) s"});
