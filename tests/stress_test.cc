@@ -5,6 +5,10 @@
 #include <gtest/gtest.h>
 
 namespace moreau::scene {
+
+// Test names and failure messages show the case's name, not its bytes.
+void PrintTo(const StressCase& c, std::ostream* os) { *os << c.name; }
+
 namespace {
 
 class Stress : public ::testing::TestWithParam<StressCase> {};
