@@ -21,12 +21,13 @@
 // V^{k+1} = V_free - Wm^{-1} G_f^T w, Wm = M + h (C + W), each row either a controlled velocity
 // (u_j = v_j, w_j in a_j Sign(u_j), impulse h w_j) or a contact (u_i = U_i^{k+1} + e_i min(U_i^k, 0),
 // w_i = -P_i in d psi_{R+}(u_i), the corner law, for i in I_k; w_i = 0 otherwise). Solved exactly by
-// GraphInclusionSolver: a velocity at rest is 0.0, a closed contact has U == -e min(U^k, 0) exactly when
-// its gradient involves one coordinate. An unsolved step stops the run (RunStatus::kFailed).
+// GraphInclusionSolver: a velocity at rest is 0.0 (when n rows sit on vertical pieces, V^{k+1} is solved
+// from them; otherwise a vertical row involving one coordinate fixes it), so a system at rest has
+// V == 0.0 exactly. An unsolved step stops the run (RunStatus::kFailed).
 //
 // Position update (`PositionUpdate`):
 //  - kMdi (default): V_pos = V^{k+1}, except that the contacts that carried a positive impulse and
-//    rebound (U_i^{k+1} = -e_i U_i^k != 0) move with normal velocity 0, the velocity w = (U+ + e U-)/(1+e)
+//    rebound (an impact with e_i > 0: U_i^{k+1} = -e_i U_i^k != 0) move with normal velocity 0, the velocity w = (U+ + e U-)/(1+e)
 //    at which the paper's measure differential inclusion (10) imposes the constraint: V_pos = V^{k+1} -
 //    M^{-1} H_R^T (H_R M^{-1} H_R^T)^{-1} U_R^{k+1}. The impulsive part of a step does not move the
 //    position (dq = v dt has no atom). With constant M, a linear gap and linear forces this makes
@@ -146,9 +147,13 @@ class MoreauJeanIntegrator {
     rhs_.setZero(n_);
     qn_.setZero(n_);
     dq_.setZero(n_);
+    Gsq_.setZero(n_, n_);
+    rsq_.setZero(n_);
+    vsq_.setZero(n_);
     if constexpr (N == Eigen::Dynamic) {
       lu_ = Eigen::PartialPivLU<Mat<N>>(n_);
       mlu_ = Eigen::PartialPivLU<Mat<N>>(n_);
+      sqlu_ = Eigen::PartialPivLU<Mat<N>>(n_);
     }
     gap_.setZero(nc_);
     gap_new_.setZero(nc_);
@@ -173,6 +178,7 @@ class MoreauJeanIntegrator {
     S_.setZero(nc_, nc_);
     s_.setZero(nc_);
     rows_.assign(static_cast<std::size_t>(nc_), 0);
+    impacting_.assign(static_cast<std::size_t>(nc_), 0);
     corr_ptrs_.assign(static_cast<std::size_t>(nc_), &corner_);
     corr_solver_.configure(nc_);
     Dc_.setZero(nc_, nc_);
@@ -298,12 +304,18 @@ class MoreauJeanIntegrator {
       if (nc_ > 0) {
         Un_.noalias() = H_ * vn_;
         int impacts_now = 0;
+        const double vmax = v.cwiseAbs().maxCoeff();
         for (int i = 0; i < nc_; ++i) {
+          impacting_[i] = 0;
           const double P = -w_(na_ + i);
           if (!(P > 0.0)) continue;
           any_impulse = true;
-          if (U_(i) < 0.0) ++impacts_now;
-          if (Un_(i) != 0.0) rows_[rebounds++] = i;
+          // An impact: the contact was approaching by more than the round-off of U = grad h^T V.
+          const double approach = 64.0 * std::numeric_limits<double>::epsilon() * H_.row(i).cwiseAbs().sum() * vmax;
+          if (!(U_(i) < -approach)) continue;
+          impacting_[i] = 1;
+          ++impacts_now;
+          if (restitution_[i] > 0.0) rows_[rebounds++] = i;  // U+ = -e U- != 0: the rebounding contacts
         }
         if (impacts_now > 0 || (rebounds > 0 && settings_.position_update == PositionUpdate::kMdi)) mlu_.compute(terms_.M);
         if (impacts_now > 0) record_impacts(d, k + 1, last ? settings_.t_end : settings_.t0 + static_cast<double>(k + 1) * settings_.h, impacts_now);
@@ -396,8 +408,30 @@ class MoreauJeanIntegrator {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   }
 
-  // Exact values: a row on a vertical piece whose velocity map involves one coordinate fixes it.
+  // Exact values from the rows on vertical pieces (u_r exact): when there are n of them with independent
+  // velocity maps they fix V^{k+1} = G_V^{-1} (u_V - b_V) (0.0 exactly for a system at rest); otherwise a
+  // row whose velocity map involves one coordinate fixes that coordinate.
   void polish(Vec<N>& v) {
+    int nv = 0;
+    for (int r = 0; r < m_ && nv <= n_; ++r) {
+      if (!solver_.on_vertical_piece(r)) continue;
+      if (nv < n_) {
+        Gsq_.row(nv) = Gv_.row(r);
+        rsq_(nv) = u_(r) - b_(r);
+      }
+      ++nv;
+    }
+    if (nv == n_ && n_ > 0) {
+      sqlu_.compute(Gsq_);
+      const double det = sqlu_.determinant();
+      if (std::isfinite(det) && std::abs(det) > 1e-12 * std::pow(Gsq_.cwiseAbs().maxCoeff(), n_)) {
+        vsq_.noalias() = sqlu_.solve(rsq_);
+        if (vsq_.allFinite()) {
+          v = vsq_;
+          return;
+        }
+      }
+    }
     for (int r = 0; r < m_; ++r) {
       if (!solver_.on_vertical_piece(r)) continue;
       int nz = 0, col = -1;
@@ -420,12 +454,12 @@ class MoreauJeanIntegrator {
     }
   }
 
-  // The impacts of this step: contacts with a positive impulse that were approaching (U^k < 0). The
-  // energy change is measured in the contact space of each contact (its effective mass 1/s).
+  // The impacts of this step: contacts with a positive impulse that were approaching (U^k < 0 beyond
+  // round-off). The energy change is measured in the contact space of each contact (its effective mass).
   void record_impacts(ContactDiagnostics& d, std::int64_t step, double t, int simultaneous) {
     for (int i = 0; i < nc_; ++i) {
+      if (!impacting_[i]) continue;
       const double P = -w_(na_ + i);
-      if (!(P > 0.0) || !(U_(i) < 0.0)) continue;
       ++d.impact_count;
       if (static_cast<int>(d.impacts.size()) >= settings_.max_recorded_impacts) {
         d.impacts_truncated = true;
@@ -529,8 +563,9 @@ class MoreauJeanIntegrator {
   std::vector<double> restitution_;
   LagrangianTerms<N> terms_;
   Mat<N> Wm_, Mq_;
-  Eigen::PartialPivLU<Mat<N>> lu_, mlu_;
-  Vec<N> vf_, vn_, vpos_, rhs_, qn_, dq_;
+  Eigen::PartialPivLU<Mat<N>> lu_, mlu_, sqlu_;
+  Vec<N> vf_, vn_, vpos_, rhs_, qn_, dq_, rsq_, vsq_;
+  Mat<N> Gsq_;
   Eigen::VectorXd gap_, gap_new_, U_, Un_;
   RowsN H_, H_new_;
   std::vector<char> active_;
@@ -545,6 +580,7 @@ class MoreauJeanIntegrator {
   Eigen::MatrixXd S_;
   Eigen::VectorXd s_;
   std::vector<int> rows_;
+  std::vector<char> impacting_;
   std::vector<const MonotoneGraph*> corr_ptrs_;
   GraphInclusionSolver<Eigen::Dynamic> corr_solver_;
   Eigen::MatrixXd Dc_;
