@@ -153,8 +153,10 @@ class AblIntegrator {
         if (k >= settings_.max_steps) return fail(s, q, v, t, k, clock_start, "max_steps reached before t_end");
         std::string why;
         if (!adaptive_step(q, v, h_prev, h_k, why)) return fail(s, q, v, t, k, clock_start, why);
+        // Land on t_end: shorten the last step, or stretch it by at most 1e-9 relative rather than
+        // leave a sliver of round-off (t accumulates the h_k).
         const double remaining = settings_.t_end - t;
-        if (h_k >= remaining) h_k = remaining;
+        if (h_k * (1.0 + 1e-9) >= remaining) h_k = remaining;
         if (!(h_k > 0.0) || h_k < 1e-15 * std::max(1.0, std::abs(settings_.t_end))) {
           return fail(s, q, v, t, k, clock_start, "the step size collapsed below 1e-15 t_end");
         }
