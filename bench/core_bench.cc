@@ -9,6 +9,7 @@
 
 #include "moreau/core/abl_integrator.h"
 #include "moreau/core/models/manipulator.h"
+#include "moreau/core/models/oscillator1.h"
 #include "moreau/scene/scene.h"
 
 namespace {
@@ -58,33 +59,15 @@ void ManipulatorCompiled(benchmark::State& state, double t_end) {
 void BM_ManipulatorCompiled_moving(benchmark::State& state) { ManipulatorCompiled(state, 1.0); }
 void BM_ManipulatorCompiled_to_rest(benchmark::State& state) { ManipulatorCompiled(state, 10.0); }
 
-// The 1-DOF damped relay m x'' = -c x' - a Sign(x') as a compiled model; it stops at t* = 3.665 s.
-struct DampedRelay {
-  static constexpr int kDof = 1;
-  Controller<1> phi;
-  DampedRelay() {
-    phi.weights = Vec<1>(0.5);
-    phi.gains = Vec<1>(1.0);
-  }
-  int dof() const { return 1; }
-  const Controller<1>& controller() const { return phi; }
-  bool constant_mass() const { return true; }
-  void mass(const Vec<1>&, Mat<1>& M) const { M(0, 0) = 2.0; }
-  void evaluate(double, const Vec<1>&, const Vec<1>&, LagrangianTerms<1>& out) const {
-    out.M(0, 0) = 2.0;
-    out.C(0, 0) = 0.0;
-    out.g(0) = 0.0;
-  }
-};
-
+// The 1-DOF damped relay m x'' = -c x' - a Sign(x') (m = 2, c = 0.5, a = 1); it stops at t* = 3.665 s.
 void BM_DampedRelayCompiled_moving(benchmark::State& state) {
-  DampedRelay model;
+  models::Oscillator1 model(2.0, 0.0, 0.0, 0.5, 1.0);
   AblSettings settings;
   settings.h = 1e-4;
   settings.t_end = 3.6;
   std::int64_t steps = 0;
   for (auto _ : state) {
-    AblIntegrator<DampedRelay> integrator(model, settings);
+    AblIntegrator<models::Oscillator1> integrator(model, settings);
     const RunSummary s = integrator.run(Vec<1>(0.0), Vec<1>(3.0));
     steps = s.steps;
     benchmark::DoNotOptimize(s.q_final.data());

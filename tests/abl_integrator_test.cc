@@ -9,32 +9,14 @@
 #include <vector>
 
 #include "moreau/core/models/manipulator.h"
+#include "moreau/core/models/oscillator1.h"
 
 namespace moreau {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-// m q'' + k q + f0 in -(c q' + a Sign(q')): constant mass, a spring, a constant force, a linear damper
-// and a relay (Coulomb friction). Written as a C++ model.
-struct Oscillator1 {
-  static constexpr int kDof = 1;
-  double m = 1.0, k = 0.0, f0 = 0.0;
-  Controller<1> phi;
-  Oscillator1(double m_, double k_, double f0_, double c, double a) : m(m_), k(k_), f0(f0_) {
-    phi.weights = Vec<1>(c);
-    phi.gains = Vec<1>(a);
-  }
-  int dof() const { return 1; }
-  const Controller<1>& controller() const { return phi; }
-  bool constant_mass() const { return true; }
-  void mass(const Vec<1>&, Mat<1>& M) const { M(0, 0) = m; }
-  void evaluate(double, const Vec<1>& q, const Vec<1>&, LagrangianTerms<1>& out) const {
-    out.M(0, 0) = m;
-    out.C(0, 0) = 0.0;
-    out.g(0) = k * q(0) + f0;
-  }
-};
+using models::Oscillator1;
 
 // Records every sample.
 struct Recorder : RunObserver {

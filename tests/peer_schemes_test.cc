@@ -6,39 +6,25 @@
 
 #include <cmath>
 
+#include "moreau/core/models/oscillator1.h"
+
 namespace moreau {
 namespace {
 
-struct DampedRelay {
-  static constexpr int kDof = 1;
-  Controller<1> phi;
-  DampedRelay() {
-    phi.weights = Vec<1>(0.5);
-    phi.gains = Vec<1>(1.0);
-  }
-  int dof() const { return 1; }
-  const Controller<1>& controller() const { return phi; }
-  bool constant_mass() const { return true; }
-  void mass(const Vec<1>&, Mat<1>& M) const { M(0, 0) = 2.0; }
-  void evaluate(double, const Vec<1>&, const Vec<1>&, LagrangianTerms<1>& out) const {
-    out.M(0, 0) = 2.0;
-    out.C(0, 0) = 0.0;
-    out.g(0) = 0.0;
-  }
-};
+using models::Oscillator1;
 
 // v(t) = (v0 + a/c) e^{-ct/m} - a/c before t* = (m/c) ln(1 + c v0/a) = 4 ln 2.5.
 double ExactV(double t) { return t >= 4.0 * std::log(2.5) ? 0.0 : 5.0 * std::exp(-t / 4.0) - 2.0; }
 
 TEST(RegularizedPeer, ApproachesTheDampedRelayButNeverRests) {
   for (auto kind : {Regularization::kTanh, Regularization::kSaturation}) {
-    DampedRelay model;
+    Oscillator1 model(2.0, 0.0, 0.0, 0.5, 1.0);  // the damped relay
     RegularizedSettings s;
     s.h = 1e-4;
     s.t_end = 6.0;
     s.epsilon = 1e-4;
     s.kind = kind;
-    RegularizedIntegrator<DampedRelay> integrator(model, s);
+    RegularizedIntegrator<Oscillator1> integrator(model, s);
     struct Probe : RunObserver {
       double max_err = 0.0;
       void on_sample(const Sample& x) override {
