@@ -6,6 +6,7 @@
 #include <functional>
 #include <iostream>
 
+#include "job_observer.h"
 #include "moreau/scene/trajectory_csv.h"
 #include "storage.h"
 
@@ -33,97 +34,6 @@ std::optional<JobState> parse_state(const std::string& s) {
 }
 
 double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
-
-// Everything a job's run needs besides the LCM stream: the trajectory rows at the scene's decimation
-// (the run itself may be sampled more finely for streaming), the sample limit, progress, cancellation.
-class JobObserver : public RunObserver {
- public:
-  JobObserver(Job& job, scene::TrajectoryCsvWriter& csv, std::int64_t record_every, std::int64_t engine_every,
-              std::int64_t max_samples, StreamObserver* stream, std::function<void()> progress)
-      : job_(job),
-        csv_(csv),
-        every_(std::max<std::int64_t>(1, record_every)),
-        engine_every_(std::max<std::int64_t>(1, engine_every)),
-        max_samples_(max_samples),
-        stream_(stream),
-        progress_(std::move(progress)),
-        last_progress_(Clock::now()) {}
-
-  void on_sample(const Sample& s) override {
-    job_.t_now.store(s.t, std::memory_order_relaxed);
-    job_.step_now.store(s.step, std::memory_order_relaxed);
-    if (s.step % every_ == 0 || engine_every_ == every_) {
-      // A multiple of the decimation, or (when the run is sampled at the decimation) its final state.
-      write(s);
-    } else {
-      // Sampled finer than the decimation for streaming: hold on to it in case it is the final state.
-      pending_step_ = s.step;
-      pending_t_ = s.t;
-      pending_h_ = s.h;
-      pending_e_ = s.kinetic_energy;
-      pending_q_.assign(s.q, s.q + s.n);
-      pending_v_.assign(s.v, s.v + s.n);
-      n_ = s.n;
-    }
-    if (stream_) {
-      stream_->on_sample(s);
-      if (++since_progress_check_ >= 1024) {
-        since_progress_check_ = 0;
-        maybe_progress();
-      }
-    }
-  }
-
-  bool keep_going(std::int64_t step, double t) override {
-    job_.t_now.store(t, std::memory_order_relaxed);
-    job_.step_now.store(step, std::memory_order_relaxed);
-    maybe_progress();
-    return !job_.cancel.load(std::memory_order_relaxed) && !overflow_;
-  }
-
-  // Writes the held final state if the run ended on one.
-  void finish() {
-    if (pending_step_ > last_written_) {
-      Sample s{pending_step_, pending_t_, pending_h_, n_, pending_q_.data(), pending_v_.data(), pending_e_};
-      write(s);
-    }
-  }
-
-  bool overflow() const { return overflow_; }
-  std::int64_t rows() const { return rows_; }
-
- private:
-  void write(const Sample& s) {
-    if (rows_ >= max_samples_) {
-      overflow_ = true;
-      return;
-    }
-    csv_.on_sample(s);
-    ++rows_;
-    last_written_ = s.step;
-  }
-  void maybe_progress() {
-    const auto now = Clock::now();
-    if (now - last_progress_ >= std::chrono::milliseconds(100)) {
-      last_progress_ = now;
-      progress_();
-    }
-  }
-
-  Job& job_;
-  scene::TrajectoryCsvWriter& csv_;
-  std::int64_t every_, engine_every_, max_samples_;
-  StreamObserver* stream_;
-  std::function<void()> progress_;
-  Clock::time_point last_progress_;
-  int since_progress_check_ = 0;
-  std::int64_t rows_ = 0, last_written_ = -1;
-  bool overflow_ = false;
-  std::int64_t pending_step_ = -1;
-  double pending_t_ = 0, pending_h_ = 0, pending_e_ = 0;
-  int n_ = 0;
-  std::vector<double> pending_q_, pending_v_;
-};
 
 json finite_or_null(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
 
@@ -308,14 +218,11 @@ void JobManager::recover() {
 void JobManager::start() {
   const int n = config_.workers > 0 ? config_.workers : std::max(1u, std::thread::hardware_concurrency());
   for (int i = 0; i < n; ++i) workers_.emplace_back([this] { worker_loop(); });
+  for (int i = 0; i < std::max(1, config_.io_threads); ++i) committers_.emplace_back([this] { committer_loop(); });
 }
 
 void JobManager::stop() {
-  if (stopping_.exchange(true)) {
-    for (auto& w : workers_)
-      if (w.joinable()) w.join();
-    return;
-  }
+  if (stopping_.exchange(true)) return;
   std::deque<std::shared_ptr<Job>> queued;
   std::vector<std::shared_ptr<Job>> all;
   {
@@ -340,6 +247,15 @@ void JobManager::stop() {
   for (auto& w : workers_)
     if (w.joinable()) w.join();
   workers_.clear();
+  // The runs that ended are stored before the I/O threads stop.
+  {
+    std::lock_guard lock(commit_mu_);
+    commit_stop_ = true;
+  }
+  commit_cv_.notify_all();
+  for (auto& t : committers_)
+    if (t.joinable()) t.join();
+  committers_.clear();
   for (auto& job : all) wake(*job);
 }
 
@@ -473,6 +389,7 @@ void JobManager::worker_loop() {
     try {
       run(job);
     } catch (const std::exception& e) {
+      // (A stream opened by run() is closed when its Commit, never queued, is destroyed.)
       std::cerr << "moreau-server: job " << job->id << " failed: " << e.what() << "\n";
       job->sim.reset();
       set_state(*job, JobState::kFailed, std::string("internal error: ") + e.what());
@@ -492,21 +409,17 @@ void JobManager::run(const std::shared_ptr<Job>& job) {
   set_state(*job, JobState::kRunning, "");
   const scene::Simulation& sim = *job->sim;
 
-  std::shared_ptr<JobStream> stream;
-  struct CloseOnExit {
-    std::shared_ptr<JobStream>& s;
-    ~CloseOnExit() {
-      if (s) s->close();
-    }
-  } close_on_exit{stream};
+  auto commit = std::make_unique<Commit>();
+  commit->job = job;
+  commit->wall_start = wall_start;
   std::optional<StreamObserver> stream_observer;
   if (job->stream.enabled) {
-    stream = std::make_shared<JobStream>(job->id, job->stream, sim.dof());
-    hub_.add(stream);
-    stream_observer.emplace(stream, sim.t0(), &job->cancel);
-    stream->push_event("started", 0, sim.t0(),
-                       "job " + job->id + " started: " + sim.name() + ", t in [" + std::to_string(sim.t0()) + ", " +
-                           std::to_string(sim.t_end()) + "]");
+    commit->stream = std::make_shared<JobStream>(job->id, job->stream, sim.dof());
+    hub_.add(commit->stream);
+    stream_observer.emplace(commit->stream, sim.t0(), &job->cancel);
+    commit->stream->push_event("started", 0, sim.t0(),
+                               "job " + job->id + " started: " + sim.name() + ", t in [" + std::to_string(sim.t0()) +
+                                   ", " + std::to_string(sim.t_end()) + "]");
   }
 
   const fs::path csv_tmp = job->dir / "trajectory.csv.tmp";
@@ -520,62 +433,99 @@ void JobManager::run(const std::shared_ptr<Job>& job) {
 
   RunSummary summary = sim.run(&observer);
   observer.finish();
-  if (stream_observer) stream_observer->flush_last();
+  if (stream_observer) {
+    stream_observer->flush_last(summary);
+    commit->stream->flush();
+  }
 
-  // Results: trajectory first, then the report, which commits the job.
+  // The results go to temporary files here; an I/O thread makes them durable and renames them
+  // (commit()), while this worker goes on with the next job.
   const auto t_write = Clock::now();
   csv.close();
-  fsync_path(csv_tmp);
-  fs::rename(csv_tmp, job->dir / "trajectory.csv");
   for (auto& [name, s] : summary.phase_seconds)
     if (name == "integrate") s = std::max(0.0, s - csv.seconds());
   summary.phase_seconds.insert(summary.phase_seconds.begin(), {"load", job->load_seconds});
 
-  JobState final_state = JobState::kDone;
-  std::string reason;
   if (observer.overflow()) {
     summary.status = RunStatus::kFailed;
     summary.message = "the trajectory reached this server's limit of " + std::to_string(config_.max_samples) +
                       " output samples at t = " + std::to_string(job->t_now.load()) + ": raise /output/every";
   }
+  commit->state = JobState::kDone;
   if (summary.status == RunStatus::kFailed) {
-    final_state = JobState::kFailed;
-    reason = summary.message;
+    commit->state = JobState::kFailed;
+    commit->reason = summary.message;
   } else if (summary.status == RunStatus::kCancelled) {
     if (job->shutdown) {
-      final_state = JobState::kFailed;
-      reason = kReasonStoppedRunning;
+      commit->state = JobState::kFailed;
+      commit->reason = kReasonStoppedRunning;
     } else {
-      final_state = JobState::kCancelled;
-      reason = "cancelled by request (" + summary.message + ")";
+      commit->state = JobState::kCancelled;
+      commit->reason = "cancelled by request (" + summary.message + ")";
     }
   }
   summary.add_phase("write", csv.seconds() + seconds_since(t_write));
-  const json report = sim.report_json(summary);
-  write_file_atomic(job->dir / "report.json", report.dump(2) + "\n", Durability::kFsync);
-  fsync_path(job->dir);
-  {
-    std::lock_guard lock(job->mu);
-    job->has_report = true;
-    job->has_trajectory = true;
-  }
-
-  if (stream) {
-    if (summary.converged_step) {
-      stream->push_event("converged", *summary.converged_step, summary.converged_time.value_or(summary.t_final),
-                         "v == 0.0 exactly from step " + std::to_string(*summary.converged_step) + " to the end");
-    }
-    const char* kind = final_state == JobState::kDone ? "finished" : final_state == JobState::kCancelled ? "cancelled" : "failed";
-    stream->push_event(kind, summary.steps, summary.t_final, reason.empty() ? summary.BriefReport() : reason);
-  }
-  job->t_now = summary.t_final;
-  job->step_now = summary.steps;
-  job->sim.reset();
-  set_state(*job, final_state, reason);
-  double integrate = 0;
+  write_file(job->dir / "report.json.tmp", sim.report_json(summary).dump(2) + "\n");
   for (const auto& [name, s] : summary.phase_seconds)
-    if (name == "integrate") integrate = s;
-  count_finished(summary.steps, integrate, seconds_since(wall_start));
+    if (name == "integrate") commit->integrate_seconds = s;
+  job->sim.reset();
+  commit->summary = std::move(summary);
+  {
+    std::lock_guard lock(commit_mu_);
+    commits_.push_back(std::move(commit));
+  }
+  commit_cv_.notify_one();
+}
+
+void JobManager::committer_loop() {
+  while (true) {
+    std::unique_ptr<Commit> c;
+    {
+      std::unique_lock lock(commit_mu_);
+      commit_cv_.wait(lock, [&] { return !commits_.empty() || commit_stop_; });
+      if (commits_.empty()) return;  // stopping, and nothing left to store
+      c = std::move(commits_.front());
+      commits_.pop_front();
+    }
+    try {
+      commit(*c);
+    } catch (const std::exception& e) {
+      std::cerr << "moreau-server: job " << c->job->id << ": cannot store results: " << e.what() << "\n";
+      if (c->stream) c->stream->close();
+      set_state(*c->job, JobState::kFailed, std::string("cannot store the results: ") + e.what());
+    }
+  }
+}
+
+void JobManager::commit(Commit& c) {
+  Job& job = *c.job;
+  const RunSummary& summary = c.summary;
+  // The trajectory first, then the report, which commits the job: each fsync'ed before its rename.
+  for (const char* name : {"trajectory.csv", "report.json"}) {
+    const fs::path target = job.dir / name;
+    fs::path tmp = target;
+    tmp += ".tmp";
+    fsync_path(tmp);
+    fs::rename(tmp, target);
+  }
+  {
+    std::lock_guard lock(job.mu);
+    job.has_report = true;
+    job.has_trajectory = true;
+  }
+  if (c.stream) {
+    if (summary.converged_step) {
+      c.stream->push_event("converged", *summary.converged_step, summary.converged_time.value_or(summary.t_final),
+                           "v == 0.0 exactly from step " + std::to_string(*summary.converged_step) + " to the end");
+    }
+    const char* kind = c.state == JobState::kDone ? "finished" : c.state == JobState::kCancelled ? "cancelled" : "failed";
+    c.stream->push_event(kind, summary.steps, summary.t_final, c.reason.empty() ? summary.BriefReport() : c.reason);
+    c.stream->close();
+  }
+  job.t_now = summary.t_final;
+  job.step_now = summary.steps;
+  set_state(job, c.state, c.reason);
+  count_finished(summary.steps, c.integrate_seconds, seconds_since(c.wall_start));
 }
 
 void JobManager::count_finished(std::int64_t steps, double integrate_seconds, double wall_seconds) {

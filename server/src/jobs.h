@@ -6,8 +6,9 @@
 //   DATA/jobs/<id>/report.json     the report (as `moreau run --json` prints it)
 //   DATA/jobs/<id>/figure-<kind>.png  figures, drawn on first request
 //
-// trajectory.csv and report.json are written to a temporary file, fsync'ed and renamed when the job
-// ends; report.json is the commit point. job.json is replaced (atomically) at each state change.
+// trajectory.csv and report.json are written to temporary files when the run ends; an I/O thread then
+// fsyncs and renames them (report.json last: it commits the job) and only then marks the job final, so
+// "done" means stored. job.json is replaced (atomically) at each state change.
 #pragma once
 
 #include <atomic>
@@ -118,8 +119,25 @@ class JobManager {
   Metrics metrics() const;
 
  private:
+  // What a finished run leaves for an I/O thread: its results in temporary files, to be made durable,
+  // renamed into place and announced.
+  struct Commit {
+    std::shared_ptr<Job> job;
+    std::shared_ptr<JobStream> stream;
+    RunSummary summary;
+    JobState state = JobState::kDone;
+    std::string reason;
+    double integrate_seconds = 0;
+    std::chrono::steady_clock::time_point wall_start;
+    ~Commit() {
+      if (stream) stream->close();
+    }
+  };
+
   void worker_loop();
   void run(const std::shared_ptr<Job>& job);
+  void committer_loop();
+  void commit(Commit& c);
   // Changes the state (and reason), records it in job.json and tells the event streams.
   void set_state(Job& job, JobState state, const std::string& reason);
   void push_event(Job& job, const std::string& name, const nlohmann::json& data);
@@ -137,6 +155,12 @@ class JobManager {
   std::deque<std::shared_ptr<Job>> queue_;
   std::vector<std::thread> workers_;
   std::atomic<bool> stopping_{false};
+
+  std::mutex commit_mu_;
+  std::condition_variable commit_cv_;
+  std::deque<std::unique_ptr<Commit>> commits_;
+  bool commit_stop_ = false;
+  std::vector<std::thread> committers_;
   std::atomic<std::int64_t> busy_{0};
 
   mutable std::mutex stats_mu_;

@@ -28,30 +28,47 @@ std::int64_t utime_now() {
 
 JobStream::JobStream(std::string job_id, StreamSettings settings, int n)
     : job_id_(std::move(job_id)), settings_(std::move(settings)), n_(n) {
-  pending_.records.reserve(1024);
-  pending_.qv.reserve(1024 * 2 * static_cast<std::size_t>(n));
+  for (Batch* b : {&local_, &pending_}) {
+    b->records.reserve(4 * kBatch);
+    b->qv.reserve(4 * kBatch * 2 * static_cast<std::size_t>(n));
+  }
 }
 
+JobStream::~JobStream() = default;
+
 void JobStream::push_state(std::int64_t step, double t, double h, const double* q, const double* v, double energy) {
-  const std::int64_t now = utime_now();
-  std::lock_guard lock(mu_);
-  if (pending_.records.size() >= kMaxPending) {
-    dropped_.fetch_add(1, std::memory_order_relaxed);
-    return;
+  local_.records.push_back(Record{step, t, h, energy, -1});
+  local_.qv.insert(local_.qv.end(), q, q + n_);
+  local_.qv.insert(local_.qv.end(), v, v + n_);
+  if (local_.records.size() >= kBatch || settings_.realtime) flush();
+}
+
+void JobStream::flush() {
+  if (local_.records.empty()) return;
+  {
+    std::lock_guard lock(mu_);
+    if (pending_.records.empty() && pending_.events.empty()) {
+      std::swap(local_, pending_);  // the usual case: the hub took the last batch
+    } else if (pending_.records.size() >= kMaxPending) {
+      dropped_.fetch_add(static_cast<std::int64_t>(local_.records.size()), std::memory_order_relaxed);
+    } else {
+      // Events are only ever in pending_, so these states keep their place after them.
+      pending_.records.insert(pending_.records.end(), local_.records.begin(), local_.records.end());
+      pending_.qv.insert(pending_.qv.end(), local_.qv.begin(), local_.qv.end());
+    }
   }
-  pending_.records.push_back(Record{now, step, t, h, energy, -1});
-  pending_.qv.insert(pending_.qv.end(), q, q + n_);
-  pending_.qv.insert(pending_.qv.end(), v, v + n_);
+  local_.clear();
 }
 
 void JobStream::push_event(const char* kind, std::int64_t step, double t, std::string text) {
-  const std::int64_t now = utime_now();
+  flush();
   std::lock_guard lock(mu_);
   pending_.events.push_back(Event{kind, std::move(text)});
-  pending_.records.push_back(Record{now, step, t, 0.0, 0.0, static_cast<std::int32_t>(pending_.events.size() - 1)});
+  pending_.records.push_back(Record{step, t, 0.0, 0.0, static_cast<std::int32_t>(pending_.events.size() - 1)});
 }
 
 void JobStream::close() {
+  flush();
   std::lock_guard lock(mu_);
   closed_ = true;
 }
@@ -158,11 +175,13 @@ void LcmHub::drain(JobStream& s, JobStream::Batch& batch) {
   event.job_id = s.job_id();
   const std::size_t n = static_cast<std::size_t>(s.n());
   std::size_t qv_at = 0;
+  // utime: when the message is published (within a millisecond of the state for a realtime stream).
+  const std::int64_t now = utime_now();
   for (const auto& r : batch.records) {
     int size = 0;
     const std::string* channel = nullptr;
     if (r.event < 0) {
-      state.utime = r.utime;
+      state.utime = now;
       state.step = r.step;
       state.t = r.t;
       state.h = r.h;
@@ -177,7 +196,7 @@ void LcmHub::drain(JobStream& s, JobStream::Batch& batch) {
       channel = &s.settings().state_channel;
     } else {
       const auto& e = batch.events[static_cast<std::size_t>(r.event)];
-      event.utime = r.utime;
+      event.utime = now;
       event.kind = e.kind;
       event.step = r.step;
       event.t = r.t;
@@ -201,26 +220,12 @@ StreamObserver::StreamObserver(std::shared_ptr<JobStream> stream, double t0, con
       realtime_(stream_->settings().realtime),
       cancel_(cancel),
       next_t_(t0),
-      wall_start_(std::chrono::steady_clock::now()),
-      last_q_(static_cast<std::size_t>(stream_->n())),
-      last_v_(static_cast<std::size_t>(stream_->n())) {}
+      wall_start_(std::chrono::steady_clock::now()) {}
 
-void StreamObserver::on_sample(const Sample& s) {
-  last_step_ = s.step;
-  last_t_ = s.t;
-  last_h_ = s.h;
-  last_energy_ = s.kinetic_energy;
-  std::copy(s.q, s.q + s.n, last_q_.begin());
-  std::copy(s.v, s.v + s.n, last_v_.begin());
-  if (!any_ || s.t >= next_t_ - 1e-9 * period_) {
-    any_ = true;
-    publish(s);
-    // The next multiple of the period after t (robust to steps that do not divide the period).
-    next_t_ = t0_ + period_ * (std::floor((s.t - t0_) / period_ + 1e-9) + 1.0);
-  }
-}
-
-void StreamObserver::publish(const Sample& s) {
+void StreamObserver::publish_and_advance(const Sample& s) {
+  any_ = true;
+  // The next multiple of the period after t (robust to steps that do not divide the period).
+  next_t_ = t0_ + period_ * (std::floor((s.t - t0_) / period_ + 1e-9) + 1.0);
   if (realtime_) {
     // Sleep in short slices so that a cancellation is seen within a few milliseconds.
     const auto target = wall_start_ + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
@@ -235,11 +240,14 @@ void StreamObserver::publish(const Sample& s) {
   last_published_step_ = s.step;
 }
 
-void StreamObserver::flush_last() {
-  if (last_step_ >= 0 && last_step_ != last_published_step_) {
-    stream_->push_state(last_step_, last_t_, last_h_, last_q_.data(), last_v_.data(), last_energy_);
-    last_published_step_ = last_step_;
-  }
+void StreamObserver::flush_last(const RunSummary& summary) {
+  const auto n = static_cast<std::size_t>(stream_->n());
+  // A failed run's summary has no energy for its last state: the last periodic state stands.
+  if (summary.status == RunStatus::kFailed) return;
+  if (summary.steps == last_published_step_ || summary.q_final.size() != n || summary.v_final.size() != n) return;
+  stream_->push_state(summary.steps, summary.t_final, last_h_, summary.q_final.data(), summary.v_final.data(),
+                      summary.energy_final);
+  last_published_step_ = summary.steps;
 }
 
 }  // namespace moreau::server

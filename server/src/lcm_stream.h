@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "moreau/core/observer.h"
+#include "moreau/core/run_summary.h"
 
 namespace lcm {
 class LCM;
@@ -36,12 +37,17 @@ void set_channels(StreamSettings& s, const std::string& job_id);
 // Microseconds since the Unix epoch.
 std::int64_t utime_now();
 
-// The messages of one job, in order, waiting for the hub thread.
+// The messages of one job, in order, waiting for the hub thread. States are gathered in a buffer of
+// the producer's own and handed over in batches (one lock per batch); events, and every state of a
+// realtime stream, are handed over at once.
 class JobStream {
  public:
   JobStream(std::string job_id, StreamSettings settings, int n);
+  ~JobStream();
   void push_state(std::int64_t step, double t, double h, const double* q, const double* v, double energy);
   void push_event(const char* kind, std::int64_t step, double t, std::string text);
+  // Hands the states gathered so far to the hub.
+  void flush();
   // No more messages will be pushed: the hub publishes what is left and forgets the stream.
   void close();
 
@@ -52,7 +58,6 @@ class JobStream {
  private:
   friend class LcmHub;
   struct Record {
-    std::int64_t utime;
     std::int64_t step;
     double t, h, energy;
     std::int32_t event;  // index into events_, or -1 for a state (values in qv_)
@@ -74,10 +79,12 @@ class JobStream {
   bool take(Batch& out);
 
   static constexpr std::size_t kMaxPending = 1 << 18;  // states held at most; beyond, new ones are dropped
+  static constexpr std::size_t kBatch = 64;            // states gathered before they are handed over
 
   std::string job_id_;
   StreamSettings settings_;
   int n_;
+  Batch local_;  // the producer's (no lock)
   std::mutex mu_;
   Batch pending_;
   bool closed_ = false;
@@ -125,15 +132,20 @@ class LcmHub {
 // The job-side half: sees the run's samples and pushes one state per period (and the last state).
 // With `realtime`, on_sample sleeps so that t - t0 follows the wall clock (waking early if `cancel`
 // becomes true).
-class StreamObserver : public RunObserver {
+class StreamObserver final : public RunObserver {
  public:
   StreamObserver(std::shared_ptr<JobStream> stream, double t0, const std::atomic<bool>* cancel);
-  void on_sample(const Sample& s) override;
-  // Pushes the last state seen if it was not published yet.
-  void flush_last();
+  // Inline: most samples fall between two publication times and cost one comparison.
+  void on_sample(const Sample& s) override {
+    last_h_ = s.h;
+    if (any_ && s.t < next_t_ - 1e-9 * period_) return;
+    publish_and_advance(s);
+  }
+  // Pushes the run's last state (from its summary) if it was not published yet.
+  void flush_last(const RunSummary& summary);
 
  private:
-  void publish(const Sample& s);
+  void publish_and_advance(const Sample& s);
   std::shared_ptr<JobStream> stream_;
   double t0_, period_;
   bool realtime_;
@@ -142,10 +154,7 @@ class StreamObserver : public RunObserver {
   bool any_ = false;
   std::int64_t last_published_step_ = -1;
   std::chrono::steady_clock::time_point wall_start_;
-  // The last sample seen (copied, since the integrator's buffers move on).
-  std::int64_t last_step_ = -1;
-  double last_t_ = 0, last_h_ = 0, last_energy_ = 0;
-  std::vector<double> last_q_, last_v_;
+  double last_h_ = 0;  // the step of the last sample seen (the summary does not carry it)
 };
 
 }  // namespace moreau::server

@@ -32,6 +32,9 @@ int main(int argc, char** argv) {
   app.add_option("--data", cfg.data_dir, "Directory for job records and results")->capture_default_str();
   app.add_option("--scenes", cfg.scenes_dir, "Directory served by /v1/scenes (default: " + moreau::server::default_scenes_dir() + ")");
   app.add_option("--workers", cfg.workers, "Jobs integrated at once (0: one per core)")->capture_default_str();
+  app.add_option("--io-threads", cfg.io_threads, "Threads that make finished jobs' results durable (fsync, rename)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 64));
   app.add_option("--queue", cfg.queue, "Queued jobs beyond which submissions get 429")->capture_default_str()->check(CLI::Range(0, 1000000));
   app.add_option("--http-threads", cfg.http_threads, "HTTP connections served at once")->capture_default_str()->check(CLI::Range(2, 4096));
   app.add_option("--lcm-url", cfg.lcm_url, "LCM URL for live state (default: LCM_DEFAULT_URL, else LCM's default)");

@@ -18,9 +18,9 @@ namespace {
 
 }  // namespace
 
-void write_file_atomic(const std::filesystem::path& path, std::string_view bytes, Durability durability) {
-  std::filesystem::path tmp = path;
-  tmp += ".tmp";
+namespace {
+
+void write_fd(const std::filesystem::path& tmp, std::string_view bytes, Durability durability) {
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (fd < 0) fail("cannot create", tmp);
   const char* p = bytes.data();
@@ -44,6 +44,16 @@ void write_file_atomic(const std::filesystem::path& path, std::string_view bytes
     fail("cannot fsync", tmp);
   }
   if (::close(fd) != 0) fail("cannot close", tmp);
+}
+
+}  // namespace
+
+void write_file(const std::filesystem::path& path, std::string_view bytes) { write_fd(path, bytes, Durability::kRename); }
+
+void write_file_atomic(const std::filesystem::path& path, std::string_view bytes, Durability durability) {
+  std::filesystem::path tmp = path;
+  tmp += ".tmp";
+  write_fd(tmp, bytes, durability);
   if (::rename(tmp.c_str(), path.c_str()) != 0) fail("cannot rename into", path);
 }
 

@@ -18,6 +18,9 @@ enum class Durability {
 // Writes `bytes` to `path` through `path`.tmp and a rename. Throws std::runtime_error naming the file.
 void write_file_atomic(const std::filesystem::path& path, std::string_view bytes, Durability durability);
 
+// Writes `bytes` to `path` (created or truncated), without fsync. Throws std::runtime_error.
+void write_file(const std::filesystem::path& path, std::string_view bytes);
+
 // fsync of a file or directory (a directory: so that renames inside it survive a power loss).
 void fsync_path(const std::filesystem::path& path);
 

@@ -19,6 +19,7 @@ struct ServerConfig {
   std::string data_dir;          // results and job records; created if missing
   std::string scenes_dir;        // served by /v1/scenes; empty: default_scenes_dir()
   int workers = 0;               // integrating threads; 0: one per core
+  int io_threads = 4;            // threads that fsync and rename finished jobs' results
   int queue = 64;                // queued jobs beyond which POST /v1/jobs answers 429
   int http_threads = 32;         // HTTP connections served at once (keep-alive and event streams hold one)
   std::string lcm_url;           // empty: LCM_DEFAULT_URL, else LCM's default, opened at the first stream
