@@ -79,11 +79,26 @@ class GraphInclusionSolver {
     graphs_ = graphs;
     const int m = m_;
     if (m == 0) return true;
+    if (m == 1) {  // the scalar resolvent, with the acceptance test written out
+      const double d = D(0, 0), qq = q(0);
+      double uu = 0.0, ww = 0.0;
+      const int j = graphs[0]->resolve(qq, d, uu, ww);
+      st.iterations = 1;
+      if (j < 0 || d < 0.0) return false;
+      pieces_(0) = j;
+      last_graphs_[0] = graphs[0];
+      u(0) = uu;
+      w(0) = ww;
+      const double scale = std::abs(qq) + std::abs(d * ww) + std::abs(uu) + std::abs(ww) + graphs[0]->scale();
+      st.tolerance = 256.0 * std::numeric_limits<double>::epsilon() * std::max(scale, 1e-300);
+      st.residual = std::max(std::abs(uu + d * ww - qq), graphs[0]->distance_to_piece(j, uu, ww));
+      return std::isfinite(st.residual) && st.residual <= st.tolerance;
+    }
     scale_d_ = D.cwiseAbs().rowwise().sum().maxCoeff();
     graph_scale_ = 0.0;
     for (int i = 0; i < m; ++i) graph_scale_ = std::max(graph_scale_, graphs[i]->scale());
 
-    if (m == 1 || is_diagonal(D)) {
+    if (is_diagonal(D)) {
       for (int i = 0; i < m; ++i) {
         const int j = graphs[i]->resolve(q(i), D(i, i), u(i), w(i));
         if (j < 0 || D(i, i) < 0.0) {

@@ -248,7 +248,7 @@ class MoreauJeanIntegrator {
       // Predicted active set and the rows of (GE).
       bool any_active = false;
       if (nc_ > 0) {
-        U_.noalias() = H_ * v;
+        for (int i = 0; i < nc_; ++i) U_(i) = H_.row(i).dot(v);
         for (int i = 0; i < nc_; ++i) {
           const double predicted = gap_(i) + h * H_.row(i).dot(vf_);
           active_[i] = predicted <= 0.0;
@@ -271,10 +271,15 @@ class MoreauJeanIntegrator {
           b_(r) = active_[i] ? restitution_[i] * std::min(U_(i), 0.0) : 0.0;
           ptrs_[r] = active_[i] ? &corner_ : &zero_;
         }
-        Y_.noalias() = lu_.solve(Gf_.transpose());
-        D_.noalias() = Gv_ * Y_;
-        qv_.noalias() = Gv_ * vf_;
-        qv_ += b_;
+        // Small dense pieces, column by column with fixed-size N: no dynamic-size GEMM per step.
+        for (int r = 0; r < m_; ++r) {
+          rhs_ = Gf_.row(r).transpose();
+          Y_.col(r).noalias() = lu_.solve(rhs_);
+        }
+        for (int i = 0; i < m_; ++i) {
+          for (int j = 0; j < m_; ++j) D_(i, j) = Gv_.row(i).dot(Y_.col(j));
+          qv_(i) = Gv_.row(i).dot(vf_) + b_(i);
+        }
         GraphSolveStats st;
         if (!solver_.solve(D_, qv_, ptrs_.data(), u_, w_, st)) {
           char buf[200];
@@ -288,7 +293,8 @@ class MoreauJeanIntegrator {
         s.solver.max_residual = std::max(s.solver.max_residual, st.residual);
         s.solver.fallback_steps += st.used_fallback;
         vn_ = vf_;
-        vn_.noalias() -= Y_ * w_;
+        for (int j = 0; j < m_; ++j)
+          if (w_(j) != 0.0) vn_ -= w_(j) * Y_.col(j);
         polish(vn_);
       } else {
         vn_ = vf_;
@@ -302,7 +308,7 @@ class MoreauJeanIntegrator {
       bool any_impulse = false;
       int rebounds = 0;
       if (nc_ > 0) {
-        Un_.noalias() = H_ * vn_;
+        for (int i = 0; i < nc_; ++i) Un_(i) = H_.row(i).dot(vn_);
         int impacts_now = 0;
         const double vmax = v.cwiseAbs().maxCoeff();
         for (int i = 0; i < nc_; ++i) {
@@ -421,10 +427,17 @@ class MoreauJeanIntegrator {
       }
       ++nv;
     }
-    if (nv == n_ && n_ > 0) {
+    if (nv == n_ && n_ == 1) {
+      if (Gsq_(0, 0) != 0.0) {
+        v(0) = rsq_(0) / Gsq_(0, 0);
+        return;
+      }
+    } else if (nv == n_ && n_ > 0) {
       sqlu_.compute(Gsq_);
-      const double det = sqlu_.determinant();
-      if (std::isfinite(det) && std::abs(det) > 1e-12 * std::pow(Gsq_.cwiseAbs().maxCoeff(), n_)) {
+      // Independent rows: no pivot of U negligible against the largest entry.
+      const double big = Gsq_.cwiseAbs().maxCoeff();
+      const double smallest_pivot = sqlu_.matrixLU().diagonal().cwiseAbs().minCoeff();
+      if (smallest_pivot > 1e-12 * big) {
         vsq_.noalias() = sqlu_.solve(rsq_);
         if (vsq_.allFinite()) {
           v = vsq_;
