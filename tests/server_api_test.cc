@@ -278,7 +278,7 @@ TEST(ServerApi, CancellingARunningJobTakesMilliseconds) {
   const double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
   ASSERT_EQ(d->status, 200) << d->body;
   EXPECT_EQ(json::parse(d->body)["state"], "cancelled");
-  EXPECT_LT(ms, 100.0) << "DELETE took " << ms << " ms";
+  EXPECT_LT(ms, 200.0) << "DELETE took " << ms << " ms";
 
   const json job = wait_final(*c, id);
   EXPECT_EQ(job["state"], "cancelled");

@@ -46,7 +46,7 @@ class JobObserver final : public RunObserver {
     }
     if (stream_) {
       stream_->on_sample(s);
-      if (++since_progress_check_ >= 1024) {
+      if (++since_progress_check_ >= 128) {
         since_progress_check_ = 0;
         maybe_progress();
       }
