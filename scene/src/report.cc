@@ -264,8 +264,15 @@ std::string report_text(const LagrangianScene& scene, const RunSummary& s, const
 
 namespace {
 
+bool graphs_contain_origin(const LureScene& sc) {
+  for (const MonotoneGraph& g : sc.feedback)
+    if (!g.contains_origin()) return false;
+  return true;
+}
+
 nlohmann::json stability_json(const LureScene& sc) {
   nlohmann::json j;
+  j["graphs_contain_origin"] = graphs_contain_origin(sc);  // Lemma 2 assumes (0, 0) on the graph of d phi
   if (sc.P) {
     const StorageMatrixCheck& c = sc.p_check;
     j["P"] = "given";
@@ -382,6 +389,9 @@ std::string report_text(const LureScene& sc, const RunSummary& s, const LureDiag
     os << "                how: " << t.method << "\n";
     os << "                certificate: " << t.storage_method << "\n";
   }
+  if (!graphs_contain_origin(sc))
+    os << "                (0, 0) is not on every feedback graph: Lemma 2 (x = 0 exponentially stable, W non-increasing) "
+          "does not apply\n";
   if (d && d->storage.evaluated) {
     const EnergyTrack& w = d->storage;
     os << "  storage       W = 1/2 x^T P x (P " << (sc.storage_source == "scene" ? "from the scene" : "found by the test") << ") "

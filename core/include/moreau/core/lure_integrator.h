@@ -19,7 +19,9 @@
 // C_ij, and x = C^{-1} u when every output is on a vertical piece and C is square and invertible (so that
 // x' = -x - Sign(x) reaches x == 0.0 bit-exactly at the discrete time of ln(1 + x0), and stays there).
 //
-// Order: 1 (theta = 1; 2 on smooth stretches for theta = 1/2). Lemma 1 (existence, uniqueness) and Lemma 2
+// Order: 1. Theta weights the linear part only (the multiplier is implicit, so that an output at rest
+// stays at rest): theta = 1/2 is second order only where the feedback is locally constant (a horizontal
+// piece, e.g. a saturated relay). Lemma 1 (existence, uniqueness) and Lemma 2
 // (W = 1/2 x^T P x non-increasing, x -> 0) hold when (A, B, C) is strictly positive real with P = P^T > 0,
 // PA + A^T P < 0, B^T P = C (absolute_stability.h); then D + D^T is positive definite for every h, so the
 // step has a unique solution. For theta = 1 the discrete W_k is non-increasing as well:
@@ -96,7 +98,8 @@ class LureIntegrator {
     }
     square_invertible_ = false;
     if (m_ == n_) {
-      Eigen::FullPivLU<Eigen::MatrixXd> full(Eigen::MatrixXd(C_.template cast<double>()));
+      const Eigen::MatrixXd Cd = C_;
+      Eigen::FullPivLU<Eigen::MatrixXd> full(Cd);
       if (full.rank() == n_) {
         c_square_.setZero(n_, n_);
         for (int i = 0; i < n_; ++i)
@@ -180,7 +183,6 @@ class LureIntegrator {
       s.h_max = std::max(s.h_max, h_k);
       if (!x.allFinite()) return fail(s, d, x, t, k, clock_start, "the state became non-finite");
 
-      bool all_rest = true;
       for (int i = 0; i < m_; ++i) {
         if (u_(i) != 0.0) {
           rest[i] = -1;
@@ -189,7 +191,6 @@ class LureIntegrator {
           d.output_rest_time[i] = t;
         }
       }
-      (void)all_rest;
       if ((x.array() != 0.0).any()) {
         x_rest = -1;
       } else if (x_rest < 0) {
