@@ -84,8 +84,9 @@ class JobStream {
   std::string job_id_;
   StreamSettings settings_;
   int n_;
-  Batch local_;  // the producer's (no lock)
-  std::mutex mu_;
+  // The producer's buffer and the shared one on separate cache lines.
+  alignas(64) Batch local_;  // the producer's (no lock)
+  alignas(64) std::mutex mu_;
   Batch pending_;
   bool closed_ = false;
   std::atomic<std::int64_t> dropped_{0};
