@@ -202,6 +202,8 @@ nlohmann::json report_json(const LagrangianScene& scene, const RunSummary& s, co
                  {"increases", s.energy_increases}};
   if (scene.scheme == "moreau-jean") {
     j["system"] = "lagrangian";
+    // E_k here is the kinetic energy, which falls and rises with the potential; Lemma 3's W is below.
+    j["energy"]["kind"] = "kinetic 1/2 <M v, v>; the Lagrange-Dirichlet W is lagrange_dirichlet";
     add_contacts(j, scene, contacts);
   } else {
     j["equilibrium"] = {{"residual", num(s.equilibrium.residual)}, {"interior", s.equilibrium.interior}};

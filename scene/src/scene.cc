@@ -615,10 +615,11 @@ class Compiler {
           kind = MonotoneGraph::End::kWall;
           return;
         }
-        if (e.is_string() && !e.get<std::string>().empty() && std::isalpha(static_cast<unsigned char>(e.get<std::string>()[0])) &&
-            !params_.count(e.get<std::string>()))
-          throw SceneError(ptr + "/" + key, "expected \"wall\" or the slope of the ray (a number >= 0), got " + e.dump());
-        slope = constant(e, ptr + "/" + key);
+        try {
+          slope = constant(e, ptr + "/" + key);
+        } catch (const SceneError& err) {
+          throw SceneError(ptr + "/" + key, "expected \"wall\" or the slope of the ray (a number >= 0): " + err.reason());
+        }
       };
       MonotoneGraph::End left, right;
       double sl, sr;
