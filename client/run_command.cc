@@ -69,7 +69,8 @@ int run(const RunOptions& opt) {
   ProgressBar progress(sim->t0(), sim->t_end(), show_progress);
   fan.add(&progress);
 
-  RunSummary summary = sim->run(&fan);
+  scene::RunDiagnostics diagnostics;
+  RunSummary summary = sim->run(&fan, &diagnostics);
   progress.finish();
   summary.phase_seconds.insert(summary.phase_seconds.begin(), {"load", load_s});
   if (csv) {
@@ -88,6 +89,8 @@ int run(const RunOptions& opt) {
   if (recorder) {
     const auto t_fig = Clock::now();
     if (summary.converged_time) recorder->data().converged_time = *summary.converged_time;
+    if (diagnostics.contacts)  // impacts are marked on the time axis
+      for (const auto& impact : diagnostics.contacts->impacts) recorder->data().impact_times.push_back(impact.t);
     for (const auto& spec : opt.figures) {
       const auto [kind, path] = parse_figure_spec(spec);
       try {
@@ -100,9 +103,9 @@ int run(const RunOptions& opt) {
     summary.add_phase("figures", since(t_fig));
   }
   if (opt.json) {
-    std::cout << sim->report_json(summary).dump(2) << "\n";
+    std::cout << sim->report_json(summary, diagnostics).dump(2) << "\n";
   } else {
-    std::cout << sim->report_text(summary);
+    std::cout << sim->report_text(summary, diagnostics);
   }
   return summary.status == RunStatus::kCompleted ? 0 : 1;
 }

@@ -53,6 +53,18 @@ TEST(Study, DampedRelayAgainstItsExactSolution) {
   EXPECT_EQ(r.to_json()["rows"].size(), 9u);
 }
 
+TEST(Study, ScenesWithConstraintsAreRefused) {
+  const LagrangianScene sc = load_scene(read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/bouncing-ball-e0.5.json"));
+  StudySettings st;
+  st.h = {1e-2};
+  try {
+    run_study(sc, st);
+    FAIL() << "a study would ignore the ground";
+  } catch (const SceneError& e) {
+    EXPECT_EQ(e.pointer(), "/system/constraints");
+  }
+}
+
 TEST(Study, BadSettingsNameTheOption) {
   const LagrangianScene sc = load_scene(read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/damped-relay.json"));
   StudySettings st;

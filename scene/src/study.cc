@@ -175,6 +175,9 @@ std::vector<double> parse_ladder(const std::string& text) {
 
 StudyResult run_study(const LagrangianScene& scene, const StudySettings& st) {
   const auto start = Clock::now();
+  if (!scene.constraint_names.empty())
+    throw SceneError("/system/constraints",
+                     "studies compare abl, explicit and regularized, which do not integrate unilateral constraints");
   if (st.h.empty()) throw SceneError("--h", "empty ladder");
   for (const auto& s : st.schemes)
     if (s != "abl" && s != "explicit" && s != "regularized")
