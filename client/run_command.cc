@@ -31,6 +31,32 @@ struct RunOptions {
   FigureFlags figure_flags;
 };
 
+// Series labels with the units the scene gives in /units ({"x1": "m", "t": "s"}): "x1 [m]" for a
+// position, "x1_dot [m/s]" for its velocity. Names without a unit stay as they are.
+std::vector<std::string> with_units(const std::string& scene_path, const std::vector<std::string>& names,
+                                    bool velocities) {
+  nlohmann::json units;
+  try {
+    units = scene::read_scene_file(scene_path).value("units", nlohmann::json::object());
+  } catch (const std::exception&) {
+    return names;
+  }
+  if (!units.is_object()) return names;
+  const std::string time_unit = units.contains("t") && units["t"].is_string() ? units["t"].get<std::string>() : "s";
+  std::vector<std::string> out;
+  for (const auto& name : names) {
+    std::string base = name;
+    if (velocities && base.size() > 4 && base.substr(base.size() - 4) == "_dot") base.resize(base.size() - 4);
+    if (units.contains(base) && units[base].is_string()) {
+      const std::string u = units[base].get<std::string>();
+      out.push_back(name + " [" + (velocities ? u + "/" + time_unit : u) + "]");
+    } else {
+      out.push_back(name);
+    }
+  }
+  return out;
+}
+
 int run(const RunOptions& opt) {
   const auto t_load = Clock::now();
   std::optional<scene::Simulation> sim;
@@ -62,7 +88,8 @@ int run(const RunOptions& opt) {
     }
   }
   if (!opt.figures.empty()) {
-    recorder.emplace(sim->position_names(), sim->velocity_names());
+    recorder.emplace(with_units(opt.scene_path, sim->position_names(), false),
+                     with_units(opt.scene_path, sim->velocity_names(), true));
     fan.add(&*recorder);
   }
   const bool show_progress = opt.progress == "always" || (opt.progress == "auto" && isatty(STDERR_FILENO));
