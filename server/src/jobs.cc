@@ -201,7 +201,8 @@ void JobManager::recover() {
     }
     if (job->finished == 0 && rewrite) job->finished = unix_now();
     if (rewrite) write_record(*job);
-    job->t_now = job->t0;
+    job->t_now = job->state == JobState::kDone ? job->t_end : job->t0;
+    if (job->state == JobState::kDone) job->step_now = job->planned_steps;
     found.push_back(std::move(job));
   }
   std::sort(found.begin(), found.end(), [](const auto& a, const auto& b) {
@@ -524,8 +525,9 @@ void JobManager::commit(Commit& c) {
   }
   job.t_now = summary.t_final;
   job.step_now = summary.steps;
-  set_state(job, c.state, c.reason);
+  // Counted before the state changes: whoever sees the job final sees it in /metrics too.
   count_finished(summary.steps, c.integrate_seconds, seconds_since(c.wall_start));
+  set_state(job, c.state, c.reason);
 }
 
 void JobManager::count_finished(std::int64_t steps, double integrate_seconds, double wall_seconds) {
