@@ -96,7 +96,9 @@ class Watcher {
       for (char& c : id) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
       channel = id.empty() ? "MOREAU_(STATE|EVENT)_.*" : "MOREAU_(STATE|EVENT)_" + id;
     }
-    lc.subscribe(channel, &Watcher::handle, this);
+    // subscribeFunction rather than the member-function subscribe(), which LCM 1.3.1 and GCC 12's
+    // UndefinedBehaviorSanitizer do not agree on.
+    lc.subscribeFunction(channel, &Watcher::on_message, this);
     std::cerr << "moreau watch: listening on " << channel << " ("
               << (o_.lcm_url.empty() ? "LCM_DEFAULT_URL or LCM's default" : o_.lcm_url) << ")" << std::endl;
 
@@ -131,6 +133,10 @@ class Watcher {
     if (!o_.figure.empty() && figure_dirty_) write_figure();
     if (log_) log_.reset();
     return code;
+  }
+
+  static void on_message(const lcm::ReceiveBuffer* rbuf, const std::string& channel, Watcher* self) {
+    self->handle(rbuf, channel);
   }
 
   void handle(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
