@@ -9,22 +9,12 @@
 #include <new>
 
 #include "moreau/scene/scene.h"
+#include "support/allocation_counter.h"
 
 // GCC 12 pairs the replaced operator new with std::free only when it inlines allocations of its own
 // (nlohmann::json literals here) and then warns; the pair below is matched by construction.
 #pragma GCC diagnostic ignored "-Wmismatched-new-delete"
 
-namespace {
-std::atomic<long> g_allocations{0};
-}
-
-void* operator new(std::size_t size) {
-  ++g_allocations;
-  if (void* p = std::malloc(size ? size : 1)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 
 namespace moreau::scene {
 namespace {
@@ -42,10 +32,10 @@ long ContactAllocations(nlohmann::json doc, double t_end) {
   const LagrangianScene sc = load_scene(doc);
   Decimated obs;
   ContactDiagnostics d;
-  const long before = g_allocations.load();
+  const long before = moreau::testing::allocations();
   const RunSummary s = run_scene(sc, &obs, &d);
   EXPECT_EQ(s.status, RunStatus::kCompleted) << s.message;
-  return g_allocations.load() - before;
+  return moreau::testing::allocations() - before;
 }
 
 long LureAllocations(nlohmann::json doc, double t_end) {
@@ -54,10 +44,10 @@ long LureAllocations(nlohmann::json doc, double t_end) {
   const LureScene sc = load_lure_scene(doc);
   Decimated obs;
   LureDiagnostics d;
-  const long before = g_allocations.load();
+  const long before = moreau::testing::allocations();
   const RunSummary s = run_lure_scene(sc, &obs, &d);
   EXPECT_EQ(s.status, RunStatus::kCompleted) << s.message;
-  return g_allocations.load() - before;
+  return moreau::testing::allocations() - before;
 }
 
 TEST(Allocation, BouncingBallThroughItsZenoPhase) {
