@@ -7,6 +7,7 @@
 #include "commands.h"
 #include "figure_output.h"
 #include "moreau/render/render.h"
+#include "moreau/render/study_figures.h"
 #include "moreau/scene/study.h"
 
 namespace moreau::cli {
@@ -60,22 +61,8 @@ int study(const StudyOptions& opt) {
   }
   try {
     if (!opt.csv.empty()) write_text(opt.csv, result.to_csv());
-    std::vector<render::SchemeRuns> runs;
-    for (const auto& scheme : split(opt.schemes)) {
-      render::SchemeRuns r;
-      r.scheme = scheme;
-      for (const auto& row : result.rows) {
-        if (row.scheme != scheme || row.status != "completed" || !(row.q_max_error > 0.0)) continue;
-        r.h.push_back(row.h);
-        r.error.push_back(row.q_max_error);
-        r.run_time_s.push_back(row.wall_seconds);
-      }
-      if (!r.h.empty()) runs.push_back(r);
-    }
-    render::FigureOptions fo;
-    fo.title = result.scene + ": max error of q against " + result.reference;
-    if (!opt.work_png.empty()) render::render_png(render::work_figure(runs, fo), opt.work_png);
-    if (!opt.order_png.empty()) render::render_png(render::order_figure(runs, fo), opt.order_png);
+    if (!opt.work_png.empty()) render::render_png(render::study_figure("work", result), opt.work_png);
+    if (!opt.order_png.empty()) render::render_png(render::study_figure("order", result), opt.order_png);
   } catch (const std::exception& e) {
     std::cerr << "moreau study: " << e.what() << "\n";
     return 1;

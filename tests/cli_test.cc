@@ -101,6 +101,30 @@ TEST(Cli, FiguresArePngOfTheRequestedSize) {
   EXPECT_NE(ss.str().find("<svg"), std::string::npos);
 }
 
+TEST(Cli, StudyWritesTheTableAndBothFigures) {
+  const std::string dir = ::testing::TempDir();
+  const Result r = Moreau("study " + std::string(MOREAU_SOURCE_DIR) +
+                          "/scenes/damped-relay.json --h 1e-2:1e-3:2 --schemes abl,explicit --repeats 1 --csv " + dir +
+                          "/study.csv --work " + dir + "/work.png --order " + dir + "/order.png");
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("against the exact solution"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("order of abl"), std::string::npos) << r.out;
+  std::ifstream csv(dir + "/study.csv");
+  std::string line;
+  int lines = 0;
+  while (std::getline(csv, line)) ++lines;
+  EXPECT_EQ(lines, 5) << "a header and 2 schemes x 2 step sizes";
+  for (const char* png : {"/work.png", "/order.png"}) {
+    std::ifstream in(dir + png, std::ios::binary);
+    char head[8] = {};
+    in.read(head, 8);
+    EXPECT_EQ(std::string(head + 1, 3), "PNG") << png;
+  }
+  const Result bad = Moreau("study " + std::string(MOREAU_SOURCE_DIR) + "/scenes/damped-relay.json --schemes abl,rk4");
+  EXPECT_EQ(bad.status, 2);
+  EXPECT_NE(bad.out.find("unknown scheme 'rk4'"), std::string::npos) << bad.out;
+}
+
 TEST(Cli, PlotReadsTheCsvBack) {
   const std::string csv = ::testing::TempDir() + "/p.csv";
   ASSERT_EQ(Moreau("run " + kScene + " --out " + csv).status, 0);

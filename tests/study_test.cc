@@ -4,6 +4,9 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
+#include <chrono>
+#include <thread>
 #include <cmath>
 
 namespace moreau::scene {
@@ -76,6 +79,86 @@ TEST(Study, BadSettingsNameTheOption) {
   } catch (const SceneError& e) {
     EXPECT_EQ(e.pointer(), "--schemes");
   }
+}
+
+TEST(Study, SettingsFromJson) {
+  const auto st = study_settings_from_json(
+      nlohmann::json{{"h", {1e-2, 1e-3}}, {"schemes", "abl,regularized"}, {"epsilon", 1e-4}, {"repeats", 2},
+                     {"eval_points", 50}, {"regularization", "saturation"}, {"reference_h", 1e-5}},
+      "/study");
+  EXPECT_EQ(st.h, (std::vector<double>{1e-2, 1e-3}));
+  EXPECT_EQ(st.schemes, (std::vector<std::string>{"abl", "regularized"}));
+  EXPECT_EQ(st.epsilon, 1e-4);
+  EXPECT_EQ(st.repeats, 2);
+  EXPECT_EQ(st.eval_points, 50);
+  EXPECT_EQ(st.regularization, "saturation");
+  EXPECT_EQ(st.reference_h, 1e-5);
+  const auto defaults = study_settings_from_json(nlohmann::json(), "/study");
+  EXPECT_EQ(defaults.h.size(), 9u) << "the default ladder is 1e-1:1e-5:9";
+  EXPECT_EQ(defaults.schemes.size(), 3u);
+  try {
+    study_settings_from_json(nlohmann::json{{"schemes", {"abl", 3}}}, "/study");
+    FAIL();
+  } catch (const SceneError& e) {
+    EXPECT_EQ(e.pointer(), "/study/schemes/1");
+  }
+}
+
+TEST(Study, PlannedStepsCountEveryRun) {
+  const LagrangianScene sc = load_scene(read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/damped-relay.json"));
+  StudySettings st;
+  st.h = {1e-2, 1e-3};
+  st.schemes = {"abl", "explicit"};
+  st.repeats = 3;
+  const double span = sc.settings.t_end - sc.settings.t0;
+  // The scene has an exact solution: no reference run.
+  const double want = 2 * 4 * (std::ceil(span / 1e-2) + std::ceil(span / 1e-3));
+  EXPECT_EQ(study_planned_steps(sc, st), static_cast<std::int64_t>(want));
+  st.reference_h = 1e-4;
+  EXPECT_EQ(study_planned_steps(sc, st), static_cast<std::int64_t>(want + std::ceil(span / 1e-4)));
+}
+
+TEST(Study, ResultSurvivesJson) {
+  const LagrangianScene sc = load_scene(read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/damped-relay.json"));
+  StudySettings st;
+  st.h = {1e-2, 1e-3};
+  st.schemes = {"abl", "explicit"};
+  st.repeats = 1;
+  const StudyResult r = run_study(sc, st);
+  const StudyResult back = StudyResult::from_json(r.to_json());
+  EXPECT_EQ(back.to_json(), r.to_json());
+  EXPECT_EQ(back.to_csv(), r.to_csv());
+  EXPECT_THROW(StudyResult::from_json(nlohmann::json{{"rows", 1}}), std::invalid_argument);
+}
+
+TEST(Study, CancelStopsTheStudyBetweenAndInsideRuns) {
+  const LagrangianScene sc = load_scene(read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/damped-relay.json"));
+  std::atomic<bool> cancel{false};
+  StudySettings st;
+  st.h = {1e-2, 1e-3, 1e-4};
+  st.schemes = {"abl"};
+  st.repeats = 1;
+  st.cancel = &cancel;
+  std::vector<std::size_t> seen;
+  st.on_row = [&](std::size_t done, std::size_t total) {
+    EXPECT_EQ(total, 3u);
+    seen.push_back(done);
+    if (done == 1) cancel = true;
+  };
+  EXPECT_THROW(run_study(sc, st), StudyCancelled);
+  EXPECT_EQ(seen, (std::vector<std::size_t>{1}));
+  // Inside a run: one long run, cancelled from another thread while it integrates. Without the check
+  // inside the run, the study would end normally (there is no row after it).
+  cancel = false;
+  StudySettings st2 = st;
+  st2.on_row = nullptr;
+  st2.h = {1e-8};
+  std::thread canceller([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    cancel = true;
+  });
+  EXPECT_THROW(run_study(sc, st2), StudyCancelled);
+  canceller.join();
 }
 
 }  // namespace

@@ -23,9 +23,11 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 // velocity sign changes after `chatter_from`.
 class GridSampler : public RunObserver {
  public:
-  GridSampler(const std::vector<double>& grid, int n, double chatter_from)
-      : grid_(grid), n_(n), chatter_from_(chatter_from), q_(grid.size() * n, kNaN), v_(grid.size() * n, kNaN),
-        prev_q_(n), prev_v_(n), last_sign_(n, 0) {}
+  GridSampler(const std::vector<double>& grid, int n, double chatter_from, const std::atomic<bool>* cancel)
+      : grid_(grid), n_(n), chatter_from_(chatter_from), cancel_(cancel), q_(grid.size() * n, kNaN),
+        v_(grid.size() * n, kNaN), prev_q_(n), prev_v_(n), last_sign_(n, 0) {}
+
+  bool keep_going(std::int64_t, double) override { return !(cancel_ && cancel_->load(std::memory_order_relaxed)); }
 
   void on_sample(const Sample& s) override {
     if (have_prev_) {
@@ -72,6 +74,7 @@ class GridSampler : public RunObserver {
   const std::vector<double>& grid_;
   int n_;
   double chatter_from_;
+  const std::atomic<bool>* cancel_;
   std::vector<double> q_, v_;
   std::vector<double> prev_q_, prev_v_;
   std::vector<int> last_sign_;
@@ -82,9 +85,22 @@ class GridSampler : public RunObserver {
   double amplitude_ = 0.0;
 };
 
+// The observer of a timed run: sees no sample (the run samples only its first and last state) and
+// checks for cancellation every RunObserver::kControlInterval steps.
+class CancelCheck : public RunObserver {
+ public:
+  explicit CancelCheck(const std::atomic<bool>* cancel) : cancel_(cancel) {}
+  void on_sample(const Sample&) override {}
+  bool keep_going(std::int64_t, double) override { return !cancel_->load(std::memory_order_relaxed); }
+
+ private:
+  const std::atomic<bool>* cancel_;
+};
+
+// output_every: 1 for the runs whose every state is sampled, a huge value for timed runs.
 template <int N>
 RunSummary run_scheme_fixed(const LagrangianScene& scene, const std::string& scheme, double h,
-                            const StudySettings& st, RunObserver* observer) {
+                            const StudySettings& st, RunObserver* observer, std::int64_t output_every) {
   SceneModel<N> model(scene);
   const Vec<N> q0 = Eigen::Map<const Eigen::VectorXd>(scene.q0.data(), scene.n);
   const Vec<N> v0 = Eigen::Map<const Eigen::VectorXd>(scene.v0.data(), scene.n);
@@ -100,7 +116,7 @@ RunSummary run_scheme_fixed(const LagrangianScene& scene, const std::string& sch
   }
   AblSettings as = scene.settings;
   as.h = h;
-  as.output_every = 1;
+  as.output_every = output_every;
   if (scheme == "explicit") {
     as.velocity_update = VelocityUpdate::kExplicit;
     as.step_rule = StepRule::kFixed;
@@ -110,13 +126,20 @@ RunSummary run_scheme_fixed(const LagrangianScene& scene, const std::string& sch
 }
 
 RunSummary run_scheme(const LagrangianScene& scene, const std::string& scheme, double h, const StudySettings& st,
-                      RunObserver* observer) {
+                      RunObserver* observer, std::int64_t output_every = 1) {
+  RunSummary s;
   switch (scene.n) {
-    case 1: return run_scheme_fixed<1>(scene, scheme, h, st, observer);
-    case 2: return run_scheme_fixed<2>(scene, scheme, h, st, observer);
-    case 3: return run_scheme_fixed<3>(scene, scheme, h, st, observer);
-    default: return run_scheme_fixed<Eigen::Dynamic>(scene, scheme, h, st, observer);
+    case 1: s = run_scheme_fixed<1>(scene, scheme, h, st, observer, output_every); break;
+    case 2: s = run_scheme_fixed<2>(scene, scheme, h, st, observer, output_every); break;
+    case 3: s = run_scheme_fixed<3>(scene, scheme, h, st, observer, output_every); break;
+    default: s = run_scheme_fixed<Eigen::Dynamic>(scene, scheme, h, st, observer, output_every); break;
   }
+  if (s.status == RunStatus::kCancelled && st.cancel && st.cancel->load()) throw StudyCancelled();
+  return s;
+}
+
+void check_cancel(const StudySettings& st) {
+  if (st.cancel && st.cancel->load()) throw StudyCancelled();
 }
 
 double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
@@ -209,7 +232,7 @@ StudyResult run_study(const LagrangianScene& scene, const StudySettings& st) {
     char buf[64];
     std::snprintf(buf, sizeof buf, "abl at h = %g", h_ref);
     result.reference = buf;
-    GridSampler sampler(grid, n, std::numeric_limits<double>::infinity());
+    GridSampler sampler(grid, n, std::numeric_limits<double>::infinity(), st.cancel);
     const RunSummary ref = run_scheme(scene, "abl", h_ref, st, &sampler);
     if (ref.status != RunStatus::kCompleted) throw SceneError("--reference", "the reference run failed: " + ref.message);
     ref_q = sampler.q();
@@ -218,16 +241,20 @@ StudyResult run_study(const LagrangianScene& scene, const StudySettings& st) {
   }
   const double chatter_from = result.reference_converged_time.value_or(std::numeric_limits<double>::infinity());
 
+  const std::size_t rows_total = st.schemes.size() * st.h.size();
+  std::optional<CancelCheck> cancel_check;
+  if (st.cancel) cancel_check.emplace(st.cancel);
   for (const auto& scheme : st.schemes) {
     std::vector<double> hs, eq, ev;
     for (double h : st.h) {
+      check_cancel(st);
       StudyRow row;
       row.scheme = scheme;
       row.h = h;
       // The error run, which is also the warm-up of the timed runs.
       // Chattering is measured once the run has had five of its own steps past the reference's
       // convergence time: a first-order scheme arrives O(h) late.
-      GridSampler sampler(grid, n, chatter_from + 5.0 * h);
+      GridSampler sampler(grid, n, chatter_from + 5.0 * h, st.cancel);
       const RunSummary s = run_scheme(scene, scheme, h, st, &sampler);
       row.status = to_string(s.status);
       row.message = s.message;
@@ -261,12 +288,14 @@ StudyResult run_study(const LagrangianScene& scene, const StudySettings& st) {
       row.chatter_sign_changes = sampler.sign_changes();
       row.chatter_amplitude = sampler.amplitude();
 
-      // Timed runs: no observer, minimum over repeats, a single one when it is long.
+      // Timed runs: no sampling (at most a cancellation check every kControlInterval steps), the minimum
+      // over repeats, a single one when it is long.
       if (ok) {
         double best = std::numeric_limits<double>::infinity();
         for (int r = 0; r < std::max(1, st.repeats); ++r) {
           const auto t_run = Clock::now();
-          const RunSummary timed = run_scheme(scene, scheme, h, st, nullptr);
+          const RunSummary timed =
+              run_scheme(scene, scheme, h, st, cancel_check ? &*cancel_check : nullptr, std::numeric_limits<std::int64_t>::max());
           const double secs = seconds_since(t_run);
           best = std::min(best, secs);
           ++row.timed_runs;
@@ -278,11 +307,96 @@ StudyResult run_study(const LagrangianScene& scene, const StudySettings& st) {
       eq.push_back(row.q_max_error);
       ev.push_back(row.v_max_error);
       result.rows.push_back(row);
+      if (st.on_row) st.on_row(result.rows.size(), rows_total);
     }
     result.orders.push_back({scheme, slope(hs, eq), slope(hs, ev)});
   }
   result.wall_seconds = seconds_since(start);
   return result;
+}
+
+StudySettings study_settings_from_json(const nlohmann::json& j, const std::string& pointer) {
+  StudySettings st;
+  st.h = parse_ladder("1e-1:1e-5:9");
+  if (j.is_null()) return st;
+  if (!j.is_object()) throw SceneError(pointer, "expected an object {h?, schemes?, reference_h?, epsilon?, regularization?, eval_points?, repeats?}");
+  auto positive = [&](const nlohmann::json& v, const std::string& ptr) {
+    if (!v.is_number() || !std::isfinite(v.get<double>()) || !(v.get<double>() > 0.0))
+      throw SceneError(ptr, "expected a positive finite number");
+    return v.get<double>();
+  };
+  auto integer = [&](const nlohmann::json& v, const std::string& ptr, long lo, long hi) {
+    if (!v.is_number_integer() || v.get<long>() < lo || v.get<long>() > hi)
+      throw SceneError(ptr, "expected an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
+    return static_cast<int>(v.get<long>());
+  };
+  for (const auto& [key, v] : j.items()) {
+    const std::string ptr = pointer + "/" + key;
+    if (key == "h") {
+      if (v.is_string()) {
+        try {
+          st.h = parse_ladder(v.get<std::string>());
+        } catch (const SceneError& e) {
+          throw SceneError(ptr, e.reason());
+        }
+      } else if (v.is_array()) {
+        if (v.empty() || v.size() > 100) throw SceneError(ptr, "expected 1 to 100 step sizes");
+        st.h.clear();
+        for (std::size_t i = 0; i < v.size(); ++i) st.h.push_back(positive(v[i], ptr + "/" + std::to_string(i)));
+      } else {
+        throw SceneError(ptr, "expected a ladder \"FIRST:LAST:COUNT\", a list \"h1,h2\" or an array of step sizes");
+      }
+    } else if (key == "schemes") {
+      std::vector<std::string> names;
+      if (v.is_string()) {
+        std::stringstream ss(v.get<std::string>());
+        for (std::string item; std::getline(ss, item, ',');)
+          if (!item.empty()) names.push_back(item);
+      } else if (v.is_array()) {
+        for (std::size_t i = 0; i < v.size(); ++i) {
+          if (!v[i].is_string()) throw SceneError(ptr + "/" + std::to_string(i), "expected a scheme name");
+          names.push_back(v[i].get<std::string>());
+        }
+      } else {
+        throw SceneError(ptr, "expected an array of scheme names or a comma list");
+      }
+      if (names.empty()) throw SceneError(ptr, "expected at least one scheme");
+      for (std::size_t i = 0; i < names.size(); ++i) {
+        const auto& s = names[i];
+        if (s != "abl" && s != "explicit" && s != "regularized")
+          throw SceneError(v.is_array() ? ptr + "/" + std::to_string(i) : ptr,
+                           "unknown scheme '" + s + "' (expected abl, explicit, regularized)");
+        if (std::count(names.begin(), names.end(), s) > 1) throw SceneError(ptr, "scheme '" + s + "' given twice");
+      }
+      st.schemes = names;
+    } else if (key == "reference_h") {
+      st.reference_h = positive(v, ptr);
+    } else if (key == "epsilon") {
+      st.epsilon = positive(v, ptr);
+    } else if (key == "regularization") {
+      if (!v.is_string() || (v.get<std::string>() != "tanh" && v.get<std::string>() != "saturation"))
+        throw SceneError(ptr, "expected \"tanh\" or \"saturation\"");
+      st.regularization = v.get<std::string>();
+    } else if (key == "eval_points") {
+      st.eval_points = integer(v, ptr, 2, 100000);
+    } else if (key == "repeats") {
+      st.repeats = integer(v, ptr, 1, 20);
+    } else {
+      throw SceneError(ptr, "unknown field (expected h, schemes, reference_h, epsilon, regularization, eval_points, repeats)");
+    }
+  }
+  return st;
+}
+
+std::int64_t study_planned_steps(const LagrangianScene& scene, const StudySettings& st) {
+  const double span = scene.settings.t_end - scene.settings.t0;
+  constexpr double kCap = 9e18;
+  double total = 0.0;
+  const double runs = 1.0 + std::max(1, st.repeats);
+  for (double h : st.h) total += static_cast<double>(st.schemes.size()) * runs * std::ceil(span / h);
+  const double h_ref = st.reference_h ? *st.reference_h : *std::min_element(st.h.begin(), st.h.end()) / 10.0;
+  if (!scene.exact_tape || st.reference_h) total += std::ceil(span / h_ref);
+  return static_cast<std::int64_t>(std::min(total, kCap));
 }
 
 nlohmann::json StudyResult::to_json() const {
@@ -313,6 +427,44 @@ nlohmann::json StudyResult::to_json() const {
   for (const auto& o : orders) j["orders"].push_back({{"scheme", o.scheme}, {"q_max", num(o.q_max)}, {"v_max", num(o.v_max)}});
   j["wall_seconds"] = wall_seconds;
   return j;
+}
+
+StudyResult StudyResult::from_json(const nlohmann::json& j) {
+  auto number = [](const nlohmann::json& v) { return v.is_number() ? v.get<double>() : kNaN; };
+  auto optional = [](const nlohmann::json& v) { return v.is_number() ? std::optional<double>(v.get<double>()) : std::nullopt; };
+  if (!j.is_object() || !j.contains("rows") || !j["rows"].is_array() || !j.contains("orders") || !j["orders"].is_array())
+    throw std::invalid_argument("not a study result: expected an object with rows and orders");
+  try {
+    StudyResult r;
+    r.scene = j.at("scene").get<std::string>();
+    r.reference = j.at("reference").get<std::string>();
+    r.reference_converged_time = optional(j.value("reference_converged_time", nlohmann::json()));
+    for (const auto& x : j["rows"]) {
+      StudyRow row;
+      row.scheme = x.at("scheme").get<std::string>();
+      row.h = x.at("h").get<double>();
+      row.status = x.at("status").get<std::string>();
+      row.message = x.value("message", "");
+      row.steps = x.at("steps").get<std::int64_t>();
+      row.wall_seconds = number(x.at("wall_seconds"));
+      row.timed_runs = x.value("timed_runs", 0);
+      row.q_max_error = number(x.at("q_max_error"));
+      row.q_l2_error = number(x.at("q_l2_error"));
+      row.v_max_error = number(x.at("v_max_error"));
+      row.v_l2_error = number(x.at("v_l2_error"));
+      row.final_error = number(x.at("final_error"));
+      row.converged_time = optional(x.at("converged_time"));
+      row.converged_time_error = optional(x.at("converged_time_error"));
+      row.chatter_sign_changes = x.at("chatter_sign_changes").get<std::int64_t>();
+      row.chatter_amplitude = number(x.at("chatter_amplitude"));
+      r.rows.push_back(row);
+    }
+    for (const auto& x : j["orders"]) r.orders.push_back({x.at("scheme").get<std::string>(), number(x.at("q_max")), number(x.at("v_max"))});
+    r.wall_seconds = number(j.at("wall_seconds"));
+    return r;
+  } catch (const nlohmann::json::exception& e) {
+    throw std::invalid_argument(std::string("not a study result: ") + e.what());
+  }
 }
 
 std::string StudyResult::to_csv() const {

@@ -2,11 +2,16 @@
 
 #include <stdexcept>
 
+#include <nlohmann/json.hpp>
+
+#include "moreau/scene/study.h"
+
 #include "trajectory.h"
 
 #ifdef MOREAU_SERVER_HAVE_RENDER
 #include "moreau/render/figures.h"
 #include "moreau/render/render.h"
+#include "moreau/render/study_figures.h"
 #endif
 
 namespace moreau::server {
@@ -54,9 +59,23 @@ std::vector<std::uint8_t> figure_png(std::string_view kind, std::string_view csv
   return render::render_png_bytes(fig);
 }
 
+std::vector<std::uint8_t> study_figure_png(std::string_view kind, const std::string& result_json, int width, int height) {
+  const nlohmann::json j = nlohmann::json::parse(result_json, nullptr, false);
+  if (j.is_discarded()) throw std::runtime_error("the stored study result is not valid JSON");
+  const scene::StudyResult result = scene::StudyResult::from_json(j);
+  render::FigureOptions opt;
+  opt.width_px = width;
+  opt.height_px = height;
+  return render::render_png_bytes(render::study_figure(std::string(kind), result, opt));
+}
+
 #else
 
 bool figures_available() { return false; }
+
+std::vector<std::uint8_t> study_figure_png(std::string_view, const std::string&, int, int) {
+  throw std::runtime_error("this server was built without render/: figures are not available");
+}
 
 std::vector<std::uint8_t> figure_png(std::string_view, std::string_view, std::optional<double>, int, int,
                                      const std::string&) {

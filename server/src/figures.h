@@ -1,5 +1,5 @@
 // Figures of a finished job, drawn by render/ from its trajectory (the same figures as
-// `moreau run --figure`).
+// `moreau run --figure`), and of a finished study, from its table.
 #pragma once
 
 #include <cstdint>
@@ -20,5 +20,9 @@ bool is_figure_kind(std::string_view kind);
 // with a clear message.
 std::vector<std::uint8_t> figure_png(std::string_view kind, std::string_view csv, std::optional<double> converged_time,
                                      int width, int height, const std::string& title);
+
+// The PNG of a study's "work" or "order" figure, from its stored result.json (as `moreau study --work` /
+// `--order` draw them). Throws std::runtime_error or std::invalid_argument with a clear message.
+std::vector<std::uint8_t> study_figure_png(std::string_view kind, const std::string& result_json, int width, int height);
 
 }  // namespace moreau::server

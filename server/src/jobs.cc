@@ -58,33 +58,49 @@ bool is_final(JobState s) { return s == JobState::kDone || s == JobState::kFaile
 
 json job_json(const Job& job, const json* report) {
   std::unique_lock lock(job.mu);
+  const bool study = job.kind == JobKind::kStudy;
   json j;
   j["id"] = job.id;
-  j["url"] = "/v1/jobs/" + job.id;
+  j["kind"] = study ? "study" : "run";
+  j["url"] = (study ? "/v1/studies/" : "/v1/jobs/") + job.id;
   j["scene"] = job.scene_name;
   j["state"] = to_string(job.state);
   if (!job.reason.empty()) j["reason"] = job.reason;
   j["created"] = job.created;
   j["started"] = job.started > 0 ? json(job.started) : json(nullptr);
   j["finished"] = job.finished > 0 ? json(job.finished) : json(nullptr);
-  double t = job.t_now.load();
-  std::int64_t step = job.step_now.load();
-  if (job.state == JobState::kQueued) t = job.t0;
-  if (job.state == JobState::kDone) t = job.t_end;
-  if (report && report->contains("t_final") && (*report)["t_final"].is_number()) t = (*report)["t_final"].get<double>();
-  if (report && report->contains("steps") && (*report)["steps"].is_number()) step = (*report)["steps"].get<std::int64_t>();
-  const double span = job.t_end - job.t0;
-  j["progress"] = {{"t", finite_or_null(t)},
-                   {"t0", job.t0},
-                   {"t_end", job.t_end},
-                   {"step", step},
-                   {"planned_steps", job.planned_steps},
-                   {"fraction", span > 0 ? finite_or_null(std::clamp((t - job.t0) / span, 0.0, 1.0)) : json(0.0)}};
-  json links = {{"events", j["url"].get<std::string>() + "/events"}};
-  if (job.has_report) links["report"] = j["url"].get<std::string>() + "/report";
-  if (job.has_trajectory) {
-    links["trajectory"] = j["url"].get<std::string>() + "/trajectory";
-    links["figure"] = j["url"].get<std::string>() + "/figure?kind=state";
+  const std::string url = j["url"];
+  json links = {{"events", url + "/events"}};
+  if (study) {
+    const std::int64_t done = job.state == JobState::kDone ? job.rows_total : job.rows_done.load();
+    j["progress"] = {{"rows", done},
+                     {"rows_total", job.rows_total},
+                     {"fraction", job.rows_total > 0 ? static_cast<double>(done) / static_cast<double>(job.rows_total) : 0.0}};
+    if (job.has_report) {
+      links["table"] = url + "/table";
+      links["csv"] = url + "/table?format=csv";
+      links["work_figure"] = url + "/figure?kind=work";
+      links["order_figure"] = url + "/figure?kind=order";
+    }
+  } else {
+    double t = job.t_now.load();
+    std::int64_t step = job.step_now.load();
+    if (job.state == JobState::kQueued) t = job.t0;
+    if (job.state == JobState::kDone) t = job.t_end;
+    if (report && report->contains("t_final") && (*report)["t_final"].is_number()) t = (*report)["t_final"].get<double>();
+    if (report && report->contains("steps") && (*report)["steps"].is_number()) step = (*report)["steps"].get<std::int64_t>();
+    const double span = job.t_end - job.t0;
+    j["progress"] = {{"t", finite_or_null(t)},
+                     {"t0", job.t0},
+                     {"t_end", job.t_end},
+                     {"step", step},
+                     {"planned_steps", job.planned_steps},
+                     {"fraction", span > 0 ? finite_or_null(std::clamp((t - job.t0) / span, 0.0, 1.0)) : json(0.0)}};
+    if (job.has_report) links["report"] = url + "/report";
+    if (job.has_trajectory) {
+      links["trajectory"] = url + "/trajectory";
+      links["figure"] = url + "/figure?kind=state";
+    }
   }
   j["links"] = links;
   if (job.stream.enabled) {
@@ -94,7 +110,7 @@ json job_json(const Job& job, const json* report) {
                    {"realtime", job.stream.realtime}};
   }
   lock.unlock();
-  if (report) j["report"] = *report;
+  if (report) j[study ? "result" : "report"] = *report;
   return j;
 }
 
@@ -125,6 +141,7 @@ void JobManager::write_record(const Job& job) const {
   {
     std::lock_guard lock(job.mu);
     r = {{"id", job.id},
+         {"kind", job.kind == JobKind::kStudy ? "study" : "run"},
          {"scene", job.scene_name},
          {"state", to_string(job.state)},
          {"created", job.created},
@@ -133,6 +150,7 @@ void JobManager::write_record(const Job& job) const {
          {"t0", job.t0},
          {"t_end", job.t_end},
          {"planned_steps", job.planned_steps}};
+    if (job.kind == JobKind::kStudy) r["rows_total"] = job.rows_total;
     if (!job.reason.empty()) r["reason"] = job.reason;
     if (job.stream.enabled) {
       r["stream"] = {{"prefix", job.stream.prefix}, {"period", job.stream.period}, {"realtime", job.stream.realtime}};
@@ -166,6 +184,8 @@ void JobManager::recover() {
       std::cerr << "moreau-server: skipping " << job->dir << ": no readable job.json\n";
       continue;
     }
+    job->kind = record.value("kind", "run") == "study" ? JobKind::kStudy : JobKind::kRun;
+    job->rows_total = record.value("rows_total", std::int64_t{0});
     job->scene_name = record.value("scene", "");
     job->created = record.value("created", 0.0);
     job->started = record.value("started", 0.0);
@@ -181,12 +201,17 @@ void JobManager::recover() {
       job->stream.realtime = record["stream"].value("realtime", false);
       set_channels(job->stream, job->id);
     }
-    job->has_report = fs::exists(job->dir / "report.json", ec);
-    job->has_trajectory = fs::exists(job->dir / "trajectory.csv", ec);
+    const bool study = job->kind == JobKind::kStudy;
+    job->has_report = fs::exists(job->dir / (study ? "result.json" : "report.json"), ec);
+    job->has_trajectory = fs::exists(job->dir / (study ? "table.csv" : "trajectory.csv"), ec);
     const std::optional<JobState> recorded = parse_state(record.value("state", ""));
     bool rewrite = false;
     if (recorded && is_final(*recorded)) {
       job->state = *recorded;
+    } else if (job->has_report && study) {
+      // The study's result was committed (only completed studies write one), the record not updated.
+      job->state = JobState::kDone;
+      rewrite = true;
     } else if (job->has_report) {
       // The run ended and its report was committed, but the record was not updated.
       json report = json::parse(read_file(job->dir / "report.json").value_or(""), nullptr, false);
@@ -203,6 +228,7 @@ void JobManager::recover() {
     if (rewrite) write_record(*job);
     job->t_now = job->state == JobState::kDone ? job->t_end : job->t0;
     if (job->state == JobState::kDone) job->step_now = job->planned_steps;
+    if (job->state == JobState::kDone) job->rows_done = job->rows_total;
     found.push_back(std::move(job));
   }
   std::sort(found.begin(), found.end(), [](const auto& a, const auto& b) {
@@ -234,6 +260,7 @@ void JobManager::stop() {
   queue_cv_.notify_all();
   for (auto& job : queued) {
     job->sim.reset();
+    job->study_scene.reset();
     set_state(*job, JobState::kFailed, kReasonStoppedQueued);
   }
   auto wake = [](Job& job) {
@@ -260,7 +287,8 @@ void JobManager::stop() {
   for (auto& job : all) wake(*job);
 }
 
-JobManager::Submit JobManager::submit(const std::shared_ptr<Job>& job, const json& scene_doc, int* retry_after) {
+JobManager::Submit JobManager::submit(const std::shared_ptr<Job>& job, const json& scene_doc, int* retry_after,
+                                      const json* study_doc) {
   {
     std::lock_guard lock(mu_);
     if (stopping_) return Submit::kStopping;
@@ -275,6 +303,7 @@ JobManager::Submit JobManager::submit(const std::shared_ptr<Job>& job, const jso
   }
   fs::create_directories(job->dir);
   write_file_atomic(job->dir / "scene.json", scene_doc.dump(2) + "\n", Durability::kRename);
+  if (study_doc) write_file_atomic(job->dir / "study.json", study_doc->dump(2) + "\n", Durability::kRename);
   write_record(*job);
   push_event(*job, "state", {{"id", job->id}, {"state", "queued"}});
   {
@@ -345,6 +374,7 @@ JobManager::Cancel JobManager::cancel(const std::shared_ptr<Job>& job, std::chro
   }
   if (was_queued) {
     job->sim.reset();
+    job->study_scene.reset();
     set_state(*job, JobState::kCancelled, "cancelled before it ran");
     return Cancel::kCancelled;
   }
@@ -393,6 +423,7 @@ void JobManager::worker_loop() {
       // (A stream opened by run() is closed when its Commit, never queued, is destroyed.)
       std::cerr << "moreau-server: job " << job->id << " failed: " << e.what() << "\n";
       job->sim.reset();
+      job->study_scene.reset();
       set_state(*job, JobState::kFailed, std::string("internal error: ") + e.what());
     }
     --busy_;
@@ -403,16 +434,19 @@ void JobManager::run(const std::shared_ptr<Job>& job) {
   const auto wall_start = Clock::now();
   if (job->cancel) {
     job->sim.reset();
+    job->study_scene.reset();
     if (job->shutdown) set_state(*job, JobState::kFailed, kReasonStoppedQueued);
     else set_state(*job, JobState::kCancelled, "cancelled before it ran");
     return;
   }
   set_state(*job, JobState::kRunning, "");
-  const scene::Simulation& sim = *job->sim;
-
   auto commit = std::make_unique<Commit>();
   commit->job = job;
   commit->wall_start = wall_start;
+  if (job->kind == JobKind::kStudy) return run_study(job, std::move(commit));
+  commit->files = {"trajectory.csv", "report.json"};
+  const scene::Simulation& sim = *job->sim;
+
   std::optional<StreamObserver> stream_observer;
   if (job->stream.enabled) {
     commit->stream = std::make_shared<JobStream>(job->id, job->stream, sim.dof());
@@ -471,11 +505,45 @@ void JobManager::run(const std::shared_ptr<Job>& job) {
     if (name == "integrate") commit->integrate_seconds = s;
   job->sim.reset();
   commit->summary = std::move(summary);
+  enqueue_commit(std::move(commit));
+}
+
+void JobManager::enqueue_commit(std::unique_ptr<Commit> commit) {
   {
     std::lock_guard lock(commit_mu_);
     commits_.push_back(std::move(commit));
   }
   commit_cv_.notify_one();
+}
+
+void JobManager::run_study(const std::shared_ptr<Job>& job, std::unique_ptr<Commit> commit) {
+  scene::StudySettings st = job->study;
+  st.cancel = &job->cancel;
+  st.on_row = [this, &job](std::size_t done, std::size_t total) {
+    job->rows_done = static_cast<std::int64_t>(done);
+    push_event(*job, "progress", {{"rows", done}, {"rows_total", total}});
+  };
+  const scene::LagrangianScene& sc = *job->study_scene;
+  std::optional<scene::StudyResult> result;
+  try {
+    result = scene::run_study(sc, st);
+  } catch (const scene::StudyCancelled&) {
+    commit->state = job->shutdown ? JobState::kFailed : JobState::kCancelled;
+    commit->reason = job->shutdown ? kReasonStoppedRunning : "cancelled by request";
+  } catch (const scene::SceneError& e) {
+    commit->state = JobState::kFailed;
+    commit->reason = e.what();
+  }
+  job->study_scene.reset();
+  if (result) {
+    // The table's steps count every run of the study.
+    for (const auto& row : result->rows) commit->summary.steps += row.steps;
+    write_file(job->dir / "table.csv.tmp", result->to_csv());
+    write_file(job->dir / "result.json.tmp", result->to_json().dump(2) + "\n");
+    commit->files = {"table.csv", "result.json"};
+    commit->state = JobState::kDone;
+  }
+  enqueue_commit(std::move(commit));
 }
 
 void JobManager::committer_loop() {
@@ -501,15 +569,16 @@ void JobManager::committer_loop() {
 void JobManager::commit(Commit& c) {
   Job& job = *c.job;
   const RunSummary& summary = c.summary;
-  // The trajectory first, then the report, which commits the job: each fsync'ed before its rename.
-  for (const char* name : {"trajectory.csv", "report.json"}) {
+  // The trajectory (or table) first, then the report (or result), which commits the job: each fsync'ed
+  // before its rename.
+  for (const char* name : c.files) {
     const fs::path target = job.dir / name;
     fs::path tmp = target;
     tmp += ".tmp";
     fsync_path(tmp);
     fs::rename(tmp, target);
   }
-  {
+  if (!c.files.empty()) {
     std::lock_guard lock(job.mu);
     job.has_report = true;
     job.has_trajectory = true;

@@ -6,6 +6,13 @@
 //   DATA/jobs/<id>/report.json     the report (as `moreau run --json` prints it)
 //   DATA/jobs/<id>/figure-<kind>.png  figures, drawn on first request
 //
+// A study (POST /v1/studies) is a job of kind "study" in the same place, with
+//
+//   DATA/jobs/<id>/study.json      the study settings
+//   DATA/jobs/<id>/table.csv       the table (as `moreau study --csv` writes it)
+//   DATA/jobs/<id>/result.json     the table, orders and reference (as `moreau study --json` prints it)
+//   DATA/jobs/<id>/figure-work.png, figure-order.png  drawn on first request
+//
 // trajectory.csv and report.json are written to temporary files when the run ends; an I/O thread then
 // fsyncs and renames them (report.json last: it commits the job) and only then marks the job final, so
 // "done" means stored. job.json is replaced (atomically) at each state change.
@@ -29,11 +36,13 @@
 
 #include "lcm_stream.h"
 #include "moreau/scene/simulation.h"
+#include "moreau/scene/study.h"
 #include "moreau/server/server.h"
 
 namespace moreau::server {
 
 enum class JobState { kQueued, kRunning, kDone, kFailed, kCancelled };
+enum class JobKind { kRun, kStudy };
 const char* to_string(JobState s);
 bool is_final(JobState s);
 
@@ -46,6 +55,7 @@ struct SseEvent {
 
 struct Job {
   // Fixed when the job is created.
+  JobKind kind = JobKind::kRun;
   std::string id;
   std::filesystem::path dir;
   std::string scene_name;
@@ -58,6 +68,11 @@ struct Job {
   std::optional<scene::Simulation> sim;
   std::int64_t record_every = 1;  // trajectory decimation: the scene's /output/every
   double load_seconds = 0;        // validation and compilation at submission
+  // Studies: the compiled scene and the settings, and the rows of the table done so far.
+  std::optional<scene::LagrangianScene> study_scene;
+  scene::StudySettings study;
+  std::int64_t rows_total = 0;
+  std::atomic<std::int64_t> rows_done{0};
 
   std::atomic<bool> cancel{false};    // the run stops at its next check (within 4096 steps)
   std::atomic<bool> shutdown{false};  // ... because the server is stopping
@@ -69,7 +84,7 @@ struct Job {
   JobState state = JobState::kQueued;
   std::string reason;  // why it failed or was cancelled
   double started = 0, finished = 0;
-  bool has_report = false, has_trajectory = false;
+  bool has_report = false, has_trajectory = false;  // a study: result.json, table.csv
   std::deque<SseEvent> events;
   std::uint64_t next_event_id = 1;
 };
@@ -100,9 +115,10 @@ class JobManager {
   std::shared_ptr<Job> make_job() const;
 
   enum class Submit { kQueued, kQueueFull, kStopping };
-  // Writes the job's records (scene.json, job.json) and queues it. On kQueueFull, *retry_after is a
+  // Writes the job's records (scene.json, job.json; study.json for a study) and queues it. On kQueueFull, *retry_after is a
   // suggested wait in seconds.
-  Submit submit(const std::shared_ptr<Job>& job, const nlohmann::json& scene_doc, int* retry_after);
+  Submit submit(const std::shared_ptr<Job>& job, const nlohmann::json& scene_doc, int* retry_after,
+                const nlohmann::json* study_doc = nullptr);
 
   std::shared_ptr<Job> find(const std::string& id) const;
   std::vector<std::shared_ptr<Job>> list() const;
@@ -124,6 +140,7 @@ class JobManager {
   struct Commit {
     std::shared_ptr<Job> job;
     std::shared_ptr<JobStream> stream;
+    std::vector<const char*> files;  // renamed from NAME.tmp in this order; the last one commits the job
     RunSummary summary;
     JobState state = JobState::kDone;
     std::string reason;
@@ -136,6 +153,8 @@ class JobManager {
 
   void worker_loop();
   void run(const std::shared_ptr<Job>& job);
+  void run_study(const std::shared_ptr<Job>& job, std::unique_ptr<Commit> commit);
+  void enqueue_commit(std::unique_ptr<Commit> commit);
   void committer_loop();
   void commit(Commit& c);
   // Changes the state (and reason), records it in job.json and tells the event streams.
@@ -170,7 +189,8 @@ class JobManager {
   std::deque<std::pair<std::chrono::steady_clock::time_point, std::int64_t>> recent_steps_;
 };
 
-// The job as GET /v1/jobs/{id} shows it (with the report when `report` is given).
+// The job as GET /v1/jobs/{id} shows it (with the report when `report` is given); a study as
+// GET /v1/studies/{id} shows it (with its result as "result").
 nlohmann::json job_json(const Job& job, const nlohmann::json* report);
 
 double unix_now();

@@ -175,10 +175,16 @@ class Server::Impl {
  private:
   void setup_routes();
   void post_job(const Request& req, Response& res);
-  void get_job(const Request& req, Response& res);
-  void list_jobs(const Request& req, Response& res);
-  void delete_job(const Request& req, Response& res);
-  void job_events(const Request& req, Response& res);
+  void post_study(const Request& req, Response& res);
+  void get_job(const Request& req, Response& res, JobKind kind);
+  void list_jobs(const Request& req, Response& res, JobKind kind);
+  void delete_job(const Request& req, Response& res, JobKind kind);
+  void job_events(const Request& req, Response& res, JobKind kind);
+  void study_table(const Request& req, Response& res);
+  void study_figure(const Request& req, Response& res);
+  // The scene document of a request body: "scene" (an object, or the name of a shipped scene) with
+  // "overrides" applied. Throws BadRequest or scene::SceneError.
+  json request_scene(const json& body) const;
   void job_report(const Request& req, Response& res);
   void job_trajectory(const Request& req, Response& res);
   void job_figure(const Request& req, Response& res);
@@ -186,12 +192,18 @@ class Server::Impl {
   void get_scene(const Request& req, Response& res);
   void metrics(const Request& req, Response& res);
 
-  // The job named by the first capture, or nullptr after answering 404. The id is checked against
-  // [0-9a-f]{32} and looked up in memory: request data never reaches a path.
-  std::shared_ptr<Job> job_for(const Request& req, Response& res) {
+  // The job (or study) named by the first capture, or nullptr after answering 404. The id is checked
+  // against [0-9a-f]{32} and looked up in memory: request data never reaches a path.
+  std::shared_ptr<Job> job_for(const Request& req, Response& res, JobKind kind = JobKind::kRun) {
     const std::string id = req.matches.size() > 1 ? req.matches[1].str() : std::string();
     std::shared_ptr<Job> job = is_job_id(id) ? jobs_.find(id) : nullptr;
-    if (!job) send_error(res, 404, "no such job", "", "job ids are 32 lowercase hex digits, as POST /v1/jobs returns them");
+    if (job && job->kind != kind) job = nullptr;
+    if (!job) {
+      if (kind == JobKind::kStudy)
+        send_error(res, 404, "no such study", "", "study ids are 32 lowercase hex digits, as POST /v1/studies returns them");
+      else
+        send_error(res, 404, "no such job", "", "job ids are 32 lowercase hex digits, as POST /v1/jobs returns them");
+    }
     return job;
   }
   // The job's state, report presence and trajectory presence, under its lock.
@@ -199,6 +211,7 @@ class Server::Impl {
     std::lock_guard lock(job.mu);
     return job.state;
   }
+  // The committed report of a run (report.json) or result of a study (result.json).
   std::optional<json> read_report(const Job& job) {
     bool has = false;
     {
@@ -206,7 +219,7 @@ class Server::Impl {
       has = job.has_report && is_final(job.state);
     }
     if (!has) return std::nullopt;
-    auto text = read_file(job.dir / "report.json");
+    auto text = read_file(job.dir / (job.kind == JobKind::kStudy ? "result.json" : "report.json"));
     if (!text) return std::nullopt;
     json j = json::parse(*text, nullptr, false);
     if (j.is_discarded()) return std::nullopt;
@@ -296,22 +309,31 @@ void Server::Impl::setup_routes() {
   http_.Get("/v1/scenes", [this](const Request& req, Response& res) { list_scenes(req, res); });
   http_.Get(R"(/v1/scenes/([^/]+))", [this](const Request& req, Response& res) { get_scene(req, res); });
   http_.Post("/v1/jobs", [this](const Request& req, Response& res) { post_job(req, res); });
-  http_.Get("/v1/jobs", [this](const Request& req, Response& res) { list_jobs(req, res); });
-  http_.Get(R"(/v1/jobs/([^/]+))", [this](const Request& req, Response& res) { get_job(req, res); });
-  http_.Delete(R"(/v1/jobs/([^/]+))", [this](const Request& req, Response& res) { delete_job(req, res); });
-  http_.Get(R"(/v1/jobs/([^/]+)/events)", [this](const Request& req, Response& res) { job_events(req, res); });
+  http_.Get("/v1/jobs", [this](const Request& req, Response& res) { list_jobs(req, res, JobKind::kRun); });
+  http_.Get(R"(/v1/jobs/([^/]+))", [this](const Request& req, Response& res) { get_job(req, res, JobKind::kRun); });
+  http_.Delete(R"(/v1/jobs/([^/]+))", [this](const Request& req, Response& res) { delete_job(req, res, JobKind::kRun); });
+  http_.Get(R"(/v1/jobs/([^/]+)/events)", [this](const Request& req, Response& res) { job_events(req, res, JobKind::kRun); });
   http_.Get(R"(/v1/jobs/([^/]+)/report)", [this](const Request& req, Response& res) { job_report(req, res); });
   http_.Get(R"(/v1/jobs/([^/]+)/trajectory)", [this](const Request& req, Response& res) { job_trajectory(req, res); });
   http_.Get(R"(/v1/jobs/([^/]+)/figure)", [this](const Request& req, Response& res) { job_figure(req, res); });
+  http_.Post("/v1/studies", [this](const Request& req, Response& res) { post_study(req, res); });
+  http_.Get("/v1/studies", [this](const Request& req, Response& res) { list_jobs(req, res, JobKind::kStudy); });
+  http_.Get(R"(/v1/studies/([^/]+))", [this](const Request& req, Response& res) { get_job(req, res, JobKind::kStudy); });
+  http_.Delete(R"(/v1/studies/([^/]+))", [this](const Request& req, Response& res) { delete_job(req, res, JobKind::kStudy); });
+  http_.Get(R"(/v1/studies/([^/]+)/events)", [this](const Request& req, Response& res) { job_events(req, res, JobKind::kStudy); });
+  http_.Get(R"(/v1/studies/([^/]+)/table)", [this](const Request& req, Response& res) { study_table(req, res); });
+  http_.Get(R"(/v1/studies/([^/]+)/figure)", [this](const Request& req, Response& res) { study_figure(req, res); });
 }
 
-void Server::Impl::post_job(const Request& req, Response& res) {
-  const auto t_load = Clock::now();
-  const std::string content_type = lower(trim(req.get_header_value("Content-Type").substr(0, req.get_header_value("Content-Type").find(';'))));
-  if (content_type != "application/json") {
-    return send_error(res, 415, "unsupported content type", "",
-                      "POST /v1/jobs takes application/json, got '" + req.get_header_value("Content-Type") + "'");
-  }
+namespace {
+
+// The JSON object body of a POST: checks the content type (415) and the syntax (400), and that it is an
+// object whose fields are among `fields` (given as "scene, overrides?, stream?"), with "scene".
+json post_body(const Request& req, const char* endpoint, const std::vector<std::string>& fields, const std::string& shape) {
+  const std::string type_header = req.get_header_value("Content-Type");
+  const std::string content_type = lower(trim(type_header.substr(0, type_header.find(';'))));
+  if (content_type != "application/json")
+    throw BadRequest{415, "unsupported content type", "", std::string(endpoint) + " takes application/json, got '" + type_header + "'", ""};
   json body = json::parse(req.body, nullptr, false);
   if (body.is_discarded()) {
     std::string why = "the body is not valid JSON";
@@ -320,45 +342,59 @@ void Server::Impl::post_job(const Request& req, Response& res) {
     } catch (const json::parse_error& e) {
       why = e.what();
     }
-    return send_error(res, 400, "malformed JSON", "", why, "request");
+    throw BadRequest{400, "malformed JSON", "", why, "request"};
   }
-  try {
-    if (!body.is_object()) throw BadRequest{400, "invalid request", "", "the body must be an object {scene, overrides?, stream?}", "request"};
-    for (const auto& [key, value] : body.items()) {
-      if (key != "scene" && key != "overrides" && key != "stream")
-        throw BadRequest{400, "invalid request", "/" + key, "unknown field (expected scene, overrides, stream)", "request"};
-    }
-    if (!body.contains("scene")) throw BadRequest{400, "invalid request", "/scene", "missing required field 'scene'", "request"};
+  if (!body.is_object()) throw BadRequest{400, "invalid request", "", "the body must be an object " + shape, "request"};
+  std::string expected;
+  for (const auto& f : fields) expected += (expected.empty() ? "" : ", ") + f;
+  for (const auto& [key, value] : body.items()) {
+    if (std::find(fields.begin(), fields.end(), key) == fields.end())
+      throw BadRequest{400, "invalid request", "/" + key, "unknown field (expected " + expected + ")", "request"};
+  }
+  if (!body.contains("scene")) throw BadRequest{400, "invalid request", "/scene", "missing required field 'scene'", "request"};
+  return body;
+}
 
-    // The scene: a document, or the name of a shipped scene.
-    json doc;
-    const json& scene = body["scene"];
-    if (scene.is_object()) {
-      doc = scene;
-    } else if (scene.is_string()) {
-      const auto files = scene_files();
-      auto it = files.find(scene.get<std::string>());
-      if (it == files.end()) throw BadRequest{400, "invalid request", "/scene", "no shipped scene by that name (GET /v1/scenes lists them)", "request"};
-      doc = scene::read_scene_file(it->second.string());
-    } else {
-      throw BadRequest{400, "invalid request", "/scene", "expected a scene object or the name of a shipped scene", "request"};
-    }
+}  // namespace
 
-    // Overrides, as `moreau run --set`: ["integrator.h=1e-4", ...] or {"integrator.h": 1e-4, ...}.
-    if (body.contains("overrides")) {
-      const json& o = body["overrides"];
-      if (o.is_array()) {
-        for (std::size_t i = 0; i < o.size(); ++i) {
-          if (!o[i].is_string())
-            throw BadRequest{400, "invalid request", "/overrides/" + std::to_string(i), "expected a string PATH=VALUE", "request"};
-          scene::apply_override(doc, o[i].get<std::string>());
-        }
-      } else if (o.is_object()) {
-        for (const auto& [path, value] : o.items()) scene::apply_override(doc, path + "=" + value.dump());
-      } else {
-        throw BadRequest{400, "invalid request", "/overrides", "expected an array of \"PATH=VALUE\" or an object {PATH: VALUE}", "request"};
+json Server::Impl::request_scene(const json& body) const {
+  // The scene: a document, or the name of a shipped scene.
+  json doc;
+  const json& scene = body["scene"];
+  if (scene.is_object()) {
+    doc = scene;
+  } else if (scene.is_string()) {
+    const auto files = scene_files();
+    auto it = files.find(scene.get<std::string>());
+    if (it == files.end()) throw BadRequest{400, "invalid request", "/scene", "no shipped scene by that name (GET /v1/scenes lists them)", "request"};
+    doc = scene::read_scene_file(it->second.string());
+  } else {
+    throw BadRequest{400, "invalid request", "/scene", "expected a scene object or the name of a shipped scene", "request"};
+  }
+
+  // Overrides, as `moreau run --set`: ["integrator.h=1e-4", ...] or {"integrator.h": 1e-4, ...}.
+  if (body.contains("overrides")) {
+    const json& o = body["overrides"];
+    if (o.is_array()) {
+      for (std::size_t i = 0; i < o.size(); ++i) {
+        if (!o[i].is_string())
+          throw BadRequest{400, "invalid request", "/overrides/" + std::to_string(i), "expected a string PATH=VALUE", "request"};
+        scene::apply_override(doc, o[i].get<std::string>());
       }
+    } else if (o.is_object()) {
+      for (const auto& [path, value] : o.items()) scene::apply_override(doc, path + "=" + value.dump());
+    } else {
+      throw BadRequest{400, "invalid request", "/overrides", "expected an array of \"PATH=VALUE\" or an object {PATH: VALUE}", "request"};
     }
+  }
+  return doc;
+}
+
+void Server::Impl::post_job(const Request& req, Response& res) {
+  const auto t_load = Clock::now();
+  try {
+    const json body = post_body(req, "POST /v1/jobs", {"scene", "overrides", "stream"}, "{scene, overrides?, stream?}");
+    json doc = request_scene(body);
 
     // Streaming: true, or {"channel": PREFIX, "period": seconds, "realtime": bool}.
     StreamSettings stream;
@@ -471,8 +507,76 @@ void Server::Impl::post_job(const Request& req, Response& res) {
   }
 }
 
-void Server::Impl::get_job(const Request& req, Response& res) {
-  auto job = job_for(req, res);
+void Server::Impl::post_study(const Request& req, Response& res) {
+  const auto t_load = Clock::now();
+  try {
+    const json body = post_body(req, "POST /v1/studies", {"scene", "overrides", "study"}, "{scene, overrides?, study?}");
+    const json doc = request_scene(body);
+    // A Lur'e scene is refused here at /system/type, a constrained one by the check below.
+    scene::LagrangianScene sc = scene::load_scene(doc);
+    scene::StudySettings st;
+    try {
+      st = scene::study_settings_from_json(body.contains("study") ? body["study"] : json(), "/study");
+    } catch (const scene::SceneError& e) {
+      throw BadRequest{400, "invalid request", e.pointer(), e.reason(), "request"};
+    }
+    if (!sc.constraint_names.empty()) {
+      throw BadRequest{400, "invalid scene", "/system/constraints",
+                       "studies compare abl, explicit and regularized, which do not integrate unilateral constraints", "scene"};
+    }
+    const std::int64_t planned = scene::study_planned_steps(sc, st);
+    if (planned > cfg_.max_steps) {
+      throw BadRequest{400, "invalid request", "/study/h",
+                       "this study takes about " + std::to_string(planned) + " integration steps over all its runs (" +
+                           std::to_string(st.schemes.size()) + " schemes, " + std::to_string(st.h.size()) +
+                           " step sizes, 1 + " + std::to_string(st.repeats) +
+                           " runs each); this server runs at most " + std::to_string(cfg_.max_steps) +
+                           " steps per job: use larger step sizes, fewer schemes or fewer repeats",
+                       "request"};
+    }
+    // Adaptive step rules may take more steps than planned: each run gets this server's limit.
+    sc.settings.max_steps = std::min<std::int64_t>(sc.settings.max_steps, cfg_.max_steps);
+
+    json settings = {{"h", st.h},
+                     {"schemes", st.schemes},
+                     {"epsilon", st.epsilon},
+                     {"regularization", st.regularization},
+                     {"eval_points", st.eval_points},
+                     {"repeats", st.repeats}};
+    if (st.reference_h) settings["reference_h"] = *st.reference_h;
+
+    auto job = jobs_.make_job();
+    job->kind = JobKind::kStudy;
+    job->scene_name = sc.name.empty() ? "scene" : sc.name;
+    job->t0 = sc.settings.t0;
+    job->t_end = sc.settings.t_end;
+    job->planned_steps = planned;
+    job->rows_total = static_cast<std::int64_t>(st.schemes.size() * st.h.size());
+    job->study = std::move(st);
+    job->study_scene.emplace(std::move(sc));
+    job->load_seconds = std::chrono::duration<double>(Clock::now() - t_load).count();
+
+    int retry_after = 1;
+    switch (jobs_.submit(job, doc, &retry_after, &settings)) {
+      case JobManager::Submit::kQueued: break;
+      case JobManager::Submit::kQueueFull:
+        res.set_header("Retry-After", std::to_string(retry_after));
+        return send_error(res, 429, "queue full", "",
+                          "the server holds " + std::to_string(cfg_.queue) + " queued jobs at most; retry in " +
+                              std::to_string(retry_after) + " s");
+      case JobManager::Submit::kStopping: return send_error(res, 503, "server stopping");
+    }
+    res.set_header("Location", "/v1/studies/" + job->id);
+    send_json(res, 202, job_json(*job, nullptr));
+  } catch (const BadRequest& e) {
+    send_error(res, e.status, e.error, e.pointer, e.reason, e.where);
+  } catch (const scene::SceneError& e) {
+    send_error(res, 400, "invalid scene", e.pointer(), e.reason(), "scene");
+  }
+}
+
+void Server::Impl::get_job(const Request& req, Response& res, JobKind kind) {
+  auto job = job_for(req, res, kind);
   if (!job) return;
   std::optional<double> wait;
   try {
@@ -485,7 +589,7 @@ void Server::Impl::get_job(const Request& req, Response& res) {
   send_json(res, 200, job_json(*job, report ? &*report : nullptr));
 }
 
-void Server::Impl::list_jobs(const Request& req, Response& res) {
+void Server::Impl::list_jobs(const Request& req, Response& res, JobKind kind) {
   std::string state = req.has_param("state") ? req.get_param_value("state") : "";
   if (!state.empty() && state != "queued" && state != "running" && state != "done" && state != "failed" && state != "cancelled")
     return send_error(res, 400, "bad query", "", "state must be queued, running, done, failed or cancelled");
@@ -498,26 +602,32 @@ void Server::Impl::list_jobs(const Request& req, Response& res) {
   json list = json::array();
   const auto all = jobs_.list();
   std::vector<std::shared_ptr<Job>> picked;
-  for (const auto& job : all)
+  std::size_t total = 0;
+  for (const auto& job : all) {
+    if (job->kind != kind) continue;
+    ++total;
     if (state.empty() || to_string(state_of(*job)) == state) picked.push_back(job);
+  }
   std::size_t from = 0;
   if (limit && picked.size() > static_cast<std::size_t>(*limit)) from = picked.size() - static_cast<std::size_t>(*limit);
   for (std::size_t i = from; i < picked.size(); ++i) list.push_back(job_json(*picked[i], nullptr));
-  send_json(res, 200, {{"jobs", list}, {"count", list.size()}, {"total", all.size()}});
+  send_json(res, 200, {{kind == JobKind::kStudy ? "studies" : "jobs", list}, {"count", list.size()}, {"total", total}});
 }
 
-void Server::Impl::delete_job(const Request& req, Response& res) {
-  auto job = job_for(req, res);
+void Server::Impl::delete_job(const Request& req, Response& res, JobKind kind) {
+  auto job = job_for(req, res, kind);
   if (!job) return;
   const auto outcome = jobs_.cancel(job, std::chrono::milliseconds(5000));
   if (outcome == JobManager::Cancel::kAlreadyFinished) {
-    return send_error(res, 409, "job already finished", "", std::string("the job is ") + to_string(state_of(*job)));
+    const char* what = kind == JobKind::kStudy ? "study" : "job";
+    return send_error(res, 409, std::string(what) + " already finished", "",
+                      std::string("the ") + what + " is " + to_string(state_of(*job)));
   }
   send_json(res, 200, job_json(*job, nullptr));
 }
 
-void Server::Impl::job_events(const Request& req, Response& res) {
-  auto job = job_for(req, res);
+void Server::Impl::job_events(const Request& req, Response& res, JobKind kind) {
+  auto job = job_for(req, res, kind);
   if (!job) return;
   auto last = std::make_shared<std::uint64_t>(0);
   if (req.has_header("Last-Event-ID")) {
@@ -631,6 +741,78 @@ void Server::Impl::job_figure(const Request& req, Response& res) {
   std::vector<std::uint8_t> png;
   try {
     png = figure_png(kind, *csv, converged, width, height, job->scene_name + " (" + job->id.substr(0, 8) + ")");
+  } catch (const std::exception& e) {
+    return send_error(res, 422, "cannot draw this figure", "", e.what());
+  }
+  std::string bytes(png.begin(), png.end());
+  if (default_size) {
+    try {
+      write_file_atomic(cache, bytes, Durability::kFsync);
+    } catch (const std::exception& e) {
+      std::cerr << "moreau-server: " << e.what() << "\n";
+    }
+  }
+  res.status = 200;
+  res.set_content(std::move(bytes), "image/png");
+}
+
+void Server::Impl::study_table(const Request& req, Response& res) {
+  auto job = job_for(req, res, JobKind::kStudy);
+  if (!job) return;
+  const std::string format = req.has_param("format") ? req.get_param_value("format") : "json";
+  if (format != "json" && format != "csv") return send_error(res, 400, "bad query", "", "format must be json or csv");
+  bool has = false;
+  {
+    std::lock_guard lock(job->mu);
+    has = job->has_report && is_final(job->state);
+  }
+  auto text = has ? read_file(job->dir / (format == "csv" ? "table.csv" : "result.json")) : std::nullopt;
+  if (!text) {
+    return send_error(res, 409, "no table yet", "",
+                      std::string("the study is ") + to_string(state_of(*job)) + "; the table is served once it is done");
+  }
+  res.status = 200;
+  if (format == "csv") res.set_header("Content-Disposition", "attachment; filename=\"study-" + job->id + ".csv\"");
+  res.set_content(std::move(*text), format == "csv" ? "text/csv" : "application/json");
+}
+
+void Server::Impl::study_figure(const Request& req, Response& res) {
+  auto job = job_for(req, res, JobKind::kStudy);
+  if (!job) return;
+  const std::string kind = req.has_param("kind") ? req.get_param_value("kind") : "work";
+  if (kind != "work" && kind != "order") return send_error(res, 400, "bad query", "", "kind must be work or order");
+  if (!figures_available()) {
+    return send_error(res, 501, "figures not available", "", "this server was built without render/ (no OSMesa)");
+  }
+  int width = kDefaultFigureWidth, height = kDefaultFigureHeight;
+  try {
+    if (auto w = number_param(req, "width", 64, 4096)) width = static_cast<int>(*w);
+    if (auto h = number_param(req, "height", 64, 4096)) height = static_cast<int>(*h);
+  } catch (const std::exception& e) {
+    return send_error(res, 400, "bad query", "", e.what());
+  }
+  bool has = false;
+  {
+    std::lock_guard lock(job->mu);
+    has = job->has_report && is_final(job->state);
+  }
+  auto result = has ? read_file(job->dir / "result.json") : std::nullopt;
+  if (!result) {
+    return send_error(res, 409, "no table yet", "",
+                      std::string("the study is ") + to_string(state_of(*job)) + "; figures are drawn once it is done");
+  }
+  // The cache file name comes from the fixed list of kinds, not from the request.
+  const fs::path cache = job->dir / (kind == "work" ? "figure-work.png" : "figure-order.png");
+  const bool default_size = width == kDefaultFigureWidth && height == kDefaultFigureHeight;
+  if (default_size) {
+    if (auto png = read_file(cache)) {
+      res.status = 200;
+      return res.set_content(std::move(*png), "image/png");
+    }
+  }
+  std::vector<std::uint8_t> png;
+  try {
+    png = study_figure_png(kind, *result, width, height);
   } catch (const std::exception& e) {
     return send_error(res, 422, "cannot draw this figure", "", e.what());
   }

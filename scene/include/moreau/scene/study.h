@@ -18,7 +18,11 @@
 // The order of each scheme is the least-squares slope of log(error) against log(h).
 #pragma once
 
+#include <atomic>
+#include <cstdint>
+#include <functional>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -37,7 +41,29 @@ struct StudySettings {
   int eval_points = 1000;
   int repeats = 3;
   double single_run_seconds = 2.0;
+  // When set, run_study checks it between runs and every RunObserver::kControlInterval steps inside
+  // them, and throws StudyCancelled once it is true.
+  const std::atomic<bool>* cancel = nullptr;
+  // Called after each row of the table, with the rows done and the rows planned.
+  std::function<void(std::size_t done, std::size_t total)> on_row;
 };
+
+// Thrown by run_study when StudySettings::cancel became true.
+class StudyCancelled : public std::runtime_error {
+ public:
+  StudyCancelled() : std::runtime_error("study cancelled") {}
+};
+
+// The study settings of a request body (POST /v1/studies: {"h", "schemes", "reference_h", "epsilon",
+// "regularization", "eval_points", "repeats"}), validated; SceneError pointers are `pointer` + "/field".
+// h is a ladder string ("1e-1:1e-5:9", "1e-2,1e-3") or an array of positive numbers; schemes a comma
+// string or an array. Absent fields keep StudySettings' defaults (and the ladder "1e-1:1e-5:9").
+StudySettings study_settings_from_json(const nlohmann::json& j, const std::string& pointer);
+
+// An upper estimate of the integration steps a study takes: for each scheme and h, ceil(T / h) for the
+// error run and each timed run, plus the reference run (adaptive step rules can take more; each run is
+// still bounded by the scene's /integrator/max_steps).
+std::int64_t study_planned_steps(const LagrangianScene& scene, const StudySettings& settings);
 
 struct StudyRow {
   std::string scheme;
@@ -69,13 +95,16 @@ struct StudyResult {
   nlohmann::json to_json() const;
   std::string to_csv() const;
   std::string to_text() const;
+  // Reads what to_json() wrote (null numbers become NaN or absent optionals). Throws
+  // std::invalid_argument on a document of another shape.
+  static StudyResult from_json(const nlohmann::json& j);
 };
 
 // Parses a ladder "1e-1:1e-5:9" (log-spaced, both ends included) or a list "1e-2,5e-3,1e-3".
 std::vector<double> parse_ladder(const std::string& text);
 
 // Runs the study. Throws SceneError for bad settings (unknown scheme, empty ladder, h <= 0), naming the
-// option.
+// option, and StudyCancelled when settings.cancel turns true.
 StudyResult run_study(const LagrangianScene& scene, const StudySettings& settings);
 
 }  // namespace moreau::scene
