@@ -1,8 +1,10 @@
 // The scene format: the shipped scenes against their closed forms and against the compiled C++ model,
 // the Christoffel C against (1.3), the measured order, overrides, and the errors bad scenes get.
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <fstream>
 #include <functional>
 #include <vector>
 
@@ -241,6 +243,30 @@ INSTANTIATE_TEST_SUITE_P(
         BadCase{"Theorem42WithoutEta", [](json& d) { d["system"]["controller"] = {{{"type", "abs"}, {"gains", {1, 1}}}}; d["integrator"]["step_rule"] = "theorem-4.2"; }, "/integrator/step_rule", "eta"},
         BadCase{"BadSystemType", [](json& d) { d["system"]["type"] = "hamiltonian"; }, "/system/type", "unknown system type"}),
     [](const auto& info) { return info.param.name; });
+
+TEST(Scene, JsonNestingIsBoundedBeforeParsing) {
+  EXPECT_FALSE(json_depth_exceeded("{\"a\": [[1, 2], {\"b\": []}]}", 4));
+  EXPECT_EQ(json_depth_exceeded("{\"a\": [[1, 2], {\"b\": []}]}", 2), std::optional<std::size_t>(7));
+  // Brackets inside strings, escaped quotes included, do not count.
+  EXPECT_FALSE(json_depth_exceeded(R"({"a": "[[[[\"[[[[", "b": ["]]]]"]})", 2));
+  EXPECT_TRUE(json_depth_exceeded(std::string(100000, '['), kMaxJsonDepth));
+
+  const std::string path = ::testing::TempDir() + "/deep.json";
+  {
+    std::ofstream out(path);
+    out << "{\"name\": " << std::string(100000, '[') << std::string(100000, ']') << "}";
+  }
+  try {
+    read_scene_file(path);
+    FAIL() << "a deeply nested file was parsed";
+  } catch (const SceneError& e) {
+    EXPECT_THAT(e.reason(), ::testing::HasSubstr("nested deeper than 64 levels at byte 72"));
+  }
+  nlohmann::json doc = read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/damped-relay.json");
+  EXPECT_THROW(apply_override(doc, "name=" + std::string(1000, '[') + std::string(1000, ']')), SceneError);
+  EXPECT_THROW(apply_override(doc, "a" + std::string(1000, '.') + "=1"), SceneError);
+  EXPECT_NO_THROW(apply_override(doc, "description=[[1]]"));
+}
 
 TEST(Scene, MalformedJsonNamesLineAndColumn) {
   const std::string path = ::testing::TempDir() + "/bad.json";

@@ -196,6 +196,18 @@ TEST(ServerApi, BadRequestsGetClearErrors) {
   ASSERT_EQ(r->status, 400);
   EXPECT_EQ(error_of(r)["error"], "malformed JSON");
 
+  // Nesting is bounded before parsing: the JSON library copies documents recursively, and 20000 levels
+  // (40 KB, under the body limit) used to overflow a connection thread's stack.
+  const std::string deep = "{\"scene\": {\"name\": " + std::string(20000, '[') + std::string(20000, ']') + "}}";
+  r = c->Post("/v1/jobs", deep, "application/json");
+  ASSERT_TRUE(r) << "the server died";
+  ASSERT_EQ(r->status, 400);
+  EXPECT_EQ(error_of(r)["error"], "malformed JSON");
+  EXPECT_THAT(error_of(r)["reason"].get<std::string>(), ::testing::HasSubstr("nested deeper than 64 levels at byte 81"));
+  r = submit(*c, {{"scene", manipulator()}, {"overrides", {"a" + std::string(100, '.') + "=1"}}});
+  ASSERT_EQ(r->status, 400);
+  EXPECT_THAT(error_of(r)["reason"].get<std::string>(), ::testing::HasSubstr("deeper than 64"));
+
   r = c->Post("/v1/jobs", manipulator().dump(), "text/plain");
   ASSERT_EQ(r->status, 415);
   EXPECT_THAT(error_of(r)["reason"].get<std::string>(), ::testing::HasSubstr("application/json"));

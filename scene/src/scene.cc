@@ -999,12 +999,34 @@ std::vector<std::string> path_tokens(const std::string& path) {
 
 }  // namespace
 
+std::optional<std::size_t> json_depth_exceeded(std::string_view text, int max_depth) {
+  int depth = 0;
+  bool in_string = false, escaped = false;
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    if (in_string) {
+      if (escaped) escaped = false;
+      else if (c == '\\') escaped = true;
+      else if (c == '"') in_string = false;
+    } else if (c == '"') {
+      in_string = true;
+    } else if (c == '[' || c == '{') {
+      if (++depth > max_depth) return i;
+    } else if (c == ']' || c == '}') {
+      --depth;
+    }
+  }
+  return std::nullopt;
+}
+
 void apply_override(nlohmann::json& doc, const std::string& assignment) {
   const std::size_t eq = assignment.find('=');
   if (eq == std::string::npos || eq == 0)
     throw SceneError("/", "override '" + assignment + "' is not of the form PATH=VALUE (e.g. integrator.h=1e-4)");
   const std::string path = assignment.substr(0, eq);
   const std::string text = assignment.substr(eq + 1);
+  if (json_depth_exceeded(text))
+    throw SceneError(path, "override value nested deeper than " + std::to_string(kMaxJsonDepth) + " levels");
   nlohmann::json value = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
   if (value.is_discarded()) value = text;  // an expression or a bare word
   std::vector<std::string> tokens;
@@ -1013,6 +1035,8 @@ void apply_override(nlohmann::json& doc, const std::string& assignment) {
   } catch (const nlohmann::json::exception&) {
     throw SceneError(path, "override path is not a valid JSON pointer");
   }
+  if (tokens.size() > static_cast<std::size_t>(kMaxJsonDepth))
+    throw SceneError("/", "override path deeper than " + std::to_string(kMaxJsonDepth) + " levels");
   nlohmann::json* node = &doc;
   std::string ptr;
   for (std::size_t i = 0; i < tokens.size(); ++i) {
@@ -1045,6 +1069,10 @@ nlohmann::json read_scene_file(const std::string& path) {
   std::ostringstream buf;
   buf << in.rdbuf();
   const std::string text = buf.str();
+  if (const auto at = json_depth_exceeded(text)) {
+    throw SceneError("/", "scene file '" + path + "': JSON nested deeper than " + std::to_string(kMaxJsonDepth) +
+                              " levels at byte " + std::to_string(*at));
+  }
   try {
     return nlohmann::json::parse(text);
   } catch (const nlohmann::json::parse_error& e) {

@@ -334,6 +334,12 @@ json post_body(const Request& req, const char* endpoint, const std::vector<std::
   const std::string content_type = lower(trim(type_header.substr(0, type_header.find(';'))));
   if (content_type != "application/json")
     throw BadRequest{415, "unsupported content type", "", std::string(endpoint) + " takes application/json, got '" + type_header + "'", ""};
+  // Bounded nesting before parsing: the JSON library copies and prints recursively.
+  if (const auto at = scene::json_depth_exceeded(req.body)) {
+    throw BadRequest{400, "malformed JSON", "",
+                     "nested deeper than " + std::to_string(scene::kMaxJsonDepth) + " levels at byte " + std::to_string(*at),
+                     "request"};
+  }
   json body = json::parse(req.body, nullptr, false);
   if (body.is_discarded()) {
     std::string why = "the body is not valid JSON";

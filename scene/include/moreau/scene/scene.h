@@ -8,6 +8,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -54,6 +55,15 @@ void apply_override(nlohmann::json& doc, const std::string& assignment);
 
 // Reads a scene file; JSON syntax errors name the file, line and column.
 nlohmann::json read_scene_file(const std::string& path);
+
+// JSON nesting allowed in a scene file, an override value or a request body. nlohmann::json copies,
+// compares, prints and destroys documents recursively, so a document nested 100000 deep would overflow
+// the stack long after parsing: depth is checked on the text, before parsing. A scene needs about 5.
+constexpr int kMaxJsonDepth = 64;
+
+// The byte offset of the first '[' or '{' (outside strings) that opens a level deeper than
+// `max_depth`, or nullopt. Linear, no allocation; the text need not be valid JSON.
+std::optional<std::size_t> json_depth_exceeded(std::string_view text, int max_depth = kMaxJsonDepth);
 
 // The compiled expressions of a Lagrangian scene: one tape for everything a step needs, one for M(q)
 // alone (the Theorem 4.2 rule) and one for V(q). Inputs of every tape: [t, q_1..q_n, v_1..v_n].
