@@ -196,6 +196,12 @@ TEST(ServerApi, BadRequestsGetClearErrors) {
   ASSERT_EQ(r->status, 400);
   EXPECT_EQ(error_of(r)["error"], "malformed JSON");
 
+  // Invalid UTF-8 is a JSON syntax error; quoting it back in the reason must not turn it into a 500.
+  r = c->Post("/v1/jobs", "{\"scene\": \"\xff\xfe\"}", "application/json");
+  ASSERT_EQ(r->status, 400);
+  EXPECT_EQ(error_of(r)["error"], "malformed JSON");
+  EXPECT_THAT(error_of(r)["reason"].get<std::string>(), ::testing::HasSubstr("ill-formed UTF-8"));
+
   // Nesting is bounded before parsing: the JSON library copies documents recursively, and 20000 levels
   // (40 KB, under the body limit) used to overflow a connection thread's stack.
   const std::string deep = "{\"scene\": {\"name\": " + std::string(20000, '[') + std::string(20000, ']') + "}}";

@@ -48,6 +48,13 @@ namespace {
 constexpr int kMaxWaitSeconds = 60;
 constexpr int kDefaultFigureWidth = 1200, kDefaultFigureHeight = 800;
 
+// Invalid UTF-8 (quoted from a request into an error message) is replaced by U+FFFD rather than making
+// dump() throw.
+void send_json(Response& res, int status, const json& j) {
+  res.status = status;
+  res.set_content(j.dump(-1, ' ', false, json::error_handler_t::replace) + "\n", "application/json");
+}
+
 // Error bodies: {"error": what went wrong, "pointer": the JSON pointer of the field at fault,
 // "where": "scene" (pointer into the scene) or "request" (pointer into the request body), "reason"}.
 void send_error(Response& res, int status, const std::string& error, const std::string& pointer = "",
@@ -56,13 +63,7 @@ void send_error(Response& res, int status, const std::string& error, const std::
   if (!pointer.empty()) j["pointer"] = pointer;
   if (!where.empty()) j["where"] = where;
   if (!reason.empty()) j["reason"] = reason;
-  res.status = status;
-  res.set_content(j.dump() + "\n", "application/json");
-}
-
-void send_json(Response& res, int status, const json& j) {
-  res.status = status;
-  res.set_content(j.dump() + "\n", "application/json");
+  send_json(res, status, j);
 }
 
 std::string lower(std::string s) {
