@@ -353,14 +353,33 @@ TEST(ServerApi, TokenGuardsEveryEndpointButHealthz) {
   auto good = ts.client(cfg.token);
 
   EXPECT_EQ(anonymous->Get("/healthz")->status, 200);
-  for (const std::string path : {"/v1/jobs", "/v1/scenes", "/metrics", "/v1/jobs/0123456789abcdef0123456789abcdef"}) {
+  // Every route (and paths that match none: the check runs before routing), with no token, a wrong one,
+  // one with a prefix of the token, the token with a suffix, and the token without the Bearer scheme.
+  const std::string id = "/0123456789abcdef0123456789abcdef";
+  const std::string gets[] = {"/v1/jobs", "/v1/scenes", "/v1/scenes/manipulator", "/metrics", "/v1/jobs" + id,
+                              "/v1/jobs" + id + "/events", "/v1/jobs" + id + "/report", "/v1/jobs" + id + "/trajectory",
+                              "/v1/jobs" + id + "/figure", "/v1/studies", "/v1/studies" + id, "/v1/studies" + id + "/events",
+                              "/v1/studies" + id + "/table", "/v1/studies" + id + "/figure", "/no/such/route", "/healthz/x"};
+  httplib::Headers no_scheme = {{"Authorization", cfg.token}};
+  httplib::Headers prefix = {{"Authorization", "Bearer correct horse"}};
+  for (const auto& path : gets) {
     auto r = anonymous->Get(path);
     ASSERT_TRUE(r);
     EXPECT_EQ(r->status, 401) << path;
     EXPECT_EQ(r->get_header_value("WWW-Authenticate"), "Bearer realm=\"moreau\"");
     EXPECT_EQ(wrong->Get(path)->status, 401) << path;
+    EXPECT_EQ(anonymous->Get(path, no_scheme)->status, 401) << path;
+    EXPECT_EQ(anonymous->Get(path, prefix)->status, 401) << path;
   }
-  EXPECT_EQ(anonymous->Post("/v1/jobs", json({{"scene", manipulator()}}).dump(), "application/json")->status, 401);
+  for (const std::string path : {"/v1/jobs", "/v1/studies"}) {
+    EXPECT_EQ(anonymous->Post(path, json({{"scene", manipulator()}}).dump(), "application/json")->status, 401) << path;
+    EXPECT_EQ(wrong->Post(path, json({{"scene", manipulator()}}).dump(), "application/json")->status, 401) << path;
+  }
+  for (const std::string path : {"/v1/jobs" + id, "/v1/studies" + id}) {
+    EXPECT_EQ(anonymous->Delete(path)->status, 401) << path;
+    EXPECT_EQ(wrong->Delete(path)->status, 401) << path;
+  }
+  EXPECT_EQ(good->Get("/v1/jobs" + id)->status, 404) << "a good token gets through to the route";
   EXPECT_EQ(good->Get("/v1/jobs")->status, 200);
   EXPECT_EQ(good->Get("/metrics")->status, 200);
   auto r = submit(*good, {{"scene", manipulator()}, {"overrides", {"integrator.t_end=1"}}});

@@ -266,6 +266,8 @@ void Server::Impl::setup_routes() {
                     constant_time_equal(trim(auth.substr(prefix.size())), cfg_.token);
     if (ok) return httplib::Server::HandlerResponse::Unhandled;
     res.set_header("WWW-Authenticate", "Bearer realm=\"moreau\"");
+    // The body of a refused request has not been read: the connection cannot carry another request.
+    res.set_header("Connection", "close");
     send_error(res, 401, auth.empty() ? "authentication required" : "invalid token", "",
                "send the header 'Authorization: Bearer TOKEN'");
     return httplib::Server::HandlerResponse::Handled;
