@@ -578,6 +578,8 @@ void JobManager::commit(Commit& c) {
     fsync_path(tmp);
     fs::rename(tmp, target);
   }
+  // The renames themselves survive a power loss once the directory is synced.
+  if (!c.files.empty()) fsync_path(job.dir);
   if (!c.files.empty()) {
     std::lock_guard lock(job.mu);
     job.has_report = true;
