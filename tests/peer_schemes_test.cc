@@ -27,7 +27,9 @@ TEST(RegularizedPeer, ApproachesTheDampedRelayButNeverRests) {
     RegularizedIntegrator<Oscillator1> integrator(model, s);
     struct Probe : RunObserver {
       double max_err = 0.0;
+      int samples = 0;
       void on_sample(const Sample& x) override {
+        ++samples;
         if (std::abs(x.t - 4.0 * std::log(2.5)) > 0.01) max_err = std::max(max_err, std::abs(x.v[0] - ExactV(x.t)));
       }
     } probe;
@@ -37,7 +39,10 @@ TEST(RegularizedPeer, ApproachesTheDampedRelayButNeverRests) {
     EXPECT_NE(r.v_final[0], 0.0) << "a regularized sign cannot hold v at exactly 0";
     EXPECT_LT(std::abs(r.v_final[0]), 1e-4);
     EXPECT_GT(r.solver.total_iterations, 0);
-    EXPECT_EQ(r.steps, 60000);
+    EXPECT_EQ(probe.samples, 60001) << "output at every h, t0 and t_end included";
+    // steps counts rosenbrock4's own steps: with dense output it steps over many output times.
+    EXPECT_GT(r.steps, 0);
+    EXPECT_LT(r.steps, 60000);
     RecordProperty("rhs_evaluations", std::to_string(r.solver.total_iterations));
   }
 }

@@ -12,7 +12,9 @@
 // no derivatives of M, C, F), as is usual when rosenbrock4 is used without an analytic Jacobian.
 //
 // The study's step size h is used as the output interval and as both the absolute and relative error
-// tolerance of the controlled stepper, so one ladder of h spans the peer's accuracy too.
+// tolerance of the controlled stepper, so one ladder of h spans the peer's accuracy too. RunSummary::steps
+// counts the stepper's steps (of a completed run); converged_step, like the observer's Sample::step, is an
+// index into the output samples.
 #pragma once
 
 #include <algorithm>
@@ -98,6 +100,7 @@ class RegularizedIntegrator {
     };
     System system{this};
     Jacobian jacobian{this};
+    std::size_t solver_steps = 0;
     try {
       // Output at t0 + k h and at t_end itself, so the last sample is the final state.
       std::vector<double> times;
@@ -105,8 +108,8 @@ class RegularizedIntegrator {
       times.reserve(static_cast<std::size_t>(count) + 1);
       for (std::int64_t k = 0; k < count; ++k) times.push_back(s_.t0 + static_cast<double>(k) * s_.h);
       times.push_back(s_.t_end);
-      odeint::integrate_times(odeint::make_dense_output(s_.h, s_.h, odeint::rosenbrock4<double>()),
-                              std::make_pair(system, jacobian), x, times.begin(), times.end(), s_.h, observe);
+      solver_steps = odeint::integrate_times(odeint::make_dense_output(s_.h, s_.h, odeint::rosenbrock4<double>()),
+                                             std::make_pair(system, jacobian), x, times.begin(), times.end(), s_.h, observe);
       summary.status = RunStatus::kCompleted;
     } catch (const Cancelled&) {
       summary.status = RunStatus::kCancelled;
@@ -115,7 +118,9 @@ class RegularizedIntegrator {
       summary.status = RunStatus::kFailed;
       summary.message = std::string("rosenbrock4: ") + e.what();
     }
-    summary.steps = samples > 0 ? samples - 1 : 0;
+    // The solver's own steps when it finished (the work a study compares), else the samples reached.
+    summary.steps = summary.status == RunStatus::kCompleted ? static_cast<std::int64_t>(solver_steps)
+                                                            : (samples > 0 ? samples - 1 : 0);
     summary.t_final = last_t;
     summary.q_final.assign(q_.data(), q_.data() + n);
     summary.v_final.assign(v_.data(), v_.data() + n);
