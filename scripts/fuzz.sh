@@ -7,9 +7,9 @@ cd "$(dirname "$0")/.."
 seconds=${1:-60}
 CC=clang CXX=clang++ cmake -S . -B build-fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DMOREAU_FUZZ=ON \
   -DMOREAU_BUILD_TESTS=OFF -DMOREAU_BUILD_BENCH=OFF >/dev/null
-cmake --build build-fuzz -j "$(nproc)" --target expression_fuzzer scene_fuzzer
+cmake --build build-fuzz -j "$(nproc)" --target expression_fuzzer scene_fuzzer http_fuzzer
 status=0
-for target in expression scene; do
+for target in expression scene http; do
   work=build-fuzz/corpus-$target
   mkdir -p "$work"
   cp -n fuzz/corpus/$target/* "$work"/ 2>/dev/null || true

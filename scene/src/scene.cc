@@ -46,6 +46,22 @@ const std::set<std::string>& function_names() {
   return names;
 }
 
+// The first `max_bytes` bytes of `s`, shortened so as not to end inside a UTF-8 sequence: error
+// messages quote input text, and a cut multi-byte character would make the message invalid UTF-8
+// (which a JSON serializer refuses).
+std::string utf8_prefix(const std::string& s, std::size_t max_bytes) {
+  if (s.size() <= max_bytes) return s;
+  std::size_t end = max_bytes;
+  while (end > 0 && (static_cast<unsigned char>(s[end]) & 0xC0) == 0x80) --end;
+  return s.substr(0, end);
+}
+
+// A JSON value as quoted in an error message: its serialization, at most about 200 bytes of it.
+std::string brief(const json& j) {
+  const std::string text = j.dump(-1, ' ', false, json::error_handler_t::replace);
+  return text.size() <= 200 ? text : utf8_prefix(text, 200) + "...";
+}
+
 // Escapes a key for a JSON pointer (RFC 6901).
 std::string escape(const std::string& key) {
   std::string out;
@@ -65,7 +81,7 @@ void check_fields(const json& obj, const std::string& ptr, const std::vector<std
   for (auto it = obj.begin(); it != obj.end(); ++it) {
     if (std::find(allowed.begin(), allowed.end(), it.key()) == allowed.end()) {
       throw SceneError(ptr + "/" + escape(it.key()),
-                       "unknown field '" + it.key() + "' (expected one of: " + join(allowed) + ")");
+                       "unknown field '" + utf8_prefix(it.key(), 200) + "' (expected one of: " + join(allowed) + ")");
     }
   }
 }
@@ -93,6 +109,13 @@ class Compiler {
         throw SceneError(ptr, "'" + it.key() + "' is reserved (a function name or the time t)");
       params_[it.key()] = &it.value();
     }
+  }
+
+  // Every parameter must evaluate to a finite constant, whether or not anything uses it: a typo or a
+  // division by zero in an unused parameter is still an error. Called once the coordinates are known,
+  // so that a parameter naming one is told it cannot.
+  void check_all_parameters() {
+    for (const auto& entry : params_) parameter(entry.first);
   }
 
   Node parameter(const std::string& name) {
@@ -141,7 +164,7 @@ class Compiler {
         throw SceneError(ptr, "'" + disallowed + "' cannot appear in " + what + " (in '" + text + "')");
       }
       throw SceneError(ptr, std::string(e.what()) + " at character " + std::to_string(e.position()) + " of '" +
-                                text.substr(0, 200) + "'");
+                                utf8_prefix(text, 200) + "'");
     }
   }
 
@@ -194,7 +217,9 @@ class Compiler {
     } else {
       n_ = static_cast<int>(mass.size());
     }
-    if (n_ > kMaxDof) throw SceneError("/system/mass", "more than " + std::to_string(kMaxDof) + " degrees of freedom");
+    if (n_ > kMaxDof)
+      throw SceneError(system.contains("coordinates") ? "/system/coordinates" : "/system/mass",
+                       "more than " + std::to_string(kMaxDof) + " degrees of freedom (got " + std::to_string(n_) + ")");
     std::set<std::string> seen;
     for (int i = 0; i < n_; ++i) {
       std::string q = "q" + std::to_string(i + 1), v = "v" + std::to_string(i + 1);
@@ -202,7 +227,7 @@ class Compiler {
         const std::string ptr = "/system/coordinates/" + std::to_string(i);
         const json& name = system["coordinates"][i];
         if (!name.is_string() || !is_identifier(name.get<std::string>()))
-          throw SceneError(ptr, "expected a name (letters, digits, _), got " + name.dump());
+          throw SceneError(ptr, "expected a name (letters, digits, _), got " + brief(name));
         q = name.get<std::string>();
         v = q + "_dot";
         if (function_names().count(q) || q == "t") throw SceneError(ptr, "'" + q + "' is reserved");
@@ -406,10 +431,10 @@ class Compiler {
       const std::string value = f.is_string() ? f.get<std::string>() : "";
       if (std::string(field) == "position_correction") {
         if (value != "none" && value != "projection")
-          throw SceneError(ptr, "expected \"none\" or \"projection\", got " + f.dump());
+          throw SceneError(ptr, "expected \"none\" or \"projection\", got " + brief(f));
         scene.position_correction = value;
       } else {
-        if (value != "mdi" && value != "standard") throw SceneError(ptr, "expected \"mdi\" or \"standard\", got " + f.dump());
+        if (value != "mdi" && value != "standard") throw SceneError(ptr, "expected \"mdi\" or \"standard\", got " + brief(f));
         scene.position_update = value;
       }
     }
@@ -439,7 +464,7 @@ class Compiler {
       if (rule == "fixed") s.step_rule = StepRule::kFixed;
       else if (rule == "theorem-4.1") s.step_rule = StepRule::kTheorem41;
       else if (rule == "theorem-4.2") s.step_rule = StepRule::kTheorem42;
-      else throw SceneError("/integrator/step_rule", "expected \"fixed\", \"theorem-4.1\" or \"theorem-4.2\", got " + r.dump());
+      else throw SceneError("/integrator/step_rule", "expected \"fixed\", \"theorem-4.1\" or \"theorem-4.2\", got " + brief(r));
       if (mj && s.step_rule != StepRule::kFixed)
         throw SceneError("/integrator/step_rule", "the moreau-jean scheme uses a fixed step; the theorem rules belong to abl");
     }
@@ -602,7 +627,7 @@ class Compiler {
       std::vector<double> u, w;
       for (std::size_t k = 0; k < vs.size(); ++k) {
         const std::string vp = ptr + "/vertices/" + std::to_string(k);
-        if (!vs[k].is_array() || vs[k].size() != 2) throw SceneError(vp, "expected a vertex [u, w], got " + vs[k].dump());
+        if (!vs[k].is_array() || vs[k].size() != 2) throw SceneError(vp, "expected a vertex [u, w], got " + brief(vs[k]));
         u.push_back(constant(vs[k][0], vp + "/0"));
         w.push_back(constant(vs[k][1], vp + "/1"));
       }
@@ -662,7 +687,7 @@ class Compiler {
         throw SceneError("/integrator/theta", "must be in [1/2, 1] (the theta-method is unstable below 1/2), got " + format(s.theta));
     }
     if (in.contains("step_rule") && in["step_rule"] != "fixed")
-      throw SceneError("/integrator/step_rule", "the implicit-euler scheme uses a fixed step (\"fixed\"), got " + in["step_rule"].dump());
+      throw SceneError("/integrator/step_rule", "the implicit-euler scheme uses a fixed step (\"fixed\"), got " + brief(in["step_rule"]));
     s.max_steps = kMaxStepsLimit;
     if (in.contains("max_steps")) {
       const double m = positive(in["max_steps"], "/integrator/max_steps");
@@ -684,6 +709,7 @@ class Compiler {
     for (int i = 0; i < n_ * n_; ++i) outs.push_back(M_[i]);
     for (int i = 0; i < n_; ++i) outs.push_back(g_[i]);
     for (int i = 0; i < n_ * n_; ++i) outs.push_back(C_[i]);
+    if (potential_ >= 0) outs.push_back(potential_);
     const expr::Tape tape = expr::Tape::compile(graph_, outs, 1 + 2 * n_);
     std::vector<double> slots(1 + 2 * n_), values(outs.size()), scratch(tape.scratch_size());
     auto eval_at = [&](const std::vector<double>& q, const std::vector<double>& v) {
@@ -706,6 +732,9 @@ class Compiler {
     for (int i = 0; i < n_ * n_; ++i)
       if (!std::isfinite(values[n_ * n_ + n_ + i]))
         throw SceneError("/system/coriolis", "C(q, v) is not finite at the initial state");
+    // V itself enters the reports (the Lagrange-Dirichlet W = kinetic + V): finite where the run starts.
+    if (potential_ >= 0 && !std::isfinite(values[2 * n_ * n_ + n_]))
+      throw SceneError("/system/potential", "V(q) is not finite at the initial state (" + format(values[2 * n_ * n_ + n_]) + ")");
 
     // Symmetry: structurally equal entries are; others are compared at the initial state and at a few
     // deterministic points around it.
@@ -762,6 +791,12 @@ class Compiler {
     const double lmin = eig.eigenvalues()(0);
     if (!(lmin > 0.0))
       throw SceneError("/system/mass", "M is not positive definite at the initial state (smallest eigenvalue " + format(lmin) + ")");
+    // The kinetic energy E_0 = 1/2 <M v0, v0> must be a number: finite entries can still overflow it
+    // (v0 = 1e308), and a run from there fails at its first step with a NaN residual.
+    const Eigen::VectorXd v0 = Eigen::Map<const Eigen::VectorXd>(scene.v0.data(), n_);
+    const double e0 = 0.5 * v0.dot(M * v0);
+    if (!std::isfinite(e0))
+      throw SceneError("/initial/v", "the kinetic energy 1/2 <M(q0) v0, v0> is not finite at the initial state (" + format(e0) + ")");
   }
 
   // Builds the three tapes and the constant parts.
@@ -839,6 +874,7 @@ LagrangianScene Compiler::compile() {
   check_fields(system, "/system",
                {"type", "coordinates", "mass", "coriolis", "potential", "potential_gradient", "force", "controller", "constraints"});
   coordinates(system);
+  check_all_parameters();
   scene.n = n_;
   scene.coordinates = coord_names_;
   scene.velocities = vel_names_;
@@ -872,6 +908,7 @@ LureScene Compiler::compile_lure() {
   require_object(system, "/system");
   if (!system.contains("type") || system["type"] != "lure") throw SceneError("/system/type", "expected \"lure\"");
   check_fields(system, "/system", {"type", "states", "A", "B", "C", "feedback", "P"});
+  check_all_parameters();
   for (const char* f : {"A", "B", "C", "feedback"})
     if (!system.contains(f)) throw SceneError("/system", std::string("missing required field '") + f + "' (x' = A x - B y_L, y = C x, y_L in d phi(y))");
   scene.A = constant_matrix(system["A"], "/system/A", -1, -1, "the n x n matrix A");
@@ -902,7 +939,7 @@ LureScene Compiler::compile_lure() {
         throw SceneError("/system/states", "expected " + std::to_string(n) + " names (one per state)");
       const std::string ptr = "/system/states/" + std::to_string(i);
       if (!st[i].is_string() || !is_identifier(st[i].get<std::string>()))
-        throw SceneError(ptr, "expected a name (letters, digits, _), got " + st[i].dump());
+        throw SceneError(ptr, "expected a name (letters, digits, _), got " + brief(st[i]));
       name = st[i].get<std::string>();
     }
     if (!seen.insert(name).second) throw SceneError("/system/states/" + std::to_string(i), "duplicate name '" + name + "'");
@@ -963,6 +1000,11 @@ LureScene Compiler::compile_lure() {
       scene.storage_source = "found";
     }
   }
+  // The report follows W = 1/2 x^T P x (P = I without a storage matrix): finite where the run starts.
+  const Eigen::MatrixXd P = scene.storage ? *scene.storage : Eigen::MatrixXd::Identity(n, n);
+  const double w0 = 0.5 * x0.dot(P * x0);
+  if (!std::isfinite(w0))
+    throw SceneError("/initial/x", "the storage function W = 1/2 x0^T P x0 is not finite at the initial state (" + format(w0) + ")");
   return scene;
 }
 
@@ -1057,7 +1099,7 @@ void apply_override(nlohmann::json& doc, const std::string& assignment) {
     } else if (node->is_object() || node->is_null()) {
       node = &(*node)[tok];
     } else {
-      throw SceneError(ptr, "override path goes through a " + type_name(*node) + ", not an object or array");
+      throw SceneError(ptr, "override path goes through " + type_name(*node) + ", not an object or array");
     }
   }
   *node = value;

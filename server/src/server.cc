@@ -348,7 +348,7 @@ json post_body(const Request& req, const char* endpoint, const std::vector<std::
     std::string why = "the body is not valid JSON";
     try {
       const json ignored = json::parse(req.body);
-    } catch (const json::parse_error& e) {
+    } catch (const json::exception& e) {  // parse_error, and out_of_range for a number such as 1e999
       why = e.what();
     }
     throw BadRequest{400, "malformed JSON", "", why, "request"};
@@ -362,6 +362,32 @@ json post_body(const Request& req, const char* endpoint, const std::vector<std::
   }
   if (!body.contains("scene")) throw BadRequest{400, "invalid request", "/scene", "missing required field 'scene'", "request"};
   return body;
+}
+
+}  // namespace
+
+namespace {
+
+// A key as a JSON pointer token (RFC 6901).
+std::string pointer_escape(const std::string& key) {
+  std::string out;
+  for (char c : key) {
+    if (c == '~') out += "~0";
+    else if (c == '/') out += "~1";
+    else out += c;
+  }
+  return out;
+}
+
+// scene::apply_override, with an error about the override itself (not of the form PATH=VALUE, a path too
+// deep: pointer "/") reported at `pointer` in the request; errors about the scene path keep theirs.
+void apply_request_override(json& doc, const std::string& assignment, const std::string& pointer) {
+  try {
+    scene::apply_override(doc, assignment);
+  } catch (const scene::SceneError& e) {
+    if (e.pointer() == "/") throw BadRequest{400, "invalid request", pointer, e.reason(), "request"};
+    throw;
+  }
 }
 
 }  // namespace
@@ -388,10 +414,11 @@ json Server::Impl::request_scene(const json& body) const {
       for (std::size_t i = 0; i < o.size(); ++i) {
         if (!o[i].is_string())
           throw BadRequest{400, "invalid request", "/overrides/" + std::to_string(i), "expected a string PATH=VALUE", "request"};
-        scene::apply_override(doc, o[i].get<std::string>());
+        apply_request_override(doc, o[i].get<std::string>(), "/overrides/" + std::to_string(i));
       }
     } else if (o.is_object()) {
-      for (const auto& [path, value] : o.items()) scene::apply_override(doc, path + "=" + value.dump());
+      for (const auto& [path, value] : o.items())
+        apply_request_override(doc, path + "=" + value.dump(), "/overrides/" + pointer_escape(path));
     } else {
       throw BadRequest{400, "invalid request", "/overrides", "expected an array of \"PATH=VALUE\" or an object {PATH: VALUE}", "request"};
     }
