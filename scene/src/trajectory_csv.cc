@@ -21,7 +21,10 @@ TrajectoryCsvWriter::TrajectoryCsvWriter(const std::string& path, const std::vec
   for (const auto& q : q_names) header += "," + q;
   for (const auto& v : v_names) header += "," + v;
   header += ",energy\n";
-  if (std::fwrite(header.data(), 1, header.size(), file_) != header.size()) failed_ = true;
+  if (std::fwrite(header.data(), 1, header.size(), file_) != header.size()) {
+    failed_ = true;
+    error_ = errno;
+  }
 }
 
 TrajectoryCsvWriter::~TrajectoryCsvWriter() {
@@ -58,7 +61,10 @@ void TrajectoryCsvWriter::on_sample(const Sample& s) {
 }
 
 void TrajectoryCsvWriter::flush_buffer() {
-  if (used_ && file_ && std::fwrite(buffer_.data(), 1, used_, file_) != used_) failed_ = true;
+  if (used_ && file_ && std::fwrite(buffer_.data(), 1, used_, file_) != used_ && !failed_) {
+    failed_ = true;
+    error_ = errno;
+  }
   used_ = 0;
 }
 
@@ -66,9 +72,12 @@ void TrajectoryCsvWriter::close() {
   if (!file_) return;
   flush_buffer();
   const bool flushed = std::fflush(file_) == 0;
+  if (!flushed && !failed_) error_ = errno;
   const bool closed = std::fclose(file_) == 0;
+  if (!closed && !failed_ && flushed) error_ = errno;
   file_ = nullptr;
-  if (failed_ || !flushed || !closed) throw std::runtime_error("writing '" + path_ + "' failed (disk full?)");
+  if (failed_ || !flushed || !closed)
+    throw std::runtime_error("writing '" + path_ + "' failed: " + (error_ ? std::strerror(error_) : "unknown error"));
 }
 
 }  // namespace moreau::scene

@@ -301,9 +301,16 @@ JobManager::Submit JobManager::submit(const std::shared_ptr<Job>& job, const jso
       return Submit::kQueueFull;
     }
   }
-  fs::create_directories(job->dir);
-  write_file_atomic(job->dir / "scene.json", scene_doc.dump(2) + "\n", Durability::kRename);
-  if (study_doc) write_file_atomic(job->dir / "study.json", study_doc->dump(2) + "\n", Durability::kRename);
+  try {
+    fs::create_directories(job->dir);
+    write_file_atomic(job->dir / "scene.json", scene_doc.dump(2) + "\n", Durability::kRename);
+    if (study_doc) write_file_atomic(job->dir / "study.json", study_doc->dump(2) + "\n", Durability::kRename);
+  } catch (...) {
+    // Not accepted (a full disk, say): nothing of it stays, not even an empty directory.
+    std::error_code ec;
+    fs::remove_all(job->dir, ec);
+    throw;
+  }
   write_record(*job);
   push_event(*job, "state", {{"id", job->id}, {"state", "queued"}});
   {
@@ -476,7 +483,11 @@ void JobManager::run(const std::shared_ptr<Job>& job) {
   // The results go to temporary files here; an I/O thread makes them durable and renames them
   // (commit()), while this worker goes on with the next job.
   const auto t_write = Clock::now();
-  csv.close();
+  try {
+    csv.close();
+  } catch (const std::exception& e) {
+    return fail_to_store(*job, e.what());
+  }
   for (auto& [name, s] : summary.phase_seconds)
     if (name == "integrate") s = std::max(0.0, s - csv.seconds());
   summary.phase_seconds.insert(summary.phase_seconds.begin(), {"load", job->load_seconds});
@@ -500,7 +511,12 @@ void JobManager::run(const std::shared_ptr<Job>& job) {
     }
   }
   summary.add_phase("write", csv.seconds() + seconds_since(t_write));
-  write_file(job->dir / "report.json.tmp", sim.report_json(summary).dump(2) + "\n");
+  const std::string report = sim.report_json(summary).dump(2) + "\n";
+  try {
+    write_file(job->dir / "report.json.tmp", report);
+  } catch (const std::exception& e) {
+    return fail_to_store(*job, e.what());
+  }
   for (const auto& [name, s] : summary.phase_seconds)
     if (name == "integrate") commit->integrate_seconds = s;
   job->sim.reset();
@@ -538,12 +554,26 @@ void JobManager::run_study(const std::shared_ptr<Job>& job, std::unique_ptr<Comm
   if (result) {
     // The table's steps count every run of the study.
     for (const auto& row : result->rows) commit->summary.steps += row.steps;
-    write_file(job->dir / "table.csv.tmp", result->to_csv());
-    write_file(job->dir / "result.json.tmp", result->to_json().dump(2) + "\n");
+    try {
+      write_file(job->dir / "table.csv.tmp", result->to_csv());
+      write_file(job->dir / "result.json.tmp", result->to_json().dump(2) + "\n");
+    } catch (const std::exception& e) {
+      return fail_to_store(*job, e.what());
+    }
     commit->files = {"table.csv", "result.json"};
     commit->state = JobState::kDone;
   }
   enqueue_commit(std::move(commit));
+}
+
+void JobManager::fail_to_store(Job& job, const std::string& what) {
+  // A full or failing disk: the partial results would go on holding the space, and are of no use.
+  std::error_code ec;
+  for (const char* name : {"trajectory.csv.tmp", "report.json.tmp", "table.csv.tmp", "result.json.tmp"})
+    fs::remove(job.dir / name, ec);
+  job.sim.reset();
+  std::cerr << "moreau-server: job " << job.id << ": cannot store the results: " << what << "\n";
+  set_state(job, JobState::kFailed, "cannot store the results: " + what);
 }
 
 void JobManager::committer_loop() {
@@ -559,9 +589,8 @@ void JobManager::committer_loop() {
     try {
       commit(*c);
     } catch (const std::exception& e) {
-      std::cerr << "moreau-server: job " << c->job->id << ": cannot store results: " << e.what() << "\n";
       if (c->stream) c->stream->close();
-      set_state(*c->job, JobState::kFailed, std::string("cannot store the results: ") + e.what());
+      fail_to_store(*c->job, e.what());
     }
   }
 }

@@ -157,6 +157,8 @@ class JobManager {
   void enqueue_commit(std::unique_ptr<Commit> commit);
   void committer_loop();
   void commit(Commit& c);
+  // The run's results could not be written: removes its temporary files and fails the job, saying so.
+  void fail_to_store(Job& job, const std::string& what);
   // Changes the state (and reason), records it in job.json and tells the event streams.
   void set_state(Job& job, JobState state, const std::string& reason);
   void push_event(Job& job, const std::string& name, const nlohmann::json& data);

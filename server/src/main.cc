@@ -1,12 +1,15 @@
 // moreau-server: serves the job API (docs/api.md) and streams live state over LCM (docs/streaming.md).
 #include <csignal>
 #include <cstdlib>
+#include <filesystem>
 #include <iostream>
+#include <stdexcept>
 #include <thread>
 
 #include <CLI/CLI.hpp>
 
 #include "moreau/server/server.h"
+#include "storage.h"
 
 namespace {
 
@@ -45,6 +48,10 @@ int main(int argc, char** argv) {
   app.add_option("--max-steps", cfg.max_steps, "Integration steps per job at most")->capture_default_str()->check(CLI::PositiveNumber);
   app.add_option("--max-samples", cfg.max_samples, "Trajectory rows per job at most")->capture_default_str()->check(CLI::Range(std::int64_t{3}, std::int64_t{1} << 40));
   app.add_option("--keep-alive", cfg.keep_alive_seconds, "Seconds an idle keep-alive connection stays open")->capture_default_str();
+  app.add_option("--keep-alive-requests", cfg.keep_alive_requests,
+                 "Requests served on one connection before it is closed (lets waiting connections in)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1000000));
   app.add_flag("--log-requests", cfg.log_requests, "One line per request on stderr");
   try {
     app.parse(argc, argv);
@@ -58,6 +65,13 @@ int main(int argc, char** argv) {
 
   try {
     moreau::server::Server server(cfg);
+    // A data directory the server cannot write in (a read-only mount, say) would fail every job while
+    // /healthz says ok: refuse to start instead, naming it.
+    try {
+      moreau::server::check_writable_directory(std::filesystem::path(cfg.data_dir) / "jobs");
+    } catch (const std::exception& e) {
+      throw std::runtime_error("cannot use data directory '" + cfg.data_dir + "': " + e.what());
+    }
     const int port = server.start();
     std::cout << "moreau-server: listening on http://" << (cfg.host.find(':') != std::string::npos ? "[" + cfg.host + "]" : cfg.host)
               << ":" << port << " (data " << cfg.data_dir << (cfg.token.empty() ? ", no token" : ", token required") << ")"

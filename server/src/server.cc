@@ -12,6 +12,10 @@
 #include <numeric>
 #include <sstream>
 
+#ifdef __GLIBC__
+#include <malloc.h>
+#endif
+
 #include <lcm/lcm-cpp.hpp>
 #include <nlohmann/json.hpp>
 
@@ -147,7 +151,11 @@ class Server::Impl {
       throw std::runtime_error("cannot bind " + cfg_.host + ":" + std::to_string(port));
     }
     port_ = port;
+    // libcpp-httplib listens with a backlog of 5 (compiled in): a burst of new connections beyond it
+    // waits for SYN retransmissions (1 s, 3 s, ...) or is reset. Listening again raises it.
+    if (listen_socket_ >= 0) ::listen(listen_socket_, SOMAXCONN);
     listener_ = std::thread([this] { http_.listen_after_bind(); });
+    housekeeper_ = std::thread([this] { housekeeping(); });
     while (!http_.is_running()) std::this_thread::sleep_for(std::chrono::microseconds(200));
     return port_;
   }
@@ -158,20 +166,39 @@ class Server::Impl {
       if (stopped_) return;
       stopped_ = true;
     }
+    stop_cv_.notify_all();  // the housekeeper
     jobs_.stop();  // ends event streams and running jobs first, so that no pool thread is held
     http_.stop();
     if (listener_.joinable()) listener_.join();
+    if (housekeeper_.joinable()) housekeeper_.join();
     hub_.stop();
+    {
+      std::lock_guard lock(stop_mu_);
+      stop_done_ = true;
+    }
     stop_cv_.notify_all();
   }
 
   void wait() {
     std::unique_lock lock(stop_mu_);
-    stop_cv_.wait(lock, [&] { return stopped_; });
+    stop_cv_.wait(lock, [&] { return stop_done_; });
   }
 
   int port() const { return port_; }
   lcm::LCM* lcm() { return hub_.get(); }
+
+  // Every 5 s while the server is idle (no queued or running job), gives the memory freed by past
+  // requests back to the system: glibc keeps it in per-thread arenas otherwise, and the resident size
+  // would stay at its peak after a burst of connections.
+  void housekeeping() {
+    std::unique_lock lock(stop_mu_);
+    while (!stop_cv_.wait_for(lock, std::chrono::seconds(5), [&] { return stopped_; })) {
+#ifdef __GLIBC__
+      const Metrics m = jobs_.metrics();
+      if (m.queue_length == 0 && m.workers_busy == 0) malloc_trim(0);
+#endif
+    }
+  }
 
  private:
   void setup_routes();
@@ -212,6 +239,15 @@ class Server::Impl {
     std::lock_guard lock(job.mu);
     return job.state;
   }
+  // JobManager::submit, with a failure to write the job's records (a full disk, say) as a 507.
+  JobManager::Submit submit_or_throw(const std::shared_ptr<Job>& job, const json& scene_doc, int* retry_after,
+                                     const json* study_doc) {
+    try {
+      return jobs_.submit(job, scene_doc, retry_after, study_doc);
+    } catch (const std::exception& e) {
+      throw BadRequest{507, "cannot store the job", "", e.what(), ""};
+    }
+  }
   // The committed report of a run (report.json) or result of a study (result.json).
   std::optional<json> read_report(const Job& job) {
     bool has = false;
@@ -242,16 +278,27 @@ class Server::Impl {
   JobManager jobs_;
   httplib::Server http_;
   std::thread listener_;
+  std::thread housekeeper_;
   int port_ = -1;
+  int listen_socket_ = -1;  // the bound socket (set by the socket options callback)
   std::mutex stop_mu_;
   std::condition_variable stop_cv_;
-  bool stopped_ = false;
+  bool stopped_ = false;    // stop() has begun
+  bool stop_done_ = false;  // stop() has finished
   mutable std::mutex stats_mu_;
   std::map<int, std::int64_t> responses_;
 };
 
 void Server::Impl::setup_routes() {
   http_.set_tcp_nodelay(true);
+  // cpp-httplib's default socket options set SO_REUSEPORT, with which a second server binds the same
+  // port and silently takes part of the connections. SO_REUSEADDR alone still allows a restart while
+  // old connections are in TIME_WAIT, and a port in use is an error ("cannot bind").
+  http_.set_socket_options([this](socket_t sock) {
+    int yes = 1;
+    ::setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
+    listen_socket_ = sock;
+  });
   http_.set_payload_max_length(cfg_.max_body_bytes);
   http_.set_keep_alive_timeout(cfg_.keep_alive_seconds);
   http_.set_keep_alive_max_count(static_cast<std::size_t>(std::max(1, cfg_.keep_alive_requests)));
@@ -525,7 +572,7 @@ void Server::Impl::post_job(const Request& req, Response& res) {
     job->load_seconds = std::chrono::duration<double>(Clock::now() - t_load).count();
 
     int retry_after = 1;
-    switch (jobs_.submit(job, stored_doc, &retry_after)) {
+    switch (submit_or_throw(job, stored_doc, &retry_after, nullptr)) {
       case JobManager::Submit::kQueued: break;
       case JobManager::Submit::kQueueFull:
         res.set_header("Retry-After", std::to_string(retry_after));
@@ -593,7 +640,7 @@ void Server::Impl::post_study(const Request& req, Response& res) {
     job->load_seconds = std::chrono::duration<double>(Clock::now() - t_load).count();
 
     int retry_after = 1;
-    switch (jobs_.submit(job, doc, &retry_after, &settings)) {
+    switch (submit_or_throw(job, doc, &retry_after, &settings)) {
       case JobManager::Submit::kQueued: break;
       case JobManager::Submit::kQueueFull:
         res.set_header("Retry-After", std::to_string(retry_after));

@@ -20,6 +20,16 @@ namespace {
 
 namespace {
 
+// A write that failed (a full disk, say) removes its file: a part of it is of no use, and it would go on
+// holding the space.
+[[noreturn]] void fail_and_remove(const std::string& what, const std::filesystem::path& path, int fd) {
+  const int e = errno;
+  if (fd >= 0) ::close(fd);
+  ::unlink(path.c_str());
+  errno = e;
+  fail(what, path);
+}
+
 void write_fd(const std::filesystem::path& tmp, std::string_view bytes, Durability durability) {
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (fd < 0) fail("cannot create", tmp);
@@ -29,21 +39,13 @@ void write_fd(const std::filesystem::path& tmp, std::string_view bytes, Durabili
     const ssize_t w = ::write(fd, p, left);
     if (w < 0) {
       if (errno == EINTR) continue;
-      const int e = errno;
-      ::close(fd);
-      errno = e;
-      fail("cannot write", tmp);
+      fail_and_remove("cannot write", tmp, fd);
     }
     p += w;
     left -= static_cast<std::size_t>(w);
   }
-  if (durability == Durability::kFsync && ::fsync(fd) != 0) {
-    const int e = errno;
-    ::close(fd);
-    errno = e;
-    fail("cannot fsync", tmp);
-  }
-  if (::close(fd) != 0) fail("cannot close", tmp);
+  if (durability == Durability::kFsync && ::fsync(fd) != 0) fail_and_remove("cannot fsync", tmp, fd);
+  if (::close(fd) != 0) fail_and_remove("cannot close", tmp, -1);
 }
 
 }  // namespace
@@ -54,7 +56,22 @@ void write_file_atomic(const std::filesystem::path& path, std::string_view bytes
   std::filesystem::path tmp = path;
   tmp += ".tmp";
   write_fd(tmp, bytes, durability);
-  if (::rename(tmp.c_str(), path.c_str()) != 0) fail("cannot rename into", path);
+  if (::rename(tmp.c_str(), path.c_str()) != 0) {
+    const int e = errno;
+    ::unlink(tmp.c_str());
+    errno = e;
+    fail("cannot rename into", path);
+  }
+}
+
+void check_writable_directory(const std::filesystem::path& dir) {
+  // A file name no job uses (ids are 32 hex digits) and no other server process on the same
+  // directory picks at the same time.
+  const std::filesystem::path probe = dir / (".write-check-" + std::to_string(::getpid()));
+  const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) fail("cannot create files in", dir);
+  ::close(fd);
+  if (::unlink(probe.c_str()) != 0) fail("cannot remove files in", dir);
 }
 
 void fsync_path(const std::filesystem::path& path) {

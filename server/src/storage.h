@@ -15,11 +15,17 @@ enum class Durability {
   kFsync,   // also fsync the file before the rename
 };
 
-// Writes `bytes` to `path` through `path`.tmp and a rename. Throws std::runtime_error naming the file.
+// Writes `bytes` to `path` through `path`.tmp and a rename. Throws std::runtime_error naming the file;
+// a failed write leaves no temporary file behind.
 void write_file_atomic(const std::filesystem::path& path, std::string_view bytes, Durability durability);
 
-// Writes `bytes` to `path` (created or truncated), without fsync. Throws std::runtime_error.
+// Writes `bytes` to `path` (created or truncated), without fsync. Throws std::runtime_error, and removes
+// the file, if the write fails.
 void write_file(const std::filesystem::path& path, std::string_view bytes);
+
+// Creates and removes a file in `dir`; throws std::runtime_error naming the directory if that fails
+// (read-only file system, no permission). Does not check free space.
+void check_writable_directory(const std::filesystem::path& dir);
 
 // fsync of a file or directory (a directory: so that renames inside it survive a power loss).
 void fsync_path(const std::filesystem::path& path);

@@ -30,6 +30,7 @@ class TrajectoryCsvWriter : public RunObserver {
   std::vector<char> buffer_;
   std::size_t used_ = 0;
   bool failed_ = false;
+  int error_ = 0;  // errno of the first failed write
   double seconds_ = 0.0;
 };
 

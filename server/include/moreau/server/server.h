@@ -21,7 +21,7 @@ struct ServerConfig {
   int workers = 0;               // integrating threads; 0: one per core
   int io_threads = 4;            // threads that fsync and rename finished jobs' results
   int queue = 64;                // queued jobs beyond which POST /v1/jobs answers 429
-  int http_threads = 32;         // HTTP connections served at once (keep-alive and event streams hold one)
+  int http_threads = 64;         // HTTP connections served at once (keep-alive and event streams hold one)
   std::string lcm_url;           // empty: LCM_DEFAULT_URL, else LCM's default, opened at the first stream
   std::string token;             // non-empty: every endpoint but /healthz needs "Authorization: Bearer TOKEN"
   bool allow_unauthenticated_remote = false;  // start() refuses a non-loopback host without a token unless set
@@ -29,7 +29,9 @@ struct ServerConfig {
   std::int64_t max_steps = 100'000'000;   // integration steps per job
   std::int64_t max_samples = 2'000'000;   // trajectory rows per job
   int keep_alive_seconds = 5;    // idle keep-alive connections are closed after this
-  int keep_alive_requests = 10000;  // requests served on one connection before it is closed
+  // Requests served on one connection before it is closed: a busy keep-alive connection then goes back
+  // behind the connections waiting for a thread, so that more clients than threads all get served.
+  int keep_alive_requests = 100;
   bool log_requests = false;     // one line per request on stderr
 };
 
