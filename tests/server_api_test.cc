@@ -375,7 +375,7 @@ TEST(ServerApi, TokenGuardsEveryEndpointButHealthz) {
     EXPECT_EQ(anonymous->Post(path, json({{"scene", manipulator()}}).dump(), "application/json")->status, 401) << path;
     EXPECT_EQ(wrong->Post(path, json({{"scene", manipulator()}}).dump(), "application/json")->status, 401) << path;
   }
-  for (const std::string path : {"/v1/jobs" + id, "/v1/studies" + id}) {
+  for (const std::string& path : {"/v1/jobs" + id, "/v1/studies" + id}) {
     EXPECT_EQ(anonymous->Delete(path)->status, 401) << path;
     EXPECT_EQ(wrong->Delete(path)->status, 401) << path;
   }
