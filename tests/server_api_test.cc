@@ -387,6 +387,41 @@ TEST(ServerApi, TokenGuardsEveryEndpointButHealthz) {
   EXPECT_EQ(wait_final(*good, json::parse(r->body)["id"])["state"], "done");
 }
 
+TEST(ServerApi, KeepJobsDeletesTheOldestFinished) {
+  ServerConfig cfg;
+  cfg.keep_jobs = 3;
+  TestServer ts(cfg);
+  auto c = ts.client();
+  std::vector<std::string> ids;
+  for (int i = 0; i < 5; ++i) {
+    auto r = submit(*c, {{"scene", manipulator()}, {"overrides", {"integrator.t_end=0.1"}}});
+    ASSERT_EQ(r->status, 202);
+    ids.push_back(json::parse(r->body)["id"]);
+    ASSERT_EQ(wait_final(*c, ids.back())["state"], "done");
+  }
+  EXPECT_EQ(json::parse(c->Get("/v1/jobs")->body)["total"], 3);
+  for (int i = 0; i < 5; ++i) {
+    const bool kept = i >= 2;
+    EXPECT_EQ(c->Get("/v1/jobs/" + ids[i])->status, kept ? 200 : 404) << i;
+    EXPECT_EQ(fs::exists(ts.data() / "jobs" / ids[i]), kept) << i;
+    if (kept) EXPECT_EQ(c->Get("/v1/jobs/" + ids[i] + "/report")->status, 200) << i;
+  }
+  // A restart with a smaller limit prunes what it recovers.
+  c.reset();
+  ts.stop();
+  ServerConfig smaller;
+  smaller.keep_jobs = 2;
+  const fs::path data = ts.release_data();
+  {
+    TestServer again(smaller, data);
+    auto c2 = again.client();
+    EXPECT_EQ(json::parse(c2->Get("/v1/jobs")->body)["total"], 2);
+    EXPECT_EQ(c2->Get("/v1/jobs/" + ids[2])->status, 404);
+    EXPECT_EQ(c2->Get("/v1/jobs/" + ids[4])->status, 200);
+  }
+  fs::remove_all(data);
+}
+
 TEST(ServerApi, RemoteAddressNeedsATokenOrAnExplicitFlag) {
   const fs::path data = moreau::server::testing::make_temp_dir("remote");
   ServerConfig cfg;

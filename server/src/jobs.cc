@@ -234,12 +234,16 @@ void JobManager::recover() {
   std::sort(found.begin(), found.end(), [](const auto& a, const auto& b) {
     return a->created != b->created ? a->created < b->created : a->id < b->id;
   });
-  std::lock_guard lock(mu_);
-  for (auto& job : found) {
-    push_event(*job, "state", {{"id", job->id}, {"state", to_string(job->state)}});
-    jobs_.emplace(job->id, job);
-    order_.push_back(job);
+  {
+    std::lock_guard lock(mu_);
+    for (auto& job : found) {
+      push_event(*job, "state", {{"id", job->id}, {"state", to_string(job->state)}});
+      jobs_.emplace(job->id, job);
+      order_.push_back(job);
+      ++finished_;  // every recovered job is final
+    }
   }
+  prune();
 }
 
 void JobManager::start() {
@@ -356,9 +360,11 @@ void JobManager::push_event(Job& job, const std::string& name, const json& data)
 void JobManager::set_state(Job& job, JobState state, const std::string& reason) {
   json data = {{"id", job.id}, {"state", to_string(state)}};
   if (!reason.empty()) data["reason"] = reason;
+  bool became_final = false;
   {
     // The state and its event change together: a stream that sees a final state has its event.
     std::lock_guard lock(job.mu);
+    became_final = is_final(state) && !is_final(job.state);
     job.state = state;
     job.reason = reason;
     if (state == JobState::kRunning) job.started = unix_now();
@@ -367,6 +373,43 @@ void JobManager::set_state(Job& job, JobState state, const std::string& reason) 
   }
   job.cv.notify_all();
   write_record(job);
+  if (became_final) {
+    ++finished_;
+    prune();
+  }
+}
+
+void JobManager::prune() {
+  const std::int64_t keep = config_.keep_jobs;
+  if (keep <= 0 || finished_.load() <= keep + std::max<std::int64_t>(1, keep / 10) - 1 || stopping_) return;
+  std::vector<std::shared_ptr<Job>> doomed;
+  {
+    std::lock_guard lock(mu_);
+    std::int64_t excess = finished_.load() - keep;
+    std::vector<std::shared_ptr<Job>> kept;
+    kept.reserve(order_.size());
+    for (auto& job : order_) {  // oldest first
+      bool final = false;
+      {
+        std::lock_guard jl(job->mu);
+        final = is_final(job->state);
+      }
+      if (excess > 0 && final) {
+        jobs_.erase(job->id);
+        doomed.push_back(job);
+        --excess;
+      } else {
+        kept.push_back(job);
+      }
+    }
+    order_.swap(kept);
+    finished_ -= static_cast<std::int64_t>(doomed.size());
+  }
+  for (const auto& job : doomed) {
+    std::error_code ec;
+    fs::remove_all(job->dir, ec);
+    if (ec) std::cerr << "moreau-server: cannot delete old job " << job->id << ": " << ec.message() << "\n";
+  }
 }
 
 JobManager::Cancel JobManager::cancel(const std::shared_ptr<Job>& job, std::chrono::milliseconds wait) {

@@ -161,6 +161,9 @@ class JobManager {
   void fail_to_store(Job& job, const std::string& what);
   // Changes the state (and reason), records it in job.json and tells the event streams.
   void set_state(Job& job, JobState state, const std::string& reason);
+  // Deletes the oldest finished jobs (records, results, memory) once more than ServerConfig::keep_jobs
+  // are finished, down to keep_jobs.
+  void prune();
   void push_event(Job& job, const std::string& name, const nlohmann::json& data);
   void write_record(const Job& job) const;
   void count_finished(std::int64_t steps, double integrate_seconds, double wall_seconds);
@@ -176,6 +179,7 @@ class JobManager {
   std::deque<std::shared_ptr<Job>> queue_;
   std::vector<std::thread> workers_;
   std::atomic<bool> stopping_{false};
+  std::atomic<std::int64_t> finished_{0};  // jobs in a final state, in jobs_
 
   std::mutex commit_mu_;
   std::condition_variable commit_cv_;

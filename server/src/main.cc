@@ -53,6 +53,10 @@ int main(int argc, char** argv) {
       ->capture_default_str()
       ->check(CLI::Range(1, 1000000));
   app.add_flag("--log-requests", cfg.log_requests, "One line per request on stderr");
+  app.add_option("--keep-jobs", cfg.keep_jobs,
+                 "Finished jobs and studies kept (memory and disk); the oldest beyond it are deleted (0: all)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -33,6 +33,9 @@ struct ServerConfig {
   // behind the connections waiting for a thread, so that more clients than threads all get served.
   int keep_alive_requests = 100;
   bool log_requests = false;     // one line per request on stderr
+  // Finished jobs and studies kept, in memory and on disk; beyond it the oldest finished ones are deleted
+  // (pruned in batches of a tenth of it). 0: keep all, until an operator deletes them.
+  std::int64_t keep_jobs = 0;
 };
 
 // Where /v1/scenes reads from when ServerConfig::scenes_dir is empty: the source tree's scenes/ if it
