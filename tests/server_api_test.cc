@@ -404,7 +404,9 @@ TEST(ServerApi, KeepJobsDeletesTheOldestFinished) {
     const bool kept = i >= 2;
     EXPECT_EQ(c->Get("/v1/jobs/" + ids[i])->status, kept ? 200 : 404) << i;
     EXPECT_EQ(fs::exists(ts.data() / "jobs" / ids[i]), kept) << i;
-    if (kept) EXPECT_EQ(c->Get("/v1/jobs/" + ids[i] + "/report")->status, 200) << i;
+    if (kept) {
+      EXPECT_EQ(c->Get("/v1/jobs/" + ids[i] + "/report")->status, 200) << i;
+    }
   }
   // A restart with a smaller limit prunes what it recovers.
   c.reset();

@@ -93,6 +93,11 @@ TEST(Study, SettingsFromJson) {
   EXPECT_EQ(st.eval_points, 50);
   EXPECT_EQ(st.regularization, "saturation");
   EXPECT_EQ(st.reference_h, 1e-5);
+  const auto back = study_settings_from_json(study_settings_to_json(st), "/study");
+  EXPECT_EQ(back.h, st.h);
+  EXPECT_EQ(back.schemes, st.schemes);
+  EXPECT_EQ(back.reference_h, st.reference_h);
+  EXPECT_EQ(study_settings_to_json(back), study_settings_to_json(st));
   const auto defaults = study_settings_from_json(nlohmann::json(), "/study");
   EXPECT_EQ(defaults.h.size(), 9u) << "the default ladder is 1e-1:1e-5:9";
   EXPECT_EQ(defaults.schemes.size(), 3u);

@@ -9,6 +9,17 @@
 #include <sstream>
 
 namespace moreau::scene {
+
+std::string json_pointer_token(std::string_view key) {
+  std::string out;
+  for (char c : key) {
+    if (c == '~') out += "~0";
+    else if (c == '/') out += "~1";
+    else out += c;
+  }
+  return out;
+}
+
 namespace {
 
 using nlohmann::json;
@@ -62,17 +73,6 @@ std::string brief(const json& j) {
   return text.size() <= 200 ? text : utf8_prefix(text, 200) + "...";
 }
 
-// Escapes a key for a JSON pointer (RFC 6901).
-std::string escape(const std::string& key) {
-  std::string out;
-  for (char c : key) {
-    if (c == '~') out += "~0";
-    else if (c == '/') out += "~1";
-    else out += c;
-  }
-  return out;
-}
-
 void require_object(const json& j, const std::string& ptr) {
   if (!j.is_object()) throw SceneError(ptr, "expected an object, got " + type_name(j));
 }
@@ -80,7 +80,7 @@ void require_object(const json& j, const std::string& ptr) {
 void check_fields(const json& obj, const std::string& ptr, const std::vector<std::string>& allowed) {
   for (auto it = obj.begin(); it != obj.end(); ++it) {
     if (std::find(allowed.begin(), allowed.end(), it.key()) == allowed.end()) {
-      throw SceneError(ptr + "/" + escape(it.key()),
+      throw SceneError(ptr + "/" + json_pointer_token(it.key()),
                        "unknown field '" + utf8_prefix(it.key(), 200) + "' (expected one of: " + join(allowed) + ")");
     }
   }
@@ -103,7 +103,7 @@ class Compiler {
     const json& p = doc_["parameters"];
     require_object(p, "/parameters");
     for (auto it = p.begin(); it != p.end(); ++it) {
-      const std::string ptr = "/parameters/" + escape(it.key());
+      const std::string ptr = "/parameters/" + json_pointer_token(it.key());
       if (!is_identifier(it.key())) throw SceneError(ptr, "'" + it.key() + "' is not a valid name");
       if (function_names().count(it.key()) || it.key() == "t")
         throw SceneError(ptr, "'" + it.key() + "' is reserved (a function name or the time t)");
@@ -120,9 +120,9 @@ class Compiler {
 
   Node parameter(const std::string& name) {
     if (auto it = param_nodes_.find(name); it != param_nodes_.end()) return it->second;
-    if (resolving_.count(name)) throw SceneError("/parameters/" + escape(name), "parameter '" + name + "' depends on itself");
+    if (resolving_.count(name)) throw SceneError("/parameters/" + json_pointer_token(name), "parameter '" + name + "' depends on itself");
     resolving_.insert(name);
-    const Node node = constant_node(*params_.at(name), "/parameters/" + escape(name));
+    const Node node = constant_node(*params_.at(name), "/parameters/" + json_pointer_token(name));
     resolving_.erase(name);
     param_nodes_[name] = node;
     return node;
@@ -234,7 +234,7 @@ class Compiler {
       }
       for (const std::string& name : {q, v})
         if (params_.count(name))
-          throw SceneError("/parameters/" + escape(name), "'" + name + "' is also the name of a coordinate or velocity");
+          throw SceneError("/parameters/" + json_pointer_token(name), "'" + name + "' is also the name of a coordinate or velocity");
       if (!seen.insert(q).second || !seen.insert(v).second)
         throw SceneError("/system/coordinates/" + std::to_string(i), "duplicate name '" + q + "'");
       coord_names_.push_back(q);
@@ -1084,7 +1084,7 @@ void apply_override(nlohmann::json& doc, const std::string& assignment) {
   for (std::size_t i = 0; i < tokens.size(); ++i) {
     const std::string& tok = tokens[i];
     if (tok.empty()) throw SceneError(ptr + "/", "override path '" + path + "' has an empty component");
-    ptr += "/" + escape(tok);
+    ptr += "/" + json_pointer_token(tok);
     if (node->is_array()) {
       std::size_t idx = 0;
       try {

@@ -388,6 +388,17 @@ StudySettings study_settings_from_json(const nlohmann::json& j, const std::strin
   return st;
 }
 
+nlohmann::json study_settings_to_json(const StudySettings& st) {
+  nlohmann::json j = {{"h", st.h},
+                      {"schemes", st.schemes},
+                      {"epsilon", st.epsilon},
+                      {"regularization", st.regularization},
+                      {"eval_points", st.eval_points},
+                      {"repeats", st.repeats}};
+  if (st.reference_h) j["reference_h"] = *st.reference_h;
+  return j;
+}
+
 std::int64_t study_planned_steps(const LagrangianScene& scene, const StudySettings& st) {
   const double span = scene.settings.t_end - scene.settings.t0;
   constexpr double kCap = 9e18;

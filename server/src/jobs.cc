@@ -381,7 +381,8 @@ void JobManager::set_state(Job& job, JobState state, const std::string& reason) 
 
 void JobManager::prune() {
   const std::int64_t keep = config_.keep_jobs;
-  if (keep <= 0 || finished_.load() <= keep + std::max<std::int64_t>(1, keep / 10) - 1 || stopping_) return;
+  const std::int64_t batch = std::max<std::int64_t>(1, keep / 10);  // prune a tenth at a time
+  if (keep <= 0 || finished_.load() < keep + batch || stopping_) return;
   std::vector<std::shared_ptr<Job>> doomed;
   {
     std::lock_guard lock(mu_);
@@ -681,6 +682,11 @@ void JobManager::count_finished(std::int64_t steps, double integrate_seconds, do
   const auto now = Clock::now();
   recent_steps_.emplace_back(now, steps);
   while (!recent_steps_.empty() && now - recent_steps_.front().first > std::chrono::seconds(10)) recent_steps_.pop_front();
+}
+
+bool JobManager::idle() const {
+  std::lock_guard lock(mu_);
+  return queue_.empty() && busy_.load() == 0;
 }
 
 Metrics JobManager::metrics() const {

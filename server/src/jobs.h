@@ -110,6 +110,8 @@ class JobManager {
   // Fails the queued jobs, stops the running ones (failed: the server stopped) and joins the workers.
   void stop();
   bool stopping() const { return stopping_.load(); }
+  // No job queued or running.
+  bool idle() const;
 
   // A fresh job with a random id and its directory path (not yet created).
   std::shared_ptr<Job> make_job() const;

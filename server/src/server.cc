@@ -118,6 +118,11 @@ struct BadRequest {
   std::string error, pointer, reason, where;
 };
 
+// Thrown while drawing a figure when a stored file of a finished job cannot be read: a 500, not a 422.
+struct StoredFileUnreadable {
+  std::string error;
+};
+
 bool valid_channel_prefix(const std::string& s) {
   if (s.empty() || s.size() > 64 || !(s[0] >= 'A' && s[0] <= 'Z')) return false;
   return std::all_of(s.begin(), s.end(), [](char c) { return (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_'; });
@@ -194,8 +199,7 @@ class Server::Impl {
     std::unique_lock lock(stop_mu_);
     while (!stop_cv_.wait_for(lock, std::chrono::seconds(5), [&] { return stopped_; })) {
 #ifdef __GLIBC__
-      const Metrics m = jobs_.metrics();
-      if (m.queue_length == 0 && m.workers_busy == 0) malloc_trim(0);
+      if (jobs_.idle()) malloc_trim(0);
 #endif
     }
   }
@@ -239,23 +243,85 @@ class Server::Impl {
     std::lock_guard lock(job.mu);
     return job.state;
   }
-  // JobManager::submit, with a failure to write the job's records (a full disk, say) as a 507.
-  JobManager::Submit submit_or_throw(const std::shared_ptr<Job>& job, const json& scene_doc, int* retry_after,
-                                     const json* study_doc) {
+  // Queues a validated job or study and answers: 202 with it and its Location, 429 with Retry-After when
+  // the queue is full, 503 while stopping, 507 if its records cannot be written (a full disk, say).
+  void queue_and_answer(const std::shared_ptr<Job>& job, const json& scene_doc, const json* study_doc, Response& res) {
+    int retry_after = 1;
+    JobManager::Submit outcome;
     try {
-      return jobs_.submit(job, scene_doc, retry_after, study_doc);
+      outcome = jobs_.submit(job, scene_doc, &retry_after, study_doc);
     } catch (const std::exception& e) {
-      throw BadRequest{507, "cannot store the job", "", e.what(), ""};
+      return send_error(res, 507, "cannot store the job", "", e.what());
     }
+    switch (outcome) {
+      case JobManager::Submit::kQueued: break;
+      case JobManager::Submit::kQueueFull:
+        res.set_header("Retry-After", std::to_string(retry_after));
+        return send_error(res, 429, "queue full", "",
+                          "the server holds " + std::to_string(cfg_.queue) + " queued jobs at most; retry in " +
+                              std::to_string(retry_after) + " s");
+      case JobManager::Submit::kStopping: return send_error(res, 503, "server stopping");
+    }
+    const json j = job_json(*job, nullptr);
+    res.set_header("Location", j["url"].get<std::string>());
+    send_json(res, 202, j);
   }
+  // Whether the job is final and has the results `what` points to (has_report or has_trajectory).
+  static bool final_with(const Job& job, bool Job::*what) {
+    std::lock_guard lock(job.mu);
+    return job.*what && is_final(job.state);
+  }
+  // The requested figure size (width, height: 64 to 4096, default 1200x800), or nullopt after
+  // answering 501 (no render/ in this build) or 400.
+  static std::optional<std::pair<int, int>> figure_size(const Request& req, Response& res) {
+    if (!figures_available()) {
+      send_error(res, 501, "figures not available", "", "this server was built without render/ (no OSMesa)");
+      return std::nullopt;
+    }
+    std::pair<int, int> size{kDefaultFigureWidth, kDefaultFigureHeight};
+    try {
+      if (auto w = number_param(req, "width", 64, 4096)) size.first = static_cast<int>(*w);
+      if (auto h = number_param(req, "height", 64, 4096)) size.second = static_cast<int>(*h);
+    } catch (const std::exception& e) {
+      send_error(res, 400, "bad query", "", e.what());
+      return std::nullopt;
+    }
+    return size;
+  }
+  // Answers with a PNG drawn by `draw` (422 if it throws, 500 if a stored file is unreadable). At the default size it is read from, or
+  // written to, `cache`: a name from a fixed list, never from the request.
+  template <class Draw>
+  static void send_png(Response& res, const fs::path& cache, std::pair<int, int> size, Draw&& draw) {
+    const bool default_size = size == std::pair<int, int>{kDefaultFigureWidth, kDefaultFigureHeight};
+    if (default_size) {
+      if (auto png = read_file(cache)) {
+        res.status = 200;
+        return res.set_content(std::move(*png), "image/png");
+      }
+    }
+    std::vector<std::uint8_t> png;
+    try {
+      png = draw();
+    } catch (const StoredFileUnreadable& e) {
+      return send_error(res, 500, e.error);
+    } catch (const std::exception& e) {
+      return send_error(res, 422, "cannot draw this figure", "", e.what());
+    }
+    std::string bytes(png.begin(), png.end());
+    if (default_size) {
+      try {
+        write_file_atomic(cache, bytes, Durability::kFsync);
+      } catch (const std::exception& e) {
+        std::cerr << "moreau-server: " << e.what() << "\n";
+      }
+    }
+    res.status = 200;
+    res.set_content(std::move(bytes), "image/png");
+  }
+
   // The committed report of a run (report.json) or result of a study (result.json).
   std::optional<json> read_report(const Job& job) {
-    bool has = false;
-    {
-      std::lock_guard lock(job.mu);
-      has = job.has_report && is_final(job.state);
-    }
-    if (!has) return std::nullopt;
+    if (!final_with(job, &Job::has_report)) return std::nullopt;
     auto text = read_file(job.dir / (job.kind == JobKind::kStudy ? "result.json" : "report.json"));
     if (!text) return std::nullopt;
     json j = json::parse(*text, nullptr, false);
@@ -415,17 +481,6 @@ json post_body(const Request& req, const char* endpoint, const std::vector<std::
 
 namespace {
 
-// A key as a JSON pointer token (RFC 6901).
-std::string pointer_escape(const std::string& key) {
-  std::string out;
-  for (char c : key) {
-    if (c == '~') out += "~0";
-    else if (c == '/') out += "~1";
-    else out += c;
-  }
-  return out;
-}
-
 // scene::apply_override, with an error about the override itself (not of the form PATH=VALUE, a path too
 // deep: pointer "/") reported at `pointer` in the request; errors about the scene path keep theirs.
 void apply_request_override(json& doc, const std::string& assignment, const std::string& pointer) {
@@ -434,6 +489,23 @@ void apply_request_override(json& doc, const std::string& assignment, const std:
   } catch (const scene::SceneError& e) {
     if (e.pointer() == "/") throw BadRequest{400, "invalid request", pointer, e.reason(), "request"};
     throw;
+  }
+}
+
+}  // namespace
+
+namespace {
+
+// Runs a POST handler, answering what it throws: BadRequest as itself, SceneError as 400 "invalid scene"
+// with the pointer into the scene.
+template <class Handler>
+void answer_bad_requests(Response& res, Handler&& handle) {
+  try {
+    handle();
+  } catch (const BadRequest& e) {
+    send_error(res, e.status, e.error, e.pointer, e.reason, e.where);
+  } catch (const scene::SceneError& e) {
+    send_error(res, 400, "invalid scene", e.pointer(), e.reason(), "scene");
   }
 }
 
@@ -465,7 +537,7 @@ json Server::Impl::request_scene(const json& body) const {
       }
     } else if (o.is_object()) {
       for (const auto& [path, value] : o.items())
-        apply_request_override(doc, path + "=" + value.dump(), "/overrides/" + pointer_escape(path));
+        apply_request_override(doc, path + "=" + value.dump(), "/overrides/" + scene::json_pointer_token(path));
     } else {
       throw BadRequest{400, "invalid request", "/overrides", "expected an array of \"PATH=VALUE\" or an object {PATH: VALUE}", "request"};
     }
@@ -475,7 +547,7 @@ json Server::Impl::request_scene(const json& body) const {
 
 void Server::Impl::post_job(const Request& req, Response& res) {
   const auto t_load = Clock::now();
-  try {
+  answer_bad_requests(res, [&] {
     const json body = post_body(req, "POST /v1/jobs", {"scene", "overrides", "stream"}, "{scene, overrides?, stream?}");
     json doc = request_scene(body);
 
@@ -571,28 +643,13 @@ void Server::Impl::post_job(const Request& req, Response& res) {
     job->sim.emplace(std::move(sim));
     job->load_seconds = std::chrono::duration<double>(Clock::now() - t_load).count();
 
-    int retry_after = 1;
-    switch (submit_or_throw(job, stored_doc, &retry_after, nullptr)) {
-      case JobManager::Submit::kQueued: break;
-      case JobManager::Submit::kQueueFull:
-        res.set_header("Retry-After", std::to_string(retry_after));
-        return send_error(res, 429, "queue full", "",
-                          "the server holds " + std::to_string(cfg_.queue) + " queued jobs at most; retry in " +
-                              std::to_string(retry_after) + " s");
-      case JobManager::Submit::kStopping: return send_error(res, 503, "server stopping");
-    }
-    res.set_header("Location", "/v1/jobs/" + job->id);
-    send_json(res, 202, job_json(*job, nullptr));
-  } catch (const BadRequest& e) {
-    send_error(res, e.status, e.error, e.pointer, e.reason, e.where);
-  } catch (const scene::SceneError& e) {
-    send_error(res, 400, "invalid scene", e.pointer(), e.reason(), "scene");
-  }
+    queue_and_answer(job, stored_doc, nullptr, res);
+  });
 }
 
 void Server::Impl::post_study(const Request& req, Response& res) {
   const auto t_load = Clock::now();
-  try {
+  answer_bad_requests(res, [&] {
     const json body = post_body(req, "POST /v1/studies", {"scene", "overrides", "study"}, "{scene, overrides?, study?}");
     const json doc = request_scene(body);
     // A Lur'e scene is refused here at /system/type, a constrained one by the check below.
@@ -620,14 +677,6 @@ void Server::Impl::post_study(const Request& req, Response& res) {
     // Adaptive step rules may take more steps than planned: each run gets this server's limit.
     sc.settings.max_steps = std::min<std::int64_t>(sc.settings.max_steps, cfg_.max_steps);
 
-    json settings = {{"h", st.h},
-                     {"schemes", st.schemes},
-                     {"epsilon", st.epsilon},
-                     {"regularization", st.regularization},
-                     {"eval_points", st.eval_points},
-                     {"repeats", st.repeats}};
-    if (st.reference_h) settings["reference_h"] = *st.reference_h;
-
     auto job = jobs_.make_job();
     job->kind = JobKind::kStudy;
     job->scene_name = sc.name.empty() ? "scene" : sc.name;
@@ -639,23 +688,9 @@ void Server::Impl::post_study(const Request& req, Response& res) {
     job->study_scene.emplace(std::move(sc));
     job->load_seconds = std::chrono::duration<double>(Clock::now() - t_load).count();
 
-    int retry_after = 1;
-    switch (submit_or_throw(job, doc, &retry_after, &settings)) {
-      case JobManager::Submit::kQueued: break;
-      case JobManager::Submit::kQueueFull:
-        res.set_header("Retry-After", std::to_string(retry_after));
-        return send_error(res, 429, "queue full", "",
-                          "the server holds " + std::to_string(cfg_.queue) + " queued jobs at most; retry in " +
-                              std::to_string(retry_after) + " s");
-      case JobManager::Submit::kStopping: return send_error(res, 503, "server stopping");
-    }
-    res.set_header("Location", "/v1/studies/" + job->id);
-    send_json(res, 202, job_json(*job, nullptr));
-  } catch (const BadRequest& e) {
-    send_error(res, e.status, e.error, e.pointer, e.reason, e.where);
-  } catch (const scene::SceneError& e) {
-    send_error(res, 400, "invalid scene", e.pointer(), e.reason(), "scene");
-  }
+    const json settings = scene::study_settings_to_json(job->study);
+    queue_and_answer(job, doc, &settings, res);
+  });
 }
 
 void Server::Impl::get_job(const Request& req, Response& res, JobKind kind) {
@@ -740,12 +775,7 @@ void Server::Impl::job_events(const Request& req, Response& res, JobKind kind) {
 void Server::Impl::job_report(const Request& req, Response& res) {
   auto job = job_for(req, res);
   if (!job) return;
-  bool has = false;
-  {
-    std::lock_guard lock(job->mu);
-    has = job->has_report && is_final(job->state);
-  }
-  auto text = has ? read_file(job->dir / "report.json") : std::nullopt;
+  auto text = final_with(*job, &Job::has_report) ? read_file(job->dir / "report.json") : std::nullopt;
   if (!text) return send_error(res, 409, "no report yet", "", std::string("the job is ") + to_string(state_of(*job)));
   res.status = 200;
   res.set_content(std::move(*text), "application/json");
@@ -756,12 +786,7 @@ void Server::Impl::job_trajectory(const Request& req, Response& res) {
   if (!job) return;
   const std::string format = req.has_param("format") ? req.get_param_value("format") : "json";
   if (format != "json" && format != "csv") return send_error(res, 400, "bad query", "", "format must be json or csv");
-  bool has = false;
-  {
-    std::lock_guard lock(job->mu);
-    has = job->has_trajectory && is_final(job->state);
-  }
-  auto text = has ? read_file(job->dir / "trajectory.csv") : std::nullopt;
+  auto text = final_with(*job, &Job::has_trajectory) ? read_file(job->dir / "trajectory.csv") : std::nullopt;
   if (!text) {
     return send_error(res, 409, "no trajectory yet", "",
                       std::string("the job is ") + to_string(state_of(*job)) + "; the trajectory is served once it has finished");
@@ -784,59 +809,24 @@ void Server::Impl::job_figure(const Request& req, Response& res) {
   if (!job) return;
   const std::string kind = req.has_param("kind") ? req.get_param_value("kind") : "state";
   if (!is_figure_kind(kind)) return send_error(res, 400, "bad query", "", "kind must be state, energy, step or phase");
-  if (!figures_available()) {
-    return send_error(res, 501, "figures not available", "", "this server was built without render/ (no OSMesa)");
-  }
-  int width = kDefaultFigureWidth, height = kDefaultFigureHeight;
-  try {
-    if (auto w = number_param(req, "width", 64, 4096)) width = static_cast<int>(*w);
-    if (auto h = number_param(req, "height", 64, 4096)) height = static_cast<int>(*h);
-  } catch (const std::exception& e) {
-    return send_error(res, 400, "bad query", "", e.what());
-  }
-  bool has = false;
-  {
-    std::lock_guard lock(job->mu);
-    has = job->has_trajectory && is_final(job->state);
-  }
-  if (!has) {
+  const auto size = figure_size(req, res);
+  if (!size) return;
+  if (!final_with(*job, &Job::has_trajectory)) {
     return send_error(res, 409, "no trajectory yet", "",
                       std::string("the job is ") + to_string(state_of(*job)) + "; figures are drawn once it has finished");
   }
-  // The cache file name comes from the fixed list of kinds, not from the request.
   static const std::map<std::string, std::string> kFiles = {
       {"state", "figure-state.png"}, {"energy", "figure-energy.png"}, {"step", "figure-step.png"}, {"phase", "figure-phase.png"}};
-  const bool default_size = width == kDefaultFigureWidth && height == kDefaultFigureHeight;
-  const fs::path cache = job->dir / kFiles.at(kind);
-  if (default_size) {
-    if (auto png = read_file(cache)) {
-      res.status = 200;
-      return res.set_content(std::move(*png), "image/png");
+  send_png(res, job->dir / kFiles.at(kind), *size, [&] {
+    auto csv = read_file(job->dir / "trajectory.csv");
+    if (!csv) throw StoredFileUnreadable{"stored trajectory unreadable"};
+    std::optional<double> converged;
+    if (auto report = read_report(*job)) {
+      if (report->contains("converged_time") && (*report)["converged_time"].is_number())
+        converged = (*report)["converged_time"].get<double>();
     }
-  }
-  auto csv = read_file(job->dir / "trajectory.csv");
-  if (!csv) return send_error(res, 500, "stored trajectory unreadable");
-  std::optional<double> converged;
-  if (auto report = read_report(*job)) {
-    if (report->contains("converged_time") && (*report)["converged_time"].is_number())
-      converged = (*report)["converged_time"].get<double>();
-  }
-  std::vector<std::uint8_t> png;
-  try {
-    png = figure_png(kind, *csv, converged, width, height, job->scene_name + " (" + job->id.substr(0, 8) + ")");
-  } catch (const std::exception& e) {
-    return send_error(res, 422, "cannot draw this figure", "", e.what());
-  }
-  std::string bytes(png.begin(), png.end());
-  if (default_size) {
-    try {
-      write_file_atomic(cache, bytes, Durability::kFsync);
-    } catch (const std::exception& e) {
-      std::cerr << "moreau-server: " << e.what() << "\n";
-    }
-  }
-  res.status = 200;
-  res.set_content(std::move(bytes), "image/png");
+    return figure_png(kind, *csv, converged, size->first, size->second, job->scene_name + " (" + job->id.substr(0, 8) + ")");
+  });
 }
 
 void Server::Impl::study_table(const Request& req, Response& res) {
@@ -844,12 +834,8 @@ void Server::Impl::study_table(const Request& req, Response& res) {
   if (!job) return;
   const std::string format = req.has_param("format") ? req.get_param_value("format") : "json";
   if (format != "json" && format != "csv") return send_error(res, 400, "bad query", "", "format must be json or csv");
-  bool has = false;
-  {
-    std::lock_guard lock(job->mu);
-    has = job->has_report && is_final(job->state);
-  }
-  auto text = has ? read_file(job->dir / (format == "csv" ? "table.csv" : "result.json")) : std::nullopt;
+  auto text = final_with(*job, &Job::has_report) ? read_file(job->dir / (format == "csv" ? "table.csv" : "result.json"))
+                                                 : std::nullopt;
   if (!text) {
     return send_error(res, 409, "no table yet", "",
                       std::string("the study is ") + to_string(state_of(*job)) + "; the table is served once it is done");
@@ -864,51 +850,17 @@ void Server::Impl::study_figure(const Request& req, Response& res) {
   if (!job) return;
   const std::string kind = req.has_param("kind") ? req.get_param_value("kind") : "work";
   if (kind != "work" && kind != "order") return send_error(res, 400, "bad query", "", "kind must be work or order");
-  if (!figures_available()) {
-    return send_error(res, 501, "figures not available", "", "this server was built without render/ (no OSMesa)");
-  }
-  int width = kDefaultFigureWidth, height = kDefaultFigureHeight;
-  try {
-    if (auto w = number_param(req, "width", 64, 4096)) width = static_cast<int>(*w);
-    if (auto h = number_param(req, "height", 64, 4096)) height = static_cast<int>(*h);
-  } catch (const std::exception& e) {
-    return send_error(res, 400, "bad query", "", e.what());
-  }
-  bool has = false;
-  {
-    std::lock_guard lock(job->mu);
-    has = job->has_report && is_final(job->state);
-  }
-  auto result = has ? read_file(job->dir / "result.json") : std::nullopt;
-  if (!result) {
+  const auto size = figure_size(req, res);
+  if (!size) return;
+  if (!final_with(*job, &Job::has_report)) {
     return send_error(res, 409, "no table yet", "",
                       std::string("the study is ") + to_string(state_of(*job)) + "; figures are drawn once it is done");
   }
-  // The cache file name comes from the fixed list of kinds, not from the request.
-  const fs::path cache = job->dir / (kind == "work" ? "figure-work.png" : "figure-order.png");
-  const bool default_size = width == kDefaultFigureWidth && height == kDefaultFigureHeight;
-  if (default_size) {
-    if (auto png = read_file(cache)) {
-      res.status = 200;
-      return res.set_content(std::move(*png), "image/png");
-    }
-  }
-  std::vector<std::uint8_t> png;
-  try {
-    png = study_figure_png(kind, *result, width, height);
-  } catch (const std::exception& e) {
-    return send_error(res, 422, "cannot draw this figure", "", e.what());
-  }
-  std::string bytes(png.begin(), png.end());
-  if (default_size) {
-    try {
-      write_file_atomic(cache, bytes, Durability::kFsync);
-    } catch (const std::exception& e) {
-      std::cerr << "moreau-server: " << e.what() << "\n";
-    }
-  }
-  res.status = 200;
-  res.set_content(std::move(bytes), "image/png");
+  send_png(res, job->dir / (kind == "work" ? "figure-work.png" : "figure-order.png"), *size, [&] {
+    auto result = read_file(job->dir / "result.json");
+    if (!result) throw StoredFileUnreadable{"stored study result unreadable"};
+    return study_figure_png(kind, *result, size->first, size->second);
+  });
 }
 
 void Server::Impl::list_scenes(const Request&, Response& res) {

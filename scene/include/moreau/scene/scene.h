@@ -53,6 +53,9 @@ class SceneError : public std::runtime_error {
 // `--set system.potential=sin(q1)` works. Missing object members are created; array indices must exist.
 void apply_override(nlohmann::json& doc, const std::string& assignment);
 
+// A key as one token of a JSON pointer (RFC 6901: '~' becomes "~0", '/' becomes "~1").
+std::string json_pointer_token(std::string_view key);
+
 // Reads a scene file; JSON syntax errors name the file, line and column.
 nlohmann::json read_scene_file(const std::string& path);
 

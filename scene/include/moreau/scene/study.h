@@ -59,6 +59,8 @@ class StudyCancelled : public std::runtime_error {
 // h is a ladder string ("1e-1:1e-5:9", "1e-2,1e-3") or an array of positive numbers; schemes a comma
 // string or an array. Absent fields keep StudySettings' defaults (and the ladder "1e-1:1e-5:9").
 StudySettings study_settings_from_json(const nlohmann::json& j, const std::string& pointer);
+// The settings as study_settings_from_json reads them (h as an array), every field given.
+nlohmann::json study_settings_to_json(const StudySettings& settings);
 
 // An upper estimate of the integration steps a study takes: for each scheme and h, ceil(T / h) for the
 // error run and each timed run, plus the reference run (adaptive step rules can take more; each run is
