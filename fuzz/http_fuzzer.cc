@@ -15,11 +15,8 @@
 //
 // The HTTP parser itself (libcpp-httplib.so) is a system library and not instrumented: coverage guides
 // the fuzzer through the server's handlers, the scene format and the expression compiler.
-#include <arpa/inet.h>
-#include <netinet/in.h>
 #include <poll.h>
 #include <sys/socket.h>
-#include <sys/time.h>
 #include <unistd.h>
 
 #include <csignal>
@@ -32,6 +29,7 @@
 #include <string>
 #include <system_error>
 
+#include "loopback_socket.h"
 #include "moreau/server/server.h"
 
 namespace {
@@ -103,31 +101,6 @@ std::uintmax_t directory_bytes(const fs::path& dir) {
   return total;
 }
 
-int connect_to(int port, int timeout_ms) {
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  if (fd < 0) return -1;
-  timeval tv{timeout_ms / 1000, (timeout_ms % 1000) * 1000};
-  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
-  ::setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &tv, sizeof tv);
-  sockaddr_in addr{};
-  addr.sin_family = AF_INET;
-  addr.sin_port = htons(static_cast<std::uint16_t>(port));
-  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  if (::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
-    ::close(fd);
-    return -1;
-  }
-  return fd;
-}
-
-void send_all(int fd, const char* data, std::size_t size) {
-  for (std::size_t sent = 0; sent < size;) {
-    const ssize_t n = ::send(fd, data + sent, size - sent, MSG_NOSIGNAL);
-    if (n <= 0) return;  // the server may close early (413, a malformed request line)
-    sent += static_cast<std::size_t>(n);
-  }
-}
-
 // Reads until the server closes the connection or the receive timeout passes.
 std::string read_until_close(int fd) {
   std::string out;
@@ -142,9 +115,9 @@ std::string read_until_close(int fd) {
 
 // One exchange: the bytes out, a short wait for the answer, a half-close, and whatever comes back.
 std::string exchange(int port, const std::string& request) {
-  const int fd = connect_to(port, kReplyTimeoutMs);
+  const int fd = moreau::server::testing::connect_loopback(port, kReplyTimeoutMs);
   if (fd < 0) return "";
-  send_all(fd, request.data(), request.size());
+  moreau::server::testing::send_all(fd, request);
   pollfd p{fd, POLLIN, 0};
   ::poll(&p, 1, kFirstByteWaitMs);
   ::shutdown(fd, SHUT_WR);
@@ -154,10 +127,10 @@ std::string exchange(int port, const std::string& request) {
 }
 
 bool healthy(int port) {
-  const int fd = connect_to(port, kHealthTimeoutMs);
+  const int fd = moreau::server::testing::connect_loopback(port, kHealthTimeoutMs);
   if (fd < 0) return false;
   static const std::string kRequest = "GET /healthz HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n";
-  send_all(fd, kRequest.data(), kRequest.size());
+  moreau::server::testing::send_all(fd, kRequest);
   const std::string reply = read_until_close(fd);
   ::close(fd);
   return reply.rfind("HTTP/1.1 200 ", 0) == 0 && reply.find("{\"status\":\"ok\"}") != std::string::npos;

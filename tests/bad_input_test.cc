@@ -3,10 +3,7 @@
 // expected status, a JSON body with "error", the exact JSON pointer (or none) and a message naming the
 // problem, within a few seconds; the server must stay healthy after each one, and after the whole table
 // a valid scene must still run to "done" with finite results. docs/reliability.md, "Bad input".
-#include <arpa/inet.h>
-#include <netinet/in.h>
 #include <sys/socket.h>
-#include <sys/time.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -22,6 +19,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include "loopback_socket.h"
 #include "server_fixture.h"
 
 namespace {
@@ -46,28 +44,12 @@ struct Reply {
 
 Reply exchange(int port, const std::string& request) {
   Reply r;
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  const int fd = moreau::server::testing::connect_loopback(port, kReadTimeoutSeconds * 1000);
   if (fd < 0) {
-    r.error = "socket() failed";
-    return r;
-  }
-  timeval tv{kReadTimeoutSeconds, 0};
-  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
-  ::setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &tv, sizeof tv);
-  sockaddr_in addr{};
-  addr.sin_family = AF_INET;
-  addr.sin_port = htons(static_cast<std::uint16_t>(port));
-  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  if (::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
-    ::close(fd);
     r.error = "connect() failed";
     return r;
   }
-  for (std::size_t sent = 0; sent < request.size();) {
-    const ssize_t n = ::send(fd, request.data() + sent, request.size() - sent, MSG_NOSIGNAL);
-    if (n <= 0) break;  // the server may answer (413) before reading everything: read what it said
-    sent += static_cast<std::size_t>(n);
-  }
+  moreau::server::testing::send_all(fd, request);
   // Reads until the server closes, or until the Content-Length it announced has arrived (a server may
   // keep the connection open despite "Connection: close").
   std::string in;
