@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Installs Moreau's build dependencies from Debian 12 packages. Idempotent: packages already present
-# are left alone, and apt is not even called when nothing is missing.
+# are left alone, and apt is not even called when nothing is missing. Installing needs root or sudo;
+# without either, the script names the missing packages and the apt-get command to run as root.
 set -euo pipefail
 
 packages=(
@@ -12,6 +13,7 @@ packages=(
   libcpp-httplib-dev                 # server
   libboost-dev                       # Boost.Odeint (rosenbrock4), the stiff peer of studies
   libgtest-dev libgmock-dev libbenchmark-dev  # tests, benchmarks
+  iproute2                           # `ip`, for tests/lcm_udpm_netns.sh (multicast in a private netns)
 )
 
 missing=()
@@ -24,8 +26,27 @@ if [ ${#missing[@]} -eq 0 ]; then
   exit 0
 fi
 
-echo "install-deps: installing ${missing[*]}"
+# What to run by hand when this script cannot install: the same commands, as root.
+print_root_command() {
+  echo "install-deps: to install them by hand, run as root (then run $0 again):" >&2
+  echo "  apt-get update && DEBIAN_FRONTEND=noninteractive apt-get install -y --no-install-recommends ${missing[*]}" >&2
+}
+
 sudo_cmd=()
-[ "$(id -u)" -eq 0 ] || sudo_cmd=(sudo)
-"${sudo_cmd[@]}" apt-get update -qq
-DEBIAN_FRONTEND=noninteractive "${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}"
+if [ "$(id -u)" -ne 0 ]; then
+  if ! command -v sudo >/dev/null 2>&1; then
+    echo "install-deps: missing Debian packages: ${missing[*]}" >&2
+    echo "install-deps: installing them needs root, and this user ($(id -un)) is not root and has no sudo." >&2
+    print_root_command
+    exit 1
+  fi
+  sudo_cmd=(sudo)
+fi
+
+echo "install-deps: installing ${missing[*]}"
+if ! "${sudo_cmd[@]}" apt-get update -qq ||
+   ! "${sudo_cmd[@]}" env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${missing[@]}"; then
+  echo "install-deps: apt-get failed (see above); the packages still missing are among: ${missing[*]}" >&2
+  print_root_command
+  exit 1
+fi
