@@ -236,6 +236,9 @@ void StreamObserver::publish_and_advance(const Sample& s) {
       std::this_thread::sleep_for(std::min<std::chrono::steady_clock::duration>(target - now, std::chrono::milliseconds(5)));
     }
   }
+  // A cancelled run publishes nothing more: without this, a paced stream woken by the cancellation
+  // would publish its remaining states unpaced until the run reaches its next cancellation check.
+  if (cancel_ && cancel_->load(std::memory_order_relaxed)) return;
   stream_->push_state(s.step, s.t, s.h, s.q, s.v, s.kinetic_energy);
   last_published_step_ = s.step;
 }
@@ -243,7 +246,7 @@ void StreamObserver::publish_and_advance(const Sample& s) {
 void StreamObserver::flush_last(const RunSummary& summary) {
   const auto n = static_cast<std::size_t>(stream_->n());
   // A failed run's summary has no energy for its last state: the last periodic state stands.
-  if (summary.status == RunStatus::kFailed) return;
+  if (summary.status == RunStatus::kFailed || summary.status == RunStatus::kCancelled) return;
   if (summary.steps == last_published_step_ || summary.q_final.size() != n || summary.v_final.size() != n) return;
   stream_->push_state(summary.steps, summary.t_final, last_h_, summary.q_final.data(), summary.v_final.data(),
                       summary.energy_final);

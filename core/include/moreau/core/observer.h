@@ -20,7 +20,9 @@ struct Sample {
 
 class RunObserver {
  public:
-  static constexpr std::int64_t kControlInterval = 4096;
+  // 256 steps take at most about 15 ms even at n = 64 coordinates (56 us per step), so a cancellation
+  // is seen within 50 ms of wall time; one virtual call per 256 steps costs nothing measurable.
+  static constexpr std::int64_t kControlInterval = 256;
   virtual ~RunObserver() = default;
   virtual void on_sample(const Sample& sample) = 0;
   // Return false to cancel the run (it then ends with RunStatus::kCancelled).
