@@ -32,7 +32,7 @@ TestServer& shared_server() {
     ServerConfig cfg;
     cfg.workers = std::getenv("MOREAU_BENCH_WORKERS") ? std::atoi(std::getenv("MOREAU_BENCH_WORKERS")) : 0;
     cfg.queue = 100000;
-    cfg.http_threads = 64;
+    cfg.max_connections = 512;
     cfg.lcm_url = "file:///dev/null?mode=w";
     return cfg;
   }());

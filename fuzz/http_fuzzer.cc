@@ -73,7 +73,7 @@ Instance* start_instance() {
   cfg.workers = 1;
   cfg.io_threads = 1;
   cfg.queue = 16;
-  cfg.http_threads = 16;
+  cfg.max_connections = 16;
   cfg.max_body_bytes = 256u << 10;
   cfg.max_steps = 20'000;
   cfg.max_samples = 20'000;

@@ -8,7 +8,7 @@
 #   scripts/load-test.sh [BUILD_DIR]          (default build/; builds moreau-server and load_test there)
 #
 # Environment: DURATION (s, default 20), QUEUE (16), WORKERS (2), SETTLE (s before "after" memory, 5),
-# TIMEOUT (client connect/read timeout, s, 10), SCENARIOS (default below: CONNECTIONS:HTTP_THREADS:MODE,
+# TIMEOUT (client connect/read timeout, s, 10), SCENARIOS (default below: CONNECTIONS:MAX_CONNECTIONS:MODE,
 # MODE keep-alive or close = a new connection per request), DATA_ROOT (where data directories go, TMPDIR),
 # SERVER_BINARY (another moreau-server to measure).
 set -euo pipefail
@@ -19,7 +19,8 @@ queue=${QUEUE:-16}
 workers=${WORKERS:-2}
 settle=${SETTLE:-5}
 timeout=${TIMEOUT:-10}
-scenarios=${SCENARIOS:-"256:272:keep-alive 512:528:keep-alive 256:64:keep-alive 512:64:keep-alive 512:64:close"}
+# connections:--max-connections (also per client: the load comes from one address):mode
+scenarios=${SCENARIOS:-"256:272:keep-alive 512:528:keep-alive 512:528:close"}
 data_root=${DATA_ROOT:-${TMPDIR:-/tmp}}
 
 cmake --build "$build" --target moreau-server load_test >/dev/null
@@ -47,13 +48,13 @@ rows=()
 status=0
 n=0
 for scenario in $scenarios; do
-  IFS=: read -r conns http_threads mode <<<"$scenario"
+  IFS=: read -r conns max_conns mode <<<"$scenario"
   n=$((n + 1))
   data=$(mktemp -d "$data_root/moreau-load-data-XXXXXX")
   out=$log_dir/$n
-  echo "== scenario $n: $conns connections ($mode), --http-threads $http_threads, --queue $queue, --workers $workers, ${duration} s"
+  echo "== scenario $n: $conns connections ($mode), --max-connections $max_conns, --queue $queue, --workers $workers, ${duration} s"
   "$server" --host 127.0.0.1 --port 0 --data "$data" --workers "$workers" --queue "$queue" \
-    --http-threads "$http_threads" >"$out.server.out" 2>"$out.server.err" &
+    --max-connections "$max_conns" --max-connections-per-client "$max_conns" >"$out.server.out" 2>"$out.server.err" &
   server_pid=$!
   port=
   for _ in $(seq 1 500); do
@@ -104,7 +105,7 @@ for scenario in $scenarios; do
   echo "$r" >"$out.result"
   [ "$(field "$out.result" ok)" = 1 ] && [ "$health" = 200 ] && [ "$server_exit" = 0 ] || status=1
   rows+=("$(printf '| %s | %s | %s | %s | %s | %s | %s | %s | %s | %s / %s / %s | %s / %s / %s |' \
-    "$conns" "$mode" "$http_threads" "$(field "$out.result" seconds)" "$(field "$out.result" rps)" \
+    "$conns" "$mode" "$max_conns" "$(field "$out.result" seconds)" "$(field "$out.result" rps)" \
     "$(field "$out.result" accepted)" "$(field "$out.result" refused)" \
     "$(( $(field "$out.result" other) + $(field "$out.result" conn_errors) ))" \
     "$(field "$out.result" verified_done)" \
@@ -117,7 +118,7 @@ echo
 echo "moreau-server load test: --queue $queue, --workers $workers, ${duration} s per scenario, $(nproc) cores," \
   "load average $loadavg_before before, $(cut -d' ' -f1-3 /proc/loadavg) after"
 echo
-echo "| connections | mode | --http-threads | s | requests/s | 202 accepted | 429 refused | errors | accepted jobs done and stored | latency p50 / p99 / max (ms) | RSS MiB baseline / peak / after |"
+echo "| connections | mode | --max-connections | s | requests/s | 202 accepted | 429 refused | errors | accepted jobs done and stored | latency p50 / p99 / max (ms) | RSS MiB baseline / peak / after |"
 echo "|---|---|---|---|---|---|---|---|---|---|---|"
 printf '%s\n' "${rows[@]}"
 echo

@@ -49,7 +49,8 @@ TEST(ServerRestart, FinishedJobsAreServedAgainAndRunningOnesFail) {
     ASSERT_EQ(r->status, 202);
     cancelled.id = json::parse(r->body)["id"];
     ASSERT_EQ(wait_running(*c, cancelled.id), "running");
-    ASSERT_EQ(c->Delete("/v1/jobs/" + cancelled.id)->status, 200);
+    ASSERT_EQ(c->Delete("/v1/jobs/" + cancelled.id)->status, 202);
+    ASSERT_EQ(wait_final(*c, cancelled.id)["state"], "cancelled");
     cancelled.report = c->Get("/v1/jobs/" + cancelled.id + "/report")->body;
     c.reset();
     data = first.release_data();

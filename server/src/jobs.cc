@@ -27,6 +27,7 @@ const char* kReasonStoppedQueued = "server stopped before the job ran";
 std::optional<JobState> parse_state(const std::string& s) {
   if (s == "queued") return JobState::kQueued;
   if (s == "running") return JobState::kRunning;
+  if (s == "cancelling") return JobState::kCancelling;
   if (s == "done") return JobState::kDone;
   if (s == "failed") return JobState::kFailed;
   if (s == "cancelled") return JobState::kCancelled;
@@ -43,10 +44,20 @@ double unix_now() {
   return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
 }
 
+std::int64_t max_trajectory_row_bytes(const scene::Simulation& sim) {
+  const auto columns = static_cast<std::int64_t>(sim.position_names().size() + sim.velocity_names().size() + 3);
+  return columns * 25;
+}
+
+std::int64_t max_trajectory_rows(const ServerConfig& config, const scene::Simulation& sim) {
+  return std::min(config.max_samples, std::max<std::int64_t>(3, config.max_result_bytes / max_trajectory_row_bytes(sim)));
+}
+
 const char* to_string(JobState s) {
   switch (s) {
     case JobState::kQueued: return "queued";
     case JobState::kRunning: return "running";
+    case JobState::kCancelling: return "cancelling";
     case JobState::kDone: return "done";
     case JobState::kFailed: return "failed";
     case JobState::kCancelled: return "cancelled";
@@ -136,31 +147,31 @@ std::shared_ptr<Job> JobManager::make_job() const {
   return job;
 }
 
-void JobManager::write_record(const Job& job) const {
-  json r;
-  {
-    std::lock_guard lock(job.mu);
-    r = {{"id", job.id},
-         {"kind", job.kind == JobKind::kStudy ? "study" : "run"},
-         {"scene", job.scene_name},
-         {"state", to_string(job.state)},
-         {"created", job.created},
-         {"started", job.started},
-         {"finished", job.finished},
-         {"t0", job.t0},
-         {"t_end", job.t_end},
-         {"planned_steps", job.planned_steps}};
-    if (job.kind == JobKind::kStudy) r["rows_total"] = job.rows_total;
-    if (!job.reason.empty()) r["reason"] = job.reason;
-    if (job.stream.enabled) {
-      r["stream"] = {{"prefix", job.stream.prefix}, {"period", job.stream.period}, {"realtime", job.stream.realtime}};
-    }
+json JobManager::record_locked(const Job& job, JobState state, const std::string& reason, double started, double finished) {
+  json r = {{"id", job.id},
+            {"kind", job.kind == JobKind::kStudy ? "study" : "run"},
+            {"scene", job.scene_name},
+            {"state", to_string(state)},
+            {"created", job.created},
+            {"started", started},
+            {"finished", finished},
+            {"t0", job.t0},
+            {"t_end", job.t_end},
+            {"planned_steps", job.planned_steps}};
+  if (job.kind == JobKind::kStudy) r["rows_total"] = job.rows_total;
+  if (!reason.empty()) r["reason"] = reason;
+  // Where a run got to, so that a restarted server shows the progress it had.
+  if (is_final(state)) {
+    r["progress"] = {{"t", finite_or_null(job.t_now.load())}, {"step", job.step_now.load()}, {"rows", job.rows_done.load()}};
   }
-  try {
-    write_file_atomic(job.dir / "job.json", r.dump(2) + "\n", Durability::kRename);
-  } catch (const std::exception& e) {
-    std::cerr << "moreau-server: job " << job.id << ": " << e.what() << "\n";
+  if (job.stream.enabled) {
+    r["stream"] = {{"prefix", job.stream.prefix}, {"period", job.stream.period}, {"realtime", job.stream.realtime}};
   }
+  return r;
+}
+
+void JobManager::write_record(const json& record, const Job& job, Durability durability) const {
+  write_file_atomic(job.dir / "job.json", record.dump(2) + "\n", durability);
 }
 
 void JobManager::recover() {
@@ -194,6 +205,14 @@ void JobManager::recover() {
     job->t_end = record.value("t_end", 0.0);
     job->planned_steps = record.value("planned_steps", std::int64_t{0});
     job->reason = record.value("reason", "");
+    if (record.contains("progress") && record["progress"].is_object()) {
+      const json& p = record["progress"];
+      if (p.contains("t") && p["t"].is_number()) job->t_now = p["t"].get<double>();
+      if (p.contains("step") && p["step"].is_number_integer()) job->step_now = p["step"].get<std::int64_t>();
+      if (p.contains("rows") && p["rows"].is_number_integer()) job->rows_done = p["rows"].get<std::int64_t>();
+    } else {
+      job->t_now = job->t0;
+    }
     if (record.contains("stream") && record["stream"].is_object()) {
       job->stream.enabled = true;
       job->stream.prefix = record["stream"].value("prefix", "MOREAU");
@@ -218,6 +237,14 @@ void JobManager::recover() {
       const std::string status = report.is_object() ? report.value("status", "") : "";
       job->state = status == "completed" ? JobState::kDone : status == "cancelled" ? JobState::kCancelled : JobState::kFailed;
       if (job->state != JobState::kDone && job->reason.empty() && report.is_object()) job->reason = report.value("message", "");
+      if (report.is_object() && report.contains("t_final") && report["t_final"].is_number()) job->t_now = report["t_final"].get<double>();
+      if (report.is_object() && report.contains("steps") && report["steps"].is_number_integer())
+        job->step_now = report["steps"].get<std::int64_t>();
+      rewrite = true;
+    } else if (recorded == JobState::kCancelling) {
+      // Asked to stop, and the server went down before the run had: it was cancelled all the same.
+      job->state = JobState::kCancelled;
+      job->reason = "cancelled by request (the server restarted before the run had stopped)";
       rewrite = true;
     } else {
       job->state = JobState::kFailed;
@@ -225,10 +252,19 @@ void JobManager::recover() {
       rewrite = true;
     }
     if (job->finished == 0 && rewrite) job->finished = unix_now();
-    if (rewrite) write_record(*job);
-    job->t_now = job->state == JobState::kDone ? job->t_end : job->t0;
-    if (job->state == JobState::kDone) job->step_now = job->planned_steps;
-    if (job->state == JobState::kDone) job->rows_done = job->rows_total;
+    if (job->state == JobState::kDone) {
+      job->t_now = job->t_end;
+      job->step_now = std::max(job->step_now.load(), job->planned_steps);
+      job->rows_done = job->rows_total;
+    }
+    if (rewrite) {
+      try {
+        std::lock_guard lock(job->mu);
+        write_record(record_locked(*job, job->state, job->reason, job->started, job->finished), *job, Durability::kRename);
+      } catch (const std::exception& e) {
+        std::cerr << "moreau-server: job " << job->id << ": " << e.what() << "\n";
+      }
+    }
     found.push_back(std::move(job));
   }
   std::sort(found.begin(), found.end(), [](const auto& a, const auto& b) {
@@ -305,17 +341,24 @@ JobManager::Submit JobManager::submit(const std::shared_ptr<Job>& job, const jso
       return Submit::kQueueFull;
     }
   }
+  // Accepted means stored: the scene and the record are on disk (fsync'ed, and the directory too)
+  // before the 202. A write that fails (a full disk, say) refuses the job (507) and leaves nothing.
   try {
     fs::create_directories(job->dir);
-    write_file_atomic(job->dir / "scene.json", scene_doc.dump(2) + "\n", Durability::kRename);
-    if (study_doc) write_file_atomic(job->dir / "study.json", study_doc->dump(2) + "\n", Durability::kRename);
+    write_file_atomic(job->dir / "scene.json", scene_doc.dump(2) + "\n", Durability::kFsync);
+    if (study_doc) write_file_atomic(job->dir / "study.json", study_doc->dump(2) + "\n", Durability::kFsync);
+    json record;
+    {
+      std::lock_guard lock(job->mu);
+      record = record_locked(*job, job->state, job->reason, job->started, job->finished);
+    }
+    write_record(record, *job, Durability::kFsync);
+    fsync_path(job->dir);
   } catch (...) {
-    // Not accepted (a full disk, say): nothing of it stays, not even an empty directory.
     std::error_code ec;
     fs::remove_all(job->dir, ec);
     throw;
   }
-  write_record(*job);
   push_event(*job, "state", {{"id", job->id}, {"state", "queued"}});
   {
     std::lock_guard lock(mu_);
@@ -357,26 +400,48 @@ void JobManager::push_event(Job& job, const std::string& name, const json& data)
   job.cv.notify_all();
 }
 
-void JobManager::set_state(Job& job, JobState state, const std::string& reason) {
+bool JobManager::set_state(Job& job, JobState state, const std::string& reason) {
   json data = {{"id", job.id}, {"state", to_string(state)}};
   if (!reason.empty()) data["reason"] = reason;
+  std::lock_guard change(job.state_change_mu);
   bool became_final = false;
+  double started = 0, finished = 0;
+  json record;
   {
-    // The state and its event change together: a stream that sees a final state has its event.
     std::lock_guard lock(job.mu);
+    if (is_final(job.state)) return false;
+    // A job cancelled between the queue and its worker's start stays cancelling; its run stops at once.
+    if (job.state == JobState::kCancelling && state == JobState::kRunning) return false;
     became_final = is_final(state) && !is_final(job.state);
-    job.state = state;
-    job.reason = reason;
-    if (state == JobState::kRunning) job.started = unix_now();
-    if (is_final(state)) job.finished = unix_now();
-    job.events.push_back(SseEvent{job.next_event_id++, "state", data.dump()});
+    started = state == JobState::kRunning ? unix_now() : job.started;
+    finished = is_final(state) ? unix_now() : job.finished;
+    record = record_locked(job, state, reason, started, finished);
   }
-  job.cv.notify_all();
-  write_record(job);
+  // 1. The record. A final state that cannot be recorded is still published (the results are committed
+  // and a restart derives the state from them), but said on stderr.
+  try {
+    write_record(record, job, is_final(state) ? Durability::kFsync : Durability::kRename);
+  } catch (const std::exception& e) {
+    std::cerr << "moreau-server: job " << job.id << ": " << e.what() << "\n";
+  }
+  // 2. The store as a final state leaves it: older finished jobs beyond --keep-jobs are deleted now,
+  // before anyone can see this job final (this job is not yet final for prune(), so it stays).
   if (became_final) {
     ++finished_;
     prune();
   }
+  // 3. Published: the state and its event change together, so a stream that sees a final state has its
+  // event, and a waiter woken by it sees steps 1 and 2 done.
+  {
+    std::lock_guard lock(job.mu);
+    job.state = state;
+    job.reason = reason;
+    job.started = started;
+    job.finished = finished;
+    job.events.push_back(SseEvent{job.next_event_id++, "state", data.dump()});
+  }
+  job.cv.notify_all();
+  return true;
 }
 
 void JobManager::prune() {
@@ -396,9 +461,16 @@ void JobManager::prune() {
         final = is_final(job->state);
       }
       if (excess > 0 && final) {
-        jobs_.erase(job->id);
-        doomed.push_back(job);
-        --excess;
+        // A reader holding the files now is let finish; the job is pruned at a later pass.
+        std::unique_lock files(job->files_mu, std::try_to_lock);
+        if (files.owns_lock()) {
+          job->deleted = true;
+          jobs_.erase(job->id);
+          doomed.push_back(job);
+          --excess;
+          continue;
+        }
+        kept.push_back(job);
       } else {
         kept.push_back(job);
       }
@@ -413,7 +485,7 @@ void JobManager::prune() {
   }
 }
 
-JobManager::Cancel JobManager::cancel(const std::shared_ptr<Job>& job, std::chrono::milliseconds wait) {
+JobManager::Cancel JobManager::cancel(const std::shared_ptr<Job>& job) {
   bool was_queued = false;
   {
     std::lock_guard lock(mu_);
@@ -426,18 +498,23 @@ JobManager::Cancel JobManager::cancel(const std::shared_ptr<Job>& job, std::chro
   if (was_queued) {
     job->sim.reset();
     job->study_scene.reset();
+    job->cancel_requested = true;
     set_state(*job, JobState::kCancelled, "cancelled before it ran");
     return Cancel::kCancelled;
   }
   {
     std::lock_guard lock(job->mu);
     if (job->state == JobState::kCancelled) return Cancel::kCancelled;
+    if (job->state == JobState::kCancelling) return Cancel::kCancelling;
     if (is_final(job->state)) return Cancel::kAlreadyFinished;
+    // Running, or between the queue and its worker's first step: the worker sees the flag.
+    job->cancel_requested = true;
+    job->cancel = true;
   }
-  job->cancel = true;
-  std::unique_lock lock(job->mu);
-  job->cv.wait_for(lock, wait, [&] { return is_final(job->state); });
-  return job->state == JobState::kDone || job->state == JobState::kFailed ? Cancel::kAlreadyFinished : Cancel::kCancelled;
+  if (set_state(*job, JobState::kCancelling, "cancelling by request")) return Cancel::kCancelling;
+  // The run ended meanwhile, and its final state stands.
+  std::lock_guard lock(job->mu);
+  return job->state == JobState::kCancelled ? Cancel::kCancelled : Cancel::kAlreadyFinished;
 }
 
 void JobManager::wait_final(Job& job, std::chrono::milliseconds timeout) const {
@@ -486,7 +563,7 @@ void JobManager::run(const std::shared_ptr<Job>& job) {
   if (job->cancel) {
     job->sim.reset();
     job->study_scene.reset();
-    if (job->shutdown) set_state(*job, JobState::kFailed, kReasonStoppedQueued);
+    if (job->shutdown && !job->cancel_requested) set_state(*job, JobState::kFailed, kReasonStoppedQueued);
     else set_state(*job, JobState::kCancelled, "cancelled before it ran");
     return;
   }
@@ -514,7 +591,8 @@ void JobManager::run(const std::shared_ptr<Job>& job) {
     push_event(*job, "progress",
                {{"t", job->t_now.load()}, {"step", job->step_now.load()}, {"t0", job->t0}, {"t_end", job->t_end}});
   };
-  JobObserver observer(*job, csv, job->record_every, sim.output_every(), config_.max_samples,
+  const std::int64_t max_rows = max_trajectory_rows(config_, sim);
+  JobObserver observer(*job, csv, job->record_every, sim.output_every(), max_rows,
                        stream_observer ? &*stream_observer : nullptr, progress);
 
   RunSummary summary = sim.run(&observer);
@@ -538,15 +616,15 @@ void JobManager::run(const std::shared_ptr<Job>& job) {
 
   if (observer.overflow()) {
     summary.status = RunStatus::kFailed;
-    summary.message = "the trajectory reached this server's limit of " + std::to_string(config_.max_samples) +
-                      " output samples at t = " + std::to_string(job->t_now.load()) + ": raise /output/every";
+    summary.message = "the trajectory reached this server's limit of " + std::to_string(max_rows) +
+                      " output samples (--max-samples, --max-result-bytes) at t = " + std::to_string(job->t_now.load()) + ": raise /output/every";
   }
   commit->state = JobState::kDone;
   if (summary.status == RunStatus::kFailed) {
     commit->state = JobState::kFailed;
     commit->reason = summary.message;
   } else if (summary.status == RunStatus::kCancelled) {
-    if (job->shutdown) {
+    if (job->shutdown && !job->cancel_requested) {
       commit->state = JobState::kFailed;
       commit->reason = kReasonStoppedRunning;
     } else {
@@ -588,8 +666,9 @@ void JobManager::run_study(const std::shared_ptr<Job>& job, std::unique_ptr<Comm
   try {
     result = scene::run_study(sc, st);
   } catch (const scene::StudyCancelled&) {
-    commit->state = job->shutdown ? JobState::kFailed : JobState::kCancelled;
-    commit->reason = job->shutdown ? kReasonStoppedRunning : "cancelled by request";
+    const bool stopped = job->shutdown && !job->cancel_requested;
+    commit->state = stopped ? JobState::kFailed : JobState::kCancelled;
+    commit->reason = stopped ? kReasonStoppedRunning : "cancelled by request";
   } catch (const scene::SceneError& e) {
     commit->state = JobState::kFailed;
     commit->reason = e.what();
@@ -691,7 +770,7 @@ bool JobManager::idle() const {
 
 Metrics JobManager::metrics() const {
   Metrics m;
-  for (const char* s : {"queued", "running", "done", "failed", "cancelled"}) m.jobs_by_state[s] = 0;
+  for (const char* s : {"queued", "running", "cancelling", "done", "failed", "cancelled"}) m.jobs_by_state[s] = 0;
   {
     std::lock_guard lock(mu_);
     for (const auto& job : order_) {

@@ -28,6 +28,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <shared_mutex>
 #include <string>
 #include <thread>
 #include <vector>
@@ -36,12 +37,15 @@
 
 #include "lcm_stream.h"
 #include "moreau/scene/simulation.h"
+#include "storage.h"
 #include "moreau/scene/study.h"
 #include "moreau/server/server.h"
 
 namespace moreau::server {
 
-enum class JobState { kQueued, kRunning, kDone, kFailed, kCancelled };
+// kCancelling: a running job asked to stop (DELETE); it becomes kCancelled when its run has stopped
+// and what it computed is stored.
+enum class JobState { kQueued, kRunning, kCancelling, kDone, kFailed, kCancelled };
 enum class JobKind { kRun, kStudy };
 const char* to_string(JobState s);
 bool is_final(JobState s);
@@ -74,11 +78,18 @@ struct Job {
   std::int64_t rows_total = 0;
   std::atomic<std::int64_t> rows_done{0};
 
-  std::atomic<bool> cancel{false};    // the run stops at its next check (within 4096 steps)
+  std::atomic<bool> cancel{false};    // the run stops at its next check (every 256 steps: within 50 ms)
   std::atomic<bool> shutdown{false};  // ... because the server is stopping
+  std::atomic<bool> cancel_requested{false};  // ... because a client asked (DELETE): it ends cancelled
+
+  // The job's files: readers hold it shared while they check `deleted` and open what they read; pruning
+  // holds it exclusively while it deletes them. An open file stays readable after its deletion.
+  mutable std::shared_mutex files_mu;
+  bool deleted = false;  // under files_mu
   std::atomic<double> t_now{0};
   std::atomic<std::int64_t> step_now{0};
 
+  std::mutex state_change_mu;  // one state change at a time (JobManager::set_state)
   mutable std::mutex mu;
   std::condition_variable cv;  // state changes and new events
   JobState state = JobState::kQueued;
@@ -125,9 +136,10 @@ class JobManager {
   std::shared_ptr<Job> find(const std::string& id) const;
   std::vector<std::shared_ptr<Job>> list() const;
 
-  enum class Cancel { kCancelled, kAlreadyFinished };
-  // Cancels a queued job at once, or a running one (waiting up to `wait` for it to stop).
-  Cancel cancel(const std::shared_ptr<Job>& job, std::chrono::milliseconds wait);
+  enum class Cancel { kCancelled, kCancelling, kAlreadyFinished };
+  // Cancels a queued job at once (kCancelled); asks a running one to stop (kCancelling: its state is
+  // cancelling until the run has stopped and been stored, then cancelled).
+  Cancel cancel(const std::shared_ptr<Job>& job);
   // Waits until the job is in a final state or `timeout` passed (or the server stops).
   void wait_final(Job& job, std::chrono::milliseconds timeout) const;
   // Events with an id above `after`, waiting up to `timeout` if there is none yet. `done` is set
@@ -161,13 +173,20 @@ class JobManager {
   void commit(Commit& c);
   // The run's results could not be written: removes its temporary files and fails the job, saying so.
   void fail_to_store(Job& job, const std::string& what);
-  // Changes the state (and reason), records it in job.json and tells the event streams.
-  void set_state(Job& job, JobState state, const std::string& reason);
+  // Changes the state (and reason): records it in job.json, then (for a final state) prunes, and only
+  // then publishes it to readers and event streams, so that whoever sees the new state sees the store
+  // as it is after it.
+  // A final state is never left: returns false (and changes nothing) if the job is already final.
+  bool set_state(Job& job, JobState state, const std::string& reason);
   // Deletes the oldest finished jobs (records, results, memory) once more than ServerConfig::keep_jobs
   // are finished, down to keep_jobs.
   void prune();
   void push_event(Job& job, const std::string& name, const nlohmann::json& data);
-  void write_record(const Job& job) const;
+  // Writes job.json (atomically; fsync'ed with kFsync). Throws std::runtime_error.
+  void write_record(const nlohmann::json& record, const Job& job, Durability durability) const;
+  // The record of `job` as it would be in `state`; job.mu must be held.
+  static nlohmann::json record_locked(const Job& job, JobState state, const std::string& reason, double started,
+                                      double finished);
   void count_finished(std::int64_t steps, double integrate_seconds, double wall_seconds);
 
   const ServerConfig& config_;
@@ -202,5 +221,11 @@ class JobManager {
 nlohmann::json job_json(const Job& job, const nlohmann::json* report);
 
 double unix_now();
+
+// The most bytes one trajectory row of `sim` can take: every column in its shortest round-trip form
+// ("-2.2250738585072014e-308", 24 characters) and a separator.
+std::int64_t max_trajectory_row_bytes(const scene::Simulation& sim);
+// The trajectory rows a job may write: --max-samples, and --max-result-bytes over the widest row.
+std::int64_t max_trajectory_rows(const ServerConfig& config, const scene::Simulation& sim);
 
 }  // namespace moreau::server

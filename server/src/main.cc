@@ -39,7 +39,31 @@ int main(int argc, char** argv) {
       ->capture_default_str()
       ->check(CLI::Range(1, 64));
   app.add_option("--queue", cfg.queue, "Queued jobs beyond which submissions get 429")->capture_default_str()->check(CLI::Range(0, 1000000));
-  app.add_option("--http-threads", cfg.http_threads, "HTTP connections served at once")->capture_default_str()->check(CLI::Range(2, 4096));
+  app.add_option("--max-connections", cfg.max_connections, "Open connections at most (more: 503 at once)")
+      ->capture_default_str()
+      ->check(CLI::Range(2, 900));
+  app.add_option("--max-connections-per-client", cfg.max_connections_per_client,
+                 "Open connections from one client address at most (more: 503 at once)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 900));
+  app.add_option("--header-timeout-ms", cfg.header_timeout_ms, "Time a request's line and headers may take to arrive")
+      ->capture_default_str()
+      ->check(CLI::Range(10, 600'000));
+  app.add_option("--body-timeout-ms", cfg.body_timeout_ms, "Time a request's body may take to arrive")
+      ->capture_default_str()
+      ->check(CLI::Range(10, 3'600'000));
+  app.add_option("--max-waiting", cfg.max_waiting, "Long polls (?wait) and event streams open at once (more: 429)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 900));
+  app.add_option("--max-result-bytes", cfg.max_result_bytes, "Largest trajectory a job may write, bytes (more: 422 at submission)")
+      ->capture_default_str()
+      ->check(CLI::Range(std::int64_t{4096}, std::int64_t{1} << 50));
+  app.add_option("--max-figure-pixels", cfg.max_figure_pixels, "Pixels of one figure at most (width times height)")
+      ->capture_default_str()
+      ->check(CLI::Range(std::int64_t{4096}, std::int64_t{16'777'216}));
+  app.add_option("--figures-at-once", cfg.figures_at_once, "Figures drawn at once (more wait for a turn)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 64));
   app.add_option("--lcm-url", cfg.lcm_url, "LCM URL for live state (default: LCM_DEFAULT_URL, else LCM's default)");
   app.add_option("--token", cfg.token, "Require 'Authorization: Bearer TOKEN' (default: MOREAU_TOKEN)");
   app.add_flag("--allow-unauthenticated-remote", cfg.allow_unauthenticated_remote,

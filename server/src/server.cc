@@ -29,7 +29,7 @@
 
 // After Eigen (through the scene headers): httplib.h pulls in <resolv.h>, whose `_res` macro breaks
 // Eigen's product kernels if it comes first.
-#include <httplib.h>
+#include "http_transport.h"
 
 namespace moreau::server {
 namespace fs = std::filesystem;
@@ -122,18 +122,88 @@ struct BadRequest {
 struct StoredFileUnreadable {
   std::string error;
 };
+// ... or when the job was deleted (pruned) meanwhile: a 404.
+struct JobDeleted {};
 
 bool valid_channel_prefix(const std::string& s) {
   if (s.empty() || s.size() > 64 || !(s[0] >= 'A' && s[0] <= 'Z')) return false;
   return std::all_of(s.begin(), s.end(), [](char c) { return (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_'; });
 }
 
+TransportLimits transport_limits(const ServerConfig& cfg) {
+  TransportLimits l;
+  l.max_connections = std::max(2, cfg.max_connections);
+  l.max_connections_per_client = std::max(1, cfg.max_connections_per_client);
+  l.header_timeout = std::chrono::milliseconds(std::max(1, cfg.header_timeout_ms));
+  l.body_timeout = std::chrono::milliseconds(std::max(1, cfg.body_timeout_ms));
+  l.keep_alive_timeout = std::chrono::seconds(std::max(1, cfg.keep_alive_seconds));
+  l.keep_alive_requests = std::max(1, cfg.keep_alive_requests);
+  // As sent, a body may be larger than decoded only by its chunked framing: a few bytes per chunk.
+  l.max_raw_body_bytes = cfg.max_body_bytes + cfg.max_body_bytes / 8 + (64 << 10);
+  return l;
+}
+
+// A request path or header as the request log shows it: control bytes, CR, LF and non-ASCII escaped as
+// \xHH, so that a request cannot write lines of its own into the log.
+std::string log_escaped(const std::string& s, std::size_t max = 512) {
+  std::string out;
+  for (std::size_t i = 0; i < s.size() && out.size() < max; ++i) {
+    const auto c = static_cast<unsigned char>(s[i]);
+    if (c < 0x20 || c >= 0x7f || c == '\\') {
+      char buf[8];
+      std::snprintf(buf, sizeof buf, "\\x%02x", c);
+      out += buf;
+    } else {
+      out += static_cast<char>(c);
+    }
+  }
+  if (out.size() >= max) out += "...";
+  return out;
+}
+
+// Counts the holders of a bounded resource (waiting connections, figures being drawn).
+class Budget {
+ public:
+  explicit Budget(int capacity) : capacity_(capacity) {}
+  // Takes a place, or returns false at once when all are taken.
+  bool try_take() {
+    std::lock_guard lock(mu_);
+    if (taken_ >= capacity_) return false;
+    ++taken_;
+    return true;
+  }
+  // Takes a place, waiting up to `timeout` for one.
+  bool take(std::chrono::milliseconds timeout) {
+    std::unique_lock lock(mu_);
+    if (!cv_.wait_for(lock, timeout, [&] { return taken_ < capacity_; })) return false;
+    ++taken_;
+    return true;
+  }
+  void give_back() {
+    {
+      std::lock_guard lock(mu_);
+      --taken_;
+    }
+    cv_.notify_one();
+  }
+  int taken() const {
+    std::lock_guard lock(mu_);
+    return taken_;
+  }
+
+ private:
+  const int capacity_;
+  mutable std::mutex mu_;
+  std::condition_variable cv_;
+  int taken_ = 0;
+};
+
 }  // namespace
 
 class Server::Impl {
  public:
   explicit Impl(ServerConfig config)
-      : cfg_(std::move(config)), hub_(cfg_.lcm_url), jobs_(cfg_, hub_) {
+      : cfg_(std::move(config)), hub_(cfg_.lcm_url), jobs_(cfg_, hub_), http_(transport_limits(cfg_)) {
     if (cfg_.scenes_dir.empty()) cfg_.scenes_dir = default_scenes_dir();
     if (!cfg_.lcm_url.empty()) hub_.open();
     jobs_.recover();
@@ -172,8 +242,9 @@ class Server::Impl {
       stopped_ = true;
     }
     stop_cv_.notify_all();  // the housekeeper
-    jobs_.stop();  // ends event streams and running jobs first, so that no pool thread is held
+    jobs_.stop();  // ends event streams, long polls and running jobs first
     http_.stop();
+    http_.shut_down_connections();  // idle keep-alive and slow connections end now, not at their deadlines
     if (listener_.joinable()) listener_.join();
     if (housekeeper_.joinable()) housekeeper_.join();
     hub_.stop();
@@ -206,8 +277,21 @@ class Server::Impl {
 
  private:
   void setup_routes();
-  void post_job(const Request& req, Response& res);
-  void post_study(const Request& req, Response& res);
+  // Answers a request whose framing, token or announced body is refused (and marks its connection to
+  // be closed); false if the request may go on to its handler.
+  bool screen(const Request& req, Response& res);
+  void body_too_large(Response& res) const {
+    if (auto* c = current_connection()) c->close_after = true;
+    res.set_header("Connection", "close");
+    send_error(res, 413, "request body too large", "",
+               "this server accepts bodies of at most " + std::to_string(cfg_.max_body_bytes) +
+                   " bytes (counted after Content-Encoding is decoded)");
+  }
+  // The body of a POST, decoded, or nullopt after answering 413 (over the limit as decoded), 408 (too
+  // slow) or 400 (broken framing or encoding).
+  std::optional<std::string> read_body(const Request& req, Response& res, const httplib::ContentReader& reader);
+  void post_job(const Request& req, Response& res, const std::string& body);
+  void post_study(const Request& req, Response& res, const std::string& body);
   void get_job(const Request& req, Response& res, JobKind kind);
   void list_jobs(const Request& req, Response& res, JobKind kind);
   void delete_job(const Request& req, Response& res, JobKind kind);
@@ -230,6 +314,7 @@ class Server::Impl {
     const std::string id = req.matches.size() > 1 ? req.matches[1].str() : std::string();
     std::shared_ptr<Job> job = is_job_id(id) ? jobs_.find(id) : nullptr;
     if (job && job->kind != kind) job = nullptr;
+    if (job && is_deleted(*job)) job = nullptr;
     if (!job) {
       if (kind == JobKind::kStudy)
         send_error(res, 404, "no such study", "", "study ids are 32 lowercase hex digits, as POST /v1/studies returns them");
@@ -237,6 +322,27 @@ class Server::Impl {
         send_error(res, 404, "no such job", "", "job ids are 32 lowercase hex digits, as POST /v1/jobs returns them");
     }
     return job;
+  }
+  static bool is_deleted(const Job& job) {
+    std::shared_lock files(job.files_mu);
+    return job.deleted;
+  }
+  // A file of a finished job, read under its files lock: nullopt if the job has no such result yet, or
+  // was deleted (pruned by --keep-jobs) meanwhile; then *deleted says which.
+  static std::optional<std::string> job_file(const Job& job, bool Job::*has, const char* name, bool* deleted = nullptr) {
+    std::shared_lock files(job.files_mu);
+    if (deleted) *deleted = job.deleted;
+    if (job.deleted || !final_with(job, has)) return std::nullopt;
+    return read_file(job.dir / name);
+  }
+  void too_many_waiting(Response& res) const {
+    res.set_header("Retry-After", "1");
+    send_error(res, 429, "too many waiting requests", "",
+               "this server holds at most " + std::to_string(cfg_.max_waiting) +
+                   " long polls (?wait) and event streams open at once; retry, or poll without wait");
+  }
+  static void send_deleted(Response& res) {
+    send_error(res, 404, "no such job", "", "the job was deleted: this server keeps only its most recent finished jobs (--keep-jobs)");
   }
   // The job's state, report presence and trajectory presence, under its lock.
   static JobState state_of(const Job& job) {
@@ -271,9 +377,9 @@ class Server::Impl {
     std::lock_guard lock(job.mu);
     return job.*what && is_final(job.state);
   }
-  // The requested figure size (width, height: 64 to 4096, default 1200x800), or nullopt after
-  // answering 501 (no render/ in this build) or 400.
-  static std::optional<std::pair<int, int>> figure_size(const Request& req, Response& res) {
+  // The requested figure size (width, height: 64 to 4096, default 1200x800, at most --max-figure-pixels
+  // in all), or nullopt after answering 501 (no render/ in this build) or 400.
+  std::optional<std::pair<int, int>> figure_size(const Request& req, Response& res) const {
     if (!figures_available()) {
       send_error(res, 501, "figures not available", "", "this server was built without render/ (no OSMesa)");
       return std::nullopt;
@@ -286,12 +392,18 @@ class Server::Impl {
       send_error(res, 400, "bad query", "", e.what());
       return std::nullopt;
     }
+    if (static_cast<std::int64_t>(size.first) * size.second > cfg_.max_figure_pixels) {
+      send_error(res, 400, "bad query", "",
+                 "a figure has at most " + std::to_string(cfg_.max_figure_pixels) + " pixels (width times height); asked for " +
+                     std::to_string(static_cast<std::int64_t>(size.first) * size.second));
+      return std::nullopt;
+    }
     return size;
   }
   // Answers with a PNG drawn by `draw` (422 if it throws, 500 if a stored file is unreadable). At the default size it is read from, or
   // written to, `cache`: a name from a fixed list, never from the request.
   template <class Draw>
-  static void send_png(Response& res, const fs::path& cache, std::pair<int, int> size, Draw&& draw) {
+  void send_png(Response& res, const fs::path& cache, std::pair<int, int> size, Draw&& draw) {
     const bool default_size = size == std::pair<int, int>{kDefaultFigureWidth, kDefaultFigureHeight};
     if (default_size) {
       if (auto png = read_file(cache)) {
@@ -299,14 +411,25 @@ class Server::Impl {
         return res.set_content(std::move(*png), "image/png");
       }
     }
+    // At most --figures-at-once are drawn at once (each holds its trajectory and a frame buffer).
+    if (!drawing_.take(std::chrono::seconds(30))) {
+      res.set_header("Retry-After", "1");
+      return send_error(res, 503, "figures busy", "", "every figure slot stayed busy for 30 s; retry");
+    }
     std::vector<std::uint8_t> png;
     try {
       png = draw();
     } catch (const StoredFileUnreadable& e) {
+      drawing_.give_back();
       return send_error(res, 500, e.error);
+    } catch (const JobDeleted&) {
+      drawing_.give_back();
+      return send_deleted(res);
     } catch (const std::exception& e) {
+      drawing_.give_back();
       return send_error(res, 422, "cannot draw this figure", "", e.what());
     }
+    drawing_.give_back();
     std::string bytes(png.begin(), png.end());
     if (default_size) {
       try {
@@ -321,8 +444,7 @@ class Server::Impl {
 
   // The committed report of a run (report.json) or result of a study (result.json).
   std::optional<json> read_report(const Job& job) {
-    if (!final_with(job, &Job::has_report)) return std::nullopt;
-    auto text = read_file(job.dir / (job.kind == JobKind::kStudy ? "result.json" : "report.json"));
+    auto text = job_file(job, &Job::has_report, job.kind == JobKind::kStudy ? "result.json" : "report.json");
     if (!text) return std::nullopt;
     json j = json::parse(*text, nullptr, false);
     if (j.is_discarded()) return std::nullopt;
@@ -342,7 +464,9 @@ class Server::Impl {
   ServerConfig cfg_;
   LcmHub hub_;
   JobManager jobs_;
-  httplib::Server http_;
+  GuardedHttpServer http_;
+  Budget waiting_{cfg_.max_waiting};        // long polls and event streams open now
+  Budget drawing_{cfg_.figures_at_once};    // figures being drawn now
   std::thread listener_;
   std::thread housekeeper_;
   int port_ = -1;
@@ -365,33 +489,33 @@ void Server::Impl::setup_routes() {
     ::setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
     listen_socket_ = sock;
   });
+  // Bodies are read by BodyReader (decoded size) and the transport (size as sent); this only keeps
+  // httplib from reading a body it would not pass to a handler.
   http_.set_payload_max_length(cfg_.max_body_bytes);
   http_.set_keep_alive_timeout(cfg_.keep_alive_seconds);
   http_.set_keep_alive_max_count(static_cast<std::size_t>(std::max(1, cfg_.keep_alive_requests)));
-  const int threads = std::max(2, cfg_.http_threads);
-  http_.new_task_queue = [threads] { return new httplib::ThreadPool(static_cast<std::size_t>(threads)); };
+  http_.on_refused = [this](int status) {
+    std::lock_guard lock(stats_mu_);
+    ++responses_[status];
+  };
 
+  // Every request passes here once its headers are read, before any of its body is: the framing, the
+  // token, and whether a body may come at all (only POST takes one, as application/json, announced
+  // within the limit). Answered requests close their connection: their body is never read.
   http_.set_pre_routing_handler([this](const Request& req, Response& res) {
-    if (cfg_.token.empty() || req.path == "/healthz") return httplib::Server::HandlerResponse::Unhandled;
-    const std::string auth = req.get_header_value("Authorization");
-    const std::string prefix = "Bearer ";
-    const bool ok = auth.size() > prefix.size() && lower(auth.substr(0, prefix.size())) == "bearer " &&
-                    constant_time_equal(trim(auth.substr(prefix.size())), cfg_.token);
-    if (ok) return httplib::Server::HandlerResponse::Unhandled;
-    res.set_header("WWW-Authenticate", "Bearer realm=\"moreau\"");
-    // The body of a refused request has not been read: the connection cannot carry another request.
-    res.set_header("Connection", "close");
-    send_error(res, 401, auth.empty() ? "authentication required" : "invalid token", "",
-               "send the header 'Authorization: Bearer TOKEN'");
-    return httplib::Server::HandlerResponse::Handled;
+    return screen(req, res) ? httplib::Server::HandlerResponse::Handled : httplib::Server::HandlerResponse::Unhandled;
   });
+  // "Expect: 100-continue" is answered before routing: the client sends its body only after a 100, so
+  // a request refused here never sends it.
+  http_.set_expect_100_continue_handler([this](const Request& req, Response& res) { return screen(req, res) ? res.status : 100; });
   http_.set_error_handler([this](const Request&, Response& res) {
     if (!res.body.empty()) return;
+    const ConnectionContext* conn = current_connection();
+    if (conn && conn->timed_out) return send_error(res, 408, "request timeout", "", "the request did not arrive in time");
+    if (conn && conn->too_large) return body_too_large(res);
     switch (res.status) {
       case 404: send_error(res, 404, "not found", "", "see docs/api.md for the endpoints"); break;
-      case 413:
-        send_error(res, 413, "request body too large", "", "this server accepts at most " + std::to_string(cfg_.max_body_bytes) + " bytes");
-        break;
+      case 413: body_too_large(res); break;
       case 400: send_error(res, 400, "bad request"); break;
       default: send_error(res, res.status, "error " + std::to_string(res.status)); break;
     }
@@ -404,7 +528,7 @@ void Server::Impl::setup_routes() {
       what = e.what();
     } catch (...) {
     }
-    std::cerr << "moreau-server: internal error: " << what << "\n";
+    std::cerr << "moreau-server: internal error: " << log_escaped(what) << "\n";
     send_error(res, 500, "internal error", "", what);
   });
   http_.set_logger([this](const Request& req, const Response& res) {
@@ -413,7 +537,8 @@ void Server::Impl::setup_routes() {
       ++responses_[res.status];
     }
     if (cfg_.log_requests) {
-      std::fprintf(stderr, "moreau-server: %s %s %d %zu\n", req.method.c_str(), req.path.c_str(), res.status, res.body.size());
+      std::fprintf(stderr, "moreau-server: %s %s %d %zu\n", log_escaped(req.method, 16).c_str(), log_escaped(req.path).c_str(),
+                   res.status, res.body.size());
     }
   });
 
@@ -424,7 +549,9 @@ void Server::Impl::setup_routes() {
   http_.Get("/metrics", [this](const Request& req, Response& res) { metrics(req, res); });
   http_.Get("/v1/scenes", [this](const Request& req, Response& res) { list_scenes(req, res); });
   http_.Get(R"(/v1/scenes/([^/]+))", [this](const Request& req, Response& res) { get_scene(req, res); });
-  http_.Post("/v1/jobs", [this](const Request& req, Response& res) { post_job(req, res); });
+  http_.Post("/v1/jobs", [this](const Request& req, Response& res, const httplib::ContentReader& reader) {
+    if (auto body = read_body(req, res, reader)) post_job(req, res, *body);
+  });
   http_.Get("/v1/jobs", [this](const Request& req, Response& res) { list_jobs(req, res, JobKind::kRun); });
   http_.Get(R"(/v1/jobs/([^/]+))", [this](const Request& req, Response& res) { get_job(req, res, JobKind::kRun); });
   http_.Delete(R"(/v1/jobs/([^/]+))", [this](const Request& req, Response& res) { delete_job(req, res, JobKind::kRun); });
@@ -432,7 +559,15 @@ void Server::Impl::setup_routes() {
   http_.Get(R"(/v1/jobs/([^/]+)/report)", [this](const Request& req, Response& res) { job_report(req, res); });
   http_.Get(R"(/v1/jobs/([^/]+)/trajectory)", [this](const Request& req, Response& res) { job_trajectory(req, res); });
   http_.Get(R"(/v1/jobs/([^/]+)/figure)", [this](const Request& req, Response& res) { job_figure(req, res); });
-  http_.Post("/v1/studies", [this](const Request& req, Response& res) { post_study(req, res); });
+  http_.Post("/v1/studies", [this](const Request& req, Response& res, const httplib::ContentReader& reader) {
+    if (auto body = read_body(req, res, reader)) post_study(req, res, *body);
+  });
+  // Any other POST: answered without reading its body (the connection then closes).
+  http_.Post(".*", [this](const Request&, Response& res, const httplib::ContentReader&) {
+    if (auto* c = current_connection()) c->close_after = true;
+    res.set_header("Connection", "close");
+    send_error(res, 404, "not found", "", "see docs/api.md for the endpoints");
+  });
   http_.Get("/v1/studies", [this](const Request& req, Response& res) { list_jobs(req, res, JobKind::kStudy); });
   http_.Get(R"(/v1/studies/([^/]+))", [this](const Request& req, Response& res) { get_job(req, res, JobKind::kStudy); });
   http_.Delete(R"(/v1/studies/([^/]+))", [this](const Request& req, Response& res) { delete_job(req, res, JobKind::kStudy); });
@@ -445,22 +580,22 @@ namespace {
 
 // The JSON object body of a POST: checks the content type (415) and the syntax (400), and that it is an
 // object whose fields are among `fields` (given as "scene, overrides?, stream?"), with "scene".
-json post_body(const Request& req, const char* endpoint, const std::vector<std::string>& fields, const std::string& shape) {
-  const std::string type_header = req.get_header_value("Content-Type");
-  const std::string content_type = lower(trim(type_header.substr(0, type_header.find(';'))));
-  if (content_type != "application/json")
-    throw BadRequest{415, "unsupported content type", "", std::string(endpoint) + " takes application/json, got '" + type_header + "'", ""};
+json post_body(const std::string& text, const std::vector<std::string>& fields, const std::string& shape) {
+  // JSON text never holds a raw NUL (RFC 8259 escapes control characters): a NUL is a sign of a binary or
+  // truncated upload, and would cut C strings made from the scene.
+  if (const auto nul = text.find('\0'); nul != std::string::npos)
+    throw BadRequest{400, "malformed JSON", "", "the body holds a NUL byte at offset " + std::to_string(nul), "request"};
   // Bounded nesting before parsing: the JSON library copies and prints recursively.
-  if (const auto at = scene::json_depth_exceeded(req.body)) {
+  if (const auto at = scene::json_depth_exceeded(text)) {
     throw BadRequest{400, "malformed JSON", "",
                      "nested deeper than " + std::to_string(scene::kMaxJsonDepth) + " levels at byte " + std::to_string(*at),
                      "request"};
   }
-  json body = json::parse(req.body, nullptr, false);
+  json body = json::parse(text, nullptr, false);
   if (body.is_discarded()) {
     std::string why = "the body is not valid JSON";
     try {
-      const json ignored = json::parse(req.body);
+      const json ignored = json::parse(text);
     } catch (const json::exception& e) {  // parse_error, and out_of_range for a number such as 1e999
       why = e.what();
     }
@@ -545,10 +680,94 @@ json Server::Impl::request_scene(const json& body) const {
   return doc;
 }
 
-void Server::Impl::post_job(const Request& req, Response& res) {
+bool Server::Impl::screen(const Request& req, Response& res) {
+  auto refuse = [&](int status, const std::string& error, const std::string& reason) {
+    if (auto* c = current_connection()) c->close_after = true;
+    res.set_header("Connection", "close");
+    send_error(res, status, error, "", reason);
+    return true;
+  };
+  // Framing (RFC 9112 section 6): a request with both, or with two lengths, can be read two ways by two
+  // servers in a row (request smuggling), so it is refused, not interpreted.
+  const std::size_t te = req.headers.count("Transfer-Encoding"), cl = req.headers.count("Content-Length");
+  if (te > 0 && cl > 0) return refuse(400, "bad request framing", "both Transfer-Encoding and Content-Length are given");
+  if (cl > 1) return refuse(400, "bad request framing", "Content-Length is given more than once");
+  if (te > 1 || (te == 1 && lower(trim(req.get_header_value("Transfer-Encoding"))) != "chunked"))
+    return refuse(400, "bad request framing", "the only Transfer-Encoding accepted is chunked");
+  std::optional<std::uint64_t> length;
+  if (cl == 1) {
+    const std::string v = trim(req.get_header_value("Content-Length"));
+    if (v.empty() || v.size() > 19 || !std::all_of(v.begin(), v.end(), [](char c) { return c >= '0' && c <= '9'; }))
+      return refuse(400, "bad request framing", "Content-Length is not a decimal number");
+    length = std::stoull(v);
+  }
+
+  if (!cfg_.token.empty() && req.path != "/healthz") {
+    const std::string auth = req.get_header_value("Authorization");
+    const std::string prefix = "Bearer ";
+    const bool ok = auth.size() > prefix.size() && lower(auth.substr(0, prefix.size())) == "bearer " &&
+                    constant_time_equal(trim(auth.substr(prefix.size())), cfg_.token);
+    if (!ok) {
+      res.set_header("WWW-Authenticate", "Bearer realm=\"moreau\"");
+      return refuse(401, auth.empty() ? "authentication required" : "invalid token", "send the header 'Authorization: Bearer TOKEN'");
+    }
+  }
+
+  const bool has_body = te == 1 || (length && *length > 0);
+  // No route takes PUT or PATCH: answered before any body is read.
+  if (req.method == "PUT" || req.method == "PATCH") return refuse(404, "not found", "see docs/api.md for the endpoints");
+  if (req.method != "POST") {
+    if (has_body) return refuse(400, "unexpected body", req.method + " requests take no body");
+    // No body, and httplib reads one for some methods unless told its length: it is 0 (RFC 9112 6.3).
+    if (cl == 0) const_cast<Request&>(req).headers.emplace("Content-Length", "0");
+    return false;
+  }
+  if (te == 0 && cl == 0)
+    return refuse(411, "length required", "send the body with Content-Length or Transfer-Encoding: chunked");
+  const std::string type_header = req.get_header_value("Content-Type");
+  const std::string content_type = lower(trim(type_header.substr(0, type_header.find(';'))));
+  if (content_type != "application/json")
+    return refuse(415, "unsupported content type", "POST " + req.path + " takes application/json, got '" + type_header + "'");
+  const std::string encoding = lower(trim(req.get_header_value("Content-Encoding")));
+  if (!encoding.empty() && encoding != "identity" && encoding != "gzip" && encoding != "deflate")
+    return refuse(415, "unsupported content encoding", "Content-Encoding may be gzip, deflate or identity, got '" + encoding + "'");
+  if (length && *length > cfg_.max_body_bytes) {
+    body_too_large(res);
+    return true;
+  }
+  return false;
+}
+
+std::optional<std::string> Server::Impl::read_body(const Request&, Response& res, const httplib::ContentReader& reader) {
+  std::string body;
+  bool over = false;
+  // Decoded bytes are counted as they come: a compressed body stops expanding at the limit.
+  const bool ok = reader([&](const char* data, std::size_t n) {
+    if (body.size() + n > cfg_.max_body_bytes) {
+      over = true;
+      return false;
+    }
+    body.append(data, n);
+    return true;
+  });
+  if (ok) return body;
+  ConnectionContext* conn = current_connection();
+  if (conn) conn->close_after = true;
+  res.set_header("Connection", "close");
+  if (over || (conn && conn->too_large)) {
+    body_too_large(res);
+  } else if (conn && conn->timed_out) {
+    send_error(res, 408, "request timeout", "", "the body did not arrive within " + std::to_string(cfg_.body_timeout_ms) + " ms");
+  } else {
+    send_error(res, 400, "bad request body", "", "the body could not be read (broken chunked framing or content encoding)");
+  }
+  return std::nullopt;
+}
+
+void Server::Impl::post_job(const Request&, Response& res, const std::string& text) {
   const auto t_load = Clock::now();
   answer_bad_requests(res, [&] {
-    const json body = post_body(req, "POST /v1/jobs", {"scene", "overrides", "stream"}, "{scene, overrides?, stream?}");
+    const json body = post_body(text, {"scene", "overrides", "stream"}, "{scene, overrides?, stream?}");
     json doc = request_scene(body);
 
     // Streaming: true, or {"channel": PREFIX, "period": seconds, "realtime": bool}.
@@ -610,6 +829,18 @@ void Server::Impl::post_job(const Request& req, Response& res) {
                            std::to_string(cfg_.max_samples) + ": set /output/every to at least " + std::to_string(need),
                        "scene"};
     }
+    // Bytes: rows times the widest row bounds the file.
+    const std::int64_t row_bytes = max_trajectory_row_bytes(sim);
+    if (rows > cfg_.max_result_bytes / row_bytes) {
+      const std::int64_t max_rows = std::max<std::int64_t>(3, cfg_.max_result_bytes / row_bytes);
+      const std::int64_t need = (planned + max_rows - 3) / std::max<std::int64_t>(1, max_rows - 2);
+      throw BadRequest{422, "result too large", "/output/every",
+                       "the trajectory could take about " + std::to_string(rows) + " rows of up to " + std::to_string(row_bytes) +
+                           " bytes (" + std::to_string(rows / 1'000'000 * row_bytes) + " MB); this server stores at most " +
+                           std::to_string(cfg_.max_result_bytes) + " bytes per job: set /output/every to at least " +
+                           std::to_string(need),
+                       "scene"};
+    }
     // Streaming needs a sample at least once per period: sample the run more finely than the
     // trajectory's decimation if needed (the trajectory keeps the scene's own rows).
     std::int64_t engine_every = every;
@@ -647,10 +878,10 @@ void Server::Impl::post_job(const Request& req, Response& res) {
   });
 }
 
-void Server::Impl::post_study(const Request& req, Response& res) {
+void Server::Impl::post_study(const Request&, Response& res, const std::string& text) {
   const auto t_load = Clock::now();
   answer_bad_requests(res, [&] {
-    const json body = post_body(req, "POST /v1/studies", {"scene", "overrides", "study"}, "{scene, overrides?, study?}");
+    const json body = post_body(text, {"scene", "overrides", "study"}, "{scene, overrides?, study?}");
     const json doc = request_scene(body);
     // A Lur'e scene is refused here at /system/type, a constrained one by the check below.
     scene::LagrangianScene sc = scene::load_scene(doc);
@@ -702,7 +933,11 @@ void Server::Impl::get_job(const Request& req, Response& res, JobKind kind) {
   } catch (const std::exception& e) {
     return send_error(res, 400, "bad query", "", e.what());
   }
-  if (wait && *wait > 0) jobs_.wait_final(*job, std::chrono::milliseconds(static_cast<std::int64_t>(*wait * 1000)));
+  if (wait && *wait > 0) {
+    if (!waiting_.try_take()) return too_many_waiting(res);
+    jobs_.wait_final(*job, std::chrono::milliseconds(static_cast<std::int64_t>(*wait * 1000)));
+    waiting_.give_back();
+  }
   const auto report = read_report(*job);
   send_json(res, 200, job_json(*job, report ? &*report : nullptr));
 }
@@ -735,13 +970,14 @@ void Server::Impl::list_jobs(const Request& req, Response& res, JobKind kind) {
 void Server::Impl::delete_job(const Request& req, Response& res, JobKind kind) {
   auto job = job_for(req, res, kind);
   if (!job) return;
-  const auto outcome = jobs_.cancel(job, std::chrono::milliseconds(5000));
+  const auto outcome = jobs_.cancel(job);
   if (outcome == JobManager::Cancel::kAlreadyFinished) {
     const char* what = kind == JobKind::kStudy ? "study" : "job";
     return send_error(res, 409, std::string(what) + " already finished", "",
                       std::string("the ") + what + " is " + to_string(state_of(*job)));
   }
-  send_json(res, 200, job_json(*job, nullptr));
+  // 200: cancelled now (it was queued); 202: cancelling, and cancelled once its run has stopped.
+  send_json(res, outcome == JobManager::Cancel::kCancelling ? 202 : 200, job_json(*job, nullptr));
 }
 
 void Server::Impl::job_events(const Request& req, Response& res, JobKind kind) {
@@ -749,12 +985,23 @@ void Server::Impl::job_events(const Request& req, Response& res, JobKind kind) {
   if (!job) return;
   auto last = std::make_shared<std::uint64_t>(0);
   if (req.has_header("Last-Event-ID")) {
-    try {
-      *last = std::stoull(req.get_header_value("Last-Event-ID"));
-    } catch (const std::exception&) {
-      *last = 0;
+    // An id this job has issued: decimal digits, at most the last id so far. Anything else would be
+    // read as some other position (a negative number wraps around to a huge one).
+    const std::string v = trim(req.get_header_value("Last-Event-ID"));
+    std::uint64_t issued = 0;
+    {
+      std::lock_guard lock(job->mu);
+      issued = job->next_event_id - 1;
     }
+    const bool digits = !v.empty() && v.size() <= 19 && std::all_of(v.begin(), v.end(), [](char c) { return c >= '0' && c <= '9'; });
+    if (!digits || std::stoull(v) > issued) {
+      return send_error(res, 400, "bad Last-Event-ID", "",
+                        "Last-Event-ID must be an event id this job has sent (0 to " + std::to_string(issued) + "), got '" +
+                            v.substr(0, 40) + "'");
+    }
+    *last = std::stoull(v);
   }
+  if (!waiting_.try_take()) return too_many_waiting(res);
   res.set_header("Cache-Control", "no-cache");
   res.set_header("X-Accel-Buffering", "no");
   res.set_chunked_content_provider("text/event-stream", [this, job, last](std::size_t, httplib::DataSink& sink) {
@@ -769,13 +1016,15 @@ void Server::Impl::job_events(const Request& req, Response& res, JobKind kind) {
     if (!out.empty() && !sink.write(out.data(), out.size())) return false;
     if (done) sink.done();
     return true;
-  });
+  }, [this](bool) { waiting_.give_back(); });
 }
 
 void Server::Impl::job_report(const Request& req, Response& res) {
   auto job = job_for(req, res);
   if (!job) return;
-  auto text = final_with(*job, &Job::has_report) ? read_file(job->dir / "report.json") : std::nullopt;
+  bool deleted = false;
+  auto text = job_file(*job, &Job::has_report, "report.json", &deleted);
+  if (deleted) return send_deleted(res);
   if (!text) return send_error(res, 409, "no report yet", "", std::string("the job is ") + to_string(state_of(*job)));
   res.status = 200;
   res.set_content(std::move(*text), "application/json");
@@ -786,22 +1035,41 @@ void Server::Impl::job_trajectory(const Request& req, Response& res) {
   if (!job) return;
   const std::string format = req.has_param("format") ? req.get_param_value("format") : "json";
   if (format != "json" && format != "csv") return send_error(res, 400, "bad query", "", "format must be json or csv");
-  auto text = final_with(*job, &Job::has_trajectory) ? read_file(job->dir / "trajectory.csv") : std::nullopt;
-  if (!text) {
-    return send_error(res, 409, "no trajectory yet", "",
-                      std::string("the job is ") + to_string(state_of(*job)) + "; the trajectory is served once it has finished");
+  RowWindow window;
+  try {
+    if (auto from = number_param(req, "from", -1e300, 1e300)) window.from = *from;
+    if (auto to = number_param(req, "to", -1e300, 1e300)) window.to = *to;
+    if (auto every = number_param(req, "every", 1, 1e15)) {
+      if (*every != std::floor(*every)) throw std::invalid_argument("query parameter 'every' must be a whole number of rows");
+      window.every = static_cast<std::int64_t>(*every);
+    }
+  } catch (const std::exception& e) {
+    return send_error(res, 400, "bad query", "", e.what());
   }
-  if (format == "csv") {
-    res.status = 200;
-    res.set_header("Content-Disposition", "attachment; filename=\"" + job->id + ".csv\"");
-    res.set_content(std::move(*text), "text/csv");
-    return;
-  }
+  if (window.from > window.to) return send_error(res, 400, "bad query", "", "query parameter 'from' is after 'to'");
+  // Opened under the files lock; read piece by piece as the client takes it (bounded memory for any
+  // length), from the open file even if the job is deleted meanwhile.
+  auto reader = std::make_shared<TrajectoryReader>();
   std::string error;
-  auto out = trajectory_json(*text, &error);
-  if (!out) return send_error(res, 500, "stored trajectory unreadable", "", error);
+  {
+    std::shared_lock files(job->files_mu);
+    if (job->deleted) return send_deleted(res);
+    if (!final_with(*job, &Job::has_trajectory)) {
+      return send_error(res, 409, "no trajectory yet", "",
+                        std::string("the job is ") + to_string(state_of(*job)) + "; the trajectory is served once it has finished");
+    }
+    if (!reader->open((job->dir / "trajectory.csv").string(), window, format == "csv" ? TrajectoryReader::Format::kCsv : TrajectoryReader::Format::kJson, &error))
+      return send_error(res, 500, "stored trajectory unreadable", "", error);
+  }
   res.status = 200;
-  res.set_content(std::move(*out), "application/json");
+  if (format == "csv") res.set_header("Content-Disposition", "attachment; filename=\"" + job->id + ".csv\"");
+  res.set_chunked_content_provider(format == "csv" ? "text/csv" : "application/json", [reader](std::size_t, httplib::DataSink& sink) {
+    std::string part;
+    const bool more = reader->next(part);
+    if (!part.empty() && !sink.write(part.data(), part.size())) return false;
+    if (!more) sink.done();
+    return true;
+  });
 }
 
 void Server::Impl::job_figure(const Request& req, Response& res) {
@@ -815,10 +1083,13 @@ void Server::Impl::job_figure(const Request& req, Response& res) {
     return send_error(res, 409, "no trajectory yet", "",
                       std::string("the job is ") + to_string(state_of(*job)) + "; figures are drawn once it has finished");
   }
+  if (is_deleted(*job)) return send_deleted(res);
   static const std::map<std::string, std::string> kFiles = {
       {"state", "figure-state.png"}, {"energy", "figure-energy.png"}, {"step", "figure-step.png"}, {"phase", "figure-phase.png"}};
   send_png(res, job->dir / kFiles.at(kind), *size, [&] {
-    auto csv = read_file(job->dir / "trajectory.csv");
+    bool deleted = false;
+    auto csv = job_file(*job, &Job::has_trajectory, "trajectory.csv", &deleted);
+    if (deleted) throw JobDeleted{};
     if (!csv) throw StoredFileUnreadable{"stored trajectory unreadable"};
     std::optional<double> converged;
     if (auto report = read_report(*job)) {
@@ -834,8 +1105,9 @@ void Server::Impl::study_table(const Request& req, Response& res) {
   if (!job) return;
   const std::string format = req.has_param("format") ? req.get_param_value("format") : "json";
   if (format != "json" && format != "csv") return send_error(res, 400, "bad query", "", "format must be json or csv");
-  auto text = final_with(*job, &Job::has_report) ? read_file(job->dir / (format == "csv" ? "table.csv" : "result.json"))
-                                                 : std::nullopt;
+  bool deleted = false;
+  auto text = job_file(*job, &Job::has_report, format == "csv" ? "table.csv" : "result.json", &deleted);
+  if (deleted) return send_deleted(res);
   if (!text) {
     return send_error(res, 409, "no table yet", "",
                       std::string("the study is ") + to_string(state_of(*job)) + "; the table is served once it is done");
@@ -857,7 +1129,9 @@ void Server::Impl::study_figure(const Request& req, Response& res) {
                       std::string("the study is ") + to_string(state_of(*job)) + "; figures are drawn once it is done");
   }
   send_png(res, job->dir / (kind == "work" ? "figure-work.png" : "figure-order.png"), *size, [&] {
-    auto result = read_file(job->dir / "result.json");
+    bool deleted = false;
+    auto result = job_file(*job, &Job::has_report, "result.json", &deleted);
+    if (deleted) throw JobDeleted{};
     if (!result) throw StoredFileUnreadable{"stored study result unreadable"};
     return study_figure_png(kind, *result, size->first, size->second);
   });

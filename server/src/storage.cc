@@ -33,6 +33,12 @@ namespace {
 void write_fd(const std::filesystem::path& tmp, std::string_view bytes, Durability durability) {
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (fd < 0) fail("cannot create", tmp);
+  if (const auto& fault = write_fault_for_testing(); fault) {
+    if (const int e = fault(tmp); e != 0) {
+      errno = e;
+      fail_and_remove("cannot write", tmp, fd);
+    }
+  }
   const char* p = bytes.data();
   std::size_t left = bytes.size();
   while (left > 0) {
@@ -49,6 +55,11 @@ void write_fd(const std::filesystem::path& tmp, std::string_view bytes, Durabili
 }
 
 }  // namespace
+
+std::function<int(const std::filesystem::path&)>& write_fault_for_testing() {
+  static std::function<int(const std::filesystem::path&)> fault;
+  return fault;
+}
 
 void write_file(const std::filesystem::path& path, std::string_view bytes) { write_fd(path, bytes, Durability::kRename); }
 

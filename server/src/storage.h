@@ -4,6 +4,7 @@
 #pragma once
 
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -32,6 +33,10 @@ void fsync_path(const std::filesystem::path& path);
 
 // The whole file, or nullopt if it cannot be opened.
 std::optional<std::string> read_file(const std::filesystem::path& path);
+
+// A test seam: when set, each file write first asks it; a non-zero errno (ENOSPC, say) makes that write
+// fail as the disk would. Set only by tests, before the server starts, and cleared after it stops.
+std::function<int(const std::filesystem::path&)>& write_fault_for_testing();
 
 // Job ids: 32 lowercase hex digits (128 random bits).
 bool is_job_id(std::string_view s);

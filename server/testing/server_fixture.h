@@ -93,17 +93,22 @@ inline httplib::Result submit(httplib::Client& c, const nlohmann::json& request)
   return c.Post("/v1/jobs", request.dump(), "application/json");
 }
 
-// The job's JSON once it is final (long-polls ?wait=).
-inline nlohmann::json wait_final(httplib::Client& c, const std::string& id, double seconds = 30) {
+// The job's (or, with collection "/v1/studies/", the study's) JSON once it is final (long-polls ?wait=).
+inline nlohmann::json wait_final(httplib::Client& c, const std::string& id, double seconds = 30,
+                                 const std::string& collection = "/v1/jobs/") {
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
   while (true) {
-    auto r = c.Get("/v1/jobs/" + id + "?wait=5");
+    auto r = c.Get(collection + id + "?wait=5");
     if (!r || r->status != 200) throw std::runtime_error("GET job failed");
     auto j = nlohmann::json::parse(r->body);
     const std::string s = j["state"];
     if (s == "done" || s == "failed" || s == "cancelled") return j;
     if (std::chrono::steady_clock::now() > deadline) throw std::runtime_error("job did not finish in time");
   }
+}
+
+inline nlohmann::json wait_final_study(httplib::Client& c, const std::string& id, double seconds = 30) {
+  return wait_final(c, id, seconds, "/v1/studies/");
 }
 
 // Polls until the job is running (or final).
