@@ -737,6 +737,13 @@ void JobManager::commit(Commit& c) {
     job.has_report = true;
     job.has_trajectory = true;
   }
+  job.t_now = summary.t_final;
+  job.step_now = summary.steps;
+  // Counted before the state changes: whoever sees the job final sees it in /metrics too.
+  count_finished(summary.steps, c.integrate_seconds, seconds_since(c.wall_start));
+  set_state(job, c.state, c.reason);
+  // The stream's last events after the state: a subscriber that reacts to "finished" finds the job
+  // final over HTTP, with its results stored.
   if (c.stream) {
     if (summary.converged_step) {
       c.stream->push_event("converged", *summary.converged_step, summary.converged_time.value_or(summary.t_final),
@@ -746,11 +753,6 @@ void JobManager::commit(Commit& c) {
     c.stream->push_event(kind, summary.steps, summary.t_final, c.reason.empty() ? summary.BriefReport() : c.reason);
     c.stream->close();
   }
-  job.t_now = summary.t_final;
-  job.step_now = summary.steps;
-  // Counted before the state changes: whoever sees the job final sees it in /metrics too.
-  count_finished(summary.steps, c.integrate_seconds, seconds_since(c.wall_start));
-  set_state(job, c.state, c.reason);
 }
 
 void JobManager::count_finished(std::int64_t steps, double integrate_seconds, double wall_seconds) {
