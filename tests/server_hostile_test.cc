@@ -455,6 +455,24 @@ TEST(Hostile, ResultsAndFiguresAreBounded) {
   EXPECT_THAT(f->body, ::testing::HasSubstr("pixels"));
 }
 
+// A figure is drawn from a stored trajectory of at most --max-figure-source-bytes (it is read whole).
+TEST(Hostile, FiguresOfHugeTrajectoriesAreRefused) {
+  ServerConfig cfg;
+  cfg.max_figure_source_bytes = 64 << 10;
+  TestServer ts(cfg);
+  auto c = ts.client();
+  auto r = submit(*c, {{"scene", "manipulator"}, {"overrides", {"integrator.t_end=2"}}});  // 2001 rows, about 200 KB
+  const std::string id = json::parse(r->body)["id"];
+  ASSERT_EQ(wait_final(*c, id)["state"], "done");
+  auto f = c->Get("/v1/jobs/" + id + "/figure?kind=state");
+  EXPECT_EQ(f->status, 422) << f->body;
+  EXPECT_THAT(f->body, ::testing::HasSubstr("draws figures from at most 65536"));
+  r = submit(*c, {{"scene", "manipulator"}, {"overrides", {"integrator.t_end=0.1"}}});
+  const std::string small = json::parse(r->body)["id"];
+  ASSERT_EQ(wait_final(*c, small)["state"], "done");
+  EXPECT_EQ(c->Get("/v1/jobs/" + small + "/figure?kind=state")->status, 200);
+}
+
 // The request log writes control bytes escaped: a request cannot add lines of its own.
 TEST(Hostile, RequestLogEscapesControlBytes) {
   ServerConfig cfg;

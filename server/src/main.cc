@@ -61,6 +61,10 @@ int main(int argc, char** argv) {
   app.add_option("--max-figure-pixels", cfg.max_figure_pixels, "Pixels of one figure at most (width times height)")
       ->capture_default_str()
       ->check(CLI::Range(std::int64_t{4096}, std::int64_t{16'777'216}));
+  app.add_option("--max-figure-source-bytes", cfg.max_figure_source_bytes,
+                 "Largest stored trajectory a figure is drawn from, bytes (more: 422)")
+      ->capture_default_str()
+      ->check(CLI::Range(std::int64_t{4096}, std::int64_t{1} << 40));
   app.add_option("--figures-at-once", cfg.figures_at_once, "Figures drawn at once (more wait for a turn)")
       ->capture_default_str()
       ->check(CLI::Range(1, 64));

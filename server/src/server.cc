@@ -1087,6 +1087,13 @@ void Server::Impl::job_figure(const Request& req, Response& res) {
   static const std::map<std::string, std::string> kFiles = {
       {"state", "figure-state.png"}, {"energy", "figure-energy.png"}, {"step", "figure-step.png"}, {"phase", "figure-phase.png"}};
   send_png(res, job->dir / kFiles.at(kind), *size, [&] {
+    std::error_code size_ec;
+    const auto bytes = fs::file_size(job->dir / "trajectory.csv", size_ec);
+    if (!size_ec && static_cast<std::int64_t>(bytes) > cfg_.max_figure_source_bytes) {
+      throw std::invalid_argument("the trajectory has " + std::to_string(bytes) + " bytes; this server draws figures from at most " +
+                                  std::to_string(cfg_.max_figure_source_bytes) +
+                                  ": fetch a window (/trajectory?format=csv&from=&to=&every=) and draw it with moreau plot");
+    }
     bool deleted = false;
     auto csv = job_file(*job, &Job::has_trajectory, "trajectory.csv", &deleted);
     if (deleted) throw JobDeleted{};

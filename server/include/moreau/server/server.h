@@ -43,6 +43,9 @@ struct ServerConfig {
   // and figures drawn at once (more wait for a turn).
   std::int64_t max_figure_pixels = 4'194'304;
   int figures_at_once = 2;
+  // The largest stored trajectory a figure is drawn from (it is read whole, and held as numbers while
+  // drawn: about 1.4 times its size); larger gets 422, with the window parameters to use instead.
+  std::int64_t max_figure_source_bytes = std::int64_t{256} << 20;
   std::int64_t max_steps = 100'000'000;   // integration steps per job
   std::int64_t max_samples = 2'000'000;   // trajectory rows per job
   int keep_alive_seconds = 5;    // idle keep-alive connections are closed after this
