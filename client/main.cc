@@ -1,4 +1,7 @@
 // moreau: run scenes locally, draw figures, talk to a Moreau server.
+#include <exception>
+#include <iostream>
+
 #include "commands.h"
 
 namespace moreau::cli {
@@ -25,6 +28,11 @@ int main(int argc, char** argv) {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
+  } catch (const std::exception& e) {
+    // Subcommands report bad input themselves (exit status 2); anything else that escapes them is a
+    // failure to report, not a reason to abort.
+    std::cerr << "moreau: " << e.what() << "\n";
+    return 1;
   }
   return moreau::cli::exit_code();
 }

@@ -78,6 +78,36 @@ int report_failure(const Remote& remote, const httplib::Result& r, const std::st
 
 bool ok(const httplib::Result& r, int status = 200) { return r && r->status == status; }
 
+// The body of a successful response as JSON. Something that is not a moreau-server (a proxy's error page,
+// another service on the port) can answer anything: that is a failed request, not a crash.
+json body_json(const httplib::Result& r) {
+  json j = json::parse(r->body, nullptr, /*allow_exceptions=*/false);
+  if (j.is_discarded() || !j.is_object())
+    throw std::runtime_error("the server's answer (HTTP " + std::to_string(r->status) + ", " + std::to_string(r->body.size()) +
+                             " bytes) is not a JSON object: is it a moreau-server?");
+  return j;
+}
+
+// j[key] when j is an object holding key, else null: operator[] on a const json with a missing key is
+// undefined behaviour, and an answer may lack any field.
+const json& field(const json& j, const char* key) {
+  static const json null;
+  if (!j.is_object()) return null;
+  const auto it = j.find(key);
+  return it == j.end() ? null : *it;
+}
+
+// Runs a remote command; an exception (an answer of an unexpected shape) is a failed request: exit 1.
+template <class F>
+int guarded(F&& command) {
+  try {
+    return command();
+  } catch (const std::exception& e) {
+    std::cerr << "moreau: " << e.what() << "\n";
+    return 1;
+  }
+}
+
 std::string fmt(double v) {
   char buf[40];
   std::snprintf(buf, sizeof buf, "%.10g", v);
@@ -92,32 +122,34 @@ void print_job(const json& job) {
   if (job.contains("reason")) std::cout << " (" << job.value("reason", "") << ")";
   std::cout << "\n";
   if (job.contains("progress")) {
-    const json& p = job["progress"];
-    if (p["t"].is_number() && p["fraction"].is_number()) {
+    const json& p = field(job, "progress");
+    if (field(p, "t").is_number() && field(p, "fraction").is_number()) {
       std::cout << "  progress      t = " << fmt(p["t"].get<double>()) << " of [" << fmt(p.value("t0", 0.0)) << ", "
                 << fmt(p.value("t_end", 0.0)) << "] (" << fmt(std::round(1000 * p["fraction"].get<double>()) / 10)
                 << "%), step " << p.value("step", std::int64_t{0}) << "\n";
     }
   }
-  if (job.contains("stream")) {
+  if (field(job, "stream").is_object()) {
     std::cout << "  stream        " << job["stream"].value("state_channel", "") << ", " << job["stream"].value("event_channel", "")
               << "\n";
   }
-  if (!job.contains("report")) return;
+  if (!field(job, "report").is_object()) return;
   const json& r = job["report"];
   std::cout << "  status        " << r.value("status", "?") << ": " << r.value("steps", std::int64_t{0}) << " steps to t = "
-            << (r["t_final"].is_number() ? fmt(r["t_final"].get<double>()) : "?") << "\n";
+            << (field(r, "t_final").is_number() ? fmt(r["t_final"].get<double>()) : "?") << "\n";
   if (r.contains("message")) std::cout << "  message       " << r.value("message", "") << "\n";
-  if (r.contains("final")) std::cout << "  final state   q = " << r["final"]["q"].dump() << ", v = " << r["final"]["v"].dump() << "\n";
-  if (r["converged_step"].is_number()) {
+  if (r.contains("final"))
+    std::cout << "  final state   q = " << field(field(r, "final"), "q").dump() << ", v = " << field(field(r, "final"), "v").dump() << "\n";
+  if (field(r, "converged_step").is_number() && field(r, "converged_time").is_number()) {
     std::cout << "  convergence   v == 0.0 exactly from step " << r["converged_step"].get<std::int64_t>() << " (t = "
               << fmt(r["converged_time"].get<double>()) << ") to the end\n";
   } else {
     std::cout << "  convergence   v is not exactly 0 at the last step\n";
   }
-  if (r.contains("energy") && r["energy"]["initial"].is_number() && r["energy"]["final"].is_number()) {
-    std::cout << "  energy        E_0 = " << fmt(r["energy"]["initial"].get<double>()) << ", E_N = "
-              << fmt(r["energy"]["final"].get<double>()) << (r.value("energy_nonincreasing", false) ? " (non-increasing)" : "")
+  const json& energy = field(r, "energy");
+  if (field(energy, "initial").is_number() && field(energy, "final").is_number()) {
+    std::cout << "  energy        E_0 = " << fmt(energy["initial"].get<double>()) << ", E_N = "
+              << fmt(energy["final"].get<double>()) << (r.value("energy_nonincreasing", false) ? " (non-increasing)" : "")
               << "\n";
   }
 }
@@ -132,7 +164,7 @@ std::optional<json> wait_for(const Remote& remote, httplib::Client& c, const std
       code = report_failure(remote, r, "status of " + id);
       return std::nullopt;
     }
-    json job = json::parse(r->body);
+    json job = body_json(r);
     const std::string state = job.value("state", "");
     if (is_final(state)) {
       if (drawn) std::fprintf(stderr, "\r%*s\r", 72, "");
@@ -188,7 +220,7 @@ int submit(const SubmitOptions& o) {
   auto c = o.remote.client();
   auto r = c->Post("/v1/jobs", request.dump(), "application/json");
   if (!ok(r, 202)) return report_failure(o.remote, r, "submit " + o.scene);
-  const json accepted = json::parse(r->body);
+  const json accepted = body_json(r);
   const std::string id = accepted.value("id", "");
   if (!o.wait) {
     if (o.remote.json_output) std::cout << accepted.dump(2) << "\n";
@@ -222,7 +254,7 @@ int status(const IdOptions& o) {
   } else {
     auto r = c->Get("/v1/jobs/" + o.id);
     if (!ok(r)) return report_failure(o.remote, r, "status of " + o.id);
-    job = json::parse(r->body);
+    job = body_json(r);
   }
   if (o.remote.json_output) std::cout << job->dump(2) << "\n";
   else print_job(*job);
@@ -301,7 +333,7 @@ int cancel(const IdOptions& o) {
   auto c = o.remote.client();
   auto r = c->Delete("/v1/jobs/" + o.id);
   if (!ok(r)) return report_failure(o.remote, r, "cancel " + o.id);
-  const json job = json::parse(r->body);
+  const json job = body_json(r);
   if (o.remote.json_output) std::cout << job.dump(2) << "\n";
   else std::cout << o.id << " " << job.value("state", "?") << "\n";
   return 0;
@@ -322,13 +354,14 @@ int jobs(const ListOptions& o) {
   if (o.limit > 0) query += "limit=" + std::to_string(o.limit);
   auto r = c->Get("/v1/jobs" + query);
   if (!ok(r)) return report_failure(o.remote, r, "list jobs");
-  const json list = json::parse(r->body);
+  const json list = body_json(r);
   if (o.remote.json_output) {
     std::cout << list.dump(2) << "\n";
     return 0;
   }
-  for (const auto& job : list["jobs"]) {
-    const double f = job["progress"]["fraction"].is_number() ? job["progress"]["fraction"].get<double>() : 0.0;
+  for (const auto& job : field(list, "jobs")) {
+    const json& fraction = field(field(job, "progress"), "fraction");
+    const double f = fraction.is_number() ? fraction.get<double>() : 0.0;
     std::printf("%s  %-9s %5.1f%%  %s\n", job.value("id", "?").c_str(), job.value("state", "?").c_str(), 100.0 * f,
                 job.value("scene", "").c_str());
   }
@@ -339,12 +372,12 @@ int scenes(const ListOptions& o) {
   auto c = o.remote.client();
   auto r = c->Get("/v1/scenes");
   if (!ok(r)) return report_failure(o.remote, r, "list scenes");
-  const json list = json::parse(r->body);
+  const json list = body_json(r);
   if (o.remote.json_output) {
     std::cout << list.dump(2) << "\n";
     return 0;
   }
-  for (const auto& s : list["scenes"]) {
+  for (const auto& s : field(list, "scenes")) {
     std::string d = s.value("description", "");
     if (d.size() > 90) d = d.substr(0, 87) + "...";
     std::printf("%-24s %s\n", s.value("name", "?").c_str(), d.c_str());
@@ -367,7 +400,7 @@ void register_remote_commands(CLI::App& app) {
     cmd->add_option("--channel", o->channel, "LCM channel prefix (default MOREAU: MOREAU_STATE_<ID>)");
     cmd->add_flag("--json", o->remote.json_output, "Print the job as JSON");
     o->remote.add_to(cmd);
-    cmd->callback([o] { exit_code() = submit(*o); });
+    cmd->callback([o] { exit_code() = guarded([&] { return submit(*o); }); });
   }
   {
     auto o = std::make_shared<IdOptions>();
@@ -376,7 +409,7 @@ void register_remote_commands(CLI::App& app) {
     cmd->add_flag("--wait", o->wait, "Wait until the job has finished");
     cmd->add_flag("--json", o->remote.json_output, "Print the job as JSON");
     o->remote.add_to(cmd);
-    cmd->callback([o] { exit_code() = status(*o); });
+    cmd->callback([o] { exit_code() = guarded([&] { return status(*o); }); });
   }
   {
     auto o = std::make_shared<ResultOptions>();
@@ -385,7 +418,7 @@ void register_remote_commands(CLI::App& app) {
     cmd->add_option("--out", o->out, "Write the trajectory here (CSV; JSON if the name ends in .json)");
     cmd->add_option("--format", o->format, "Trajectory format: csv or json")->check(CLI::IsMember({"csv", "json"}));
     o->remote.add_to(cmd);
-    cmd->callback([o] { exit_code() = result(*o); });
+    cmd->callback([o] { exit_code() = guarded([&] { return result(*o); }); });
   }
   {
     auto o = std::make_shared<FigureOptions>();
@@ -397,7 +430,7 @@ void register_remote_commands(CLI::App& app) {
     cmd->add_option("-o,--out", o->out, "PNG file to write")->required();
     cmd->add_option("--size", o->size, "WIDTHxHEIGHT in pixels (default 1200x800)");
     o->remote.add_to(cmd);
-    cmd->callback([o] { exit_code() = figure(*o); });
+    cmd->callback([o] { exit_code() = guarded([&] { return figure(*o); }); });
   }
   {
     auto o = std::make_shared<IdOptions>();
@@ -405,7 +438,7 @@ void register_remote_commands(CLI::App& app) {
     cmd->add_option("id", o->id, "Job id")->required();
     cmd->add_flag("--json", o->remote.json_output, "Print the job as JSON");
     o->remote.add_to(cmd);
-    cmd->callback([o] { exit_code() = cancel(*o); });
+    cmd->callback([o] { exit_code() = guarded([&] { return cancel(*o); }); });
   }
   {
     auto o = std::make_shared<ListOptions>();
@@ -415,14 +448,14 @@ void register_remote_commands(CLI::App& app) {
     cmd->add_option("--limit", o->limit, "Only the most recent N");
     cmd->add_flag("--json", o->remote.json_output, "Print the list as JSON");
     o->remote.add_to(cmd);
-    cmd->callback([o] { exit_code() = jobs(*o); });
+    cmd->callback([o] { exit_code() = guarded([&] { return jobs(*o); }); });
   }
   {
     auto o = std::make_shared<ListOptions>();
     auto* cmd = app.add_subcommand("scenes", "List the scenes a server ships");
     cmd->add_flag("--json", o->remote.json_output, "Print the list as JSON");
     o->remote.add_to(cmd);
-    cmd->callback([o] { exit_code() = scenes(*o); });
+    cmd->callback([o] { exit_code() = guarded([&] { return scenes(*o); }); });
   }
 }
 

@@ -123,17 +123,23 @@ int merge(const SweepOptions& opt) {
   for (const auto& entry : std::filesystem::directory_iterator(opt.merge_dir)) {
     if (entry.path().extension() != ".jsonl") continue;
     std::ifstream in(entry.path());
+    const std::string file = entry.path().string();
+    std::size_t line_no = 1;
+    // Each line is parsed like a scene file: a syntax error or a number out of range is a SceneError
+    // naming the file, the line and the JSON pointer.
+    auto next = [&](std::string& line) { return static_cast<bool>(std::getline(in, line)); };
+    auto parse = [&](const std::string& line) { return scene::parse_json_text(line, file + " line " + std::to_string(line_no)); };
     std::string line;
-    if (!std::getline(in, line)) continue;
-    const auto header = nlohmann::json::parse(line);
+    if (!next(line)) continue;
+    const auto header = parse(line);
     nlohmann::json def = header.at("sweep");
     const int shard = def.at("shard");
     def.erase("shard");
     if (sweep.is_null()) sweep = def;
     if (def != sweep) throw std::runtime_error(entry.path().string() + " belongs to a different sweep");
     shards_seen.insert(shard);
-    while (std::getline(in, line)) {
-      auto j = nlohmann::json::parse(line);
+    while (++line_no, next(line)) {
+      auto j = parse(line);
       const std::size_t idx = j.at("index");
       if (!points.emplace(idx, std::move(j)).second)
         throw std::runtime_error("point " + std::to_string(idx) + " appears twice");

@@ -4,6 +4,7 @@
 
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <array>
 #include <cstdio>
 #include <filesystem>
@@ -178,4 +179,79 @@ TEST(Cli, SweepShardsAndMerge) {
   EXPECT_EQ(m.status, 2);
   EXPECT_NE(m.out.find("shard 1/3 is missing"), std::string::npos) << m.out;
 }
+}  // namespace
+
+namespace {
+// Runs `moreau` on bad input with a time limit (a hang fails the test instead of blocking it: timeout's
+// status 124) and, unless sanitizers are on (their shadow memory needs terabytes of address space), a
+// 4 GB address-space limit, so that input read without bound fails fast instead of exhausting the
+// machine. `before` runs first in the same shell.
+Result MoreauBounded(const std::string& args, const std::string& before = "") {
+#if defined(__SANITIZE_ADDRESS__)
+  const std::string limits = "timeout 60 ";
+#else
+  const std::string limits = "ulimit -v 4000000; timeout 60 ";
+#endif
+  const std::string cmd = before + limits + std::string(MOREAU_BINARY) + " " + args + " 2>&1";
+  FILE* pipe = popen(cmd.c_str(), "r");
+  std::string out;
+  std::array<char, 4096> buf{};
+  while (std::size_t n = std::fread(buf.data(), 1, buf.size(), pipe)) out.append(buf.data(), n);
+  const int rc = pclose(pipe);
+  return {WIFEXITED(rc) ? WEXITSTATUS(rc) : -1, out};
+}
+
+// The files the bad-input table refers to as {tmp}/...
+std::string BadInputDir() {
+  static const std::string dir = [] {
+    const std::string d = ::testing::TempDir() + "/cli-bad-input";
+    std::filesystem::remove_all(d);
+    std::filesystem::create_directories(d + "/shards");
+    std::ofstream(d + "/overflow.json") << "{\"name\": \"x\", \"integrator\": {\"t_end\": 1, \"h\": 1e999}}\n";
+    std::ofstream(d + "/shards/shard-0-of-1.jsonl")
+        << R"({"sweep": {"scene": "s.json", "points": 1, "shards": 1, "shard": 0, "vary": [], "set": []}})" << "\n"
+        << R"({"index": 0, "overrides": [], "report": {"steps": 1e999}})" << "\n";
+    return d;
+  }();
+  return dir;
+}
+
+struct BadInput {
+  std::string name;
+  std::string args;     // {tmp}: BadInputDir(), {scenes}: the shipped scenes
+  std::string pointer;  // the field, as the message names it: a JSON pointer or the option
+  std::string phrase;   // and a phrase of what is wrong with it
+};
+
+class BadCommandLine : public ::testing::TestWithParam<BadInput> {};
+
+std::string Expand(std::string s) {
+  for (const auto& [key, value] : {std::pair<std::string, std::string>{"{tmp}", BadInputDir()},
+                                   {"{scenes}", std::string(MOREAU_SOURCE_DIR) + "/scenes"}}) {
+    for (std::size_t at; (at = s.find(key)) != std::string::npos;) s.replace(at, key.size(), value);
+  }
+  return s;
+}
+
+// Bad input on the command line: exit status 2 and one short message naming the field, never a crash
+// (status -1: a signal), a hang (124: timeout), unbounded memory (an abort under the address-space
+// limit) or a report or table (with NaN in it) instead of the error.
+TEST_P(BadCommandLine, ExitsWith2AndNamesTheField) {
+  const Result r = MoreauBounded(Expand(GetParam().args));
+  EXPECT_EQ(r.status, 2) << r.out.substr(0, 2000);
+  EXPECT_NE(r.out.find(GetParam().pointer), std::string::npos) << r.out.substr(0, 2000);
+  EXPECT_NE(r.out.find(GetParam().phrase), std::string::npos) << r.out.substr(0, 2000);
+  EXPECT_LT(r.out.size(), 1000u) << r.out.substr(0, 2000);
+  EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out.substr(0, 2000);
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Cli, BadCommandLine,
+    ::testing::Values(
+        // Parsing: a number that overflows a double, wherever the JSON comes from.
+        BadInput{"NumberOutOfRangeInASceneFile", "run {tmp}/overflow.json", "/integrator/h: ", "number out of range at byte 46"},
+        BadInput{"NumberOutOfRangeInAnOverride", "run {scenes}/manipulator.json --set 'initial.v=[0,1e999]'", "/initial/v/1: ", "number out of range"},
+        BadInput{"NumberOutOfRangeInAStudysScene", "study {tmp}/overflow.json", "/integrator/h: ", "number out of range"},
+        BadInput{"NumberOutOfRangeInASweepShard", "sweep --merge {tmp}/shards", "shard-0-of-1.jsonl line 2", "number out of range"}),
+    [](const auto& info) { return info.param.name; });
 }  // namespace

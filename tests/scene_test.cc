@@ -268,6 +268,40 @@ TEST(Scene, JsonNestingIsBoundedBeforeParsing) {
   EXPECT_NO_THROW(apply_override(doc, "description=[[1]]"));
 }
 
+// A number literal that overflows a double ("1e999") is a SceneError at the number's JSON pointer, with
+// its byte offset and line, whether it comes from a file or an override: never nlohmann::json's
+// out_of_range exception escaping (which aborted `moreau run`).
+TEST(Scene, NumberOutOfRangeNamesItsPointerAndByte) {
+  const std::string path = ::testing::TempDir() + "/overflow.json";
+  const std::string text = "{\"name\": \"x\",\n \"integrator\": {\"t_end\": 1, \"h\": 1e999}}";
+  std::ofstream(path) << text;
+  try {
+    read_scene_file(path);
+    FAIL() << "parsed a number that overflows a double";
+  } catch (const SceneError& e) {
+    EXPECT_EQ(e.pointer(), "/integrator/h") << e.what();
+    EXPECT_THAT(e.reason(), ::testing::HasSubstr("number out of range at byte " + std::to_string(text.find("1e999"))));
+    EXPECT_THAT(e.reason(), ::testing::HasSubstr("line 2"));
+  } catch (const std::exception& e) {
+    FAIL() << "not a SceneError: " << e.what();
+  }
+  json doc = Scene("manipulator.json");
+  for (const char* value : {"[0, -1e999]", "[0,1e400]"}) {
+    try {
+      apply_override(doc, std::string("initial.v=") + value);
+      FAIL() << "took " << value << " for a string";
+    } catch (const SceneError& e) {
+      EXPECT_EQ(e.pointer(), "/initial/v/1") << e.what();
+      EXPECT_THAT(e.reason(), ::testing::HasSubstr("number out of range")) << e.what();
+    } catch (const std::exception& e) {
+      FAIL() << "not a SceneError: " << e.what();
+    }
+  }
+  // Text that is not JSON at all is still a string (an expression, a bare word).
+  EXPECT_NO_THROW(apply_override(doc, "system.potential=1e3*cos(th2)"));
+  EXPECT_EQ(doc["system"]["potential"], "1e3*cos(th2)");
+}
+
 TEST(Scene, MalformedJsonNamesLineAndColumn) {
   const std::string path = ::testing::TempDir() + "/bad.json";
   FILE* f = std::fopen(path.c_str(), "w");

@@ -1039,7 +1039,117 @@ std::vector<std::string> path_tokens(const std::string& path) {
   return tokens;
 }
 
+// A SAX pass over JSON text that builds nothing: where and why the text fails to parse, and the JSON
+// pointer of the value being read at that point. Only run once a parse has failed.
+class JsonErrorFinder : public nlohmann::json_sax<json> {
+ public:
+  std::size_t position = 0;  // characters read when the error was found
+  std::string token;         // the last token read (for a number out of range: the number)
+  int id = 0;                // nlohmann's exception id: 1xx syntax errors, 406 a number out of range
+  std::string message;
+  std::string pointer;       // of the value being read; "" for the whole document
+
+  bool null() override { return value(); }
+  bool boolean(bool) override { return value(); }
+  bool number_integer(number_integer_t) override { return value(); }
+  bool number_unsigned(number_unsigned_t) override { return value(); }
+  bool number_float(number_float_t, const string_t&) override { return value(); }
+  bool string(string_t&) override { return value(); }
+  bool binary(binary_t&) override { return value(); }
+  bool start_object(std::size_t) override {
+    frames_.push_back({false, "", 0});
+    return true;
+  }
+  bool key(string_t& k) override {
+    frames_.back().key = k;
+    return true;
+  }
+  bool end_object() override {
+    frames_.pop_back();
+    return value();
+  }
+  bool start_array(std::size_t) override {
+    frames_.push_back({true, "", 0});
+    return true;
+  }
+  bool end_array() override {
+    frames_.pop_back();
+    return value();
+  }
+  bool parse_error(std::size_t pos, const std::string& last_token, const json::exception& ex) override {
+    position = pos;
+    token = last_token;
+    id = ex.id;
+    message = ex.what();
+    if (const std::size_t bracket = message.find("] "); message.rfind("[json.exception.", 0) == 0 && bracket != std::string::npos)
+      message = message.substr(bracket + 2);
+    pointer.clear();
+    for (const Frame& f : frames_) pointer += "/" + (f.array ? std::to_string(f.index) : json_pointer_token(f.key));
+    return false;
+  }
+
+ private:
+  struct Frame {
+    bool array;
+    std::string key;
+    std::size_t index;
+  };
+  // A value is complete: the next one in an array has the next index.
+  bool value() {
+    if (!frames_.empty() && frames_.back().array) ++frames_.back().index;
+    return true;
+  }
+  std::vector<Frame> frames_;
+};
+
+// Why `text` is not JSON (it must not be: call after a failed parse).
+JsonErrorFinder find_json_error(std::string_view text) {
+  JsonErrorFinder finder;
+  json::sax_parse(text.begin(), text.end(), &finder);
+  return finder;
+}
+
+// "line L, column C" of the byte at `offset` (0-based; lines and columns count from 1).
+std::string line_and_column(std::string_view text, std::size_t offset) {
+  std::size_t line = 1, col = 1;
+  for (std::size_t i = 0; i < offset && i < text.size(); ++i) {
+    if (text[i] == '\n') {
+      ++line;
+      col = 1;
+    } else {
+      ++col;
+    }
+  }
+  return "line " + std::to_string(line) + ", column " + std::to_string(col);
+}
+
+constexpr int kNumberOutOfRange = 406;  // nlohmann::json's out_of_range.406: "number overflow parsing"
+
+// The error of a failed parse of `text`: a number out of range at its pointer (prefixed with `pointer`,
+// the pointer of the text itself), with where it starts; else a syntax error at `pointer`.
+SceneError json_error(std::string_view text, const JsonErrorFinder& e, const std::string& source, const std::string& pointer) {
+  if (e.id == kNumberOutOfRange) {
+    const std::size_t start = e.position >= e.token.size() ? e.position - e.token.size() : 0;
+    return SceneError(pointer + e.pointer, source + ": number out of range at byte " + std::to_string(start) + " (" +
+                                               line_and_column(text, start) + "): " + e.message);
+  }
+  // nlohmann's message of a syntax error says the line and column itself.
+  return SceneError(pointer, source + " is not valid JSON: " + e.message);
+}
+
 }  // namespace
+
+nlohmann::json parse_json_text(std::string_view text, const std::string& source) {
+  if (const auto at = json_depth_exceeded(text)) {
+    throw SceneError("/", source + ": JSON nested deeper than " + std::to_string(kMaxJsonDepth) + " levels at byte " +
+                              std::to_string(*at));
+  }
+  // No exceptions from the parser: an out-of-range number is nlohmann's out_of_range, not its
+  // parse_error, and one missed catch aborts the process.
+  json doc = json::parse(text.begin(), text.end(), nullptr, /*allow_exceptions=*/false);
+  if (!doc.is_discarded()) return doc;
+  throw json_error(text, find_json_error(text), source, "");
+}
 
 std::optional<std::size_t> json_depth_exceeded(std::string_view text, int max_depth) {
   int depth = 0;
@@ -1069,8 +1179,6 @@ void apply_override(nlohmann::json& doc, const std::string& assignment) {
   const std::string text = assignment.substr(eq + 1);
   if (json_depth_exceeded(text))
     throw SceneError(path, "override value nested deeper than " + std::to_string(kMaxJsonDepth) + " levels");
-  nlohmann::json value = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
-  if (value.is_discarded()) value = text;  // an expression or a bare word
   std::vector<std::string> tokens;
   try {
     tokens = path_tokens(path);
@@ -1079,6 +1187,18 @@ void apply_override(nlohmann::json& doc, const std::string& assignment) {
   }
   if (tokens.size() > static_cast<std::size_t>(kMaxJsonDepth))
     throw SceneError("/", "override path deeper than " + std::to_string(kMaxJsonDepth) + " levels");
+  nlohmann::json value = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
+  if (value.is_discarded()) {
+    // Not JSON: an expression or a bare word, kept as a string. But a number that overflows a double is
+    // an error, not a string: "[0, 1e999]" would otherwise reach the scene as text.
+    const JsonErrorFinder e = find_json_error(text);
+    if (e.id == kNumberOutOfRange) {
+      std::string target;
+      for (const auto& tok : tokens) target += "/" + json_pointer_token(tok);
+      throw json_error(text, e, "override value '" + utf8_prefix(text, 200) + "'", target);
+    }
+    value = text;
+  }
   nlohmann::json* node = &doc;
   std::string ptr;
   for (std::size_t i = 0; i < tokens.size(); ++i) {
@@ -1110,30 +1230,7 @@ nlohmann::json read_scene_file(const std::string& path) {
   if (!in) throw SceneError("/", "cannot open scene file '" + path + "'");
   std::ostringstream buf;
   buf << in.rdbuf();
-  const std::string text = buf.str();
-  if (const auto at = json_depth_exceeded(text)) {
-    throw SceneError("/", "scene file '" + path + "': JSON nested deeper than " + std::to_string(kMaxJsonDepth) +
-                              " levels at byte " + std::to_string(*at));
-  }
-  try {
-    return nlohmann::json::parse(text);
-  } catch (const nlohmann::json::parse_error& e) {
-    // Turn the byte offset into line and column.
-    std::size_t line = 1, col = 1;
-    for (std::size_t i = 0; i + 1 < e.byte && i < text.size(); ++i) {
-      if (text[i] == '\n') {
-        ++line;
-        col = 1;
-      } else {
-        ++col;
-      }
-    }
-    std::string what = e.what();
-    const std::size_t pos = what.find("parse error");
-    if (pos != std::string::npos) what = what.substr(pos);
-    throw SceneError("/", "'" + path + "' is not valid JSON (line " + std::to_string(line) + ", column " +
-                              std::to_string(col) + "): " + what);
-  }
+  return parse_json_text(buf.str(), "scene file '" + path + "'");
 }
 
 LagrangianScene load_scene(const nlohmann::json& doc) {

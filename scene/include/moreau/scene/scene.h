@@ -56,8 +56,13 @@ void apply_override(nlohmann::json& doc, const std::string& assignment);
 // A key as one token of a JSON pointer (RFC 6901: '~' becomes "~0", '/' becomes "~1").
 std::string json_pointer_token(std::string_view key);
 
-// Reads a scene file; JSON syntax errors name the file, line and column.
+// Reads a scene file and parses it with parse_json_text.
 nlohmann::json read_scene_file(const std::string& path);
+
+// Parses JSON text; `source` names it in messages ("scene file 'a.json'"). Every failure is a SceneError:
+// nesting deeper than kMaxJsonDepth, a syntax error (line, column), or a number that overflows a double
+// ("1e999"), reported at that number's JSON pointer with its byte offset, line and column.
+nlohmann::json parse_json_text(std::string_view text, const std::string& source);
 
 // JSON nesting allowed in a scene file, an override value or a request body. nlohmann::json copies,
 // compares, prints and destroys documents recursively, so a document nested 100000 deep would overflow
