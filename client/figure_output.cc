@@ -5,6 +5,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "line_reader.h"
 #include "moreau/render/render.h"
 
 namespace moreau::cli {
@@ -100,8 +101,14 @@ void write_figure(const std::string& kind, const render::TimeSeriesData& input, 
 render::TimeSeriesData read_trajectory_csv(const std::string& path) {
   std::ifstream in(path);
   if (!in) throw std::runtime_error("cannot open '" + path + "'");
+  // A row holds at most 2 kMaxDof + 3 numbers (about 3 KB): a longer line is not a trajectory, and a
+  // file without line ends (/dev/zero) must not be read whole.
+  constexpr std::size_t kMaxLine = std::size_t{1} << 20;
+  auto next_line = [&](std::string& line, std::size_t row) {
+    return read_line(in, line, kMaxLine, "'" + path + "' line " + std::to_string(row), "1 MiB");
+  };
   std::string line;
-  if (!std::getline(in, line)) throw std::runtime_error("'" + path + "' is empty");
+  if (!next_line(line, 1)) throw std::runtime_error("'" + path + "' is empty");
   std::vector<std::string> cols;
   {
     std::stringstream ss(line);
@@ -124,7 +131,7 @@ render::TimeSeriesData read_trajectory_csv(const std::string& path) {
   data.v.resize(n);
   data.energy_label = "E = 1/2 <M v, v>";
   std::size_t row = 1;
-  while (std::getline(in, line)) {
+  while (next_line(line, row + 1)) {
     ++row;
     if (line.empty()) continue;
     std::vector<double> values;

@@ -15,6 +15,7 @@
 #include <sstream>
 
 #include "commands.h"
+#include "line_reader.h"
 #include "moreau/scene/simulation.h"
 
 namespace moreau::cli {
@@ -56,6 +57,10 @@ Dimension parse_vary(const std::string& spec) {
   if (d.values.empty()) throw std::runtime_error("--vary " + d.path + ": no values");
   return d;
 }
+
+// Longest line of a shard file: a point's report. Lines never get near it; a file that is not a shard
+// (or never ends a line) is refused there instead of being read whole.
+constexpr std::size_t kMaxShardLine = scene::kMaxSceneFileBytes;
 
 struct SweepOptions {
   std::string scene_path;
@@ -127,7 +132,9 @@ int merge(const SweepOptions& opt) {
     std::size_t line_no = 1;
     // Each line is parsed like a scene file: a syntax error or a number out of range is a SceneError
     // naming the file, the line and the JSON pointer.
-    auto next = [&](std::string& line) { return static_cast<bool>(std::getline(in, line)); };
+    auto next = [&](std::string& line) {
+      return read_line(in, line, kMaxShardLine, file + " line " + std::to_string(line_no), "64 MiB");
+    };
     auto parse = [&](const std::string& line) { return scene::parse_json_text(line, file + " line " + std::to_string(line_no)); };
     std::string line;
     if (!next(line)) continue;

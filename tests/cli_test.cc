@@ -2,7 +2,10 @@
 // overrides, exit codes and error messages for bad scenes, and figures.
 #include <gtest/gtest.h>
 
+#include <fcntl.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <array>
@@ -252,6 +255,24 @@ INSTANTIATE_TEST_SUITE_P(
         BadInput{"NumberOutOfRangeInASceneFile", "run {tmp}/overflow.json", "/integrator/h: ", "number out of range at byte 46"},
         BadInput{"NumberOutOfRangeInAnOverride", "run {scenes}/manipulator.json --set 'initial.v=[0,1e999]'", "/initial/v/1: ", "number out of range"},
         BadInput{"NumberOutOfRangeInAStudysScene", "study {tmp}/overflow.json", "/integrator/h: ", "number out of range"},
-        BadInput{"NumberOutOfRangeInASweepShard", "sweep --merge {tmp}/shards", "shard-0-of-1.jsonl line 2", "number out of range"}),
+        BadInput{"NumberOutOfRangeInASweepShard", "sweep --merge {tmp}/shards", "shard-0-of-1.jsonl line 2", "number out of range"},
+        // Size: endless or huge input is refused at the limit, not read to the end.
+        BadInput{"SceneFromDevZero", "run /dev/zero", "/: ", "larger than 64 MiB"},
+        BadInput{"StudySceneFromDevZero", "study /dev/zero", "/: ", "larger than 64 MiB"},
+        BadInput{"TrajectoryFromDevZero", "plot /dev/zero -o {tmp}/plot.png", "'/dev/zero' line 1", "longer than 1 MiB"}),
     [](const auto& info) { return info.param.name; });
+
+// A FIFO has no size to trust and this one never ends: the scene is read up to the limit and refused
+// (the writer then dies of SIGPIPE).
+TEST(Cli, SceneFromAnEndlessFifoIsRefusedAtTheSizeLimit) {
+  const std::string fifo = ::testing::TempDir() + "/endless.fifo";
+  std::filesystem::remove(fifo);
+  ASSERT_EQ(mkfifo(fifo.c_str(), 0600), 0);
+  const Result r = MoreauBounded("run " + fifo, "(yes '[1, 2, 3]' > " + fifo + " &); ");
+  // Unblock the writer if the reader never opened the FIFO, so that it cannot outlive the test.
+  if (const int fd = open(fifo.c_str(), O_RDONLY | O_NONBLOCK); fd >= 0) close(fd);
+  std::filesystem::remove(fifo);
+  EXPECT_EQ(r.status, 2) << r.out.substr(0, 2000);
+  EXPECT_NE(r.out.find("larger than 64 MiB"), std::string::npos) << r.out.substr(0, 2000);
+}
 }  // namespace

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <functional>
 #include <vector>
@@ -300,6 +301,31 @@ TEST(Scene, NumberOutOfRangeNamesItsPointerAndByte) {
   // Text that is not JSON at all is still a string (an expression, a bare word).
   EXPECT_NO_THROW(apply_override(doc, "system.potential=1e3*cos(th2)"));
   EXPECT_EQ(doc["system"]["potential"], "1e3*cos(th2)");
+}
+
+// read_scene_file reads at most 64 MiB and one byte, whatever the file says its size is: a larger file
+// is refused with the limit in the message, not read to the end (an endless device or FIFO would never
+// end: Cli/BadCommandLine.* covers /dev/zero, Cli.SceneFromAnEndlessFifoIsRefusedAtTheSizeLimit a FIFO).
+TEST(Scene, SceneFileLargerThan64MiBIsRefused) {
+  const std::string path = ::testing::TempDir() + "/huge.json";
+  std::ofstream(path).close();
+  std::filesystem::resize_file(path, (std::uintmax_t{64} << 20) + 1);  // sparse: no disk space used
+  try {
+    read_scene_file(path);
+    FAIL() << "read a file of 64 MiB + 1 byte";
+  } catch (const SceneError& e) {
+    EXPECT_EQ(e.pointer(), "/");
+    EXPECT_THAT(e.reason(), ::testing::HasSubstr("larger than 64 MiB")) << e.what();
+  }
+  // Exactly 64 MiB is read, and refused for what it holds (NUL bytes), not for its size.
+  std::filesystem::resize_file(path, std::uintmax_t{64} << 20);
+  try {
+    read_scene_file(path);
+    FAIL();
+  } catch (const SceneError& e) {
+    EXPECT_THAT(e.reason(), ::testing::HasSubstr("not valid JSON")) << e.what();
+  }
+  std::filesystem::remove(path);
 }
 
 TEST(Scene, MalformedJsonNamesLineAndColumn) {

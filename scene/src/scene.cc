@@ -1,7 +1,9 @@
 // Scene validation and compilation. See docs/scene-format.md for the format this implements.
 #include "moreau/scene/scene.h"
 
+#include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <functional>
 #include <map>
@@ -1226,11 +1228,24 @@ void apply_override(nlohmann::json& doc, const std::string& assignment) {
 }
 
 nlohmann::json read_scene_file(const std::string& path) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) throw SceneError("/", "scene file '" + path + "' is a directory");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw SceneError("/", "cannot open scene file '" + path + "'");
-  std::ostringstream buf;
-  buf << in.rdbuf();
-  return parse_json_text(buf.str(), "scene file '" + path + "'");
+  // At most the limit and one byte, whatever the file is: a FIFO or a device has no size to trust (and
+  // /dev/zero never ends), and a regular file may grow while it is read.
+  std::string text;
+  std::vector<char> chunk(std::size_t{1} << 16);
+  while (text.size() <= kMaxSceneFileBytes && in) {
+    const std::size_t want = std::min(chunk.size(), kMaxSceneFileBytes + 1 - text.size());
+    in.read(chunk.data(), static_cast<std::streamsize>(want));
+    text.append(chunk.data(), static_cast<std::size_t>(in.gcount()));
+  }
+  if (in.bad()) throw SceneError("/", "cannot read scene file '" + path + "'");
+  if (text.size() > kMaxSceneFileBytes)
+    throw SceneError("/", "scene file '" + path + "' is larger than " + std::to_string(kMaxSceneFileBytes >> 20) +
+                              " MiB, the limit for scene files");
+  return parse_json_text(text, "scene file '" + path + "'");
 }
 
 LagrangianScene load_scene(const nlohmann::json& doc) {

@@ -56,7 +56,11 @@ void apply_override(nlohmann::json& doc, const std::string& assignment);
 // A key as one token of a JSON pointer (RFC 6901: '~' becomes "~0", '/' becomes "~1").
 std::string json_pointer_token(std::string_view key);
 
-// Reads a scene file and parses it with parse_json_text.
+// Largest scene file read_scene_file reads. It reads at most this many bytes plus one whatever the file
+// is (a FIFO or a device such as /dev/zero has no size to trust): larger input is refused, not read.
+inline constexpr std::size_t kMaxSceneFileBytes = std::size_t{64} << 20;  // 64 MiB
+
+// Reads a scene file of at most kMaxSceneFileBytes and parses it with parse_json_text.
 nlohmann::json read_scene_file(const std::string& path);
 
 // Parses JSON text; `source` names it in messages ("scene file 'a.json'"). Every failure is a SceneError:
