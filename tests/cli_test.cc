@@ -259,7 +259,13 @@ INSTANTIATE_TEST_SUITE_P(
         // Size: endless or huge input is refused at the limit, not read to the end.
         BadInput{"SceneFromDevZero", "run /dev/zero", "/: ", "larger than 64 MiB"},
         BadInput{"StudySceneFromDevZero", "study /dev/zero", "/: ", "larger than 64 MiB"},
-        BadInput{"TrajectoryFromDevZero", "plot /dev/zero -o {tmp}/plot.png", "'/dev/zero' line 1", "longer than 1 MiB"}),
+        BadInput{"TrajectoryFromDevZero", "plot /dev/zero -o {tmp}/plot.png", "'/dev/zero' line 1", "longer than 1 MiB"},
+        // Step counts: at least one step, and no count that overflows.
+        BadInput{"StepSoLongTheRunTakesNoStep", "run {scenes}/manipulator.json --set integrator.h=1e12", "/integrator/h: ", "longer than the interval"},
+        BadInput{"StepLongerThanTheInterval", "run {scenes}/manipulator.json --set integrator.h=1e9", "/integrator/h: ", "longer than the interval"},
+        BadInput{"AdaptiveRuleStepCountOverflows", "run {scenes}/manipulator.json --set integrator.step_rule=theorem-4.1 --set integrator.t_end=1e300", "/integrator/h: ", "needs at least"},
+        BadInput{"FixedRuleStepCountOverflows", "run {scenes}/manipulator.json --set integrator.h=1e-300", "/integrator/h: ", "steps, more than the limit"},
+        BadInput{"LureStepLongerThanTheInterval", "run {scenes}/lure-relay.json --set integrator.h=10", "/integrator/h: ", "longer than the interval"}),
     [](const auto& info) { return info.param.name; });
 
 // A FIFO has no size to trust and this one never ends: the scene is read up to the limit and refused

@@ -411,7 +411,9 @@ INSTANTIATE_TEST_SUITE_P(
         BadLure{"OutsideDomain", [](json& d) { d["initial"]["x"] = {-3, 0}; }, "/initial/x", "outside the domain"},
         BadLure{"InitialSize", [](json& d) { d["initial"]["x"] = {1}; }, "/initial/x", "expected 2 entries"},
         BadLure{"LagrangianField", [](json& d) { d["system"]["mass"] = {{1}}; }, "/system/mass", "unknown field"},
-        BadLure{"BadStateName", [](json& d) { d["system"]["states"] = {"x", "1y"}; }, "/system/states/1", "expected a name"}),
+        BadLure{"BadStateName", [](json& d) { d["system"]["states"] = {"x", "1y"}; }, "/system/states/1", "expected a name"},
+        BadLure{"StepLongerThanTheInterval", [](json& d) { d["integrator"]["h"] = 1e9; }, "/integrator/h", "longer than the interval"},
+        BadLure{"StepCountOverflows", [](json& d) { d["integrator"]["h"] = 1e-300; }, "/integrator/h", "steps, more than the limit"}),
     [](const auto& info) { return info.param.name; });
 
 // The complementarity law (Figure 3c) needs y0 >= 0: the LCS scene with y0 < 0 is refused at /initial/x.

@@ -242,7 +242,18 @@ INSTANTIATE_TEST_SUITE_P(
         BadCase{"MissingMass", [](json& d) { d["system"].erase("mass"); }, "/system", "mass"},
         BadCase{"MissingIntegrator", [](json& d) { d.erase("integrator"); }, "/integrator", "missing"},
         BadCase{"Theorem42WithoutEta", [](json& d) { d["system"]["controller"] = {{{"type", "abs"}, {"gains", {1, 1}}}}; d["integrator"]["step_rule"] = "theorem-4.2"; }, "/integrator/step_rule", "eta"},
-        BadCase{"BadSystemType", [](json& d) { d["system"]["type"] = "hamiltonian"; }, "/system/type", "unknown system type"}),
+        BadCase{"BadSystemType", [](json& d) { d["system"]["type"] = "hamiltonian"; }, "/system/type", "unknown system type"},
+        // A run must take at least one step and its step count must fit the limit, checked in double
+        // before any conversion to an integer (a double beyond 2^63 converts to int64 with undefined
+        // behaviour). For the adaptive rules h is the largest step, so (t_end - t0) / h bounds their count.
+        BadCase{"StepLongerThanTheInterval", [](json& d) { d["integrator"]["h"] = 1e9; }, "/integrator/h", "longer than the interval"},
+        BadCase{"StepSoLongTheRunTakesNoStep", [](json& d) { d["integrator"]["h"] = 1e12; }, "/integrator/h", "longer than the interval"},
+        BadCase{"FixedRuleStepCountOverflowsAtAFarEnd", [](json& d) { d["integrator"]["t_end"] = 1e300; }, "/integrator/h", "steps, more than the limit"},
+        BadCase{"FixedRuleStepCountOverflowsAtATinyStep", [](json& d) { d["integrator"]["h"] = 1e-300; }, "/integrator/h", "steps, more than the limit"},
+        BadCase{"AdaptiveRuleStepCountOverflowsAtAFarEnd", [](json& d) { d["integrator"]["step_rule"] = "theorem-4.1"; d["integrator"]["t_end"] = 1e300; }, "/integrator/h", "needs at least"},
+        BadCase{"AdaptiveRuleStepCountOverflowsAtATinyStep", [](json& d) { d["integrator"]["step_rule"] = "theorem-4.2"; d["integrator"]["h"] = 1e-300; }, "/integrator/h", "needs at least"},
+        BadCase{"AdaptiveRuleStepLongerThanTheInterval", [](json& d) { d["integrator"]["step_rule"] = "theorem-4.1"; d["integrator"]["h"] = 11; }, "/integrator/h", "longer than the interval"},
+        BadCase{"IntervalOverflows", [](json& d) { d["integrator"]["t0"] = -1e308; d["integrator"]["t_end"] = 1e308; }, "/integrator/t_end", "overflows"}),
     [](const auto& info) { return info.param.name; });
 
 TEST(Scene, JsonNestingIsBoundedBeforeParsing) {

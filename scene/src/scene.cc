@@ -479,12 +479,7 @@ class Compiler {
         throw SceneError("/integrator/max_steps", "must be a whole number <= " + std::to_string(kMaxStepsLimit));
       s.max_steps = static_cast<std::int64_t>(m);
     }
-    const double ratio = (s.t_end - s.t0) / s.h;
-    const double steps = ratio > 9e18 ? ratio : static_cast<double>(fixed_step_count(s.t0, s.t_end, s.h));
-    if (s.step_rule == StepRule::kFixed && steps > static_cast<double>(s.max_steps)) {
-      throw SceneError("/integrator/h", "h = " + format(s.h) + " over [" + format(s.t0) + ", " + format(s.t_end) + "] needs " +
-                                            format(steps) + " steps, more than the limit of " + std::to_string(s.max_steps));
-    }
+    check_step_count(s.t0, s.t_end, s.h, s.max_steps, s.step_rule == StepRule::kFixed);
     if (s.step_rule == StepRule::kTheorem42 && scene.controller.eta() <= 0.0 && !constant_mass_) {
       throw SceneError("/integrator/step_rule",
                        "theorem-4.2 needs eta > 0 in Assumption 4.1: give every coordinate a quadratic controller weight");
@@ -496,6 +491,28 @@ class Compiler {
     c.max_steps = s.max_steps;
     c.position_update = scene.position_update == "standard" ? PositionUpdate::kStandard : PositionUpdate::kMdi;
     c.correct_positions = scene.position_correction == "projection";
+  }
+
+  // A run takes at least one step and at most max_steps. Everything is computed in double before any
+  // conversion to an integer: a double at or beyond 2^63 (t_end = 1e300, h = 1e-300) converts to int64
+  // with undefined behaviour. For the adaptive rules h is the largest step, so (t_end - t0) / h is a lower
+  // bound of their step count: beyond max_steps they could only fail at max_steps.
+  void check_step_count(double t0, double t_end, double h, std::int64_t max_steps, bool fixed) {
+    const double span = t_end - t0;
+    if (!std::isfinite(span))
+      throw SceneError("/integrator/t_end", "t_end - t0 overflows a double (t0 = " + format(t0) + ", t_end = " + format(t_end) + ")");
+    const double ratio = span / h;  // > 0: h > 0 and t_end > t0 are checked; +inf when h is tiny
+    // Within round-off of one step, the run takes one step of h (fixed_step_count); beyond it, none of
+    // size h fits and a fixed run would take none at all once h exceeds the interval 1e9 times.
+    if (ratio < 1.0 - 1e-9)
+      throw SceneError("/integrator/h", "h = " + format(h) + " is longer than the interval [" + format(t0) + ", " + format(t_end) +
+                                            "]: the run would not take a single step of h");
+    const double steps = ratio > 9e18 ? ratio : static_cast<double>(fixed_step_count(t0, t_end, h));
+    if (steps > static_cast<double>(max_steps)) {
+      throw SceneError("/integrator/h", "h = " + format(h) + " over [" + format(t0) + ", " + format(t_end) + "] needs " +
+                                            (fixed ? "" : "at least ") + format(steps) + " steps, more than the limit of " +
+                                            std::to_string(max_steps));
+    }
   }
 
   void output(LagrangianScene& scene) {
@@ -697,12 +714,7 @@ class Compiler {
         throw SceneError("/integrator/max_steps", "must be a whole number <= " + std::to_string(kMaxStepsLimit));
       s.max_steps = static_cast<std::int64_t>(m);
     }
-    const double ratio = (s.t_end - s.t0) / s.h;
-    const double steps = ratio > 9e18 ? ratio : static_cast<double>(fixed_step_count(s.t0, s.t_end, s.h));
-    if (steps > static_cast<double>(s.max_steps)) {
-      throw SceneError("/integrator/h", "h = " + format(s.h) + " over [" + format(s.t0) + ", " + format(s.t_end) + "] needs " +
-                                            format(steps) + " steps, more than the limit of " + std::to_string(s.max_steps));
-    }
+    check_step_count(s.t0, s.t_end, s.h, s.max_steps, /*fixed=*/true);
   }
 
   // Evaluates M, C, g at the initial state: finite, symmetric, positive definite.

@@ -68,9 +68,13 @@ struct AblSettings {
   std::int64_t output_every = 1;  // call the observer every this many steps
 };
 
-// The number of steps the fixed rule takes: t_end - t0 = N h up to round-off, else ceil.
+// The number of steps the fixed rule takes: t_end - t0 = N h up to round-off, else ceil. Saturates at
+// INT64_MAX for counts beyond 9e18 (and for NaN), and is 0 for an empty or reversed interval: converting a
+// double at or beyond 2^63 to int64 is undefined behaviour, so the range is checked in double first.
 inline std::int64_t fixed_step_count(double t0, double t_end, double h) {
   const double ratio = (t_end - t0) / h;
+  if (!(ratio < 9e18)) return std::numeric_limits<std::int64_t>::max();
+  if (!(ratio > 0.0)) return 0;
   const double nearest = std::round(ratio);
   if (std::abs(ratio - nearest) <= 1e-9 * std::max(1.0, ratio)) return static_cast<std::int64_t>(nearest);
   return static_cast<std::int64_t>(std::ceil(ratio));
