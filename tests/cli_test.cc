@@ -265,7 +265,9 @@ INSTANTIATE_TEST_SUITE_P(
         BadInput{"StepLongerThanTheInterval", "run {scenes}/manipulator.json --set integrator.h=1e9", "/integrator/h: ", "longer than the interval"},
         BadInput{"AdaptiveRuleStepCountOverflows", "run {scenes}/manipulator.json --set integrator.step_rule=theorem-4.1 --set integrator.t_end=1e300", "/integrator/h: ", "needs at least"},
         BadInput{"FixedRuleStepCountOverflows", "run {scenes}/manipulator.json --set integrator.h=1e-300", "/integrator/h: ", "steps, more than the limit"},
-        BadInput{"LureStepLongerThanTheInterval", "run {scenes}/lure-relay.json --set integrator.h=10", "/integrator/h: ", "longer than the interval"}),
+        BadInput{"LureStepLongerThanTheInterval", "run {scenes}/lure-relay.json --set integrator.h=10", "/integrator/h: ", "longer than the interval"},
+        // Lur'e graphs whose slopes overflow.
+        BadInput{"LureGraphSlopeOverflows", "run {scenes}/lure-graph.json --set 'system.feedback.0.vertices=[[-1e308,-1e308],[1e308,1e308]]'", "/system/feedback/0/vertices/1: ", "overflows"}),
     [](const auto& info) { return info.param.name; });
 
 // A FIFO has no size to trust and this one never ends: the scene is read up to the limit and refused

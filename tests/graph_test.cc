@@ -93,6 +93,37 @@ TEST(Graph, MonotonicityIsChecked) {
   EXPECT_FALSE(MonotoneGraph::check({0, kInf}, {0, 1}, End::kSlope, 0, End::kSlope, 0, &p));
 }
 
+// Finite vertices can still give a segment whose rise, run or slope overflows a double; the graph would
+// carry a NaN or infinite slope (or, when only the run overflows, a slope of 0 instead of a tiny one).
+// check() refuses it at the segment's second vertex.
+TEST(Graph, SegmentsWhoseSlopeOverflowsAreRefused) {
+  struct Case {
+    std::vector<double> u, w;
+    int index;
+  };
+  for (const Case& c : std::vector<Case>{
+           {{-1e308, 1e308}, {-1e308, 1e308}, 1},         // run and rise overflow: inf / inf = NaN
+           {{0, 1e-300}, {0, 1e300}, 1},                  // the slope overflows
+           {{0, 1e-300, 2e-300}, {0, 1e-300, 1e300}, 2},  // the second segment's slope overflows
+           {{-1e308, 1e308}, {0, 1}, 1}}) {               // the run overflows: slope 1 / inf = 0
+    MonotoneGraph::Problem p;
+    EXPECT_FALSE(MonotoneGraph::check(c.u, c.w, End::kSlope, 0, End::kSlope, 0, &p)) << c.u.back() << " " << c.w.back();
+    EXPECT_EQ(p.field, "vertices");
+    EXPECT_EQ(p.index, c.index);
+    EXPECT_EQ(p.coordinate, -1);
+    EXPECT_NE(p.reason.find("overflows"), std::string::npos) << p.reason;
+  }
+  // Large but representable: accepted, and every piece's slope is finite.
+  MonotoneGraph::Problem p;
+  EXPECT_TRUE(MonotoneGraph::check({-1e307, 1e307}, {-1e307, 1e307}, End::kSlope, 0, End::kSlope, 0, &p)) << p.reason;
+  const MonotoneGraph g({-1e307, 1e307}, {-1e307, 1e307}, End::kSlope, 0, End::kSlope, 0);
+  ASSERT_EQ(g.u().front(), -1e307) << "fell back to the zero graph";
+  for (int j = 0; j < g.num_pieces(); ++j) EXPECT_TRUE(std::isfinite(g.piece(j).slope)) << j;
+  // A horizontal segment needs no slope (it is 0), nor does a vertical one: their spans may be huge.
+  EXPECT_TRUE(MonotoneGraph::check({-1e308, 1e308}, {1, 1}, End::kSlope, 0, End::kSlope, 0, &p)) << p.reason;
+  EXPECT_TRUE(MonotoneGraph::check({0, 0}, {-1e308, 1e308}, End::kSlope, 0, End::kSlope, 0, &p)) << p.reason;
+}
+
 // The scalar resolvent u + d w = q: exact on vertical and horizontal pieces.
 TEST(Graph, ScalarResolventIsExact) {
   const auto relay = MonotoneGraph::relay(1.0);

@@ -412,6 +412,13 @@ INSTANTIATE_TEST_SUITE_P(
         BadLure{"InitialSize", [](json& d) { d["initial"]["x"] = {1}; }, "/initial/x", "expected 2 entries"},
         BadLure{"LagrangianField", [](json& d) { d["system"]["mass"] = {{1}}; }, "/system/mass", "unknown field"},
         BadLure{"BadStateName", [](json& d) { d["system"]["states"] = {"x", "1y"}; }, "/system/states/1", "expected a name"},
+        // Every slope of a graph must be a finite number: near the largest double the rise and the run of a
+        // segment overflow (2e308 / 2e308 = inf / inf = NaN), on a short steep segment the slope does.
+        BadLure{"GraphSlopeOverflowsNearTheLargestDouble", [](json& d) { d["system"]["feedback"][0]["vertices"] = {{-1e308, -1e308}, {1e308, 1e308}}; }, "/system/feedback/0/vertices/1", "overflows"},
+        BadLure{"GraphSlopeOverflowsOnAShortSteepSegment", [](json& d) { d["system"]["feedback"][0]["vertices"] = {{-1e-300, -1e300}, {1e-300, 1e300}}; }, "/system/feedback/0/vertices/1", "overflows"},
+        BadLure{"SaturationBreakpointOverflows", [](json& d) { d["system"]["feedback"][0] = {{"type", "saturation"}, {"slope", 1e-300}, {"limit", 1e300}}; }, "/system/feedback/0/slope", "overflows"},
+        BadLure{"MosTopOverflows", [](json& d) { d["system"]["feedback"][0] = {{"type", "mos"}, {"limit", 1e300}, {"slope", 1e300}}; }, "/system/feedback/0/slope", "overflows"},
+        BadLure{"AdhesiveBreakpointOverflows", [](json& d) { d["system"]["feedback"][0] = {{"type", "adhesive"}, {"force", 1e300}, {"stiffness", 1e-300}}; }, "/system/feedback/0/stiffness", "overflows"},
         BadLure{"StepLongerThanTheInterval", [](json& d) { d["integrator"]["h"] = 1e9; }, "/integrator/h", "longer than the interval"},
         BadLure{"StepCountOverflows", [](json& d) { d["integrator"]["h"] = 1e-300; }, "/integrator/h", "steps, more than the limit"}),
     [](const auto& info) { return info.param.name; });

@@ -609,10 +609,19 @@ class Compiler {
       const double a = nonnegative("gain", true, 0.0);
       return MonotoneGraph::coulomb(a, nonnegative("slope", false, 0.0));
     }
+    // The named graphs compute their vertices; each must be a finite number (MonotoneGraph would fall
+    // back to the zero graph otherwise), and is refused at the field that makes it overflow.
+    auto finite_vertex = [&](double v, const char* key, const std::string& what) {
+      if (!std::isfinite(v)) throw SceneError(ptr + "/" + key, what + " overflows a double (" + format(v) + ")");
+    };
     if (type == "saturation") {
       check_fields(f, ptr, {"type", "slope", "limit"});
       const double k = positive_value("slope", true, 0.0);
-      return MonotoneGraph::saturation(k, positive_value("limit", true, 0.0));
+      const double limit = positive_value("limit", true, 0.0);
+      // Vertices (-limit/slope, -limit) and (limit/slope, limit): the segment rises by 2 limit over 2 limit/slope.
+      finite_vertex(2.0 * limit, "limit", "the rise 2 limit of the sloped segment");
+      finite_vertex(2.0 * (limit / k), "slope", "the run 2 limit / slope of the sloped segment");
+      return MonotoneGraph::saturation(k, limit);
     }
     if (type == "dead_zone") {
       check_fields(f, ptr, {"type", "width", "slope"});
@@ -628,12 +637,15 @@ class Compiler {
       const double b = nonnegative("threshold", false, 0.0);
       const double a = positive_value("limit", true, 0.0);
       if (!(a > b)) throw SceneError(ptr + "/limit", "must be > threshold (" + format(b) + "), got " + format(a));
-      return MonotoneGraph::mos(b, a, nonnegative("slope", true, 0.0));
+      const double k = nonnegative("slope", true, 0.0);
+      finite_vertex(k * (a - b), "slope", "the value at the walls slope * (limit - threshold)");
+      return MonotoneGraph::mos(b, a, k);
     }
     if (type == "adhesive") {
       check_fields(f, ptr, {"type", "force", "stiffness"});
       const double force = nonnegative("force", true, 0.0);
       const double k = f.contains("stiffness") ? positive_value("stiffness", true, 0.0) : 0.0;
+      if (k > 0.0) finite_vertex(force / k, "stiffness", "the breakpoint force / stiffness");
       return MonotoneGraph::adhesive(force, k);
     }
     if (type == "graph") {

@@ -80,6 +80,16 @@ class MonotoneGraph {
                     "not monotone: w decreases from " + fmt(w[k - 1]) + " to " + fmt(w[k]) +
                         " (a monotone graph never goes down as u increases)");
       if (u[k] == u[k - 1] && w[k] == w[k - 1]) return fail("vertices", static_cast<int>(k), -1, "repeats the previous vertex");
+      // A sloped segment (neither vertical nor horizontal) has slope rise / run (build_pieces): near the
+      // largest double the run or the rise overflows (1e308 - -1e308), and a short steep segment's
+      // slope does; the piece would carry inf, NaN, or 0 for a slope.
+      if (u[k] != u[k - 1] && w[k] != w[k - 1]) {
+        const double run = u[k] - u[k - 1], rise = w[k] - w[k - 1], slope = rise / run;
+        if (!std::isfinite(run) || !std::isfinite(rise) || !std::isfinite(slope))
+          return fail("vertices", static_cast<int>(k), -1,
+                      "the segment from the previous vertex overflows a double: u rises by " + fmt(run) + ", w by " + fmt(rise) +
+                          ", slope " + fmt(slope));
+      }
     }
     if (left == End::kSlope && !(left_slope >= 0.0 && std::isfinite(left_slope)))
       return fail("left", -1, -1, "the slope of the left ray must be finite and >= 0 (monotone), got " + fmt(left_slope));
@@ -259,6 +269,7 @@ class MonotoneGraph {
 
  private:
   static std::string fmt(double v) {
+    if (std::isnan(v)) return "NaN";  // not printf's "nan" or "-nan"
     char buf[32];
     std::snprintf(buf, sizeof buf, "%.10g", v);
     return buf;
