@@ -267,7 +267,16 @@ INSTANTIATE_TEST_SUITE_P(
         BadInput{"FixedRuleStepCountOverflows", "run {scenes}/manipulator.json --set integrator.h=1e-300", "/integrator/h: ", "steps, more than the limit"},
         BadInput{"LureStepLongerThanTheInterval", "run {scenes}/lure-relay.json --set integrator.h=10", "/integrator/h: ", "longer than the interval"},
         // Lur'e graphs whose slopes overflow.
-        BadInput{"LureGraphSlopeOverflows", "run {scenes}/lure-graph.json --set 'system.feedback.0.vertices=[[-1e308,-1e308],[1e308,1e308]]'", "/system/feedback/0/vertices/1: ", "overflows"}),
+        BadInput{"LureGraphSlopeOverflows", "run {scenes}/lure-graph.json --set 'system.feedback.0.vertices=[[-1e308,-1e308],[1e308,1e308]]'", "/system/feedback/0/vertices/1: ", "overflows"},
+        // Studies: every h finite, positive and within the scene's interval and step limit.
+        BadInput{"StudyNaNStep", "study {scenes}/damped-relay.json --h nan", "--h: ", "is not a positive step size"},
+        BadInput{"StudyZeroInAStepList", "study {scenes}/damped-relay.json --h 1e-2,0", "--h: ", "is not a positive step size"},
+        BadInput{"StudyZeroReferenceStep", "study {scenes}/damped-relay.json --h 1e-2 --reference-h 0", "--reference-h: ", "not a positive finite step size"},
+        BadInput{"StudyNegativeReferenceStep", "study {scenes}/damped-relay.json --h 1e-2 --reference-h=-1", "--reference-h: ", "not a positive finite step size"},
+        BadInput{"StudyStepLongerThanTheInterval", "study {scenes}/damped-relay.json --h 1e-2,100", "--h: ", "longer than the interval"},
+        BadInput{"StudyStepCountOverflows", "study {scenes}/damped-relay.json --h 1e-300", "--h: ", "steps, more than the limit"},
+        BadInput{"StudyExactSolutionNotFinite", "study {scenes}/damped-relay.json --h 1e-2 --set 'exact.q.0=sqrt(3 - t)'", "/exact/q/0: ", "not finite"},
+        BadInput{"StudyTooManyEvalPoints", "study {scenes}/damped-relay.json --h 1e-2 --eval-points 1000000000", "--eval-points: ", "100000"}),
     [](const auto& info) { return info.param.name; });
 
 // A FIFO has no size to trust and this one never ends: the scene is read up to the limit and refused

@@ -4,10 +4,14 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
+#include <cctype>
 #include <chrono>
-#include <thread>
 #include <cmath>
+#include <functional>
+#include <limits>
+#include <thread>
 
 namespace moreau::scene {
 namespace {
@@ -164,6 +168,85 @@ TEST(Study, CancelStopsTheStudyBetweenAndInsideRuns) {
   });
   EXPECT_THROW(run_study(sc, st2), StudyCancelled);
   canceller.join();
+}
+
+// Settings that would put NaN into the table (or overflow a step count) are refused before any run, with
+// the option (or the scene field) named. Each case starts from the damped relay with h = {1e-2}.
+struct BadStudyCase {
+  std::string name;
+  std::function<void(StudySettings&, nlohmann::json&)> mutate;
+  std::string pointer;
+  std::string reason_part;
+};
+
+class BadStudy : public ::testing::TestWithParam<BadStudyCase> {};
+
+TEST_P(BadStudy, ErrorNamesTheOption) {
+  nlohmann::json doc = read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/damped-relay.json");
+  StudySettings st;
+  st.h = {1e-2};
+  st.repeats = 1;
+  st.eval_points = 50;
+  GetParam().mutate(st, doc);
+  const LagrangianScene sc = load_scene(doc);
+  try {
+    const StudyResult r = run_study(sc, st);
+    FAIL() << "ran the study:\n" << r.to_text();
+  } catch (const SceneError& e) {
+    EXPECT_EQ(e.pointer(), GetParam().pointer) << e.what();
+    EXPECT_NE(std::string(e.what()).find(GetParam().reason_part), std::string::npos) << e.what();
+  }
+}
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+INSTANTIATE_TEST_SUITE_P(
+    Study, BadStudy,
+    ::testing::Values(
+        BadStudyCase{"NaNStep", [](StudySettings& st, nlohmann::json&) { st.h = {1e-2, kNaN}; }, "--h", "not a positive finite step size"},
+        BadStudyCase{"InfiniteStep", [](StudySettings& st, nlohmann::json&) { st.h = {kInf}; }, "--h", "not a positive finite step size"},
+        BadStudyCase{"ZeroStep", [](StudySettings& st, nlohmann::json&) { st.h = {1e-2, 0.0}; }, "--h", "not a positive finite step size"},
+        BadStudyCase{"NegativeStep", [](StudySettings& st, nlohmann::json&) { st.h = {-1e-2}; }, "--h", "not a positive finite step size"},
+        BadStudyCase{"EmptyLadder", [](StudySettings& st, nlohmann::json&) { st.h.clear(); }, "--h", "empty"},
+        BadStudyCase{"StepLongerThanTheInterval", [](StudySettings& st, nlohmann::json&) { st.h = {1e-2, 100.0}; }, "--h", "longer than the interval"},
+        BadStudyCase{"StepCountOverflows", [](StudySettings& st, nlohmann::json&) { st.h = {1e-300}; }, "--h", "steps, more than the limit"},
+        BadStudyCase{"StepCountAboveTheScenesLimit", [](StudySettings& st, nlohmann::json& d) { d["integrator"]["max_steps"] = 1000; d["integrator"]["h"] = 1e-2; st.h = {1e-2, 1e-3}; }, "--h", "more than the limit of 1000"},
+        BadStudyCase{"ZeroReferenceStep", [](StudySettings& st, nlohmann::json&) { st.reference_h = 0.0; }, "--reference-h", "not a positive finite step size"},
+        BadStudyCase{"NegativeReferenceStep", [](StudySettings& st, nlohmann::json&) { st.reference_h = -1e-4; }, "--reference-h", "not a positive finite step size"},
+        BadStudyCase{"NaNReferenceStep", [](StudySettings& st, nlohmann::json&) { st.reference_h = kNaN; }, "--reference-h", "not a positive finite step size"},
+        BadStudyCase{"ReferenceStepCountOverflows", [](StudySettings& st, nlohmann::json&) { st.reference_h = 1e-300; }, "--reference-h", "steps, more than the limit"},
+        BadStudyCase{"DefaultReferenceStepCountTooLarge", [](StudySettings& st, nlohmann::json& d) { d.erase("exact"); st.h = {1e-8}; }, "--reference-h", "min h / 10"},
+        BadStudyCase{"InfiniteEpsilon", [](StudySettings& st, nlohmann::json&) { st.epsilon = kInf; }, "--epsilon", "positive finite"},
+        BadStudyCase{"TooManyEvalPoints", [](StudySettings& st, nlohmann::json&) { st.eval_points = 1000000000; }, "--eval-points", "100000"},
+        BadStudyCase{"TooManyRepeats", [](StudySettings& st, nlohmann::json&) { st.repeats = 1000; }, "--repeats", "20"},
+        // The reference is the scene's closed form: it must be a number at every common time.
+        BadStudyCase{"ExactPositionNotFiniteOnTheGrid", [](StudySettings&, nlohmann::json& d) { d["exact"]["q"][0] = "sqrt(3 - t)"; }, "/exact/q/0", "not finite at t = "},
+        BadStudyCase{"ExactVelocityNotFiniteOnTheGrid", [](StudySettings&, nlohmann::json& d) { d["exact"]["v"][0] = "1/(t - 6)"; }, "/exact/v/0", "not finite at t = 6"}),
+    [](const auto& info) { return info.param.name; });
+
+// A failed row has no errors: the table shows none (JSON null, an empty CSV cell, "-" in text), never
+// "nan", and neither do orders fitted from fewer than two points.
+TEST(Study, TablesShowNoNaNForAFailedRow) {
+  StudyResult r;
+  r.scene = "x";
+  r.reference = "exact solution";
+  StudyRow row;
+  row.scheme = "explicit";
+  row.h = 0.1;
+  row.status = "failed";
+  row.message = "diverged at step 3";
+  row.q_max_error = row.q_l2_error = row.v_max_error = row.v_l2_error = row.final_error = kNaN;
+  row.chatter_amplitude = kInf;
+  r.rows.push_back(row);
+  r.orders.push_back({"explicit", kNaN, kNaN});
+  for (const std::string& table : {r.to_csv(), r.to_text(), r.to_json().dump()}) {
+    std::string lower = table;
+    std::transform(lower.begin(), lower.end(), lower.begin(), [](unsigned char c) { return std::tolower(c); });
+    EXPECT_EQ(lower.find("nan"), std::string::npos) << table;
+    EXPECT_EQ(lower.find("inf"), std::string::npos) << table;
+  }
+  EXPECT_NE(r.to_csv().find("explicit,0.10000000000000001,failed,0,0,,,,,,,,0,\n"), std::string::npos) << r.to_csv();
 }
 
 }  // namespace

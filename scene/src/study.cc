@@ -163,6 +163,17 @@ double slope(const std::vector<double>& h, const std::vector<double>& e) {
 
 nlohmann::json num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
 
+std::string fmt(double v) {
+  if (std::isnan(v)) return "NaN";  // not printf's "nan" or "-nan"
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%.10g", v);
+  return buf;
+}
+
+// Largest --eval-points and --repeats: the bounds POST /v1/studies has (docs/api.md).
+constexpr int kMaxEvalPoints = 100000;
+constexpr int kMaxRepeats = 20;
+
 }  // namespace
 
 std::vector<double> parse_ladder(const std::string& text) {
@@ -185,8 +196,13 @@ std::vector<double> parse_ladder(const std::string& text) {
     const long count = std::strtol(c.c_str(), &end, 10);
     if (c.empty() || *end != '\0' || count < 2 || count > 100)
       throw SceneError("--h", "a ladder is FIRST:LAST:COUNT with 2 <= COUNT <= 100, got '" + text + "'");
-    for (long i = 0; i < count; ++i)
-      out.push_back(std::pow(10.0, std::log10(hi) + (std::log10(lo) - std::log10(hi)) * i / (count - 1)));
+    for (long i = 0; i < count; ++i) {
+      const double h = std::pow(10.0, std::log10(hi) + (std::log10(lo) - std::log10(hi)) * i / (count - 1));
+      // Between two positive finite ends, but pow can round to 0 or inf at the ends of the double range.
+      if (!std::isfinite(h) || !(h > 0.0))
+        throw SceneError("--h", "the ladder '" + text + "' gives the step size " + fmt(h) + ", not a positive finite one");
+      out.push_back(h);
+    }
   } else {
     std::stringstream ss(text);
     std::string item;
@@ -196,8 +212,7 @@ std::vector<double> parse_ladder(const std::string& text) {
   return out;
 }
 
-StudyResult run_study(const LagrangianScene& scene, const StudySettings& st) {
-  const auto start = Clock::now();
+void check_study_settings(const LagrangianScene& scene, const StudySettings& st) {
   if (!scene.constraint_names.empty())
     throw SceneError("/system/constraints",
                      "studies compare abl, explicit and regularized, which do not integrate unilateral constraints");
@@ -205,8 +220,40 @@ StudyResult run_study(const LagrangianScene& scene, const StudySettings& st) {
   for (const auto& s : st.schemes)
     if (s != "abl" && s != "explicit" && s != "regularized")
       throw SceneError("--schemes", "unknown scheme '" + s + "' (expected abl, explicit, regularized)");
-  if (st.eval_points < 2) throw SceneError("--eval-points", "must be >= 2");
-  if (!(st.epsilon > 0.0)) throw SceneError("--epsilon", "must be > 0");
+  if (st.eval_points < 2 || st.eval_points > kMaxEvalPoints)
+    throw SceneError("--eval-points", "must be between 2 and " + std::to_string(kMaxEvalPoints) + ", got " + std::to_string(st.eval_points));
+  if (st.repeats < 1 || st.repeats > kMaxRepeats)
+    throw SceneError("--repeats", "must be between 1 and " + std::to_string(kMaxRepeats) + ", got " + std::to_string(st.repeats));
+  if (!(st.epsilon > 0.0) || !std::isfinite(st.epsilon)) throw SceneError("--epsilon", "must be a positive finite number, got " + fmt(st.epsilon));
+  // Every run's h as the scene's own h is checked at load: positive and finite, at least one step over
+  // [t0, t_end], and a step count within /integrator/max_steps, computed in double before any integer
+  // conversion (a double at or beyond 2^63 converts to int64 with undefined behaviour). A NaN h would
+  // put NaN in every error of the table.
+  const double t0 = scene.settings.t0, t_end = scene.settings.t_end, span = t_end - t0;
+  const std::int64_t limit = scene.settings.max_steps;
+  const std::string interval = "[" + fmt(t0) + ", " + fmt(t_end) + "]";
+  auto check_h = [&](double h, const std::string& option, const std::string& what) {
+    if (!std::isfinite(h) || !(h > 0.0)) throw SceneError(option, what + " = " + fmt(h) + " is not a positive finite step size");
+    const double ratio = span / h;
+    if (ratio < 1.0 - 1e-9)
+      throw SceneError(option, what + " = " + fmt(h) + " is longer than the interval " + interval + ": a run would not take a single step of h");
+    const double steps = ratio > 9e18 ? ratio : static_cast<double>(fixed_step_count(t0, t_end, h));
+    if (steps > static_cast<double>(limit))
+      throw SceneError(option, what + " = " + fmt(h) + " over " + interval + " needs " + fmt(steps) +
+                                   " steps, more than the limit of " + std::to_string(limit) + " (/integrator/max_steps)");
+  };
+  for (double h : st.h) check_h(h, "--h", "h");
+  if (st.reference_h) {
+    check_h(*st.reference_h, "--reference-h", "the reference h");
+  } else if (!scene.exact_tape) {
+    check_h(*std::min_element(st.h.begin(), st.h.end()) / 10.0, "--reference-h",
+            "the scene has no exact solution, and the default reference h = min h / 10");
+  }
+}
+
+StudyResult run_study(const LagrangianScene& scene, const StudySettings& st) {
+  const auto start = Clock::now();
+  check_study_settings(scene, st);
   const int n = scene.n;
   const double t0 = scene.settings.t0, t_end = scene.settings.t_end;
   std::vector<double> grid(static_cast<std::size_t>(st.eval_points));
@@ -224,6 +271,14 @@ StudyResult run_study(const LagrangianScene& scene, const StudySettings& st) {
       for (int i = 0; i < n; ++i) {
         ref_q[j * n + i] = out[i];
         ref_v[j * n + i] = out[n + i];
+      }
+      // The closed form is the reference of every error: a NaN or an infinity in it would be one in
+      // every row of the table.
+      for (int i = 0; i < 2 * n; ++i) {
+        if (!std::isfinite(out[i]))
+          throw SceneError(std::string(i < n ? "/exact/q/" : "/exact/v/") + std::to_string(i % n),
+                           "the exact solution is not finite at t = " + fmt(grid[j]) + " (" + fmt(out[i]) +
+                               "), one of the study's common times in [t0, t_end]");
       }
     }
     result.reference_converged_time = scene.exact_rest_time;
@@ -407,7 +462,9 @@ std::int64_t study_planned_steps(const LagrangianScene& scene, const StudySettin
   for (double h : st.h) total += static_cast<double>(st.schemes.size()) * runs * std::ceil(span / h);
   const double h_ref = st.reference_h ? *st.reference_h : *std::min_element(st.h.begin(), st.h.end()) / 10.0;
   if (!scene.exact_tape || st.reference_h) total += std::ceil(span / h_ref);
-  return static_cast<std::int64_t>(std::min(total, kCap));
+  // In double until here: the cast is defined only below 2^63 (NaN, from an h check_study_settings
+  // would refuse, maps to the cap too).
+  return total < kCap ? static_cast<std::int64_t>(total) : static_cast<std::int64_t>(kCap);
 }
 
 nlohmann::json StudyResult::to_json() const {
@@ -483,16 +540,19 @@ std::string StudyResult::to_csv() const {
   os.precision(17);
   os << "scheme,h,status,steps,wall_seconds,q_max_error,q_l2_error,v_max_error,v_l2_error,final_error,"
         "converged_time,converged_time_error,chatter_sign_changes,chatter_amplitude\n";
-  auto opt = [](const std::optional<double>& v) {
+  // A value that is not a number (the errors of a failed row) is an empty cell, as JSON has null.
+  auto cell = [](double v) {
     std::ostringstream o;
     o.precision(17);
-    if (v) o << *v;
+    if (std::isfinite(v)) o << v;
     return o.str();
   };
+  auto opt = [&](const std::optional<double>& v) { return v ? cell(*v) : std::string(); };
   for (const auto& r : rows) {
-    os << r.scheme << ',' << r.h << ',' << r.status << ',' << r.steps << ',' << r.wall_seconds << ',' << r.q_max_error << ','
-       << r.q_l2_error << ',' << r.v_max_error << ',' << r.v_l2_error << ',' << r.final_error << ',' << opt(r.converged_time)
-       << ',' << opt(r.converged_time_error) << ',' << r.chatter_sign_changes << ',' << r.chatter_amplitude << '\n';
+    os << r.scheme << ',' << cell(r.h) << ',' << r.status << ',' << r.steps << ',' << cell(r.wall_seconds) << ','
+       << cell(r.q_max_error) << ',' << cell(r.q_l2_error) << ',' << cell(r.v_max_error) << ',' << cell(r.v_l2_error) << ','
+       << cell(r.final_error) << ',' << opt(r.converged_time) << ',' << opt(r.converged_time_error) << ','
+       << r.chatter_sign_changes << ',' << cell(r.chatter_amplitude) << '\n';
   }
   return os.str();
 }
@@ -504,16 +564,29 @@ std::string StudyResult::to_text() const {
   std::snprintf(line, sizeof line, "  %-11s %-9s %-10s %10s %11s %11s %11s %11s %8s %10s\n", "scheme", "h", "status", "steps",
                 "wall [s]", "q max err", "v max err", "final err", "chatter", "t_conv");
   os << line;
+  // A value that is not a number (the errors of a failed row, an order fitted from fewer than two
+  // points) is shown as "-".
+  auto sci = [](double v) {
+    char buf[32] = "-";
+    if (std::isfinite(v)) std::snprintf(buf, sizeof buf, "%.3e", v);
+    return std::string(buf);
+  };
+  auto fixed3 = [](double v) {
+    char buf[32] = "-";
+    if (std::isfinite(v)) std::snprintf(buf, sizeof buf, "%.3f", v);
+    return std::string(buf);
+  };
   for (const auto& r : rows) {
     char conv[32] = "-";
-    if (r.converged_time) std::snprintf(conv, sizeof conv, "%.4g", *r.converged_time);
-    std::snprintf(line, sizeof line, "  %-11s %-9.3g %-10s %10lld %11.3e %11.3e %11.3e %11.3e %8lld %10s\n", r.scheme.c_str(), r.h,
-                  r.status.c_str(), static_cast<long long>(r.steps), r.wall_seconds, r.q_max_error, r.v_max_error, r.final_error,
-                  static_cast<long long>(r.chatter_sign_changes), conv);
+    if (r.converged_time && std::isfinite(*r.converged_time)) std::snprintf(conv, sizeof conv, "%.4g", *r.converged_time);
+    std::snprintf(line, sizeof line, "  %-11s %-9.3g %-10s %10lld %11s %11s %11s %11s %8lld %10s\n", r.scheme.c_str(), r.h,
+                  r.status.c_str(), static_cast<long long>(r.steps), sci(r.wall_seconds).c_str(), sci(r.q_max_error).c_str(),
+                  sci(r.v_max_error).c_str(), sci(r.final_error).c_str(), static_cast<long long>(r.chatter_sign_changes), conv);
     os << line;
   }
   for (const auto& o : orders) {
-    std::snprintf(line, sizeof line, "  order of %-11s q: %.3f   v: %.3f\n", o.scheme.c_str(), o.q_max, o.v_max);
+    std::snprintf(line, sizeof line, "  order of %-11s q: %s   v: %s\n", o.scheme.c_str(), fixed3(o.q_max).c_str(),
+                  fixed3(o.v_max).c_str());
     os << line;
   }
   std::snprintf(line, sizeof line, "  study wall time %.2f s\n", wall_seconds);

@@ -105,8 +105,17 @@ struct StudyResult {
 // Parses a ladder "1e-1:1e-5:9" (log-spaced, both ends included) or a list "1e-2,5e-3,1e-3".
 std::vector<double> parse_ladder(const std::string& text);
 
-// Runs the study. Throws SceneError for bad settings (unknown scheme, empty ladder, h <= 0), naming the
-// option, and StudyCancelled when settings.cancel turns true.
+// Checks settings against the scene without running anything; run_study calls it first. Throws
+// SceneError naming the option (--h, --reference-h, --schemes, --eval-points, --repeats, --epsilon) or the
+// scene field: a scene with constraints; an empty ladder; an h (or the reference h, given or the default
+// min h / 10 of a scene without an exact solution) that is not positive and finite, longer than
+// [t0, t_end], or needing more steps than /integrator/max_steps; an unknown scheme; eval_points outside
+// [2, 100000], repeats outside [1, 20], epsilon not positive and finite.
+void check_study_settings(const LagrangianScene& scene, const StudySettings& settings);
+
+// Runs the study. Throws SceneError for bad settings (check_study_settings) and for an exact solution
+// that is not finite at one of the common times (at /exact/q/i or /exact/v/i), and StudyCancelled when
+// settings.cancel turns true.
 StudyResult run_study(const LagrangianScene& scene, const StudySettings& settings);
 
 }  // namespace moreau::scene
