@@ -5,7 +5,9 @@
 // point p goes to shard p mod N. Each shard writes DIR/shard-<i>-of-<N>.jsonl: a header line describing
 // the sweep, then one line per point with its overrides and its report. Merging checks that every point
 // of the same sweep is present exactly once.
+#include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -40,9 +42,20 @@ Dimension parse_vary(const std::string& spec) {
     std::getline(ss, a, ':');
     std::getline(ss, b, ':');
     std::getline(ss, c, ':');
-    const double lo = std::stod(a), hi = std::stod(b);
-    const int n = std::stoi(c);
-    if (n < 1 || n > 100000) throw std::runtime_error("--vary " + d.path + ": count must be in [1, 100000]");
+    auto number = [&](const std::string& text) {
+      char* end = nullptr;
+      const double v = std::strtod(text.c_str(), &end);
+      if (text.empty() || end != text.c_str() + text.size())
+        throw std::runtime_error("--vary " + d.path + ": '" + text + "' is not a number");
+      if (!std::isfinite(v)) throw std::runtime_error("--vary " + d.path + ": '" + text + "' is not a finite number");
+      return v;
+    };
+    const double lo = number(a), hi = number(b);
+    if (!std::isfinite(hi - lo)) throw std::runtime_error("--vary " + d.path + ": the range " + a + ":" + b + " overflows a double");
+    char* end = nullptr;
+    const long n = std::strtol(c.c_str(), &end, 10);
+    if (c.empty() || *end != '\0' || n < 1 || n > 100000)
+      throw std::runtime_error("--vary " + d.path + ": count must be a whole number in [1, 100000], got '" + c + "'");
     for (int i = 0; i < n; ++i) {
       std::ostringstream v;
       v.precision(15);
@@ -57,6 +70,9 @@ Dimension parse_vary(const std::string& spec) {
   if (d.values.empty()) throw std::runtime_error("--vary " + d.path + ": no values");
   return d;
 }
+
+// Largest number of points in one sweep (all shards together).
+constexpr std::size_t kMaxSweepPoints = 10'000'000;
 
 // Longest line of a shard file: a point's report. Lines never get near it; a file that is not a shard
 // (or never ends a line) is refused there instead of being read whole.
@@ -73,8 +89,14 @@ struct SweepOptions {
 int run_shard(const SweepOptions& opt) {
   std::vector<Dimension> dims;
   for (const auto& v : opt.vary) dims.push_back(parse_vary(v));
+  // The product is checked before it is formed: four lists of 100000 values would wrap a size_t.
   std::size_t total = 1;
-  for (const auto& d : dims) total *= d.values.size();
+  for (const auto& d : dims) {
+    if (d.values.size() > kMaxSweepPoints / total)
+      throw std::runtime_error("--vary: the sweep has more than " + std::to_string(kMaxSweepPoints) +
+                               " points (the product of the lengths of the --vary lists)");
+    total *= d.values.size();
+  }
   int shard = 0, shards = 1;
   char slash = 0;
   std::istringstream ss(opt.shard);

@@ -276,7 +276,11 @@ INSTANTIATE_TEST_SUITE_P(
         BadInput{"StudyStepLongerThanTheInterval", "study {scenes}/damped-relay.json --h 1e-2,100", "--h: ", "longer than the interval"},
         BadInput{"StudyStepCountOverflows", "study {scenes}/damped-relay.json --h 1e-300", "--h: ", "steps, more than the limit"},
         BadInput{"StudyExactSolutionNotFinite", "study {scenes}/damped-relay.json --h 1e-2 --set 'exact.q.0=sqrt(3 - t)'", "/exact/q/0: ", "not finite"},
-        BadInput{"StudyTooManyEvalPoints", "study {scenes}/damped-relay.json --h 1e-2 --eval-points 1000000000", "--eval-points: ", "100000"}),
+        BadInput{"StudyTooManyEvalPoints", "study {scenes}/damped-relay.json --h 1e-2 --eval-points 1000000000", "--eval-points: ", "100000"},
+        // Sweeps: values that are numbers, and a product of lists that fits.
+        BadInput{"SweepValueNotANumber", "sweep {scenes}/manipulator.json --vary integrator.h=abc:1:3 --out {tmp}/sweep", "--vary integrator.h", "'abc' is not a number"},
+        BadInput{"SweepValueOutOfRange", "sweep {scenes}/manipulator.json --vary integrator.h=1e999:1:3 --out {tmp}/sweep", "--vary integrator.h", "not a finite number"},
+        BadInput{"SweepTooManyPoints", "sweep {scenes}/manipulator.json --vary parameters.g=0:1:100000 --vary parameters.m1=1:2:100000 --vary parameters.m2=1:2:100000 --vary parameters.b=1:2:100000 --out {tmp}/sweep", "--vary", "more than 10000000 points"}),
     [](const auto& info) { return info.param.name; });
 
 // A FIFO has no size to trust and this one never ends: the scene is read up to the limit and refused
