@@ -133,7 +133,7 @@ struct BadStudy {
 TEST(ServerStudy, BadStudiesNameTheField) {
   json ball = read_json_file("scenes/bouncing-ball-e0.5.json");
   const BadStudy cases[] = {
-      {"ladder", {{"scene", "damped-relay"}, {"study", {{"h", "1e-2:0:3"}}}}, 400, "/study/h", "request", "not a positive step size"},
+      {"ladder", {{"scene", "damped-relay"}, {"study", {{"h", "1e-2:0:3"}}}}, 400, "/study/h", "request", "not a positive finite step size"},
       {"ladder_count", {{"scene", "damped-relay"}, {"study", {{"h", "1e-2:1e-3:1"}}}}, 400, "/study/h", "request", "COUNT"},
       {"h_negative", {{"scene", "damped-relay"}, {"study", {{"h", {1e-2, -1e-3}}}}}, 400, "/study/h/1", "request", "positive"},
       {"h_type", {{"scene", "damped-relay"}, {"study", {{"h", true}}}}, 400, "/study/h", "request", "ladder"},
@@ -147,6 +147,7 @@ TEST(ServerStudy, BadStudiesNameTheField) {
       {"unknown_field", {{"scene", "damped-relay"}, {"stream", true}}, 400, "/stream", "request", "expected scene, overrides, study"},
       {"no_scene", {{"study", json::object()}}, 400, "/scene", "request", "missing required field"},
       {"too_much_work", {{"scene", "damped-relay"}, {"study", {{"h", {1e-9}}}}}, 400, "/study/h", "request", "integration steps"},
+      {"h_longer_than_the_interval", {{"scene", "damped-relay"}, {"study", {{"h", {1e-2, 1e9}}}}}, 400, "/study/h", "request", "longer than the interval"},
       {"lure", {{"scene", "lure-relay"}}, 400, "/system/type", "scene", ""},
       {"constraints", {{"scene", ball}}, 400, "/system/constraints", "scene", "unilateral constraints"},
       {"bad_scene", {{"scene", "damped-relay"}, {"overrides", {"integrator.h=-1"}}}, 400, "/integrator/h", "scene", ""},

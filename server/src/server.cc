@@ -905,6 +905,18 @@ void Server::Impl::post_study(const Request&, Response& res, const std::string& 
                            " steps per job: use larger step sizes, fewer schemes or fewer repeats",
                        "request"};
     }
+    // The study's own checks (every h and the reference h positive, finite, within the interval and the
+    // scene's step limit; an exact solution finite on the grid), at submission rather than in the run:
+    // their option names (--reference-h) become pointers into the request (/study/reference_h).
+    try {
+      scene::check_study_settings(sc, st);
+    } catch (const scene::SceneError& e) {
+      std::string pointer = e.pointer();
+      if (pointer.rfind("--", 0) != 0) throw;
+      pointer = "/study/" + pointer.substr(2);
+      std::replace(pointer.begin(), pointer.end(), '-', '_');
+      throw BadRequest{400, "invalid request", pointer, e.reason(), "request"};
+    }
     // Adaptive step rules may take more steps than planned: each run gets this server's limit.
     sc.settings.max_steps = std::min<std::int64_t>(sc.settings.max_steps, cfg_.max_steps);
 
