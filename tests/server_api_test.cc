@@ -343,7 +343,10 @@ TEST(ServerApi, FullQueueAnswers429WithRetryAfter) {
   EXPECT_EQ(json::parse(d->body)["state"], "cancelled");
   EXPECT_EQ(submit(*c, {{"scene", manipulator()}})->status, 202);
   EXPECT_EQ(c->Delete("/v1/jobs/" + running)->status, 202);  // running: cancelling
-  EXPECT_EQ(c->Delete("/v1/jobs/" + queued[1])->status, 200);  // queued: cancelled at once
+  // The worker freed by the cancellation may already have taken queued[1]: cancelled at once (200) if it
+  // had not, cancelling (202) if it had.
+  const int last = c->Delete("/v1/jobs/" + queued[1])->status;
+  EXPECT_TRUE(last == 200 || last == 202) << last;
 }
 
 TEST(ServerApi, TokenGuardsEveryEndpointButHealthz) {
