@@ -10,7 +10,7 @@ packages=(
   nlohmann-json3-dev libcli11-dev    # scene format, command line
   liblcm-dev liblcm-bin libglib2.0-dev  # live state (lcm.pc needs glib-2.0 and gthread-2.0)
   libosmesa6-dev libfreetype-dev libpng-dev fonts-dejavu-core  # figures
-  libcpp-httplib-dev                 # server
+  libcpp-httplib-dev zlib1g-dev      # server (zlib: the hostile-client test makes gzip bodies)
   libboost-dev                       # Boost.Odeint (rosenbrock4), the stiff peer of studies
   libgtest-dev libgmock-dev libbenchmark-dev  # tests, benchmarks
   iproute2                           # `ip`, for tests/lcm_udpm_netns.sh (multicast in a private netns)
