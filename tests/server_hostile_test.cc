@@ -31,30 +31,9 @@ using moreau::server::testing::wait_running;
 using json = nlohmann::json;
 using Clock = std::chrono::steady_clock;
 
-// A connection to 127.0.0.1:port made from the source address 127.0.0.`host` (loopback has all of
-// 127/8), so that a test can act as several clients.
+// A connection to 127.0.0.1:port from 127.0.0.`host`: a test acts as several clients.
 int connect_from(int host, int port, int timeout_ms = 10'000) {
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  if (fd < 0) return -1;
-  timeval tv{timeout_ms / 1000, (timeout_ms % 1000) * 1000};
-  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
-  ::setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &tv, sizeof tv);
-  sockaddr_in src{};
-  src.sin_family = AF_INET;
-  src.sin_addr.s_addr = htonl(0x7f000000u | static_cast<std::uint32_t>(host));
-  if (::bind(fd, reinterpret_cast<sockaddr*>(&src), sizeof src) != 0) {
-    ::close(fd);
-    return -1;
-  }
-  sockaddr_in dst{};
-  dst.sin_family = AF_INET;
-  dst.sin_port = htons(static_cast<std::uint16_t>(port));
-  dst.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  if (::connect(fd, reinterpret_cast<sockaddr*>(&dst), sizeof dst) != 0) {
-    ::close(fd);
-    return -1;
-  }
-  return fd;
+  return moreau::server::testing::connect_loopback(port, timeout_ms, host);
 }
 
 struct RawResponse {

@@ -14,13 +14,24 @@
 
 namespace moreau::server::testing {
 
-// A socket connected to 127.0.0.1:port with send and receive timeouts of `timeout_ms`, or -1.
-inline int connect_loopback(int port, int timeout_ms) {
+// A socket connected to 127.0.0.1:port with send and receive timeouts of `timeout_ms`, or -1. With
+// `source_host` N > 0 it connects from 127.0.0.N (loopback has all of 127/8), so that a test can act as
+// several client addresses.
+inline int connect_loopback(int port, int timeout_ms, int source_host = 0) {
   const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
   if (fd < 0) return -1;
   timeval tv{timeout_ms / 1000, (timeout_ms % 1000) * 1000};
   ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
   ::setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &tv, sizeof tv);
+  if (source_host > 0) {
+    sockaddr_in src{};
+    src.sin_family = AF_INET;
+    src.sin_addr.s_addr = htonl(0x7f000000u | static_cast<std::uint32_t>(source_host));
+    if (::bind(fd, reinterpret_cast<sockaddr*>(&src), sizeof src) != 0) {
+      ::close(fd);
+      return -1;
+    }
+  }
   sockaddr_in addr{};
   addr.sin_family = AF_INET;
   addr.sin_port = htons(static_cast<std::uint16_t>(port));
