@@ -303,6 +303,7 @@ TEST(Hostile, ConnectionsPerClientAreCapped) {
   EXPECT_EQ(over.status, 503) << over.head;
   EXPECT_THAT(over.body, ::testing::HasSubstr("from one client address"));
   EXPECT_EQ(round_trip(ts.port(), "GET /healthz HTTP/1.1\r\nHost: x\r\n\r\n", 8).status, 200);
+  EXPECT_THAT(ts.client()->Get("/metrics")->body, ::testing::HasSubstr("moreau_http_connections_refused_total 1\n"));
   ::close(held[0]);
   held.erase(held.begin());
   // The slot is given back when the connection ends (the server notices the close on its next read).

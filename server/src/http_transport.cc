@@ -61,9 +61,6 @@ bool wait_for(int fd, short events, Clock::time_point deadline) {
   }
 }
 
-// The phases of one request on a connection, each with its deadline and byte budget.
-enum class Phase { kHeaders, kBody };
-
 // A connection as httplib's parser reads and writes it: buffered reads that stop at the phase's deadline
 // and byte budget, writes that give up after the write timeout.
 class GuardedStream final : public httplib::Stream {
@@ -73,18 +70,15 @@ class GuardedStream final : public httplib::Stream {
   // A new request: its headers must come within the header timeout of its first byte (already waited
   // for by the caller) and within the header byte limit.
   void begin_request() {
-    phase_ = Phase::kHeaders;
     deadline_ = Clock::now() + limits_.header_timeout;
     budget_ = limits_.max_header_bytes;
   }
   // The headers are parsed: the body (if any) has the body timeout and the raw body limit.
   void begin_body() {
-    phase_ = Phase::kBody;
     deadline_ = Clock::now() + limits_.body_timeout;
     // Bytes already buffered past the headers belong to the body.
     budget_ = limits_.max_raw_body_bytes;
     budget_ = buffered() > budget_ ? 0 : budget_ - buffered();
-    charged_ = buffered();
   }
   std::size_t buffered() const { return end_ - begin_; }
 
@@ -140,7 +134,6 @@ class GuardedStream final : public httplib::Stream {
       if (r > 0) {
         end_ = static_cast<std::size_t>(r);
         budget_ -= end_;
-        charged_ += end_;
         return true;
       }
       if (r < 0 && (errno == EINTR || errno == EAGAIN || errno == EWOULDBLOCK)) continue;
@@ -152,9 +145,8 @@ class GuardedStream final : public httplib::Stream {
   int fd_;
   const TransportLimits& limits_;
   ConnectionContext& ctx_;
-  Phase phase_ = Phase::kHeaders;
   Clock::time_point deadline_ = Clock::now();
-  std::size_t budget_ = 0, charged_ = 0;
+  std::size_t budget_ = 0;  // bytes this phase of the request (headers, or body) may still read
   char buf_[16 << 10];
   std::size_t begin_ = 0, end_ = 0;
 };

@@ -1209,6 +1209,14 @@ void Server::Impl::metrics(const Request&, Response& res) {
      << "moreau_lcm_messages_total " << m.lcm_published << "\n";
   os << "# HELP moreau_lcm_dropped_total States not published because a stream fell too far behind.\n"
      << "# TYPE moreau_lcm_dropped_total counter\nmoreau_lcm_dropped_total " << m.lcm_dropped << "\n";
+  const TransportStats t = http_.stats();
+  os << "# HELP moreau_http_connections Open HTTP connections.\n# TYPE moreau_http_connections gauge\n"
+     << "moreau_http_connections " << t.open << "\n";
+  os << "# HELP moreau_http_connections_refused_total Connections refused over --max-connections or "
+        "--max-connections-per-client.\n# TYPE moreau_http_connections_refused_total counter\n"
+     << "moreau_http_connections_refused_total " << t.refused_total << "\n";
+  os << "# HELP moreau_http_timeouts_total Requests whose headers or body missed their deadline.\n"
+     << "# TYPE moreau_http_timeouts_total counter\nmoreau_http_timeouts_total " << t.timed_out_total << "\n";
   os << "# HELP moreau_http_responses_total HTTP responses, by status code.\n# TYPE moreau_http_responses_total counter\n";
   {
     std::lock_guard lock(stats_mu_);
