@@ -215,6 +215,7 @@ TEST(Hostile, FramingIsStrict) {
       {"unknown encoding", post_head("/v1/jobs", len, "Content-Encoding: zstd\r\n") + body, 415, "Content-Encoding"},
       {"wrong type", "POST /v1/jobs HTTP/1.1\r\nHost: x\r\nContent-Type: text/plain\r\n" + len + "\r\n" + body, 415, "application/json"},
       {"unknown POST path", post_head("/v1/nothing", len) + body, 404, "not found"},
+      {"headers without end", "GET /healthz HTTP/1.1\r\nX-Endless: " + std::string(100 << 10, 'a'), 431, "at most 65536 bytes"},
   };
   for (const auto& c : cases) {
     const RawResponse r = round_trip(port, c.request);

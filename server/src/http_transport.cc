@@ -72,10 +72,12 @@ class GuardedStream final : public httplib::Stream {
   void begin_request() {
     deadline_ = Clock::now() + limits_.header_timeout;
     budget_ = limits_.max_header_bytes;
+    in_headers_ = true;
   }
   // The headers are parsed: the body (if any) has the body timeout and the raw body limit.
   void begin_body() {
     deadline_ = Clock::now() + limits_.body_timeout;
+    in_headers_ = false;
     // Bytes already buffered past the headers belong to the body.
     budget_ = limits_.max_raw_body_bytes;
     budget_ = buffered() > budget_ ? 0 : budget_ - buffered();
@@ -119,7 +121,7 @@ class GuardedStream final : public httplib::Stream {
   bool fill() {
     begin_ = end_ = 0;
     if (budget_ == 0) {
-      ctx_.too_large = true;
+      (in_headers_ ? ctx_.headers_too_large : ctx_.too_large) = true;
       ctx_.close_after = true;
       return false;
     }
@@ -146,6 +148,7 @@ class GuardedStream final : public httplib::Stream {
   const TransportLimits& limits_;
   ConnectionContext& ctx_;
   Clock::time_point deadline_ = Clock::now();
+  bool in_headers_ = true;
   std::size_t budget_ = 0;  // bytes this phase of the request (headers, or body) may still read
   char buf_[16 << 10];
   std::size_t begin_ = 0, end_ = 0;
@@ -265,7 +268,7 @@ bool GuardedHttpServer::process_and_close_socket(socket_t sock) {
   for (int served = 0; served < std::max(1, limits_.keep_alive_requests); ++served) {
     // Idle between requests: the next one must begin within the keep-alive timeout.
     if (stream.buffered() == 0 && !wait_for(sock, POLLIN, Clock::now() + limits_.keep_alive_timeout)) break;
-    ctx.close_after = ctx.timed_out = ctx.too_large = false;
+    ctx.close_after = ctx.timed_out = ctx.too_large = ctx.headers_too_large = false;
     stream.begin_request();
     const bool last = served + 1 >= limits_.keep_alive_requests;
     bool connection_closed = false;

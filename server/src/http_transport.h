@@ -49,7 +49,8 @@ struct ConnectionContext {
   std::string client;          // the client's address
   bool close_after = false;    // close the connection after this response (its body was not all read)
   bool timed_out = false;      // a read of this request passed its deadline
-  bool too_large = false;      // the request's headers or raw body passed their byte limit
+  bool too_large = false;      // the request's raw body passed its byte limit
+  bool headers_too_large = false;  // its request line and headers passed max_header_bytes
 };
 
 // The connection the calling thread serves, or nullptr outside a request.

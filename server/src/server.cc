@@ -512,6 +512,11 @@ void Server::Impl::setup_routes() {
     if (!res.body.empty()) return;
     const ConnectionContext* conn = current_connection();
     if (conn && conn->timed_out) return send_error(res, 408, "request timeout", "", "the request did not arrive in time");
+    if (conn && conn->headers_too_large) {
+      res.set_header("Connection", "close");
+      return send_error(res, 431, "request headers too large", "",
+                        "the request line and headers may take at most " + std::to_string(http_.limits().max_header_bytes) + " bytes");
+    }
     if (conn && conn->too_large) return body_too_large(res);
     switch (res.status) {
       case 404: send_error(res, 404, "not found", "", "see docs/api.md for the endpoints"); break;
