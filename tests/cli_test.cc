@@ -269,8 +269,8 @@ INSTANTIATE_TEST_SUITE_P(
         // Lur'e graphs whose slopes overflow.
         BadInput{"LureGraphSlopeOverflows", "run {scenes}/lure-graph.json --set 'system.feedback.0.vertices=[[-1e308,-1e308],[1e308,1e308]]'", "/system/feedback/0/vertices/1: ", "overflows"},
         // Studies: every h finite, positive and within the scene's interval and step limit.
-        BadInput{"StudyNaNStep", "study {scenes}/damped-relay.json --h nan", "--h: ", "is not a positive step size"},
-        BadInput{"StudyZeroInAStepList", "study {scenes}/damped-relay.json --h 1e-2,0", "--h: ", "is not a positive step size"},
+        BadInput{"StudyNaNStep", "study {scenes}/damped-relay.json --h nan", "--h: ", "is not a positive finite step size"},
+        BadInput{"StudyZeroInAStepList", "study {scenes}/damped-relay.json --h 1e-2,0", "--h: ", "is not a positive finite step size"},
         BadInput{"StudyZeroReferenceStep", "study {scenes}/damped-relay.json --h 1e-2 --reference-h 0", "--reference-h: ", "not a positive finite step size"},
         BadInput{"StudyNegativeReferenceStep", "study {scenes}/damped-relay.json --h 1e-2 --reference-h=-1", "--reference-h: ", "not a positive finite step size"},
         BadInput{"StudyStepLongerThanTheInterval", "study {scenes}/damped-relay.json --h 1e-2,100", "--h: ", "longer than the interval"},

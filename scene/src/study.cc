@@ -182,7 +182,7 @@ std::vector<double> parse_ladder(const std::string& text) {
     char* end = nullptr;
     const double v = std::strtod(s.c_str(), &end);
     if (end == s.c_str() || *end != '\0' || !std::isfinite(v) || !(v > 0.0))
-      throw SceneError("--h", "'" + s + "' is not a positive step size");
+      throw SceneError("--h", "'" + s + "' is not a positive finite step size");
     return v;
   };
   if (text.find(':') != std::string::npos) {
