@@ -130,6 +130,13 @@ bool valid_channel_prefix(const std::string& s) {
   return std::all_of(s.begin(), s.end(), [](char c) { return (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_'; });
 }
 
+// Ends the connection after this response: its request was answered without reading all of its body,
+// so the bytes left on it cannot be read as a next request.
+void close_connection_after(Response& res) {
+  if (auto* c = current_connection()) c->close_after = true;
+  res.set_header("Connection", "close");
+}
+
 TransportLimits transport_limits(const ServerConfig& cfg) {
   TransportLimits l;
   l.max_connections = std::max(2, cfg.max_connections);
@@ -281,8 +288,7 @@ class Server::Impl {
   // be closed); false if the request may go on to its handler.
   bool screen(const Request& req, Response& res);
   void body_too_large(Response& res) const {
-    if (auto* c = current_connection()) c->close_after = true;
-    res.set_header("Connection", "close");
+    close_connection_after(res);
     send_error(res, 413, "request body too large", "",
                "this server accepts bodies of at most " + std::to_string(cfg_.max_body_bytes) +
                    " bytes (counted after Content-Encoding is decoded)");
@@ -513,7 +519,7 @@ void Server::Impl::setup_routes() {
     const ConnectionContext* conn = current_connection();
     if (conn && conn->timed_out) return send_error(res, 408, "request timeout", "", "the request did not arrive in time");
     if (conn && conn->headers_too_large) {
-      res.set_header("Connection", "close");
+      close_connection_after(res);
       return send_error(res, 431, "request headers too large", "",
                         "the request line and headers may take at most " + std::to_string(http_.limits().max_header_bytes) + " bytes");
     }
@@ -569,8 +575,7 @@ void Server::Impl::setup_routes() {
   });
   // Any other POST: answered without reading its body (the connection then closes).
   http_.Post(".*", [this](const Request&, Response& res, const httplib::ContentReader&) {
-    if (auto* c = current_connection()) c->close_after = true;
-    res.set_header("Connection", "close");
+    close_connection_after(res);
     send_error(res, 404, "not found", "", "see docs/api.md for the endpoints");
   });
   http_.Get("/v1/studies", [this](const Request& req, Response& res) { list_jobs(req, res, JobKind::kStudy); });
@@ -687,8 +692,7 @@ json Server::Impl::request_scene(const json& body) const {
 
 bool Server::Impl::screen(const Request& req, Response& res) {
   auto refuse = [&](int status, const std::string& error, const std::string& reason) {
-    if (auto* c = current_connection()) c->close_after = true;
-    res.set_header("Connection", "close");
+    close_connection_after(res);
     send_error(res, status, error, "", reason);
     return true;
   };
@@ -757,8 +761,7 @@ std::optional<std::string> Server::Impl::read_body(const Request&, Response& res
   });
   if (ok) return body;
   ConnectionContext* conn = current_connection();
-  if (conn) conn->close_after = true;
-  res.set_header("Connection", "close");
+  close_connection_after(res);
   if (over || (conn && conn->too_large)) {
     body_too_large(res);
   } else if (conn && conn->timed_out) {
