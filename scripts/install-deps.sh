@@ -14,6 +14,7 @@ packages=(
   libboost-dev                       # Boost.Odeint (rosenbrock4), the stiff peer of studies
   libgtest-dev libgmock-dev libbenchmark-dev  # tests, benchmarks
   iproute2                           # `ip`, for tests/lcm_udpm_netns.sh (multicast in a private netns)
+  python3                            # scripts/check-scene-results.py (shipped scenes against references)
 )
 
 missing=()
