@@ -17,6 +17,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "support/scratch_dir.h"
+
 namespace {
 
 struct Result {
@@ -60,7 +62,7 @@ TEST(Cli, JsonReportHasTheDocumentedFields) {
 }
 
 TEST(Cli, TrajectoryCsvAndOverrides) {
-  const std::string csv = ::testing::TempDir() + "/traj.csv";
+  const std::string csv = moreau::test_support::scratch_dir() + "/traj.csv";
   const Result r = Moreau("run " + kScene + " --set integrator.h=1e-2 --set integrator.t_end=2 --set 'initial.v=[0,1]' --out " + csv);
   ASSERT_EQ(r.status, 0) << r.out;
   std::ifstream in(csv);
@@ -88,8 +90,8 @@ TEST(Cli, BadSceneNamesTheFieldAndExitsWith2) {
 }
 
 TEST(Cli, FiguresArePngOfTheRequestedSize) {
-  const std::string png = ::testing::TempDir() + "/state.png";
-  const std::string svg = ::testing::TempDir() + "/energy.svg";
+  const std::string png = moreau::test_support::scratch_dir() + "/state.png";
+  const std::string svg = moreau::test_support::scratch_dir() + "/energy.svg";
   const Result r = Moreau("run " + kScene + " --figure " + png + " --figure energy=" + svg + " --size 800x600");
   ASSERT_EQ(r.status, 0) << r.out;
   std::ifstream in(png, std::ios::binary);
@@ -106,7 +108,7 @@ TEST(Cli, FiguresArePngOfTheRequestedSize) {
 }
 
 TEST(Cli, StudyWritesTheTableAndBothFigures) {
-  const std::string dir = ::testing::TempDir();
+  const std::string dir = moreau::test_support::scratch_dir();
   const Result r = Moreau("study " + std::string(MOREAU_SOURCE_DIR) +
                           "/scenes/damped-relay.json --h 1e-2:1e-3:2 --schemes abl,explicit --repeats 1 --csv " + dir +
                           "/study.csv --work " + dir + "/work.png --order " + dir + "/order.png");
@@ -130,9 +132,9 @@ TEST(Cli, StudyWritesTheTableAndBothFigures) {
 }
 
 TEST(Cli, PlotReadsTheCsvBack) {
-  const std::string csv = ::testing::TempDir() + "/p.csv";
+  const std::string csv = moreau::test_support::scratch_dir() + "/p.csv";
   ASSERT_EQ(Moreau("run " + kScene + " --out " + csv).status, 0);
-  const Result r = Moreau("plot " + csv + " --kind phase -o " + ::testing::TempDir() + "/phase.png");
+  const Result r = Moreau("plot " + csv + " --kind phase -o " + moreau::test_support::scratch_dir() + "/phase.png");
   EXPECT_EQ(r.status, 0) << r.out;
   const Result bad = Moreau("plot " + kScene + " -o /tmp/x.png");
   EXPECT_EQ(bad.status, 2);
@@ -156,7 +158,7 @@ TEST(Cli, ProgressBarForLongRuns) {
 namespace {
 // A sweep split over three shards and merged gives every point once; a missing shard is an error.
 TEST(Cli, SweepShardsAndMerge) {
-  const std::string dir = ::testing::TempDir() + "/sweep";
+  const std::string dir = moreau::test_support::scratch_dir() + "/sweep";
   std::filesystem::remove_all(dir);
   for (int i = 0; i < 3; ++i) {
     const Result r = Moreau("sweep " + kScene + " --vary parameters.g=0:9.81:4 --vary 'initial.v=[0,1];[1,0]' --set integrator.t_end=2 --shard " +
@@ -207,7 +209,7 @@ Result MoreauBounded(const std::string& args, const std::string& before = "") {
 // The files the bad-input table refers to as {tmp}/...
 std::string BadInputDir() {
   static const std::string dir = [] {
-    const std::string d = ::testing::TempDir() + "/cli-bad-input";
+    const std::string d = moreau::test_support::scratch_dir() + "/cli-bad-input";
     std::filesystem::remove_all(d);
     std::filesystem::create_directories(d + "/shards");
     std::ofstream(d + "/overflow.json") << "{\"name\": \"x\", \"integrator\": {\"t_end\": 1, \"h\": 1e999}}\n";
@@ -286,7 +288,7 @@ INSTANTIATE_TEST_SUITE_P(
 // A FIFO has no size to trust and this one never ends: the scene is read up to the limit and refused
 // (the writer then dies of SIGPIPE).
 TEST(Cli, SceneFromAnEndlessFifoIsRefusedAtTheSizeLimit) {
-  const std::string fifo = ::testing::TempDir() + "/endless.fifo";
+  const std::string fifo = moreau::test_support::scratch_dir() + "/endless.fifo";
   std::filesystem::remove(fifo);
   ASSERT_EQ(mkfifo(fifo.c_str(), 0600), 0);
   const Result r = MoreauBounded("run " + fifo, "(yes '[1, 2, 3]' > " + fifo + " &); ");

@@ -17,6 +17,8 @@
 #include "moreau/render/layout.h"
 #include "moreau/render/render.h"
 
+#include "support/scratch_dir.h"
+
 using namespace moreau::render;
 using ::testing::HasSubstr;
 
@@ -246,7 +248,7 @@ TEST(RenderPng, WidthBeyondOneTileIsSeamless) {
 }
 
 TEST(RenderPng, WritesAFile) {
-  const std::filesystem::path path = std::filesystem::temp_directory_path() / "moreau_render_test.png";
+  const std::filesystem::path path = std::filesystem::path(moreau::test_support::scratch_dir()) / "render_test.png";
   render_png(three_series_figure(), path.string());
   std::ifstream in(path, std::ios::binary);
   const std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(in)), {});

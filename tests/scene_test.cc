@@ -13,6 +13,8 @@
 #include "moreau/scene/scene.h"
 #include "moreau/scene/scene_model.h"
 
+#include "support/scratch_dir.h"
+
 namespace moreau::scene {
 namespace {
 
@@ -263,7 +265,7 @@ TEST(Scene, JsonNestingIsBoundedBeforeParsing) {
   EXPECT_FALSE(json_depth_exceeded(R"({"a": "[[[[\"[[[[", "b": ["]]]]"]})", 2));
   EXPECT_TRUE(json_depth_exceeded(std::string(100000, '['), kMaxJsonDepth));
 
-  const std::string path = ::testing::TempDir() + "/deep.json";
+  const std::string path = moreau::test_support::scratch_dir() + "/deep.json";
   {
     std::ofstream out(path);
     out << "{\"name\": " << std::string(100000, '[') << std::string(100000, ']') << "}";
@@ -284,7 +286,7 @@ TEST(Scene, JsonNestingIsBoundedBeforeParsing) {
 // its byte offset and line, whether it comes from a file or an override: never nlohmann::json's
 // out_of_range exception escaping (which aborted `moreau run`).
 TEST(Scene, NumberOutOfRangeNamesItsPointerAndByte) {
-  const std::string path = ::testing::TempDir() + "/overflow.json";
+  const std::string path = moreau::test_support::scratch_dir() + "/overflow.json";
   const std::string text = "{\"name\": \"x\",\n \"integrator\": {\"t_end\": 1, \"h\": 1e999}}";
   std::ofstream(path) << text;
   try {
@@ -318,7 +320,7 @@ TEST(Scene, NumberOutOfRangeNamesItsPointerAndByte) {
 // is refused with the limit in the message, not read to the end (an endless device or FIFO would never
 // end: Cli/BadCommandLine.* covers /dev/zero, Cli.SceneFromAnEndlessFifoIsRefusedAtTheSizeLimit a FIFO).
 TEST(Scene, SceneFileLargerThan64MiBIsRefused) {
-  const std::string path = ::testing::TempDir() + "/huge.json";
+  const std::string path = moreau::test_support::scratch_dir() + "/huge.json";
   std::ofstream(path).close();
   std::filesystem::resize_file(path, (std::uintmax_t{64} << 20) + 1);  // sparse: no disk space used
   try {
@@ -340,7 +342,7 @@ TEST(Scene, SceneFileLargerThan64MiBIsRefused) {
 }
 
 TEST(Scene, MalformedJsonNamesLineAndColumn) {
-  const std::string path = ::testing::TempDir() + "/bad.json";
+  const std::string path = moreau::test_support::scratch_dir() + "/bad.json";
   FILE* f = std::fopen(path.c_str(), "w");
   std::fputs("{\n  \"name\": \"x\",\n  \"system\": {,\n}", f);
   std::fclose(f);
