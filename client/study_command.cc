@@ -24,14 +24,6 @@ struct StudyOptions {
   std::string csv, work_png, order_png;
 };
 
-std::vector<std::string> split(const std::string& s) {
-  std::vector<std::string> out;
-  std::stringstream ss(s);
-  for (std::string item; std::getline(ss, item, ',');)
-    if (!item.empty()) out.push_back(item);
-  return out;
-}
-
 void write_text(const std::string& path, const std::string& text) {
   std::ofstream out(path, std::ios::binary);
   out << text;
@@ -48,7 +40,7 @@ int study(const StudyOptions& opt) {
     const scene::LagrangianScene sc = scene::load_scene(doc);
     scene::StudySettings st;
     st.h = scene::parse_ladder(opt.ladder);
-    st.schemes = split(opt.schemes);
+    st.schemes = scene::parse_study_schemes(opt.schemes);
     st.reference_h = opt.reference_h;
     st.epsilon = opt.epsilon;
     st.regularization = opt.regularization;

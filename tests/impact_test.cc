@@ -358,7 +358,7 @@ TEST(Impact, CurvedConstraintDriftsAndTheProjectionCorrectsIt) {
 TEST(Impact, SimulationReportsImpactsRestGapAndLemma3) {
   const Simulation sim = Simulation::from_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/bouncing-ball-e0.5.json");
   EXPECT_EQ(sim.system_type(), "lagrangian");
-  EXPECT_EQ(sim.scheme(), "moreau-jean");
+  EXPECT_EQ(sim.scheme(), scene::Scheme::kMoreauJean);
   EXPECT_EQ(sim.position_names(), std::vector<std::string>{"y"});
   const RunSummary s = sim.run(nullptr);
   ASSERT_EQ(s.status, RunStatus::kCompleted) << s.message;

@@ -343,7 +343,7 @@ TEST(AbsoluteStability, ReportSaysWhichConditionFails) {
 TEST(Lure, SimulationNamesTheColumnsAndReports) {
   const Simulation sim = Simulation::from_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/lure-relay-2state.json");
   EXPECT_EQ(sim.system_type(), "lure");
-  EXPECT_EQ(sim.scheme(), "implicit-euler");
+  EXPECT_EQ(sim.scheme(), scene::Scheme::kImplicitEuler);
   EXPECT_EQ(sim.lagrangian(), nullptr);
   ASSERT_NE(sim.lure(), nullptr);
   EXPECT_EQ(sim.position_names(), (std::vector<std::string>{"x1", "x2"}));

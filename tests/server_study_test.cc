@@ -81,7 +81,7 @@ TEST(ServerStudy, TableEqualsTheLibraryStudyAndFiguresAreDrawn) {
   for (std::size_t i = 0; i < local.rows.size(); ++i) {
     const json& row = served["rows"][i];
     const auto& want = local.rows[i];
-    EXPECT_EQ(row["scheme"], want.scheme);
+    EXPECT_EQ(row["scheme"], moreau::scene::scheme_name(want.scheme));
     EXPECT_EQ(row["h"].get<double>(), want.h);
     EXPECT_EQ(row["status"], "completed");
     EXPECT_EQ(row["steps"].get<std::int64_t>(), want.steps);

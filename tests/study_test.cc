@@ -37,22 +37,22 @@ TEST(Study, DampedRelayAgainstItsExactSolution) {
   EXPECT_EQ(r.reference, "exact solution");
   ASSERT_EQ(r.rows.size(), 9u);
   for (const auto& row : r.rows) {
-    EXPECT_EQ(row.status, "completed") << row.scheme << " " << row.h << " " << row.message;
+    EXPECT_EQ(row.status, "completed") << scheme_name(row.scheme) << " " << row.h << " " << row.message;
     EXPECT_GT(row.q_max_error, 0.0);
     EXPECT_GE(row.timed_runs, 1);
     EXPECT_GT(row.wall_seconds, 0.0);
-    if (row.scheme == "abl") {
+    if (row.scheme == StudyScheme::kAbl) {
       EXPECT_EQ(row.chatter_sign_changes, 0) << "the implicit scheme rests exactly";
       EXPECT_EQ(row.chatter_amplitude, 0.0);
       ASSERT_TRUE(row.converged_time_error.has_value());
       EXPECT_LE(*row.converged_time_error, 2 * row.h);
     }
-    if (row.scheme == "explicit") {
+    if (row.scheme == StudyScheme::kExplicit) {
       EXPECT_GT(row.chatter_sign_changes, 0) << row.h;
     }
   }
   ASSERT_EQ(r.orders.size(), 3u);
-  EXPECT_EQ(r.orders[0].scheme, "abl");
+  EXPECT_EQ(r.orders[0].scheme, StudyScheme::kAbl);
   EXPECT_NEAR(r.orders[0].q_max, 1.0, 0.1);  // Remark 5.1: order 1 for constant M
   EXPECT_NEAR(r.orders[0].v_max, 1.0, 0.1);
   const std::string csv = r.to_csv();
@@ -76,13 +76,23 @@ TEST(Study, BadSettingsNameTheOption) {
   const LagrangianScene sc = load_scene(read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/damped-relay.json"));
   StudySettings st;
   st.h = {1e-2};
-  st.schemes = {"rk4"};
+  st.schemes = {};
   try {
     run_study(sc, st);
     FAIL();
   } catch (const SceneError& e) {
     EXPECT_EQ(e.pointer(), "--schemes");
   }
+  // Names are read once, by the parser: an unknown or repeated one never reaches the settings.
+  for (const char* list : {"abl,rk4", "abl,abl", ","}) {
+    try {
+      parse_study_schemes(list);
+      ADD_FAILURE() << list;
+    } catch (const SceneError& e) {
+      EXPECT_EQ(e.pointer(), "--schemes") << list;
+    }
+  }
+  EXPECT_EQ(parse_study_schemes("regularized,abl"), (std::vector<StudyScheme>{StudyScheme::kRegularized, StudyScheme::kAbl}));
 }
 
 TEST(Study, SettingsFromJson) {
@@ -91,7 +101,7 @@ TEST(Study, SettingsFromJson) {
                      {"eval_points", 50}, {"regularization", "saturation"}, {"reference_h", 1e-5}},
       "/study");
   EXPECT_EQ(st.h, (std::vector<double>{1e-2, 1e-3}));
-  EXPECT_EQ(st.schemes, (std::vector<std::string>{"abl", "regularized"}));
+  EXPECT_EQ(st.schemes, (std::vector<StudyScheme>{StudyScheme::kAbl, StudyScheme::kRegularized}));
   EXPECT_EQ(st.epsilon, 1e-4);
   EXPECT_EQ(st.repeats, 2);
   EXPECT_EQ(st.eval_points, 50);
@@ -117,7 +127,7 @@ TEST(Study, PlannedStepsCountEveryRun) {
   const LagrangianScene sc = load_scene(read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/damped-relay.json"));
   StudySettings st;
   st.h = {1e-2, 1e-3};
-  st.schemes = {"abl", "explicit"};
+  st.schemes = {StudyScheme::kAbl, StudyScheme::kExplicit};
   st.repeats = 3;
   const double span = sc.settings.t_end - sc.settings.t0;
   // The scene has an exact solution: no reference run.
@@ -131,7 +141,7 @@ TEST(Study, ResultSurvivesJson) {
   const LagrangianScene sc = load_scene(read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/damped-relay.json"));
   StudySettings st;
   st.h = {1e-2, 1e-3};
-  st.schemes = {"abl", "explicit"};
+  st.schemes = {StudyScheme::kAbl, StudyScheme::kExplicit};
   st.repeats = 1;
   const StudyResult r = run_study(sc, st);
   const StudyResult back = StudyResult::from_json(r.to_json());
@@ -145,7 +155,7 @@ TEST(Study, CancelStopsTheStudyBetweenAndInsideRuns) {
   std::atomic<bool> cancel{false};
   StudySettings st;
   st.h = {1e-2, 1e-3, 1e-4};
-  st.schemes = {"abl"};
+  st.schemes = {StudyScheme::kAbl};
   st.repeats = 1;
   st.cancel = &cancel;
   std::vector<std::size_t> seen;
@@ -232,14 +242,14 @@ TEST(Study, TablesShowNoNaNForAFailedRow) {
   r.scene = "x";
   r.reference = "exact solution";
   StudyRow row;
-  row.scheme = "explicit";
+  row.scheme = StudyScheme::kExplicit;
   row.h = 0.1;
   row.status = "failed";
   row.message = "diverged at step 3";
   row.q_max_error = row.q_l2_error = row.v_max_error = row.v_l2_error = row.final_error = kNaN;
   row.chatter_amplitude = kInf;
   r.rows.push_back(row);
-  r.orders.push_back({"explicit", kNaN, kNaN});
+  r.orders.push_back({StudyScheme::kExplicit, kNaN, kNaN});
   for (const std::string& table : {r.to_csv(), r.to_text(), r.to_json().dump()}) {
     std::string lower = table;
     std::transform(lower.begin(), lower.end(), lower.begin(), [](unsigned char c) { return std::tolower(c); });

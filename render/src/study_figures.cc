@@ -8,7 +8,7 @@ std::vector<SchemeRuns> study_scheme_runs(const scene::StudyResult& result) {
   std::vector<SchemeRuns> runs;
   for (const auto& order : result.orders) {
     SchemeRuns r;
-    r.scheme = order.scheme;
+    r.scheme = scene::scheme_name(order.scheme);
     for (const auto& row : result.rows) {
       if (row.scheme != order.scheme || row.status != "completed" || !(row.q_max_error > 0.0)) continue;
       r.h.push_back(row.h);

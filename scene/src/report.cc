@@ -113,7 +113,7 @@ std::string contact_text(const LagrangianScene& scene, const RunSummary& s, cons
   std::string names;
   for (std::size_t i = 0; i < scene.coordinates.size(); ++i) names += (i ? ", " : "") + scene.coordinates[i];
   os << "Moreau: " << (scene.name.empty() ? "scene" : scene.name) << " (" << scene.n << " DOF: " << names
-     << "), scheme moreau-jean, fixed h = " << fmt(scene.settings.h) << ", t in [" << fmt(scene.settings.t0) << ", "
+     << "), scheme " << scheme_name(scene.scheme) << ", fixed h = " << fmt(scene.settings.h) << ", t in [" << fmt(scene.settings.t0) << ", "
      << fmt(scene.settings.t_end) << "]\n";
   os << "  status        " << to_string(s.status) << ": " << s.steps << " steps to t = " << fmt(s.t_final) << "\n";
   if (!s.message.empty()) os << "  message       " << s.message << "\n";
@@ -186,7 +186,7 @@ nlohmann::json report_json(const LagrangianScene& scene, const RunSummary& s, co
   j["scene"] = scene.name;
   j["status"] = to_string(s.status);
   if (!s.message.empty()) j["message"] = s.message;
-  j["scheme"] = scene.scheme;
+  j["scheme"] = scheme_name(scene.scheme);
   j["step_rule"] = rule_name(scene.settings.step_rule);
   j["h"] = scene.settings.h;
   j["coordinates"] = scene.coordinates;
@@ -200,7 +200,7 @@ nlohmann::json report_json(const LagrangianScene& scene, const RunSummary& s, co
                  {"final", num(s.energy_final)},
                  {"max_increase", num(s.energy_max_increase)},
                  {"increases", s.energy_increases}};
-  if (scene.scheme == "moreau-jean") {
+  if (scene.scheme == Scheme::kMoreauJean) {
     j["system"] = "lagrangian";
     // E_k here is the kinetic energy, which falls and rises with the potential; Lemma 3's W is below.
     j["energy"]["kind"] = "kinetic 1/2 <M v, v>; the Lagrange-Dirichlet W is lagrange_dirichlet";
@@ -223,12 +223,12 @@ nlohmann::json report_json(const LagrangianScene& scene, const RunSummary& s, co
 }
 
 std::string report_text(const LagrangianScene& scene, const RunSummary& s, const ContactDiagnostics* contacts) {
-  if (scene.scheme == "moreau-jean") return contact_text(scene, s, contacts);
+  if (scene.scheme == Scheme::kMoreauJean) return contact_text(scene, s, contacts);
   std::ostringstream os;
   std::string names;
   for (std::size_t i = 0; i < scene.coordinates.size(); ++i) names += (i ? ", " : "") + scene.coordinates[i];
   os << "Moreau: " << (scene.name.empty() ? "scene" : scene.name) << " (" << scene.n << " DOF: " << names << "), scheme "
-     << scene.scheme << ", " << rule_name(scene.settings.step_rule) << " h = " << fmt(scene.settings.h) << ", t in ["
+     << scheme_name(scene.scheme) << ", " << rule_name(scene.settings.step_rule) << " h = " << fmt(scene.settings.h) << ", t in ["
      << fmt(scene.settings.t0) << ", " << fmt(scene.settings.t_end) << "]\n";
   os << "  status        " << to_string(s.status) << ": " << s.steps << " steps to t = " << fmt(s.t_final);
   if (scene.settings.step_rule != StepRule::kFixed) os << " (h_k from " << fmt(s.h_min) << " to " << fmt(s.h_max) << ")";
@@ -310,7 +310,7 @@ nlohmann::json report_json(const LureScene& sc, const RunSummary& s, const LureD
   j["system"] = "lure";
   j["status"] = to_string(s.status);
   if (!s.message.empty()) j["message"] = s.message;
-  j["scheme"] = sc.scheme;
+  j["scheme"] = scheme_name(sc.scheme);
   j["theta"] = sc.settings.theta;
   j["h"] = sc.settings.h;
   j["states"] = sc.states;
@@ -355,7 +355,7 @@ std::string report_text(const LureScene& sc, const RunSummary& s, const LureDiag
   for (std::size_t i = 0; i < sc.states.size(); ++i) names += (i ? ", " : "") + sc.states[i];
   for (std::size_t i = 0; i < sc.feedback_types.size(); ++i) fb += (i ? ", " : "") + sc.feedback_types[i];
   os << "Moreau: " << (sc.name.empty() ? "scene" : sc.name) << " (Lur'e system, " << sc.n << (sc.n == 1 ? " state: " : " states: ") << names << "; " << sc.m
-     << " output" << (sc.m == 1 ? "" : "s") << ", feedback " << fb << "), scheme implicit-euler, theta = " << fmt(sc.settings.theta)
+     << " output" << (sc.m == 1 ? "" : "s") << ", feedback " << fb << "), scheme " << scheme_name(sc.scheme) << ", theta = " << fmt(sc.settings.theta)
      << ", h = " << fmt(sc.settings.h) << ", t in [" << fmt(sc.settings.t0) << ", " << fmt(sc.settings.t_end) << "]\n";
   os << "  status        " << to_string(s.status) << ": " << s.steps << " steps to t = " << fmt(s.t_final) << "\n";
   if (!s.message.empty()) os << "  message       " << s.message << "\n";

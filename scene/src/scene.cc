@@ -409,22 +409,24 @@ class Compiler {
     check_fields(in, "/integrator", {"scheme", "h", "t_end", "t0", "step_rule", "k1", "k3", "max_steps", "position_correction",
                                      "position_update", "theta"});
     const bool constrained = !scene.constraint_names.empty();
-    scene.scheme = constrained ? "moreau-jean" : "abl";
+    scene.scheme = constrained ? Scheme::kMoreauJean : Scheme::kAbl;
     if (in.contains("scheme")) {
       if (!in["scheme"].is_string()) throw SceneError("/integrator/scheme", "expected a string");
-      scene.scheme = in["scheme"].get<std::string>();
-      if (scene.scheme == "implicit-euler")
+      const std::string name = in["scheme"].get<std::string>();
+      const std::optional<Scheme> named = scheme_from_name(name);
+      if (named == Scheme::kImplicitEuler)
         throw SceneError("/integrator/scheme", "the implicit-euler scheme is for lure systems; a lagrangian system takes abl or moreau-jean");
-      if (scene.scheme != "abl" && scene.scheme != "moreau-jean")
-        throw SceneError("/integrator/scheme", "unknown scheme '" + scene.scheme + "' (expected: abl, moreau-jean)");
-      if (scene.scheme == "abl" && constrained)
+      if (!named) throw SceneError("/integrator/scheme", "unknown scheme '" + name + "' (expected: abl, moreau-jean)");
+      scene.scheme = *named;
+      if (scene.scheme == Scheme::kAbl && constrained)
         throw SceneError("/integrator/scheme",
                          "the abl scheme (0.2) cannot integrate unilateral constraints (/system/constraints): its explicit "
                          "position update has no contact law and would pass through h(q) = 0 silently; use \"moreau-jean\"");
     }
-    const bool mj = scene.scheme == "moreau-jean";
+    const bool mj = scene.scheme == Scheme::kMoreauJean;
     if (in.contains("theta"))
-      throw SceneError("/integrator/theta", "theta belongs to the implicit-euler scheme of lure systems; " + scene.scheme + " takes none");
+      throw SceneError("/integrator/theta", std::string("theta belongs to the implicit-euler scheme of lure systems; ") +
+                                                scheme_name(scene.scheme) + " takes none");
     for (const char* field : {"position_correction", "position_update"}) {
       if (!in.contains(field)) continue;
       const std::string ptr = std::string("/integrator/") + field;
@@ -701,9 +703,10 @@ class Compiler {
     if (in.contains("scheme")) {
       if (!in["scheme"].is_string()) throw SceneError("/integrator/scheme", "expected a string");
       const std::string sch = in["scheme"].get<std::string>();
-      if (sch == "abl" || sch == "moreau-jean")
+      const std::optional<Scheme> named = scheme_from_name(sch);
+      if (named && *named != Scheme::kImplicitEuler)
         throw SceneError("/integrator/scheme", "the " + sch + " scheme is for lagrangian systems; a lure system takes implicit-euler");
-      if (sch != "implicit-euler") throw SceneError("/integrator/scheme", "unknown scheme '" + sch + "' (expected: implicit-euler)");
+      if (!named) throw SceneError("/integrator/scheme", "unknown scheme '" + sch + "' (expected: implicit-euler)");
     }
     LureSettings& s = scene.settings;
     if (!in.contains("h")) throw SceneError("/integrator", "missing required field 'h'");

@@ -1,6 +1,6 @@
 // A compiled scene as a model of the ABL and Moreau-Jean integrators, a Lur'e scene on the theta-method,
-// and the dispatch on the number of degrees of freedom (states, outputs): fixed-size Eigen code for
-// n <= 4, dynamic beyond.
+// and the dispatch on the number of degrees of freedom (dispatch_dof; for Lur'e systems, states and
+// outputs): fixed-size Eigen code for n <= 4, dynamic beyond.
 #include "moreau/scene/scene_model.h"
 
 namespace moreau::scene {
@@ -45,22 +45,11 @@ RunSummary run_fixed(const LagrangianScene& scene, RunObserver* observer) {
 RunSummary run_scene(const LagrangianScene& scene, RunObserver* observer) { return run_scene(scene, observer, nullptr); }
 
 RunSummary run_scene(const LagrangianScene& scene, RunObserver* observer, ContactDiagnostics* contacts) {
-  if (scene.scheme == "moreau-jean") {
-    switch (scene.n) {
-      case 1: return run_moreau_jean<1>(scene, observer, contacts);
-      case 2: return run_moreau_jean<2>(scene, observer, contacts);
-      case 3: return run_moreau_jean<3>(scene, observer, contacts);
-      case 4: return run_moreau_jean<4>(scene, observer, contacts);
-      default: return run_moreau_jean<Eigen::Dynamic>(scene, observer, contacts);
-    }
-  }
-  switch (scene.n) {
-    case 1: return run_fixed<1>(scene, observer);
-    case 2: return run_fixed<2>(scene, observer);
-    case 3: return run_fixed<3>(scene, observer);
-    case 4: return run_fixed<4>(scene, observer);
-    default: return run_fixed<Eigen::Dynamic>(scene, observer);
-  }
+  return dispatch_dof(scene.n, [&](auto dof) {
+    constexpr int N = decltype(dof)::value;
+    if (scene.scheme == Scheme::kMoreauJean) return run_moreau_jean<N>(scene, observer, contacts);
+    return run_fixed<N>(scene, observer);
+  });
 }
 
 RunSummary run_lure_scene(const LureScene& scene, RunObserver* observer, LureDiagnostics* diagnostics) {

@@ -36,7 +36,7 @@ Simulation Simulation::from_file(const std::string& path, const std::vector<std:
 
 const std::string& Simulation::name() const { return lure_ ? lure_->name : lagrangian_->name; }
 const std::string& Simulation::system_type() const { return lure_ ? kLure : kLagrangian; }
-const std::string& Simulation::scheme() const { return lure_ ? lure_->scheme : lagrangian_->scheme; }
+Scheme Simulation::scheme() const { return lure_ ? lure_->scheme : lagrangian_->scheme; }
 int Simulation::dof() const { return lure_ ? lure_->n : lagrangian_->n; }
 const std::vector<std::string>& Simulation::position_names() const { return lure_ ? lure_->states : lagrangian_->coordinates; }
 const std::vector<std::string>& Simulation::velocity_names() const {
@@ -60,7 +60,7 @@ RunSummary Simulation::run(RunObserver* observer, RunDiagnostics* diagnostics) c
     d.lure.emplace();
     return run_lure_scene(*lure_, observer, &*d.lure);
   }
-  if (lagrangian_->scheme == "moreau-jean") {
+  if (lagrangian_->scheme == Scheme::kMoreauJean) {
     d.contacts.emplace();
     return run_scene(*lagrangian_, observer, &*d.contacts);
   }

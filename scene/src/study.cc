@@ -99,12 +99,12 @@ class CancelCheck : public RunObserver {
 
 // output_every: 1 for the runs whose every state is sampled, a huge value for timed runs.
 template <int N>
-RunSummary run_scheme_fixed(const LagrangianScene& scene, const std::string& scheme, double h,
+RunSummary run_scheme_fixed(const LagrangianScene& scene, StudyScheme scheme, double h,
                             const StudySettings& st, RunObserver* observer, std::int64_t output_every) {
   SceneModel<N> model(scene);
   const Vec<N> q0 = Eigen::Map<const Eigen::VectorXd>(scene.q0.data(), scene.n);
   const Vec<N> v0 = Eigen::Map<const Eigen::VectorXd>(scene.v0.data(), scene.n);
-  if (scheme == "regularized") {
+  if (scheme == StudyScheme::kRegularized) {
     RegularizedSettings rs;
     rs.h = h;
     rs.t0 = scene.settings.t0;
@@ -117,7 +117,7 @@ RunSummary run_scheme_fixed(const LagrangianScene& scene, const std::string& sch
   AblSettings as = scene.settings;
   as.h = h;
   as.output_every = output_every;
-  if (scheme == "explicit") {
+  if (scheme == StudyScheme::kExplicit) {
     as.velocity_update = VelocityUpdate::kExplicit;
     as.step_rule = StepRule::kFixed;
   }
@@ -125,15 +125,11 @@ RunSummary run_scheme_fixed(const LagrangianScene& scene, const std::string& sch
   return integrator.run(q0, v0, observer);
 }
 
-RunSummary run_scheme(const LagrangianScene& scene, const std::string& scheme, double h, const StudySettings& st,
+RunSummary run_scheme(const LagrangianScene& scene, StudyScheme scheme, double h, const StudySettings& st,
                       RunObserver* observer, std::int64_t output_every = 1) {
-  RunSummary s;
-  switch (scene.n) {
-    case 1: s = run_scheme_fixed<1>(scene, scheme, h, st, observer, output_every); break;
-    case 2: s = run_scheme_fixed<2>(scene, scheme, h, st, observer, output_every); break;
-    case 3: s = run_scheme_fixed<3>(scene, scheme, h, st, observer, output_every); break;
-    default: s = run_scheme_fixed<Eigen::Dynamic>(scene, scheme, h, st, observer, output_every); break;
-  }
+  const RunSummary s = dispatch_dof(scene.n, [&](auto dof) {
+    return run_scheme_fixed<decltype(dof)::value>(scene, scheme, h, st, observer, output_every);
+  });
   if (s.status == RunStatus::kCancelled && st.cancel && st.cancel->load()) throw StudyCancelled();
   return s;
 }
@@ -174,7 +170,34 @@ std::string fmt(double v) {
 constexpr int kMaxEvalPoints = 100000;
 constexpr int kMaxRepeats = 20;
 
+std::vector<std::string> scheme_names(const std::vector<StudyScheme>& schemes) {
+  std::vector<std::string> names;
+  for (const StudyScheme s : schemes) names.push_back(scheme_name(s));
+  return names;
+}
+
+// A scheme name in a stored study result (StudyResult::from_json).
+StudyScheme scheme_in(const nlohmann::json& v) {
+  const std::optional<StudyScheme> s = study_scheme_from_name(v.get<std::string>());
+  if (!s) throw std::invalid_argument("not a study result: unknown scheme " + v.dump());
+  return *s;
+}
+
 }  // namespace
+
+std::vector<StudyScheme> parse_study_schemes(const std::string& text) {
+  std::vector<StudyScheme> out;
+  std::stringstream ss(text);
+  for (std::string item; std::getline(ss, item, ',');) {
+    if (item.empty()) continue;
+    const std::optional<StudyScheme> s = study_scheme_from_name(item);
+    if (!s) throw SceneError("--schemes", "unknown scheme '" + item + "' (expected abl, explicit, regularized)");
+    if (std::find(out.begin(), out.end(), *s) != out.end()) throw SceneError("--schemes", "scheme '" + item + "' given twice");
+    out.push_back(*s);
+  }
+  if (out.empty()) throw SceneError("--schemes", "expected at least one scheme");
+  return out;
+}
 
 std::vector<double> parse_ladder(const std::string& text) {
   std::vector<double> out;
@@ -217,9 +240,7 @@ void check_study_settings(const LagrangianScene& scene, const StudySettings& st)
     throw SceneError("/system/constraints",
                      "studies compare abl, explicit and regularized, which do not integrate unilateral constraints");
   if (st.h.empty()) throw SceneError("--h", "empty ladder");
-  for (const auto& s : st.schemes)
-    if (s != "abl" && s != "explicit" && s != "regularized")
-      throw SceneError("--schemes", "unknown scheme '" + s + "' (expected abl, explicit, regularized)");
+  if (st.schemes.empty()) throw SceneError("--schemes", "expected at least one scheme");
   if (st.eval_points < 2 || st.eval_points > kMaxEvalPoints)
     throw SceneError("--eval-points", "must be between 2 and " + std::to_string(kMaxEvalPoints) + ", got " + std::to_string(st.eval_points));
   if (st.repeats < 1 || st.repeats > kMaxRepeats)
@@ -288,7 +309,7 @@ StudyResult run_study(const LagrangianScene& scene, const StudySettings& st) {
     std::snprintf(buf, sizeof buf, "abl at h = %g", h_ref);
     result.reference = buf;
     GridSampler sampler(grid, n, std::numeric_limits<double>::infinity(), st.cancel);
-    const RunSummary ref = run_scheme(scene, "abl", h_ref, st, &sampler);
+    const RunSummary ref = run_scheme(scene, StudyScheme::kAbl, h_ref, st, &sampler);
     if (ref.status != RunStatus::kCompleted) throw SceneError("--reference", "the reference run failed: " + ref.message);
     ref_q = sampler.q();
     ref_v = sampler.v();
@@ -299,7 +320,7 @@ StudyResult run_study(const LagrangianScene& scene, const StudySettings& st) {
   const std::size_t rows_total = st.schemes.size() * st.h.size();
   std::optional<CancelCheck> cancel_check;
   if (st.cancel) cancel_check.emplace(st.cancel);
-  for (const auto& scheme : st.schemes) {
+  for (const StudyScheme scheme : st.schemes) {
     std::vector<double> hs, eq, ev;
     for (double h : st.h) {
       check_cancel(st);
@@ -416,14 +437,16 @@ StudySettings study_settings_from_json(const nlohmann::json& j, const std::strin
         throw SceneError(ptr, "expected an array of scheme names or a comma list");
       }
       if (names.empty()) throw SceneError(ptr, "expected at least one scheme");
+      st.schemes.clear();
       for (std::size_t i = 0; i < names.size(); ++i) {
         const auto& s = names[i];
-        if (s != "abl" && s != "explicit" && s != "regularized")
+        const std::optional<StudyScheme> scheme = study_scheme_from_name(s);
+        if (!scheme)
           throw SceneError(v.is_array() ? ptr + "/" + std::to_string(i) : ptr,
                            "unknown scheme '" + s + "' (expected abl, explicit, regularized)");
         if (std::count(names.begin(), names.end(), s) > 1) throw SceneError(ptr, "scheme '" + s + "' given twice");
+        st.schemes.push_back(*scheme);
       }
-      st.schemes = names;
     } else if (key == "reference_h") {
       st.reference_h = positive(v, ptr);
     } else if (key == "epsilon") {
@@ -445,7 +468,7 @@ StudySettings study_settings_from_json(const nlohmann::json& j, const std::strin
 
 nlohmann::json study_settings_to_json(const StudySettings& st) {
   nlohmann::json j = {{"h", st.h},
-                      {"schemes", st.schemes},
+                      {"schemes", scheme_names(st.schemes)},
                       {"epsilon", st.epsilon},
                       {"regularization", st.regularization},
                       {"eval_points", st.eval_points},
@@ -474,7 +497,7 @@ nlohmann::json StudyResult::to_json() const {
   j["reference_converged_time"] = reference_converged_time ? num(*reference_converged_time) : nlohmann::json(nullptr);
   j["rows"] = nlohmann::json::array();
   for (const auto& r : rows) {
-    j["rows"].push_back({{"scheme", r.scheme},
+    j["rows"].push_back({{"scheme", scheme_name(r.scheme)},
                          {"h", r.h},
                          {"status", r.status},
                          {"message", r.message},
@@ -492,7 +515,7 @@ nlohmann::json StudyResult::to_json() const {
                          {"chatter_amplitude", num(r.chatter_amplitude)}});
   }
   j["orders"] = nlohmann::json::array();
-  for (const auto& o : orders) j["orders"].push_back({{"scheme", o.scheme}, {"q_max", num(o.q_max)}, {"v_max", num(o.v_max)}});
+  for (const auto& o : orders) j["orders"].push_back({{"scheme", scheme_name(o.scheme)}, {"q_max", num(o.q_max)}, {"v_max", num(o.v_max)}});
   j["wall_seconds"] = wall_seconds;
   return j;
 }
@@ -509,7 +532,7 @@ StudyResult StudyResult::from_json(const nlohmann::json& j) {
     r.reference_converged_time = optional(j.value("reference_converged_time", nlohmann::json()));
     for (const auto& x : j["rows"]) {
       StudyRow row;
-      row.scheme = x.at("scheme").get<std::string>();
+      row.scheme = scheme_in(x.at("scheme"));
       row.h = x.at("h").get<double>();
       row.status = x.at("status").get<std::string>();
       row.message = x.value("message", "");
@@ -527,7 +550,7 @@ StudyResult StudyResult::from_json(const nlohmann::json& j) {
       row.chatter_amplitude = number(x.at("chatter_amplitude"));
       r.rows.push_back(row);
     }
-    for (const auto& x : j["orders"]) r.orders.push_back({x.at("scheme").get<std::string>(), number(x.at("q_max")), number(x.at("v_max"))});
+    for (const auto& x : j["orders"]) r.orders.push_back({scheme_in(x.at("scheme")), number(x.at("q_max")), number(x.at("v_max"))});
     r.wall_seconds = number(j.at("wall_seconds"));
     return r;
   } catch (const nlohmann::json::exception& e) {
@@ -549,7 +572,7 @@ std::string StudyResult::to_csv() const {
   };
   auto opt = [&](const std::optional<double>& v) { return v ? cell(*v) : std::string(); };
   for (const auto& r : rows) {
-    os << r.scheme << ',' << cell(r.h) << ',' << r.status << ',' << r.steps << ',' << cell(r.wall_seconds) << ','
+    os << scheme_name(r.scheme) << ',' << cell(r.h) << ',' << r.status << ',' << r.steps << ',' << cell(r.wall_seconds) << ','
        << cell(r.q_max_error) << ',' << cell(r.q_l2_error) << ',' << cell(r.v_max_error) << ',' << cell(r.v_l2_error) << ','
        << cell(r.final_error) << ',' << opt(r.converged_time) << ',' << opt(r.converged_time_error) << ','
        << r.chatter_sign_changes << ',' << cell(r.chatter_amplitude) << '\n';
@@ -579,13 +602,13 @@ std::string StudyResult::to_text() const {
   for (const auto& r : rows) {
     char conv[32] = "-";
     if (r.converged_time && std::isfinite(*r.converged_time)) std::snprintf(conv, sizeof conv, "%.4g", *r.converged_time);
-    std::snprintf(line, sizeof line, "  %-11s %-9.3g %-10s %10lld %11s %11s %11s %11s %8lld %10s\n", r.scheme.c_str(), r.h,
+    std::snprintf(line, sizeof line, "  %-11s %-9.3g %-10s %10lld %11s %11s %11s %11s %8lld %10s\n", scheme_name(r.scheme), r.h,
                   r.status.c_str(), static_cast<long long>(r.steps), sci(r.wall_seconds).c_str(), sci(r.q_max_error).c_str(),
                   sci(r.v_max_error).c_str(), sci(r.final_error).c_str(), static_cast<long long>(r.chatter_sign_changes), conv);
     os << line;
   }
   for (const auto& o : orders) {
-    std::snprintf(line, sizeof line, "  order of %-11s q: %s   v: %s\n", o.scheme.c_str(), fixed3(o.q_max).c_str(),
+    std::snprintf(line, sizeof line, "  order of %-11s q: %s   v: %s\n", scheme_name(o.scheme), fixed3(o.q_max).c_str(),
                   fixed3(o.v_max).c_str());
     os << line;
   }

@@ -23,6 +23,7 @@
 #include "moreau/core/run_diagnostics.h"
 #include "moreau/core/run_summary.h"
 #include "moreau/scene/expression.h"
+#include "moreau/scene/scheme.h"
 
 namespace moreau::scene {
 
@@ -105,7 +106,7 @@ struct LagrangianScene {
   std::shared_ptr<const CompiledLagrangian> compiled;
   Controller<Eigen::Dynamic> controller;
   std::vector<double> q0, v0;
-  std::string scheme = "abl";
+  Scheme scheme = Scheme::kAbl;
   AblSettings settings;
   std::int64_t output_every = 1;
   std::string coriolis = "christoffel";  // "christoffel", "explicit" or "none"
@@ -145,7 +146,7 @@ struct LureScene {
   std::vector<std::string> feedback_types;  // "relay", "graph", ... per component
   std::optional<Eigen::MatrixXd> P;         // /system/P, when given
   std::vector<double> x0;
-  std::string scheme = "implicit-euler";
+  Scheme scheme = Scheme::kImplicitEuler;
   LureSettings settings;
   // Lemmas 1-2: the check of the given P, or the strict positive realness test without one.
   StorageMatrixCheck p_check;

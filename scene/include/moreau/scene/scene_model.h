@@ -6,11 +6,31 @@
 #pragma once
 
 #include <algorithm>
+#include <type_traits>
 #include <vector>
 
 #include "moreau/scene/scene.h"
 
 namespace moreau::scene {
+
+// The largest number of degrees of freedom compiled as fixed-size Eigen code; larger scenes run on
+// dynamic-size code. Every path that runs a Lagrangian scene (run, study, stress, server) dispatches
+// through dispatch_dof, so they all have the same range.
+inline constexpr int kMaxFixedDof = 4;
+
+// Calls f(std::integral_constant<int, N>{}) with N = n for 1 <= n <= kMaxFixedDof, else with
+// N = Eigen::Dynamic, and returns what f returns.
+template <class F>
+decltype(auto) dispatch_dof(int n, F&& f) {
+  switch (n) {
+    case 1: return f(std::integral_constant<int, 1>{});
+    case 2: return f(std::integral_constant<int, 2>{});
+    case 3: return f(std::integral_constant<int, 3>{});
+    case 4: return f(std::integral_constant<int, 4>{});
+    default: return f(std::integral_constant<int, Eigen::Dynamic>{});
+  }
+}
+static_assert(kMaxFixedDof == 4, "dispatch_dof lists the fixed sizes one by one");
 
 template <int N>
 class SceneModel {

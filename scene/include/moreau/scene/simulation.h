@@ -37,7 +37,7 @@ class Simulation {
 
   const std::string& name() const;
   const std::string& system_type() const;  // "lagrangian" or "lure"
-  const std::string& scheme() const;       // "abl", "moreau-jean" or "implicit-euler"
+  Scheme scheme() const;
   int dof() const;                         // coordinates, or states of a Lur'e system
   // Column names of a trajectory: positions then velocities.
   const std::vector<std::string>& position_names() const;

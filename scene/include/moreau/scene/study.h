@@ -34,7 +34,7 @@ namespace moreau::scene {
 
 struct StudySettings {
   std::vector<double> h;                                      // the ladder
-  std::vector<std::string> schemes = {"abl", "explicit", "regularized"};
+  std::vector<StudyScheme> schemes = {StudyScheme::kAbl, StudyScheme::kExplicit, StudyScheme::kRegularized};
   std::optional<double> reference_h;                          // force a numerical reference at this h
   double epsilon = 1e-3;                                      // width of the regularized sign
   std::string regularization = "tanh";                        // or "saturation"
@@ -68,7 +68,7 @@ nlohmann::json study_settings_to_json(const StudySettings& settings);
 std::int64_t study_planned_steps(const LagrangianScene& scene, const StudySettings& settings);
 
 struct StudyRow {
-  std::string scheme;
+  StudyScheme scheme = StudyScheme::kAbl;
   double h = 0.0;
   std::string status;   // completed, failed
   std::string message;
@@ -88,7 +88,7 @@ struct StudyResult {
   std::optional<double> reference_converged_time;
   std::vector<StudyRow> rows;
   struct Order {
-    std::string scheme;
+    StudyScheme scheme = StudyScheme::kAbl;
     double q_max = 0.0, v_max = 0.0;  // fitted slopes (NaN with fewer than two usable points)
   };
   std::vector<Order> orders;
@@ -104,6 +104,9 @@ struct StudyResult {
 
 // Parses a ladder "1e-1:1e-5:9" (log-spaced, both ends included) or a list "1e-2,5e-3,1e-3".
 std::vector<double> parse_ladder(const std::string& text);
+// A comma list of study schemes ("abl,explicit,regularized"). Throws SceneError at --schemes for an
+// unknown or repeated name, or an empty list.
+std::vector<StudyScheme> parse_study_schemes(const std::string& text);
 
 // Checks settings against the scene without running anything; run_study calls it first. Throws
 // SceneError naming the option (--h, --reference-h, --schemes, --eval-points, --repeats, --epsilon) or the
