@@ -314,6 +314,11 @@ std::vector<Case> cases() {
                    "/integrator/h", "more than the limit of 2000000000"));
   t.push_back(post("TooManyStepsForThisServer", scene_body([](json& s) { s["integrator"]["h"] = 1e-6; }), 400,
                    "/integrator/h", "this server runs at most 100000 steps per job"));
+  t.push_back(post("TooManyStepsForThisServerAdaptive", scene_body([](json& s) {
+                     s["integrator"]["h"] = 1e-6;
+                     s["integrator"]["step_rule"] = "theorem-4.1";
+                   }),
+                   400, "/integrator/h", "needs at least 2000000 steps; this server runs at most 100000 steps per job"));
   t.push_back(post("TooManyTrajectoryRows", scene_body([](json& s) {
                      s["integrator"]["h"] = 1e-4;
                      s["integrator"]["t_end"] = 5;

@@ -12,6 +12,7 @@
 #include "moreau/core/models/manipulator.h"
 #include "moreau/scene/scene.h"
 #include "moreau/scene/scene_model.h"
+#include "moreau/scene/simulation.h"
 
 #include "support/scratch_dir.h"
 
@@ -193,6 +194,49 @@ TEST(Scene, OverridesSetAnyField) {
   EXPECT_EQ(sc.settings.step_rule, StepRule::kTheorem41);
   EXPECT_THROW(apply_override(doc, "system.mass.5.0=1"), SceneError);
   EXPECT_THROW(apply_override(doc, "integrator.h"), SceneError);
+}
+
+// Limits applied to a compiled Simulation (what a server does to every job) give what the same limits
+// written into the scene give: the same samples and the same summary, bit for bit, on a Lagrangian and a
+// Lur'e scene; a lowered max_steps stops an adaptive run there. The scene is compiled once.
+TEST(Scene, LimitsOnACompiledSimulationEqualTheSameLimitsInTheScene) {
+  for (const char* file : {"manipulator.json", "lure-relay-2state.json", "bouncing-ball-e0.5.json"}) {
+    SCOPED_TRACE(file);
+    json doc = Scene(file);
+    const Simulation compiled = Simulation::from_json(doc);
+    doc["output"]["every"] = 7;
+    const Simulation written = Simulation::from_json(doc);
+    RunLimits limits;
+    limits.output_every = 7;
+    const Simulation limited = compiled.with_limits(limits);
+    EXPECT_EQ(limited.output_every(), 7);
+    EXPECT_NE(compiled.output_every(), 7) << "with_limits changed the simulation it copied";
+    Recorder a, b;
+    const RunSummary sa = written.run(&a);
+    const RunSummary sb = limited.run(&b);
+    EXPECT_EQ(sa.status, RunStatus::kCompleted);
+    EXPECT_EQ(sa.steps, sb.steps);
+    EXPECT_EQ(sa.q_final, sb.q_final);
+    EXPECT_EQ(sa.v_final, sb.v_final);
+    EXPECT_GT(a.t.size(), 2u);
+    EXPECT_EQ(a.t, b.t);
+    EXPECT_EQ(a.q, b.q);
+    EXPECT_EQ(a.v, b.v);
+  }
+  json doc = Scene("manipulator.json");
+  doc["integrator"]["step_rule"] = "theorem-4.1";
+  const Simulation adaptive = Simulation::from_json(doc);
+  RunLimits limits;
+  limits.max_steps = 50;
+  const Simulation limited = adaptive.with_limits(limits);
+  EXPECT_EQ(limited.max_steps(), 50);
+  EXPECT_GT(adaptive.max_steps(), 50);
+  const RunSummary s = limited.run(nullptr);
+  EXPECT_EQ(s.status, RunStatus::kFailed);
+  EXPECT_EQ(s.steps, 50);
+  EXPECT_THAT(s.message, ::testing::HasSubstr("max_steps"));
+  limits.max_steps = std::int64_t{1} << 62;  // a limit above the scene's own leaves it alone
+  EXPECT_EQ(adaptive.with_limits(limits).max_steps(), adaptive.max_steps());
 }
 
 // Each bad scene gets an error naming the field (a JSON pointer) and saying what is wrong.

@@ -1,5 +1,6 @@
 #include "moreau/scene/simulation.h"
 
+#include <algorithm>
 #include <mutex>
 
 #include "moreau/scene/report.h"
@@ -50,6 +51,28 @@ std::int64_t Simulation::planned_steps() const {
   if (lure_) return fixed_step_count(lure_->settings.t0, lure_->settings.t_end, lure_->settings.h);
   const auto& s = lagrangian_->settings;
   return fixed_step_count(s.t0, s.t_end, s.h);
+}
+
+std::int64_t Simulation::max_steps() const { return lure_ ? lure_->settings.max_steps : lagrangian_->settings.max_steps; }
+
+Simulation Simulation::with_limits(const RunLimits& limits) const {
+  Simulation out = *this;
+  out.latest_ = std::make_shared<Latest>();
+  if (lure_) {
+    auto sc = std::make_shared<LureScene>(*lure_);
+    if (limits.max_steps) sc->settings.max_steps = std::min(sc->settings.max_steps, *limits.max_steps);
+    if (limits.output_every) sc->settings.output_every = *limits.output_every;
+    out.lure_ = std::move(sc);
+  } else {
+    auto sc = std::make_shared<LagrangianScene>(*lagrangian_);
+    if (limits.max_steps) {
+      sc->settings.max_steps = std::min(sc->settings.max_steps, *limits.max_steps);
+      sc->contact_settings.max_steps = sc->settings.max_steps;
+    }
+    if (limits.output_every) sc->output_every = *limits.output_every;
+    out.lagrangian_ = std::move(sc);
+  }
+  return out;
 }
 
 RunSummary Simulation::run(RunObserver* observer, RunDiagnostics* diagnostics) const {

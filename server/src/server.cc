@@ -776,7 +776,7 @@ void Server::Impl::post_job(const Request&, Response& res, const std::string& te
   const auto t_load = Clock::now();
   answer_bad_requests(res, [&] {
     const json body = post_body(text, {"scene", "overrides", "stream"}, "{scene, overrides?, stream?}");
-    json doc = request_scene(body);
+    const json doc = request_scene(body);
 
     // Streaming: true, or {"channel": PREFIX, "period": seconds, "realtime": bool}.
     StreamSettings stream;
@@ -808,25 +808,24 @@ void Server::Impl::post_job(const Request&, Response& res, const std::string& te
       }
     }
 
-    scene::Simulation sim = scene::Simulation::from_json(doc);
-    const json stored_doc = doc;
+    // The scene is compiled once; this server's limits then apply to the compiled simulation
+    // (Simulation::with_limits), never by rewriting the scene.
+    const scene::Simulation sim = scene::Simulation::from_json(doc);
 
-    // Limits. Fixed steps are known now; adaptive rules get this server's step limit as max_steps.
+    // Limits. Fixed steps are known now; for the adaptive rules (h their largest step) the count is a
+    // lower bound, and the run gets this server's step limit as its max_steps.
     const auto* lag = sim.lagrangian();
     const bool fixed = !lag || lag->settings.step_rule == StepRule::kFixed;
     const std::int64_t planned = sim.planned_steps();
-    bool recompile = false;
-    if (fixed && planned > cfg_.max_steps) {
+    scene::RunLimits limits;
+    if (planned > cfg_.max_steps) {
       throw BadRequest{400, "invalid scene", "/integrator/h",
                        "h = " + fmt_g(sim.h()) + " over [" + fmt_g(sim.t0()) + ", " + fmt_g(sim.t_end()) + "] needs " +
-                           std::to_string(planned) + " steps; this server runs at most " + std::to_string(cfg_.max_steps) +
-                           " steps per job",
+                           (fixed ? "" : "at least ") + std::to_string(planned) + " steps; this server runs at most " +
+                           std::to_string(cfg_.max_steps) + " steps per job",
                        "scene"};
     }
-    if (!fixed && lag->settings.max_steps > cfg_.max_steps) {
-      doc["integrator"]["max_steps"] = cfg_.max_steps;
-      recompile = true;
-    }
+    if (sim.max_steps() > cfg_.max_steps) limits.max_steps = cfg_.max_steps;
     const std::int64_t every = sim.output_every();
     const std::int64_t rows = planned / every + 2;
     if (rows > cfg_.max_samples) {
@@ -856,11 +855,9 @@ void Server::Impl::post_job(const Request&, Response& res, const std::string& te
       const std::int64_t per_period = std::max<std::int64_t>(1, static_cast<std::int64_t>(std::floor(stream.period / sim.h() + 1e-9)));
       if (every > per_period) {
         engine_every = std::gcd(every, per_period);
-        doc["output"]["every"] = engine_every;
-        recompile = true;
+        limits.output_every = engine_every;
       }
     }
-    if (recompile) sim = scene::Simulation::from_json(doc);
 
     if (stream.enabled) {
       try {
@@ -879,10 +876,10 @@ void Server::Impl::post_job(const Request&, Response& res, const std::string& te
     job->record_every = every;
     job->stream = stream;
     if (stream.enabled) set_channels(job->stream, job->id);
-    job->sim.emplace(std::move(sim));
+    job->sim.emplace(sim.with_limits(limits));
     job->load_seconds = std::chrono::duration<double>(Clock::now() - t_load).count();
 
-    queue_and_answer(job, stored_doc, nullptr, res);
+    queue_and_answer(job, doc, nullptr, res);
   });
 }
 

@@ -28,6 +28,16 @@ struct RunDiagnostics {
   std::optional<LureDiagnostics> lure;         // a lure scene
 };
 
+// Limits a caller (a server, a campaign) puts on a run, applied to a compiled Simulation: nothing is
+// recompiled and the scene's JSON is never rewritten.
+struct RunLimits {
+  // At most this many steps: a lower max_steps (an adaptive rule then fails at it; a fixed-step run
+  // needing more is the caller's to refuse before, see planned_steps()).
+  std::optional<std::int64_t> max_steps;
+  // The observer sees every output_every-th state (in place of the scene's /output/every).
+  std::optional<std::int64_t> output_every;
+};
+
 class Simulation {
  public:
   // Validates and compiles. Throws SceneError naming the field.
@@ -46,8 +56,17 @@ class Simulation {
   double t_end() const;
   double h() const;
   std::int64_t output_every() const;
-  // The number of steps a fixed-step run takes (an upper bound's estimate for adaptive rules).
+  // The number of steps a fixed-step run takes (a lower bound for adaptive rules, whose h is the
+  // largest step).
   std::int64_t planned_steps() const;
+  // The largest number of steps a run may take (/integrator/max_steps, or a RunLimits').
+  std::int64_t max_steps() const;
+
+  // A copy with the limits applied: max_steps lowered to limits.max_steps when that is smaller, and
+  // output_every replaced. The compiled model is shared with this one; the results of a run that stays
+  // within the limits are those of this Simulation, bit for bit (sampling only changes which states the
+  // observer sees).
+  Simulation with_limits(const RunLimits& limits) const;
 
   // Runs to t_end; the observer sees every output_every-th state and may cancel. The run's diagnostics
   // (impacts, storage function, ...) are kept with this Simulation for report_json(summary) and
