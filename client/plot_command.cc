@@ -7,7 +7,7 @@
 
 namespace moreau::cli {
 
-void register_plot_command(CLI::App& app) {
+void register_plot_command(CLI::App& app, Actions& actions) {
   struct Options {
     std::string csv, kind = "state", out;
     FigureFlags flags;
@@ -20,15 +20,15 @@ void register_plot_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("-o,--output", opt->out, "Output file (.png or .svg)")->required();
   opt->flags.add_to(cmd);
-  cmd->callback([opt] {
+  actions[cmd] = [opt]() -> int {
     try {
       write_figure(opt->kind, read_trajectory_csv(opt->csv), opt->flags, opt->out);
-      exit_code() = 0;
+      return 0;
     } catch (const std::exception& e) {
       std::cerr << "moreau plot: " << e.what() << "\n";
-      exit_code() = 2;
+      return 2;
     }
-  });
+  };
 }
 
 }  // namespace moreau::cli

@@ -387,7 +387,7 @@ int scenes(const ListOptions& o) {
 
 }  // namespace
 
-void register_remote_commands(CLI::App& app) {
+void register_remote_commands(CLI::App& app, Actions& actions) {
   {
     auto o = std::make_shared<SubmitOptions>();
     auto* cmd = app.add_subcommand("submit", "Submit a scene to a moreau-server; prints the job id");
@@ -400,7 +400,7 @@ void register_remote_commands(CLI::App& app) {
     cmd->add_option("--channel", o->channel, "LCM channel prefix (default MOREAU: MOREAU_STATE_<ID>)");
     cmd->add_flag("--json", o->remote.json_output, "Print the job as JSON");
     o->remote.add_to(cmd);
-    cmd->callback([o] { exit_code() = guarded([&] { return submit(*o); }); });
+    actions[cmd] = [o] { return guarded([&] { return submit(*o); }); };
   }
   {
     auto o = std::make_shared<IdOptions>();
@@ -409,7 +409,7 @@ void register_remote_commands(CLI::App& app) {
     cmd->add_flag("--wait", o->wait, "Wait until the job has finished");
     cmd->add_flag("--json", o->remote.json_output, "Print the job as JSON");
     o->remote.add_to(cmd);
-    cmd->callback([o] { exit_code() = guarded([&] { return status(*o); }); });
+    actions[cmd] = [o] { return guarded([&] { return status(*o); }); };
   }
   {
     auto o = std::make_shared<ResultOptions>();
@@ -418,7 +418,7 @@ void register_remote_commands(CLI::App& app) {
     cmd->add_option("--out", o->out, "Write the trajectory here (CSV; JSON if the name ends in .json)");
     cmd->add_option("--format", o->format, "Trajectory format: csv or json")->check(CLI::IsMember({"csv", "json"}));
     o->remote.add_to(cmd);
-    cmd->callback([o] { exit_code() = guarded([&] { return result(*o); }); });
+    actions[cmd] = [o] { return guarded([&] { return result(*o); }); };
   }
   {
     auto o = std::make_shared<FigureOptions>();
@@ -430,7 +430,7 @@ void register_remote_commands(CLI::App& app) {
     cmd->add_option("-o,--out", o->out, "PNG file to write")->required();
     cmd->add_option("--size", o->size, "WIDTHxHEIGHT in pixels (default 1200x800)");
     o->remote.add_to(cmd);
-    cmd->callback([o] { exit_code() = guarded([&] { return figure(*o); }); });
+    actions[cmd] = [o] { return guarded([&] { return figure(*o); }); };
   }
   {
     auto o = std::make_shared<IdOptions>();
@@ -438,7 +438,7 @@ void register_remote_commands(CLI::App& app) {
     cmd->add_option("id", o->id, "Job id")->required();
     cmd->add_flag("--json", o->remote.json_output, "Print the job as JSON");
     o->remote.add_to(cmd);
-    cmd->callback([o] { exit_code() = guarded([&] { return cancel(*o); }); });
+    actions[cmd] = [o] { return guarded([&] { return cancel(*o); }); };
   }
   {
     auto o = std::make_shared<ListOptions>();
@@ -448,14 +448,14 @@ void register_remote_commands(CLI::App& app) {
     cmd->add_option("--limit", o->limit, "Only the most recent N");
     cmd->add_flag("--json", o->remote.json_output, "Print the list as JSON");
     o->remote.add_to(cmd);
-    cmd->callback([o] { exit_code() = guarded([&] { return jobs(*o); }); });
+    actions[cmd] = [o] { return guarded([&] { return jobs(*o); }); };
   }
   {
     auto o = std::make_shared<ListOptions>();
     auto* cmd = app.add_subcommand("scenes", "List the scenes a server ships");
     cmd->add_flag("--json", o->remote.json_output, "Print the list as JSON");
     o->remote.add_to(cmd);
-    cmd->callback([o] { exit_code() = guarded([&] { return scenes(*o); }); });
+    actions[cmd] = [o] { return guarded([&] { return scenes(*o); }); };
   }
 }
 

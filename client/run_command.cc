@@ -139,7 +139,7 @@ int run(const RunOptions& opt) {
 
 }  // namespace
 
-void register_run_command(CLI::App& app) {
+void register_run_command(CLI::App& app, Actions& actions) {
   auto opt = std::make_shared<RunOptions>();
   auto* cmd = app.add_subcommand("run", "Run a scene locally and print its report");
   cmd->add_option("scene", opt->scene_path, "Scene file (JSON, see docs/scene-format.md)")->required();
@@ -152,7 +152,7 @@ void register_run_command(CLI::App& app) {
                   "Draw a figure: FILE (state figure) or KIND=FILE, KIND one of state, energy, step, phase; "
                   ".png through OSMesa or .svg");
   opt->figure_flags.add_to(cmd);
-  cmd->callback([opt] { exit_code() = run(*opt); });
+  actions[cmd] = [opt] { return run(*opt); };
 }
 
 }  // namespace moreau::cli

@@ -6,13 +6,13 @@
 
 namespace moreau::cli {
 
-void register_stress_command(CLI::App& app) {
+void register_stress_command(CLI::App& app, Actions& actions) {
   auto* cmd = app.add_subcommand("stress", "Run the stiff and extreme cases and check what the theory promises");
   auto filter = std::make_shared<std::string>();
   auto verbose = std::make_shared<bool>(false);
   cmd->add_option("--case", *filter, "Run only the cases whose name contains this");
   cmd->add_flag("-v,--verbose", *verbose, "Print each case's description and the theory it relies on");
-  cmd->callback([filter, verbose] {
+  actions[cmd] = [filter, verbose]() -> int {
     int failed = 0, ran = 0;
     for (const auto& c : scene::stress_cases()) {
       if (!filter->empty() && c.name.find(*filter) == std::string::npos) continue;
@@ -23,8 +23,8 @@ void register_stress_command(CLI::App& app) {
       failed += !o.failures.empty();
     }
     std::cout << ran - failed << " passed, " << failed << " failed" << std::endl;
-    exit_code() = failed ? 1 : 0;
-  });
+    return failed ? 1 : 0;
+  };
 }
 
 }  // namespace moreau::cli

@@ -65,7 +65,7 @@ int study(const StudyOptions& opt) {
 
 }  // namespace
 
-void register_study_command(CLI::App& app) {
+void register_study_command(CLI::App& app, Actions& actions) {
   auto opt = std::make_shared<StudyOptions>();
   auto* cmd = app.add_subcommand("study", "Error against run time and order of convergence over a ladder of step sizes");
   cmd->add_option("scene", opt->scene_path, "Scene file")->required();
@@ -81,7 +81,7 @@ void register_study_command(CLI::App& app) {
   cmd->add_option("--csv", opt->csv, "Write the table as CSV");
   cmd->add_option("--work", opt->work_png, "Write the work figure (error against run time) as PNG");
   cmd->add_option("--order", opt->order_png, "Write the order figure (error against h, fitted slope) as PNG");
-  cmd->callback([opt] { exit_code() = study(*opt); });
+  actions[cmd] = [opt] { return study(*opt); };
 }
 
 }  // namespace moreau::cli

@@ -212,7 +212,7 @@ int merge(const SweepOptions& opt) {
 
 }  // namespace
 
-void register_sweep_command(CLI::App& app) {
+void register_sweep_command(CLI::App& app, Actions& actions) {
   auto opt = std::make_shared<SweepOptions>();
   auto* cmd = app.add_subcommand("sweep", "Run a share of a parameter sweep (--shard i/N), or merge the shards (--merge DIR)");
   cmd->add_option("scene", opt->scene_path, "Scene file");
@@ -223,20 +223,20 @@ void register_sweep_command(CLI::App& app) {
   cmd->add_option("--merge", opt->merge_dir, "Merge the shard files in this directory");
   cmd->add_option("--csv", opt->merge_csv, "With --merge: write the table as CSV (default: stdout)");
   cmd->add_option("--json", opt->merge_json, "With --merge: write every point's report as one JSON document");
-  cmd->callback([opt] {
+  actions[cmd] = [opt]() -> int {
     try {
       if (!opt->merge_dir.empty()) {
-        exit_code() = merge(*opt);
+        return merge(*opt);
       } else {
         if (opt->scene_path.empty() || opt->vary.empty() || opt->out_dir.empty())
           throw std::runtime_error("a sweep needs SCENE, at least one --vary and --out DIR (or --merge DIR)");
-        exit_code() = run_shard(*opt);
+        return run_shard(*opt);
       }
     } catch (const std::exception& e) {
       std::cerr << "moreau sweep: " << e.what() << "\n";
-      exit_code() = 2;
+      return 2;
     }
-  });
+  };
 }
 
 }  // namespace moreau::cli

@@ -297,7 +297,7 @@ class Watcher {
 
 }  // namespace
 
-void register_watch_command(CLI::App& app) {
+void register_watch_command(CLI::App& app, Actions& actions) {
   auto o = std::make_shared<WatchOptions>();
   auto* cmd = app.add_subcommand("watch", "Show the live state of streaming jobs (LCM)");
   cmd->add_option("--lcm-url", o->lcm_url, "LCM URL (default: LCM_DEFAULT_URL, else LCM's default)");
@@ -308,7 +308,7 @@ void register_watch_command(CLI::App& app) {
   cmd->add_flag("--until-finished", o->until_finished, "Exit when a job has finished, failed or been cancelled");
   cmd->add_option("--timeout", o->timeout, "Stop after this many seconds (exit 1 with --until-finished if none finished)");
   cmd->add_flag("--plain", o->plain, "Lines instead of a table redrawn in place (the default when not on a terminal)");
-  cmd->callback([o] { exit_code() = Watcher(*o).run(); });
+  actions[cmd] = [o] { return Watcher(*o).run(); };
 }
 
 }  // namespace moreau::cli
