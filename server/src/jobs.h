@@ -39,7 +39,7 @@
 #include "moreau/scene/simulation.h"
 #include "storage.h"
 #include "moreau/scene/study.h"
-#include "moreau/server/server.h"
+#include "moreau/server/server_config.h"
 
 namespace moreau::server {
 
