@@ -5,8 +5,8 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "line_reader.h"
 #include "moreau/render/render.h"
+#include "moreau/render/trajectory_series.h"
 
 namespace moreau::cli {
 
@@ -101,62 +101,7 @@ void write_figure(const std::string& kind, const render::TimeSeriesData& input, 
 render::TimeSeriesData read_trajectory_csv(const std::string& path) {
   std::ifstream in(path);
   if (!in) throw std::runtime_error("cannot open '" + path + "'");
-  // A row holds at most 2 kMaxDof + 3 numbers (about 3 KB): a longer line is not a trajectory, and a
-  // file without line ends (/dev/zero) must not be read whole.
-  constexpr std::size_t kMaxLine = std::size_t{1} << 20;
-  auto next_line = [&](std::string& line, std::size_t row) {
-    return read_line(in, line, kMaxLine, "'" + path + "' line " + std::to_string(row), "1 MiB");
-  };
-  std::string line;
-  if (!next_line(line, 1)) throw std::runtime_error("'" + path + "' is empty");
-  std::vector<std::string> cols;
-  {
-    std::stringstream ss(line);
-    std::string c;
-    while (std::getline(ss, c, ',')) cols.push_back(c);
-  }
-  // t, h, q_1..q_n, v_1..v_n, energy (and possibly more columns after energy).
-  std::size_t energy_col = 0;
-  for (std::size_t i = 0; i < cols.size(); ++i)
-    if (cols[i] == "energy") energy_col = i;
-  if (cols.size() < 5 || cols[0] != "t" || cols[1] != "h" || energy_col < 4 || (energy_col - 2) % 2 != 0)
-    throw std::runtime_error("'" + path + "' is not a Moreau trajectory (header must be t,h,q...,v...,energy)");
-  const std::size_t n = (energy_col - 2) / 2;
-  render::TimeSeriesData data;
-  for (std::size_t i = 0; i < n; ++i) {
-    data.q_names.push_back(cols[2 + i]);
-    data.v_names.push_back(cols[2 + n + i]);
-  }
-  data.q.resize(n);
-  data.v.resize(n);
-  data.energy_label = "E = 1/2 <M v, v>";
-  std::size_t row = 1;
-  while (next_line(line, row + 1)) {
-    ++row;
-    if (line.empty()) continue;
-    std::vector<double> values;
-    std::stringstream ss(line);
-    std::string cell;
-    while (std::getline(ss, cell, ',')) {
-      char* end = nullptr;
-      const double v = std::strtod(cell.c_str(), &end);
-      if (end == cell.c_str() || *end != '\0' || !std::isfinite(v))
-        throw std::runtime_error("'" + path + "' line " + std::to_string(row) + ": '" + cell + "' is not a finite number");
-      values.push_back(v);
-    }
-    if (values.size() != cols.size())
-      throw std::runtime_error("'" + path + "' line " + std::to_string(row) + ": expected " + std::to_string(cols.size()) +
-                               " values, got " + std::to_string(values.size()));
-    data.t.push_back(values[0]);
-    data.h.push_back(values[1]);
-    for (std::size_t i = 0; i < n; ++i) {
-      data.q[i].push_back(values[2 + i]);
-      data.v[i].push_back(values[2 + n + i]);
-    }
-    data.energy.push_back(values[energy_col]);
-  }
-  if (data.t.empty()) throw std::runtime_error("'" + path + "' has no rows");
-  return data;
+  return render::time_series(scene::read_trajectory_csv(in, "'" + path + "'"));
 }
 
 }  // namespace moreau::cli

@@ -17,7 +17,7 @@
 #include <sstream>
 
 #include "commands.h"
-#include "line_reader.h"
+#include "moreau/scene/line_reader.h"
 #include "moreau/scene/simulation.h"
 
 namespace moreau::cli {
@@ -155,7 +155,7 @@ int merge(const SweepOptions& opt) {
     // Each line is parsed like a scene file: a syntax error or a number out of range is a SceneError
     // naming the file, the line and the JSON pointer.
     auto next = [&](std::string& line) {
-      return read_line(in, line, kMaxShardLine, file + " line " + std::to_string(line_no), "64 MiB");
+      return scene::read_line(in, line, kMaxShardLine, file + " line " + std::to_string(line_no), "64 MiB");
     };
     auto parse = [&](const std::string& line) { return scene::parse_json_text(line, file + " line " + std::to_string(line_no)); };
     std::string line;

@@ -3,8 +3,12 @@
 #include <cerrno>
 #include <charconv>
 #include <chrono>
+#include <cmath>
 #include <cstring>
 #include <stdexcept>
+#include <string_view>
+
+#include "moreau/scene/line_reader.h"
 
 namespace moreau::scene {
 namespace {
@@ -78,6 +82,71 @@ void TrajectoryCsvWriter::close() {
   file_ = nullptr;
   if (failed_ || !flushed || !closed)
     throw std::runtime_error("writing '" + path_ + "' failed: " + (error_ ? std::strerror(error_) : "unknown error"));
+}
+
+namespace {
+// The comma-separated cells of a line, as views into it.
+std::vector<std::string_view> cells_of(std::string_view line) {
+  std::vector<std::string_view> cells;
+  for (std::size_t start = 0;;) {
+    const std::size_t comma = line.find(',', start);
+    cells.push_back(line.substr(start, comma == std::string_view::npos ? std::string_view::npos : comma - start));
+    if (comma == std::string_view::npos) return cells;
+    start = comma + 1;
+  }
+}
+}  // namespace
+
+TrajectoryColumns read_trajectory_csv(std::istream& in, const std::string& source) {
+  constexpr std::size_t kMaxLine = std::size_t{1} << 20;
+  auto next_line = [&](std::string& line, std::size_t row) {
+    return read_line(in, line, kMaxLine, source + " line " + std::to_string(row), "1 MiB");
+  };
+  std::string line;
+  if (!next_line(line, 1)) throw std::runtime_error(source + " is empty");
+  std::vector<std::string> cols;
+  for (std::string_view c : cells_of(line)) cols.emplace_back(c);
+  // t, h, q_1..q_n, v_1..v_n, energy (and possibly more columns after energy).
+  std::size_t energy_col = 0;
+  for (std::size_t i = 0; i < cols.size(); ++i)
+    if (cols[i] == "energy") energy_col = i;
+  if (cols.size() < 5 || cols[0] != "t" || cols[1] != "h" || energy_col < 4 || (energy_col - 2) % 2 != 0)
+    throw std::runtime_error(source + " is not a Moreau trajectory (header must be t,h,q...,v...,energy)");
+  const std::size_t n = (energy_col - 2) / 2;
+  TrajectoryColumns data;
+  for (std::size_t i = 0; i < n; ++i) {
+    data.q_names.push_back(cols[2 + i]);
+    data.v_names.push_back(cols[2 + n + i]);
+  }
+  data.q.resize(n);
+  data.v.resize(n);
+  std::vector<double> values;
+  std::size_t row = 1;
+  while (next_line(line, row + 1)) {
+    ++row;
+    if (line.empty()) continue;
+    values.clear();
+    for (std::string_view cell : cells_of(line)) {
+      double v = 0.0;
+      const auto [end, ec] = std::from_chars(cell.data(), cell.data() + cell.size(), v);
+      if (ec != std::errc() || end != cell.data() + cell.size() || !std::isfinite(v))
+        throw std::runtime_error(source + " line " + std::to_string(row) + ": '" + std::string(cell.substr(0, 40)) +
+                                 "' is not a finite number");
+      values.push_back(v);
+    }
+    if (values.size() != cols.size())
+      throw std::runtime_error(source + " line " + std::to_string(row) + ": expected " + std::to_string(cols.size()) +
+                               " values, got " + std::to_string(values.size()));
+    data.t.push_back(values[0]);
+    data.h.push_back(values[1]);
+    for (std::size_t i = 0; i < n; ++i) {
+      data.q[i].push_back(values[2 + i]);
+      data.v[i].push_back(values[2 + n + i]);
+    }
+    data.energy.push_back(values[energy_col]);
+  }
+  if (data.t.empty()) throw std::runtime_error(source + " has no rows");
+  return data;
 }
 
 }  // namespace moreau::scene

@@ -1,17 +1,19 @@
 #include "figures.h"
 
+#include <istream>
 #include <stdexcept>
+#include <streambuf>
 
 #include <nlohmann/json.hpp>
 
 #include "moreau/scene/study.h"
 
-#include "trajectory.h"
 
 #ifdef MOREAU_SERVER_HAVE_RENDER
 #include "moreau/render/figures.h"
 #include "moreau/render/render.h"
 #include "moreau/render/study_figures.h"
+#include "moreau/render/trajectory_series.h"
 #endif
 
 namespace moreau::server {
@@ -26,25 +28,15 @@ bool figures_available() { return true; }
 
 std::vector<std::uint8_t> figure_png(std::string_view kind, std::string_view csv, std::optional<double> converged_time,
                                      int width, int height, const std::string& title) {
-  std::string error;
-  auto cols = trajectory_columns(csv, &error);
-  if (!cols) throw std::runtime_error(error);
-  const std::size_t c = cols->names.size();
-  if (c < 5 || cols->names[0] != "t" || cols->names[1] != "h" || cols->names[c - 1] != "energy" || (c - 3) % 2 != 0)
-    throw std::runtime_error("the trajectory does not have the columns t, h, q..., v..., energy");
-  if (cols->values[0].empty()) throw std::runtime_error("the trajectory has no rows");
-  const std::size_t n = (c - 3) / 2;
-  render::TimeSeriesData data;
-  data.t = std::move(cols->values[0]);
-  data.h = std::move(cols->values[1]);
-  for (std::size_t i = 0; i < n; ++i) {
-    data.q_names.push_back(cols->names[2 + i]);
-    data.v_names.push_back(cols->names[2 + n + i]);
-    data.q.push_back(std::move(cols->values[2 + i]));
-    data.v.push_back(std::move(cols->values[2 + n + i]));
-  }
-  data.energy = std::move(cols->values[c - 1]);
-  data.energy_label = "E = 1/2 <M v, v>";
+  // The stored CSV, read in place (no copy of what may be hundreds of megabytes).
+  struct ViewBuffer : std::streambuf {
+    explicit ViewBuffer(std::string_view s) {
+      char* p = const_cast<char*>(s.data());  // read only: a get area is never written through
+      setg(p, p, p + s.size());
+    }
+  } buffer(csv);
+  std::istream in(&buffer);
+  render::TimeSeriesData data = render::time_series(scene::read_trajectory_csv(in, "the stored trajectory"));
   data.converged_time = converged_time;
   render::FigureOptions opt;
   opt.width_px = width;

@@ -11,11 +11,6 @@
 
 namespace moreau::server {
 
-struct Columns {
-  std::vector<std::string> names;
-  std::vector<std::vector<double>> values;  // one vector per column
-};
-
 // Which rows of a stored trajectory a response carries: those with from <= t <= to, and of them every
 // `every`-th (the first, the every+1-th, ...).
 struct RowWindow {
@@ -50,8 +45,5 @@ class TrajectoryReader {
   bool started_ = false, column_open_ = false, first_in_column_ = true, finished_ = false;
   std::string line_;
 };
-
-// The columns as numbers. nullopt and *error if the CSV is malformed.
-std::optional<Columns> trajectory_columns(std::string_view csv, std::string* error);
 
 }  // namespace moreau::server

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdio>
+#include <istream>
 #include <string>
 #include <vector>
 
@@ -33,6 +34,19 @@ class TrajectoryCsvWriter : public RunObserver {
   int error_ = 0;  // errno of the first failed write
   double seconds_ = 0.0;
 };
+
+// A trajectory as TrajectoryCsvWriter writes it, read back: q[i] and v[i] hold coordinate i over time.
+struct TrajectoryColumns {
+  std::vector<std::string> q_names, v_names;
+  std::vector<double> t, h, energy;
+  std::vector<std::vector<double>> q, v;
+};
+
+// Reads a trajectory CSV: the header t,h,q_1..q_n,v_1..v_n,energy (columns after energy are ignored),
+// then rows of as many finite numbers. Lines are read with a bound (1 MiB; a row takes about 25 bytes
+// per value), so input without line ends (/dev/zero, a binary file) is refused, not read whole. Throws
+// std::runtime_error naming `source` and the line ("'traj.csv' line 3: 'x' is not a finite number").
+TrajectoryColumns read_trajectory_csv(std::istream& in, const std::string& source);
 
 // Runs several observers as one.
 class ObserverFan : public RunObserver {

@@ -7,7 +7,7 @@
 #include <stdexcept>
 #include <string>
 
-namespace moreau::cli {
+namespace moreau::scene {
 
 // Reads the next line of `in` into `line`, without its '\n'. Returns false at the end of the input.
 // Throws std::runtime_error ("<where> is longer than <limit>") once the line exceeds `max_bytes`;
@@ -29,4 +29,4 @@ inline bool read_line(std::istream& in, std::string& line, std::size_t max_bytes
   }
 }
 
-}  // namespace moreau::cli
+}  // namespace moreau::scene
