@@ -993,8 +993,11 @@ void Server::Impl::delete_job(const Request& req, Response& res, JobKind kind) {
     return send_error(res, 409, std::string(what) + " already finished", "",
                       std::string("the ") + what + " is " + to_string(state_of(*job)));
   }
-  // 200: cancelled now (it was queued); 202: cancelling, and cancelled once its run has stopped.
-  send_json(res, outcome == JobManager::Cancel::kCancelling ? 202 : 200, job_json(*job, nullptr));
+  // 200: cancelled (it was queued, or its run has already stopped); 202: cancelling, and cancelled once
+  // its run stops. The status is read off the same snapshot as the body: a run can stop between the
+  // cancel and the snapshot, and a 202 must never carry a final state.
+  const json body = job_json(*job, nullptr);
+  send_json(res, body.value("state", "") == "cancelling" ? 202 : 200, body);
 }
 
 void Server::Impl::job_events(const Request& req, Response& res, JobKind kind) {
