@@ -26,8 +26,8 @@ struct Result {
   std::string out;  // stdout and stderr together
 };
 
-Result Moreau(const std::string& args) {
-  const std::string cmd = std::string(MOREAU_BINARY) + " " + args + " 2>&1";
+// Runs a shell command line; its exit status (-1 for a signal) and its output.
+Result Shell(const std::string& cmd) {
   FILE* pipe = popen(cmd.c_str(), "r");
   std::string out;
   std::array<char, 4096> buf{};
@@ -35,6 +35,8 @@ Result Moreau(const std::string& args) {
   const int rc = pclose(pipe);
   return {WIFEXITED(rc) ? WEXITSTATUS(rc) : -1, out};
 }
+
+Result Moreau(const std::string& args) { return Shell(std::string(MOREAU_BINARY) + " " + args + " 2>&1"); }
 
 const std::string kScene = std::string(MOREAU_SOURCE_DIR) + "/scenes/manipulator.json";
 
@@ -197,13 +199,7 @@ Result MoreauBounded(const std::string& args, const std::string& before = "") {
 #else
   const std::string limits = "ulimit -v 4000000; timeout 60 ";
 #endif
-  const std::string cmd = before + limits + std::string(MOREAU_BINARY) + " " + args + " 2>&1";
-  FILE* pipe = popen(cmd.c_str(), "r");
-  std::string out;
-  std::array<char, 4096> buf{};
-  while (std::size_t n = std::fread(buf.data(), 1, buf.size(), pipe)) out.append(buf.data(), n);
-  const int rc = pclose(pipe);
-  return {WIFEXITED(rc) ? WEXITSTATUS(rc) : -1, out};
+  return Shell(before + limits + std::string(MOREAU_BINARY) + " " + args + " 2>&1");
 }
 
 // The files the bad-input table refers to as {tmp}/...
