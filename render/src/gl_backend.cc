@@ -381,7 +381,7 @@ class Batcher {
 
 }  // namespace
 
-Image rasterize(const Scene& scene) {
+Image rasterize_with_opengl(const Scene& scene) {
   Image image;
   image.width = scene.width;
   image.height = scene.height;
@@ -450,3 +450,10 @@ Image rasterize(const Scene& scene) {
 }
 
 }  // namespace moreau::render::detail
+
+// The entry point the loader (gl_loader.cc) looks up: this file is built as its own shared module, so
+// that OSMesa and LLVM are loaded only by a process that draws a PNG.
+extern "C" __attribute__((visibility("default"))) void moreau_render_gl_rasterize(const moreau::render::detail::Scene* scene,
+                                                                                 moreau::render::Image* image) {
+  *image = moreau::render::detail::rasterize_with_opengl(*scene);
+}
