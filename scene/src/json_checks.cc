@@ -1,12 +1,20 @@
 #include "json_checks.h"
 
 #include <algorithm>
+#include <sstream>
 
 #include "moreau/scene/scene.h"
 
 namespace moreau::scene::detail {
 
 using nlohmann::json;
+
+std::string format(double v) {
+  std::ostringstream os;
+  os.precision(12);
+  os << v;
+  return os.str();
+}
 
 std::string type_name(const json& j) {
   if (j.is_null()) return "null";

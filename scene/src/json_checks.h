@@ -9,6 +9,8 @@
 
 namespace moreau::scene::detail {
 
+// A number as error messages quote it (12 significant digits).
+std::string format(double v);
 // "a number", "an array", ...: what a JSON value is, for error messages.
 std::string type_name(const nlohmann::json& j);
 std::string join(const std::vector<std::string>& items);
