@@ -322,7 +322,7 @@ TEST(Hostile, SlowHeadersAndBodiesAreCutAtTheirDeadlines) {
   cfg.header_timeout_ms = 300;
   cfg.body_timeout_ms = 300;
   TestServer ts(cfg);
-  for (const std::string start : {std::string("GET /heal"), post_head("/v1/jobs", "Content-Length: 100\r\n") + "{"}) {
+  for (const std::string& start : {std::string("GET /heal"), post_head("/v1/jobs", "Content-Length: 100\r\n") + "{"}) {
     const int fd = connect_from(1, ts.port());
     const auto t0 = Clock::now();
     moreau::server::testing::send_all(fd, start);

@@ -44,6 +44,7 @@
 #include "moreau/core/observer.h"
 #include "moreau/core/one_step_solver.h"
 #include "moreau/core/run_summary.h"
+#include "moreau/core/stepping_driver.h"
 #include "moreau/core/types.h"
 
 namespace moreau {
@@ -67,18 +68,6 @@ struct AblSettings {
   std::int64_t max_steps = 2'000'000'000;
   std::int64_t output_every = 1;  // call the observer every this many steps
 };
-
-// The number of steps the fixed rule takes: t_end - t0 = N h up to round-off, else ceil. Saturates at
-// INT64_MAX for counts beyond 9e18 (and for NaN), and is 0 for an empty or reversed interval: converting a
-// double at or beyond 2^63 to int64 is undefined behaviour, so the range is checked in double first.
-inline std::int64_t fixed_step_count(double t0, double t_end, double h) {
-  const double ratio = (t_end - t0) / h;
-  if (!(ratio < 9e18)) return std::numeric_limits<std::int64_t>::max();
-  if (!(ratio > 0.0)) return 0;
-  const double nearest = std::round(ratio);
-  if (std::abs(ratio - nearest) <= 1e-9 * std::max(1.0, ratio)) return static_cast<std::int64_t>(nearest);
-  return static_cast<std::int64_t>(std::ceil(ratio));
-}
 
 template <class Model>
 class AblIntegrator {
@@ -107,62 +96,45 @@ class AblIntegrator {
   // converged, non-finite state, step rule impossible) ends the run with RunStatus::kFailed and the last
   // good state, which is all the observer has seen.
   RunSummary run(const Vec<N>& q0, const Vec<N>& v0, RunObserver* observer = nullptr) {
-    const auto clock_start = std::chrono::steady_clock::now();
-    RunSummary s;
     const int n = model_.dof();
+    RunRecorder rec(observer, settings_.output_every, n);
+    RunSummary& s = rec.summary();
     Vec<N> q = q0, v = v0;
     double t = settings_.t0;
     std::int64_t k = 0;
-    const std::int64_t every = std::max<std::int64_t>(1, settings_.output_every);
 
     model_.evaluate(t, q, v, terms_);
     Mv_.noalias() = terms_.M * v;
     double energy = 0.5 * v.dot(Mv_);
-    s.energy_initial = energy;
+    rec.start(t, energy, (v.array() == 0.0).all());
     // Allowance for round-off in E_k itself: a few ulps of the run's energy scale.
     const auto energy_tol = [&](double e) { return 64.0 * std::numeric_limits<double>::epsilon() * std::max(e, s.energy_initial); };
-
-    std::int64_t rest_from = (v.array() == 0.0).all() ? 0 : -1;
-    double rest_time = t;
-    s.h_min = std::numeric_limits<double>::infinity();
-    s.h_max = 0.0;
-
-    auto emit = [&](double h_used) {
-      if (observer) observer->on_sample(Sample{k, t, h_used, n, q.data(), v.data(), energy});
-    };
     if (!terms_.M.allFinite() || !terms_.C.allFinite() || !terms_.g.allFinite()) {
-      return fail(s, q, v, t, k, clock_start, "model terms are not finite at the initial state");
+      return rec.fail(k, t, q.data(), v.data(), "model terms are not finite at the initial state");
     }
-    emit(settings_.h);
+    rec.first_sample(t, settings_.h, q.data(), v.data(), energy);
 
     const bool fixed = settings_.step_rule == StepRule::kFixed;
-    const std::int64_t fixed_steps = fixed ? fixed_step_count(settings_.t0, settings_.t_end, settings_.h) : 0;
-    if (fixed && fixed_steps > settings_.max_steps) {
-      return fail(s, q, v, t, k, clock_start, "the step count exceeds max_steps");
-    }
-    // The last fixed step lands on t_end; it is h itself when t_end - t0 is a whole number of steps.
-    const double span = settings_.t_end - settings_.t0;
-    const double remainder = span - static_cast<double>(fixed_steps - 1) * settings_.h;
-    const double last_fixed_h = std::abs(remainder - settings_.h) <= 1e-9 * settings_.h ? settings_.h : remainder;
+    const FixedTimeGrid grid(settings_.t0, settings_.t_end, settings_.h);
+    if (fixed && grid.steps > settings_.max_steps) return rec.fail(k, t, q.data(), v.data(), "the step count exceeds max_steps");
     double h_prev = settings_.h;
-    std::int64_t last_emitted = 0;
     double h_k = settings_.h;
 
     while (true) {
       if (fixed) {
-        if (k >= fixed_steps) break;
-        h_k = (k + 1 == fixed_steps) ? last_fixed_h : settings_.h;
+        if (k >= grid.steps) break;
+        h_k = grid.step(k);
       } else {
         if (t >= settings_.t_end) break;
-        if (k >= settings_.max_steps) return fail(s, q, v, t, k, clock_start, "max_steps reached before t_end");
+        if (k >= settings_.max_steps) return rec.fail(k, t, q.data(), v.data(), "max_steps reached before t_end");
         std::string why;
-        if (!adaptive_step(q, v, h_prev, h_k, why)) return fail(s, q, v, t, k, clock_start, why);
+        if (!adaptive_step(q, v, h_prev, h_k, why)) return rec.fail(k, t, q.data(), v.data(), why);
         // Land on t_end: shorten the last step, or stretch it by at most 1e-9 relative rather than
         // leave a sliver of round-off (t accumulates the h_k).
         const double remaining = settings_.t_end - t;
         if (h_k * (1.0 + 1e-9) >= remaining) h_k = remaining;
         if (!(h_k > 0.0) || h_k < 1e-15 * std::max(1.0, std::abs(settings_.t_end))) {
-          return fail(s, q, v, t, k, clock_start, "the step size collapsed below 1e-15 t_end");
+          return rec.fail(k, t, q.data(), v.data(), "the step size collapsed below 1e-15 t_end");
         }
       }
 
@@ -179,106 +151,55 @@ class AblIntegrator {
         explicit_velocity(v, h_k);
         st.iterations = 1;  // one linear solve with M
       } else if (!solver_.solve(P_, x_, y_, st)) {
-        return fail(s, q, v, t, k, clock_start,
-                    "the one-step inclusion (6.5) was not solved to round-off (residual " +
-                        std::to_string(st.residual) + ", tolerance " + std::to_string(st.tolerance) + ")");
+        return rec.fail(k, t, q.data(), v.data(),
+                        "the one-step inclusion (6.5) was not solved to round-off (residual " +
+                            std::to_string(st.residual) + ", tolerance " + std::to_string(st.tolerance) + ")");
       }
-      s.solver.total_iterations += st.iterations;
-      s.solver.max_iterations = std::max(s.solver.max_iterations, st.iterations);
-      s.solver.max_residual = std::max(s.solver.max_residual, st.residual);
-      s.solver.fallback_steps += st.used_fallback;
-      s.solver.rest_steps += (st.iterations == 0);
+      rec.solver_step(st.iterations, st.residual, st.used_fallback);
+      s.solver.rest_steps += (st.iterations == 0);  // the y = 0 closed form of Lemma 6.1
 
       q += h_k * v;  // Q^{k+1} = Q^k + h_k V^k: explicit in position
       v = y_;
       ++k;
-      t = fixed ? (k == fixed_steps ? settings_.t_end : settings_.t0 + static_cast<double>(k) * settings_.h)
-                : t + h_k;
+      t = fixed ? grid.time(k) : t + h_k;
       h_prev = h_k;
-      s.h_min = std::min(s.h_min, h_k);
-      s.h_max = std::max(s.h_max, h_k);
+      rec.step_taken(h_k);
       if (!q.allFinite() || !v.allFinite()) {
-        return fail(s, q, v, t, k, clock_start, "the state became non-finite");
+        return rec.fail(k, t, q.data(), v.data(), "the state became non-finite");
       }
-      if ((v.array() != 0.0).any()) {
-        rest_from = -1;
-      } else if (rest_from < 0) {
-        rest_from = k;
-        rest_time = t;
-      }
+      rec.rest((v.array() == 0.0).all(), k, t);
 
       model_.evaluate(t, q, v, terms_);
       if (!terms_.M.allFinite() || !terms_.C.allFinite() || !terms_.g.allFinite()) {
-        return fail(s, q, v, t, k, clock_start, "model terms are not finite (an expression left its domain)");
+        return rec.fail(k, t, q.data(), v.data(), "model terms are not finite (an expression left its domain)");
       }
       Mv_.noalias() = terms_.M * v;
       const double e_new = 0.5 * v.dot(Mv_);
-      const double rise = e_new - energy;
-      if (rise > energy_tol(energy)) {
-        ++s.energy_increases;
-        s.energy_max_increase = std::max(s.energy_max_increase, rise);
-      }
+      rec.energy_step(energy, e_new, energy_tol(energy));
       energy = e_new;
 
-      if (k % every == 0) {
-        emit(h_k);
-        last_emitted = k;
-      }
-      if (observer && k % RunObserver::kControlInterval == 0 && !observer->keep_going(k, t)) {
-        finish(s, q, v, t, k, energy, rest_from, rest_time);
-        s.status = RunStatus::kCancelled;
-        s.message = "cancelled at step " + std::to_string(k);
-        s.add_phase("integrate", seconds_since(clock_start));
-        return s;
+      if (!rec.after_step(k, t, h_k, q.data(), v.data(), energy)) {
+        finish(rec, q, v, t, k, energy);
+        return rec.cancelled(k);
       }
     }
-    if (last_emitted != k) emit(h_k);
-    finish(s, q, v, t, k, energy, rest_from, rest_time);
-    s.add_phase("integrate", seconds_since(clock_start));
-    return s;
+    rec.last_sample(k, t, h_k, q.data(), v.data(), energy);
+    finish(rec, q, v, t, k, energy);
+    return rec.close();
   }
 
  private:
-  static double seconds_since(std::chrono::steady_clock::time_point start) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  }
-
-  void finish(RunSummary& s, const Vec<N>& q, const Vec<N>& v, double t, std::int64_t k, double energy,
-              std::int64_t rest_from, double rest_time) {
-    s.steps = k;
-    s.t_final = t;
-    s.q_final.assign(q.data(), q.data() + q.size());
-    s.v_final.assign(v.data(), v.data() + v.size());
-    s.energy_final = energy;
-    s.energy_nonincreasing = s.energy_increases == 0;
-    if (rest_from >= 0) {
-      s.converged_step = rest_from;
-      s.converged_time = rest_time;
-    }
-    if (k == 0) s.h_min = s.h_max = 0.0;
-    // Theorem 4.3's equilibrium inclusion at the final position: -F(t, Q, 0) - grad V(Q) in dPhi(0).
+  // The summary of a run that ended, and Theorem 4.3's equilibrium inclusion at its final position:
+  // -F(t, Q, 0) - grad V(Q) in dPhi(0).
+  void finish(RunRecorder& rec, const Vec<N>& q, const Vec<N>& v, double t, std::int64_t k, double energy) {
+    rec.finish(k, t, q.data(), v.data(), energy);
+    RunSummary& s = rec.summary();
     model_.evaluate(t, q, zero_, terms_);
     const Vec<N> z = -terms_.g;
     const Controller<N>& phi = model_.controller();
     s.equilibrium.evaluated = z.allFinite();
     s.equilibrium.residual = phi.distance_to_subdifferential_at_zero(z);
     s.equilibrium.interior = phi.in_interior_of_subdifferential_at_zero(z);
-  }
-
-  RunSummary fail(RunSummary& s, const Vec<N>& q, const Vec<N>& v, double t, std::int64_t k,
-                  std::chrono::steady_clock::time_point start, const std::string& why) {
-    // Report the last state the observer saw as good; never a non-finite one.
-    s.steps = k;
-    s.t_final = t;
-    if (q.allFinite()) s.q_final.assign(q.data(), q.data() + q.size());
-    if (v.allFinite()) s.v_final.assign(v.data(), v.data() + v.size());
-    s.energy_nonincreasing = s.energy_increases == 0;
-    s.status = RunStatus::kFailed;
-    char where[96];
-    std::snprintf(where, sizeof where, "step %lld (t = %.17g): ", static_cast<long long>(k), t);
-    s.message = where + why;
-    s.add_phase("integrate", seconds_since(start));
-    return s;
   }
 
   // The explicit peer's velocity update (see VelocityUpdate::kExplicit) into y_.

@@ -44,12 +44,12 @@
 #include <string>
 #include <vector>
 
-#include "moreau/core/abl_integrator.h"  // fixed_step_count
 #include "moreau/core/graph_inclusion_solver.h"
 #include "moreau/core/maximal_monotone_graph.h"
 #include "moreau/core/observer.h"
 #include "moreau/core/run_diagnostics.h"
 #include "moreau/core/run_summary.h"
+#include "moreau/core/stepping_driver.h"
 #include "moreau/core/types.h"
 
 namespace moreau {
@@ -112,8 +112,7 @@ class LureIntegrator {
   }
 
   RunSummary run(const Vec<N>& x0, RunObserver* observer = nullptr, LureDiagnostics* diag = nullptr) {
-    const auto clock_start = std::chrono::steady_clock::now();
-    RunSummary s;
+    RunRecorder rec(observer, settings_.output_every, n_);
     LureDiagnostics local;
     LureDiagnostics& d = diag ? *diag : local;
     d = LureDiagnostics{};
@@ -123,36 +122,24 @@ class LureIntegrator {
     Vec<N> x = x0;
     double t = settings_.t0;
     std::int64_t k = 0;
-    const std::int64_t every = std::max<std::int64_t>(1, settings_.output_every);
-    const std::int64_t steps = fixed_step_count(settings_.t0, settings_.t_end, settings_.h);
-    if (steps > settings_.max_steps) return fail(s, d, x, t, k, clock_start, "the step count exceeds max_steps");
-    const double span = settings_.t_end - settings_.t0;
-    const double remainder = span - static_cast<double>(steps - 1) * settings_.h;
-    const double last_h = std::abs(remainder - settings_.h) <= 1e-9 * settings_.h ? settings_.h : remainder;
+    const FixedTimeGrid grid(settings_.t0, settings_.t_end, settings_.h);
+    const std::int64_t steps = grid.steps;
+    if (steps > settings_.max_steps) return fail(rec, d, x, t, k, "the step count exceeds max_steps");
     prepare(settings_.h, main_);
-    prepare(last_h, last_);
+    prepare(grid.last_h, last_);
 
     // Row 0: y_0 = C x_0, w_0 the least-norm element of d phi(y_0).
     u_.noalias() = C_ * x;
     for (int i = 0; i < m_; ++i) w_(i) = graphs_[i].least_norm_value(u_(i));
-    if (!w_.allFinite()) return fail(s, d, x, t, k, clock_start, "C x0 is outside the domain of d phi (Lemma 1 needs C x(0) in dom d phi)");
+    if (!w_.allFinite()) return fail(rec, d, x, t, k, "C x0 is outside the domain of d phi (Lemma 1 needs C x(0) in dom d phi)");
     v_.noalias() = A_ * x - B_ * w_;
     double energy = storage(x);
-    s.energy_initial = energy;
+    rec.start(t, energy, (x.array() == 0.0).all());
     if (P_) d.storage.start(energy);
     std::vector<std::int64_t>& rest = d.output_rest_step;
     for (int i = 0; i < m_; ++i)
       if (u_(i) == 0.0) rest[i] = 0;
-    std::int64_t x_rest = (x.array() == 0.0).all() ? 0 : -1;
-    double x_rest_time = t;
-    s.h_min = std::numeric_limits<double>::infinity();
-    s.h_max = 0.0;
-
-    auto emit = [&](double h_used) {
-      if (observer) observer->on_sample(Sample{k, t, h_used, n_, x.data(), v_.data(), energy});
-    };
-    emit(settings_.h);
-    std::int64_t last_emitted = 0;
+    rec.first_sample(t, settings_.h, x.data(), v_.data(), energy);
     double h_k = settings_.h;
 
     while (k < steps) {
@@ -166,22 +153,18 @@ class LureIntegrator {
         char buf[160];
         std::snprintf(buf, sizeof buf, "the one-step generalized equation was not solved to round-off (residual %.3g, tolerance %.3g)",
                       st.residual, st.tolerance);
-        return fail(s, d, x, t, k, clock_start, buf);
+        return fail(rec, d, x, t, k, buf);
       }
-      s.solver.total_iterations += st.iterations;
-      s.solver.max_iterations = std::max(s.solver.max_iterations, st.iterations);
-      s.solver.max_residual = std::max(s.solver.max_residual, st.residual);
-      s.solver.fallback_steps += st.used_fallback;
+      rec.solver_step(st.iterations, st.residual, st.used_fallback);
 
       xn_.noalias() = xf_ - sm.G * w_;
       polish(xn_);
       v_ = (xn_ - x) / h_k;
       x = xn_;
       ++k;
-      t = last ? settings_.t_end : settings_.t0 + static_cast<double>(k) * settings_.h;
-      s.h_min = std::min(s.h_min, h_k);
-      s.h_max = std::max(s.h_max, h_k);
-      if (!x.allFinite()) return fail(s, d, x, t, k, clock_start, "the state became non-finite");
+      t = grid.time(k);
+      rec.step_taken(h_k);
+      if (!x.allFinite()) return fail(rec, d, x, t, k, "the state became non-finite");
 
       for (int i = 0; i < m_; ++i) {
         if (u_(i) != 0.0) {
@@ -191,36 +174,20 @@ class LureIntegrator {
           d.output_rest_time[i] = t;
         }
       }
-      if ((x.array() != 0.0).any()) {
-        x_rest = -1;
-      } else if (x_rest < 0) {
-        x_rest = k;
-        x_rest_time = t;
-      }
+      rec.rest((x.array() == 0.0).all(), k, t);
       const double e_new = storage(x);
       if (P_) d.storage.step(k, t, e_new, storage_allowance(x, energy));
-      if (e_new - energy > storage_allowance(x, energy)) {
-        ++s.energy_increases;
-        s.energy_max_increase = std::max(s.energy_max_increase, e_new - energy);
-      }
+      rec.energy_step(energy, e_new, storage_allowance(x, energy));
       energy = e_new;
 
-      if (k % every == 0) {
-        emit(h_k);
-        last_emitted = k;
-      }
-      if (observer && k % RunObserver::kControlInterval == 0 && !observer->keep_going(k, t)) {
-        finish(s, d, x, t, k, energy, x_rest, x_rest_time);
-        s.status = RunStatus::kCancelled;
-        s.message = "cancelled at step " + std::to_string(k);
-        s.add_phase("integrate", seconds_since(clock_start));
-        return s;
+      if (!rec.after_step(k, t, h_k, x.data(), v_.data(), energy)) {
+        finish(rec, d, x, t, k, energy);
+        return rec.cancelled(k);
       }
     }
-    if (last_emitted != k) emit(h_k);
-    finish(s, d, x, t, k, energy, x_rest, x_rest_time);
-    s.add_phase("integrate", seconds_since(clock_start));
-    return s;
+    rec.last_sample(k, t, h_k, x.data(), v_.data(), energy);
+    finish(rec, d, x, t, k, energy);
+    return rec.close();
   }
 
  private:
@@ -264,43 +231,19 @@ class LureIntegrator {
     return 64.0 * std::numeric_limits<double>::epsilon() * std::max(pn * x.squaredNorm(), std::abs(w_old));
   }
 
-  static double seconds_since(std::chrono::steady_clock::time_point start) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  }
-
-  void finish(RunSummary& s, LureDiagnostics& d, const Vec<N>& x, double t, std::int64_t k, double energy,
-              std::int64_t x_rest, double x_rest_time) {
-    s.steps = k;
-    s.t_final = t;
-    s.q_final.assign(x.data(), x.data() + x.size());
-    s.v_final.assign(v_.data(), v_.data() + v_.size());
-    s.energy_final = energy;
-    s.energy_nonincreasing = s.energy_increases == 0;
-    if (x_rest >= 0) {
-      s.converged_step = x_rest;
-      s.converged_time = x_rest_time;
-    }
-    if (k == 0) s.h_min = s.h_max = 0.0;
+  void finish(RunRecorder& rec, LureDiagnostics& d, const Vec<N>& x, double t, std::int64_t k, double energy) {
+    rec.finish(k, t, x.data(), v_.data(), energy);
     d.y_final.assign(u_.data(), u_.data() + u_.size());
     d.y_l_final.assign(w_.data(), w_.data() + w_.size());
     for (int i = 0; i < m_; ++i)
       if (d.output_rest_step[i] < 0) d.output_rest_time[i] = 0.0;
   }
 
-  RunSummary fail(RunSummary& s, LureDiagnostics& d, const Vec<N>& x, double t, std::int64_t k,
-                  std::chrono::steady_clock::time_point start, const std::string& why) {
-    s.steps = k;
-    s.t_final = t;
-    if (x.allFinite()) s.q_final.assign(x.data(), x.data() + x.size());
-    s.energy_nonincreasing = s.energy_increases == 0;
-    s.status = RunStatus::kFailed;
-    char where[96];
-    std::snprintf(where, sizeof where, "step %lld (t = %.17g): ", static_cast<long long>(k), t);
-    s.message = where + why;
-    s.add_phase("integrate", seconds_since(start));
+  // A failed run: the recorder's summary (the state x, no velocity) and the last outputs.
+  RunSummary fail(RunRecorder& rec, LureDiagnostics& d, const Vec<N>& x, double t, std::int64_t k, const std::string& why) {
     d.y_final.assign(u_.data(), u_.data() + u_.size());
     d.y_l_final.assign(w_.data(), w_.data() + w_.size());
-    return s;
+    return rec.fail(k, t, x.data(), nullptr, why);
   }
 
   Mat<N> A_;

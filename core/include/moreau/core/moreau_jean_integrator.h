@@ -59,13 +59,13 @@
 #include <string>
 #include <vector>
 
-#include "moreau/core/abl_integrator.h"  // fixed_step_count
 #include "moreau/core/controller.h"
 #include "moreau/core/graph_inclusion_solver.h"
 #include "moreau/core/maximal_monotone_graph.h"
 #include "moreau/core/observer.h"
 #include "moreau/core/run_diagnostics.h"
 #include "moreau/core/run_summary.h"
+#include "moreau/core/stepping_driver.h"
 #include "moreau/core/types.h"
 
 namespace moreau {
@@ -188,8 +188,8 @@ class MoreauJeanIntegrator {
   }
 
   RunSummary run(const Vec<N>& q0, const Vec<N>& v0, RunObserver* observer = nullptr, ContactDiagnostics* diag = nullptr) {
-    const auto clock_start = std::chrono::steady_clock::now();
-    RunSummary s;
+    RunRecorder rec(observer, settings_.output_every, n_);
+    RunSummary& s = rec.summary();
     ContactDiagnostics local;
     ContactDiagnostics& d = diag ? *diag : local;
     d = ContactDiagnostics{};
@@ -203,38 +203,25 @@ class MoreauJeanIntegrator {
     Vec<N> q = q0, v = v0;
     double t = settings_.t0;
     std::int64_t k = 0;
-    const std::int64_t every = std::max<std::int64_t>(1, settings_.output_every);
-    if (norm_gain_ > 0.0) return fail(s, q, v, t, k, clock_start, "the norm controller term is not supported by the moreau-jean scheme");
-    const std::int64_t steps = fixed_step_count(settings_.t0, settings_.t_end, settings_.h);
-    if (steps > settings_.max_steps) return fail(s, q, v, t, k, clock_start, "the step count exceeds max_steps");
-    const double span = settings_.t_end - settings_.t0;
-    const double remainder = span - static_cast<double>(steps - 1) * settings_.h;
-    const double last_h = std::abs(remainder - settings_.h) <= 1e-9 * settings_.h ? settings_.h : remainder;
+    if (norm_gain_ > 0.0) return rec.fail(k, t, q.data(), v.data(), "the norm controller term is not supported by the moreau-jean scheme");
+    const FixedTimeGrid grid(settings_.t0, settings_.t_end, settings_.h);
+    const std::int64_t steps = grid.steps;
+    if (steps > settings_.max_steps) return rec.fail(k, t, q.data(), v.data(), "the step count exceeds max_steps");
 
     model_.evaluate(t, q, v, terms_);
     if (!terms_.M.allFinite() || !terms_.C.allFinite() || !terms_.g.allFinite())
-      return fail(s, q, v, t, k, clock_start, "model terms are not finite at the initial state");
+      return rec.fail(k, t, q.data(), v.data(), "model terms are not finite at the initial state");
     if (nc_ > 0) model_.constraints(q, gap_, H_);
     note_gaps(d, t);
     double kinetic = 0.5 * v.dot(terms_.M * v);
     double potential = d.potential_known ? model_.potential(q) : 0.0;
-    s.energy_initial = kinetic;
+    rec.start(t, kinetic, (v.array() == 0.0).all());
     d.lagrange_dirichlet.start(kinetic + potential);
-    std::int64_t rest_from = (v.array() == 0.0).all() ? 0 : -1;
-    double rest_time = t;
-    s.h_min = std::numeric_limits<double>::infinity();
-    s.h_max = 0.0;
-
-    auto emit = [&](double h_used) {
-      if (observer) observer->on_sample(Sample{k, t, h_used, n_, q.data(), v.data(), kinetic});
-    };
-    emit(settings_.h);
-    std::int64_t last_emitted = 0;
+    rec.first_sample(t, settings_.h, q.data(), v.data(), kinetic);
     double h = settings_.h;
 
     while (k < steps) {
-      const bool last = (k + 1 == steps);
-      h = last ? last_h : settings_.h;
+      h = grid.step(k);
 
       // Free velocity: Wm V_free = M V^k - h g.
       Wm_ = terms_.M;
@@ -286,12 +273,9 @@ class MoreauJeanIntegrator {
           std::snprintf(buf, sizeof buf,
                         "the one-step complementarity problem was not solved to round-off (residual %.3g, tolerance %.3g)",
                         st.residual, st.tolerance);
-          return fail(s, q, v, t, k, clock_start, buf);
+          return rec.fail(k, t, q.data(), v.data(), buf);
         }
-        s.solver.total_iterations += st.iterations;
-        s.solver.max_iterations = std::max(s.solver.max_iterations, st.iterations);
-        s.solver.max_residual = std::max(s.solver.max_residual, st.residual);
-        s.solver.fallback_steps += st.used_fallback;
+        rec.solver_step(st.iterations, st.residual, st.used_fallback);
         vn_ = vf_;
         for (int j = 0; j < m_; ++j)
           if (w_(j) != 0.0) vn_ -= w_(j) * Y_.col(j);
@@ -324,7 +308,7 @@ class MoreauJeanIntegrator {
           if (restitution_[i] > 0.0) rows_[rebounds++] = i;  // U+ = -e U- != 0: the rebounding contacts
         }
         if (impacts_now > 0 || (rebounds > 0 && settings_.position_update == PositionUpdate::kMdi)) mlu_.compute(terms_.M);
-        if (impacts_now > 0) record_impacts(d, k + 1, last ? settings_.t_end : settings_.t0 + static_cast<double>(k + 1) * settings_.h, impacts_now);
+        if (impacts_now > 0) record_impacts(d, k + 1, grid.time(k + 1), impacts_now);
         if (rebounds > 0 && settings_.position_update == PositionUpdate::kMdi) {
           // V_pos = V^{k+1} - M^{-1} H_R^T (H_R M^{-1} H_R^T)^{-1} U_R^{k+1}.
           for (int a = 0; a < rebounds; ++a) {
@@ -336,7 +320,7 @@ class MoreauJeanIntegrator {
             s_(a) = Un_(rows_[a]);
           }
           if (!detail::solve_small_in_place(S_, s_, rebounds))
-            return fail(s, q, v, t, k, clock_start, "the gradients of the rebounding contacts are dependent");
+            return rec.fail(k, t, q.data(), v.data(), "the gradients of the rebounding contacts are dependent");
           for (int a = 0; a < rebounds; ++a) vpos_ -= s_(a) * Z_.col(a);
         }
       }
@@ -344,15 +328,14 @@ class MoreauJeanIntegrator {
 
       qn_ = q + h * vpos_;
       ++k;
-      t = last ? settings_.t_end : settings_.t0 + static_cast<double>(k) * settings_.h;
-      s.h_min = std::min(s.h_min, h);
-      s.h_max = std::max(s.h_max, h);
-      if (!qn_.allFinite() || !vn_.allFinite()) return fail(s, q, v, t, k, clock_start, "the state became non-finite");
+      t = grid.time(k);
+      rec.step_taken(h);
+      if (!qn_.allFinite() || !vn_.allFinite()) return rec.fail(k, t, q.data(), v.data(), "the state became non-finite");
 
       if (nc_ > 0) {
         model_.constraints(qn_, gap_, H_);
         if (settings_.correct_positions && gap_.minCoeff() < 0.0) {
-          if (!correct(d, qn_)) return fail(s, q, v, t, k, clock_start, "the position correction did not converge");
+          if (!correct(d, qn_)) return rec.fail(k, t, q.data(), v.data(), "the position correction did not converge");
         }
       }
       q = qn_;
@@ -368,51 +351,32 @@ class MoreauJeanIntegrator {
           d.settle_time[i] = t;
         }
       }
-      if ((v.array() != 0.0).any()) {
-        rest_from = -1;
-      } else if (rest_from < 0) {
-        rest_from = k;
-        rest_time = t;
-      }
+      rec.rest((v.array() == 0.0).all(), k, t);
 
       model_.evaluate(t, q, v, terms_);
       if (!terms_.M.allFinite() || !terms_.C.allFinite() || !terms_.g.allFinite())
-        return fail(s, q, v, t, k, clock_start, "model terms are not finite (an expression left its domain)");
+        return rec.fail(k, t, q.data(), v.data(), "model terms are not finite (an expression left its domain)");
       note_gaps(d, t);
       const double kin_new = 0.5 * v.dot(terms_.M * v);
       const double pot_new = d.potential_known ? model_.potential(q) : 0.0;
       const double allowance = 64.0 * std::numeric_limits<double>::epsilon() *
                                (kinetic + std::abs(potential) + kin_new + std::abs(pot_new));
       d.lagrange_dirichlet.step(k, t, kin_new + pot_new, allowance);
-      if (kin_new - kinetic > 64.0 * std::numeric_limits<double>::epsilon() * std::max(kin_new, s.energy_initial)) {
-        ++s.energy_increases;
-        s.energy_max_increase = std::max(s.energy_max_increase, kin_new - kinetic);
-      }
+      rec.energy_step(kinetic, kin_new, 64.0 * std::numeric_limits<double>::epsilon() * std::max(kin_new, s.energy_initial));
       kinetic = kin_new;
       potential = pot_new;
 
-      if (k % every == 0) {
-        emit(h);
-        last_emitted = k;
-      }
-      if (observer && k % RunObserver::kControlInterval == 0 && !observer->keep_going(k, t)) {
-        finish(s, d, q, v, t, k, kinetic, rest_from, rest_time);
-        s.status = RunStatus::kCancelled;
-        s.message = "cancelled at step " + std::to_string(k);
-        s.add_phase("integrate", seconds_since(clock_start));
-        return s;
+      if (!rec.after_step(k, t, h, q.data(), v.data(), kinetic)) {
+        finish(rec, d, q, v, t, k, kinetic);
+        return rec.cancelled(k);
       }
     }
-    if (last_emitted != k) emit(h);
-    finish(s, d, q, v, t, k, kinetic, rest_from, rest_time);
-    s.add_phase("integrate", seconds_since(clock_start));
-    return s;
+    rec.last_sample(k, t, h, q.data(), v.data(), kinetic);
+    finish(rec, d, q, v, t, k, kinetic);
+    return rec.close();
   }
 
  private:
-  static double seconds_since(std::chrono::steady_clock::time_point start) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  }
 
   // Exact values from the rows on vertical pieces (u_r exact): when there are n of them with independent
   // velocity maps they fix V^{k+1} = G_V^{-1} (u_V - b_V) (0.0 exactly for a system at rest); otherwise a
@@ -532,36 +496,12 @@ class MoreauJeanIntegrator {
     return true;
   }
 
-  void finish(RunSummary& s, ContactDiagnostics& d, const Vec<N>& q, const Vec<N>& v, double t, std::int64_t k,
-              double kinetic, std::int64_t rest_from, double rest_time) {
-    s.steps = k;
-    s.t_final = t;
-    s.q_final.assign(q.data(), q.data() + q.size());
-    s.v_final.assign(v.data(), v.data() + v.size());
-    s.energy_final = kinetic;
-    s.energy_nonincreasing = s.energy_increases == 0;
-    if (rest_from >= 0) {
-      s.converged_step = rest_from;
-      s.converged_time = rest_time;
-      d.rest_step = rest_from;
-      d.rest_time = rest_time;
+  void finish(RunRecorder& rec, ContactDiagnostics& d, const Vec<N>& q, const Vec<N>& v, double t, std::int64_t k, double kinetic) {
+    rec.finish(k, t, q.data(), v.data(), kinetic);
+    if (rec.rest_from() >= 0) {
+      d.rest_step = rec.rest_from();
+      d.rest_time = rec.rest_time();
     }
-    if (k == 0) s.h_min = s.h_max = 0.0;
-  }
-
-  RunSummary fail(RunSummary& s, const Vec<N>& q, const Vec<N>& v, double t, std::int64_t k,
-                  std::chrono::steady_clock::time_point start, const std::string& why) {
-    s.steps = k;
-    s.t_final = t;
-    if (q.allFinite()) s.q_final.assign(q.data(), q.data() + q.size());
-    if (v.allFinite()) s.v_final.assign(v.data(), v.data() + v.size());
-    s.energy_nonincreasing = s.energy_increases == 0;
-    s.status = RunStatus::kFailed;
-    char where[96];
-    std::snprintf(where, sizeof where, "step %lld (t = %.17g): ", static_cast<long long>(k), t);
-    s.message = where + why;
-    s.add_phase("integrate", seconds_since(start));
-    return s;
   }
 
   Model& model_;

@@ -25,7 +25,8 @@
 
 #include <boost/numeric/odeint.hpp>
 
-#include "moreau/core/abl_integrator.h"
+#include "moreau/core/abl_integrator.h"  // LagrangianTerms, the model requirements
+#include "moreau/core/stepping_driver.h"
 
 namespace moreau {
 
@@ -104,10 +105,9 @@ class RegularizedIntegrator {
     try {
       // Output at t0 + k h and at t_end itself, so the last sample is the final state.
       std::vector<double> times;
-      const std::int64_t count = fixed_step_count(s_.t0, s_.t_end, s_.h);
-      times.reserve(static_cast<std::size_t>(count) + 1);
-      for (std::int64_t k = 0; k < count; ++k) times.push_back(s_.t0 + static_cast<double>(k) * s_.h);
-      times.push_back(s_.t_end);
+      const FixedTimeGrid grid(s_.t0, s_.t_end, s_.h);
+      times.reserve(static_cast<std::size_t>(grid.steps) + 1);
+      for (std::int64_t k = 0; k <= grid.steps; ++k) times.push_back(grid.time(k));
       solver_steps = odeint::integrate_times(odeint::make_dense_output(s_.h, s_.h, odeint::rosenbrock4<double>()),
                                              std::make_pair(system, jacobian), x, times.begin(), times.end(), s_.h, observe);
       summary.status = RunStatus::kCompleted;
