@@ -24,9 +24,9 @@ scene::LagrangianScene LoadScene(const char* file, double t_end) {
 
 void SetPerStep(benchmark::State& state, std::int64_t steps_per_run) {
   state.SetItemsProcessed(state.iterations() * steps_per_run);
-  state.counters["ns_per_step"] = benchmark::Counter(static_cast<double>(state.iterations() * steps_per_run),
-                                                     benchmark::Counter::kIsRate | benchmark::Counter::kInvert,
-                                                     benchmark::Counter::kIs1000);
+  state.counters["ns_per_step"] =
+      benchmark::Counter(static_cast<double>(state.iterations() * steps_per_run), benchmark::Counter::kIsRate | benchmark::Counter::kInvert,
+                         benchmark::Counter::kIs1000);
 }
 
 void ManipulatorScene(benchmark::State& state, double t_end) {

@@ -161,8 +161,8 @@ int main(int argc, char** argv) {
               no_keep_alive ? "a new connection per request" : "keep-alive", load_seconds, setup_seconds,
               static_cast<long long>(all.requests), static_cast<double>(all.requests) / load_seconds);
   std::printf("  202 accepted %lld (%.0f/s), 429 refused %lld, other statuses %lld, connection errors %lld\n",
-              static_cast<long long>(all.accepted), static_cast<double>(all.accepted) / load_seconds,
-              static_cast<long long>(all.refused), static_cast<long long>(all.other), static_cast<long long>(all.conn_errors));
+              static_cast<long long>(all.accepted), static_cast<double>(all.accepted) / load_seconds, static_cast<long long>(all.refused),
+              static_cast<long long>(all.other), static_cast<long long>(all.conn_errors));
   for (const auto& [s, n] : all.other_by_status) std::printf("  status %d: %lld\n", s, static_cast<long long>(n));
   for (const auto& [e, n] : all.errors_by_kind) std::printf("  connection error %s: %lld\n", e.c_str(), static_cast<long long>(n));
   if (!all.first_other.empty()) std::printf("  first unexpected answer: %s\n", all.first_other.c_str());
@@ -170,8 +170,8 @@ int main(int argc, char** argv) {
                pmax = all.latency_ms.empty() ? 0 : *std::max_element(all.latency_ms.begin(), all.latency_ms.end());
   std::printf("  latency of answered requests: p50 %.2f ms, p99 %.2f ms, max %.1f ms\n", p50, p99, pmax);
   if (all.bad_accept || all.refused_without_retry_after)
-    std::printf("  malformed: %lld 202 without id/Location, %lld 429 without Retry-After\n",
-                static_cast<long long>(all.bad_accept), static_cast<long long>(all.refused_without_retry_after));
+    std::printf("  malformed: %lld 202 without id/Location, %lld 429 without Retry-After\n", static_cast<long long>(all.bad_accept),
+                static_cast<long long>(all.refused_without_retry_after));
 
   // ---- drain ----
   auto c = make_client(true);
@@ -236,10 +236,11 @@ int main(int argc, char** argv) {
       });
     }
     for (auto& t : vt) t.join();
-    std::printf("verify: %zu accepted jobs: %lld done with their report stored, %lld not done, %lld done without a readable "
-                "report, %lld lookups failed\n",
-                all.ids.size(), static_cast<long long>(done.load()), static_cast<long long>(not_done.load()),
-                static_cast<long long>(no_report.load()), static_cast<long long>(verify_errors.load()));
+    std::printf(
+        "verify: %zu accepted jobs: %lld done with their report stored, %lld not done, %lld done without a readable "
+        "report, %lld lookups failed\n",
+        all.ids.size(), static_cast<long long>(done.load()), static_cast<long long>(not_done.load()),
+        static_cast<long long>(no_report.load()), static_cast<long long>(verify_errors.load()));
     for (const auto& [s, n] : states) std::printf("  state %s: %lld\n", s.c_str(), static_cast<long long>(n));
   }
 
@@ -252,8 +253,7 @@ int main(int argc, char** argv) {
       connections, no_keep_alive ? 0 : 1, load_seconds, static_cast<long long>(all.requests),
       static_cast<double>(all.requests) / load_seconds, static_cast<long long>(all.accepted),
       static_cast<double>(all.accepted) / load_seconds, static_cast<long long>(all.refused), static_cast<long long>(all.other),
-      static_cast<long long>(all.conn_errors), p50, p99, pmax, drained ? 1 : 0, drain_seconds,
-      static_cast<long long>(done.load()), static_cast<long long>(not_done.load()), static_cast<long long>(no_report.load()),
-      submitted, rejected, ok ? 1 : 0);
+      static_cast<long long>(all.conn_errors), p50, p99, pmax, drained ? 1 : 0, drain_seconds, static_cast<long long>(done.load()),
+      static_cast<long long>(not_done.load()), static_cast<long long>(no_report.load()), submitted, rejected, ok ? 1 : 0);
   return ok ? 0 : 1;
 }

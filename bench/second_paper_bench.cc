@@ -29,9 +29,9 @@ nlohmann::json Doc(const char* file, double t_end) {
 
 void SetPerStep(benchmark::State& state, std::int64_t steps_per_run) {
   state.SetItemsProcessed(state.iterations() * steps_per_run);
-  state.counters["ns_per_step"] = benchmark::Counter(static_cast<double>(state.iterations() * steps_per_run),
-                                                     benchmark::Counter::kIsRate | benchmark::Counter::kInvert,
-                                                     benchmark::Counter::kIs1000);
+  state.counters["ns_per_step"] =
+      benchmark::Counter(static_cast<double>(state.iterations() * steps_per_run), benchmark::Counter::kIsRate | benchmark::Counter::kInvert,
+                         benchmark::Counter::kIs1000);
 }
 
 // ---- the bouncing ball (e = 0.5; impacts accumulate at t_inf = 1.355 s) ---------------------------------

@@ -34,8 +34,7 @@ void FigureFlags::add_to(CLI::App* cmd) {
   cmd->add_option("--coords", coordinates, "Coordinates to draw (0-based indices; default all)")->delimiter(',');
   cmd->add_option("--t0", t0, "Start of the time window");
   cmd->add_option("--t1", t1, "End of the time window");
-  cmd->add_option("--y-scale", y_scale, "linear or log (default: the figure kind's)")
-      ->check(CLI::IsMember({"linear", "log"}));
+  cmd->add_option("--y-scale", y_scale, "linear or log (default: the figure kind's)")->check(CLI::IsMember({"linear", "log"}));
   cmd->add_option("--format", format, "png or svg (default: from the file name)")->check(CLI::IsMember({"png", "svg"}));
 }
 
@@ -58,8 +57,7 @@ std::pair<std::string, std::string> parse_figure_spec(const std::string& spec) {
   return {spec.substr(0, eq), spec.substr(eq + 1)};
 }
 
-void write_figure(const std::string& kind, const render::TimeSeriesData& input, const FigureFlags& flags,
-                  const std::string& path) {
+void write_figure(const std::string& kind, const render::TimeSeriesData& input, const FigureFlags& flags, const std::string& path) {
   render::TimeSeriesData data = input;
   if (!data.converged_time) data.converged_time = exact_rest_time(data);
   render::FigureOptions opt;
@@ -73,19 +71,24 @@ void write_figure(const std::string& kind, const render::TimeSeriesData& input, 
   opt.coordinates = flags.coordinates;
   for (std::size_t c : opt.coordinates)
     if (c >= data.q.size())
-      throw std::runtime_error("--coords: coordinate " + std::to_string(c) + " does not exist (there are " +
-                               std::to_string(data.q.size()) + ")");
+      throw std::runtime_error("--coords: coordinate " + std::to_string(c) + " does not exist (there are " + std::to_string(data.q.size()) +
+                               ")");
   opt.t0 = flags.t0;
   opt.t1 = flags.t1;
   if (flags.y_scale == "log") opt.y_scale = render::Scale::log;
   if (flags.y_scale == "linear") opt.y_scale = render::Scale::linear;
 
   render::Figure fig;
-  if (kind == "state") fig = render::state_figure(data, opt);
-  else if (kind == "energy") fig = render::energy_figure(data, opt);
-  else if (kind == "step") fig = render::step_figure(data, opt);
-  else if (kind == "phase") fig = render::phase_figure(data, opt);
-  else throw std::runtime_error("unknown figure kind '" + kind + "' (expected state, energy, step or phase)");
+  if (kind == "state")
+    fig = render::state_figure(data, opt);
+  else if (kind == "energy")
+    fig = render::energy_figure(data, opt);
+  else if (kind == "step")
+    fig = render::step_figure(data, opt);
+  else if (kind == "phase")
+    fig = render::phase_figure(data, opt);
+  else
+    throw std::runtime_error("unknown figure kind '" + kind + "' (expected state, energy, step or phase)");
 
   std::string format = flags.format;
   if (format.empty()) format = path.size() > 4 && path.substr(path.size() - 4) == ".svg" ? "svg" : "png";

@@ -43,8 +43,7 @@ std::optional<double> exact_rest_time(const render::TimeSeriesData& data);
 
 // Draws figure `kind` (state, energy, step, phase) of `data` into `path`. Throws std::runtime_error
 // (or std::invalid_argument from render's validation) with a clear message.
-void write_figure(const std::string& kind, const render::TimeSeriesData& data, const FigureFlags& flags,
-                  const std::string& path);
+void write_figure(const std::string& kind, const render::TimeSeriesData& data, const FigureFlags& flags, const std::string& path);
 
 // Reads a trajectory CSV as written by `moreau run --out`: t, h, q..., v..., energy.
 render::TimeSeriesData read_trajectory_csv(const std::string& path);

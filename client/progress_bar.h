@@ -23,9 +23,8 @@ class ProgressBar : public RunObserver {
     last_draw_ = elapsed;
     const double frac = std::clamp((t - t0_) / (t_end_ - t0_), 0.0, 1.0);
     const int width = 40, filled = static_cast<int>(frac * width);
-    std::fprintf(stderr, "\r[%.*s%*s] %5.1f%%  t = %-10.4g step %lld  %.1f s", filled,
-                 "########################################", width - filled, "", 100.0 * frac, t,
-                 static_cast<long long>(step), elapsed);
+    std::fprintf(stderr, "\r[%.*s%*s] %5.1f%%  t = %-10.4g step %lld  %.1f s", filled, "########################################",
+                 width - filled, "", 100.0 * frac, t, static_cast<long long>(step), elapsed);
     std::fflush(stderr);
     drawn_ = true;
     return true;

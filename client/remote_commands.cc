@@ -68,7 +68,8 @@ int report_failure(const Remote& remote, const httplib::Result& r, const std::st
   const json body = json::parse(r->body, nullptr, false);
   if (body.is_object() && body.contains("error")) {
     message += ": " + body.value("error", "");
-    if (body.contains("pointer")) message += " at " + body.value("pointer", "") + (body.value("where", "") == "request" ? " (request)" : "");
+    if (body.contains("pointer"))
+      message += " at " + body.value("pointer", "") + (body.value("where", "") == "request" ? " (request)" : "");
     if (body.contains("reason")) message += ": " + body.value("reason", "");
   }
   if (r->status == 429 && r->has_header("Retry-After")) message += " (retry after " + r->get_header_value("Retry-After") + " s)";
@@ -125,32 +126,30 @@ void print_job(const json& job) {
     const json& p = field(job, "progress");
     if (field(p, "t").is_number() && field(p, "fraction").is_number()) {
       std::cout << "  progress      t = " << fmt(p["t"].get<double>()) << " of [" << fmt(p.value("t0", 0.0)) << ", "
-                << fmt(p.value("t_end", 0.0)) << "] (" << fmt(std::round(1000 * p["fraction"].get<double>()) / 10)
-                << "%), step " << p.value("step", std::int64_t{0}) << "\n";
+                << fmt(p.value("t_end", 0.0)) << "] (" << fmt(std::round(1000 * p["fraction"].get<double>()) / 10) << "%), step "
+                << p.value("step", std::int64_t{0}) << "\n";
     }
   }
   if (field(job, "stream").is_object()) {
-    std::cout << "  stream        " << job["stream"].value("state_channel", "") << ", " << job["stream"].value("event_channel", "")
-              << "\n";
+    std::cout << "  stream        " << job["stream"].value("state_channel", "") << ", " << job["stream"].value("event_channel", "") << "\n";
   }
   if (!field(job, "report").is_object()) return;
   const json& r = job["report"];
-  std::cout << "  status        " << r.value("status", "?") << ": " << r.value("steps", std::int64_t{0}) << " steps to t = "
-            << (field(r, "t_final").is_number() ? fmt(r["t_final"].get<double>()) : "?") << "\n";
+  std::cout << "  status        " << r.value("status", "?") << ": " << r.value("steps", std::int64_t{0})
+            << " steps to t = " << (field(r, "t_final").is_number() ? fmt(r["t_final"].get<double>()) : "?") << "\n";
   if (r.contains("message")) std::cout << "  message       " << r.value("message", "") << "\n";
   if (r.contains("final"))
     std::cout << "  final state   q = " << field(field(r, "final"), "q").dump() << ", v = " << field(field(r, "final"), "v").dump() << "\n";
   if (field(r, "converged_step").is_number() && field(r, "converged_time").is_number()) {
-    std::cout << "  convergence   v == 0.0 exactly from step " << r["converged_step"].get<std::int64_t>() << " (t = "
-              << fmt(r["converged_time"].get<double>()) << ") to the end\n";
+    std::cout << "  convergence   v == 0.0 exactly from step " << r["converged_step"].get<std::int64_t>()
+              << " (t = " << fmt(r["converged_time"].get<double>()) << ") to the end\n";
   } else {
     std::cout << "  convergence   v is not exactly 0 at the last step\n";
   }
   const json& energy = field(r, "energy");
   if (field(energy, "initial").is_number() && field(energy, "final").is_number()) {
-    std::cout << "  energy        E_0 = " << fmt(energy["initial"].get<double>()) << ", E_N = "
-              << fmt(energy["final"].get<double>()) << (r.value("energy_nonincreasing", false) ? " (non-increasing)" : "")
-              << "\n";
+    std::cout << "  energy        E_0 = " << fmt(energy["initial"].get<double>()) << ", E_N = " << fmt(energy["final"].get<double>())
+              << (r.value("energy_nonincreasing", false) ? " (non-increasing)" : "") << "\n";
   }
 }
 
@@ -223,16 +222,20 @@ int submit(const SubmitOptions& o) {
   const json accepted = body_json(r);
   const std::string id = accepted.value("id", "");
   if (!o.wait) {
-    if (o.remote.json_output) std::cout << accepted.dump(2) << "\n";
-    else std::cout << id << "\n";
+    if (o.remote.json_output)
+      std::cout << accepted.dump(2) << "\n";
+    else
+      std::cout << id << "\n";
     return 0;
   }
   if (!o.remote.json_output) std::cerr << "submitted " << id << "\n";
   int code = 0;
   auto job = wait_for(o.remote, *c, id, code);
   if (!job) return code;
-  if (o.remote.json_output) std::cout << job->dump(2) << "\n";
-  else print_job(*job);
+  if (o.remote.json_output)
+    std::cout << job->dump(2) << "\n";
+  else
+    print_job(*job);
   return job->value("state", "") == "done" ? 0 : 1;
 }
 
@@ -256,8 +259,10 @@ int status(const IdOptions& o) {
     if (!ok(r)) return report_failure(o.remote, r, "status of " + o.id);
     job = body_json(r);
   }
-  if (o.remote.json_output) std::cout << job->dump(2) << "\n";
-  else print_job(*job);
+  if (o.remote.json_output)
+    std::cout << job->dump(2) << "\n";
+  else
+    print_job(*job);
   const std::string state = job->value("state", "");
   return state == "failed" || state == "cancelled" ? 1 : 0;
 }
@@ -334,8 +339,10 @@ int cancel(const IdOptions& o) {
   auto r = c->Delete("/v1/jobs/" + o.id);
   if (!ok(r)) return report_failure(o.remote, r, "cancel " + o.id);
   const json job = body_json(r);
-  if (o.remote.json_output) std::cout << job.dump(2) << "\n";
-  else std::cout << o.id << " " << job.value("state", "?") << "\n";
+  if (o.remote.json_output)
+    std::cout << job.dump(2) << "\n";
+  else
+    std::cout << o.id << " " << job.value("state", "?") << "\n";
   return 0;
 }
 

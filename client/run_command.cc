@@ -33,8 +33,7 @@ struct RunOptions {
 
 // Series labels with the units the scene gives in /units ({"x1": "m", "t": "s"}): "x1 [m]" for a
 // position, "x1_dot [m/s]" for its velocity. Names without a unit stay as they are.
-std::vector<std::string> with_units(const std::string& scene_path, const std::vector<std::string>& names,
-                                    bool velocities) {
+std::vector<std::string> with_units(const std::string& scene_path, const std::vector<std::string>& names, bool velocities) {
   nlohmann::json units;
   try {
     units = scene::read_scene_file(scene_path).value("units", nlohmann::json::object());
@@ -88,8 +87,7 @@ int run(const RunOptions& opt) {
     }
   }
   if (!opt.figures.empty()) {
-    recorder.emplace(with_units(opt.scene_path, sim->position_names(), false),
-                     with_units(opt.scene_path, sim->velocity_names(), true));
+    recorder.emplace(with_units(opt.scene_path, sim->position_names(), false), with_units(opt.scene_path, sim->velocity_names(), true));
     fan.add(&*recorder);
   }
   const bool show_progress = opt.progress == "always" || (opt.progress == "auto" && isatty(STDERR_FILENO));

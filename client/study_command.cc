@@ -72,7 +72,8 @@ void register_study_command(CLI::App& app, Actions& actions) {
   cmd->add_option("--h", opt->ladder, "Step sizes: FIRST:LAST:COUNT (log-spaced) or a comma list")->capture_default_str();
   cmd->add_option("--schemes", opt->schemes, "Comma list of abl, explicit, regularized")->capture_default_str();
   cmd->add_option("--set", opt->overrides, "Override a scene field: PATH=VALUE");
-  cmd->add_option("--reference-h", opt->reference_h, "Use an abl run at this h as the reference (default: the exact solution if the scene has one, else min h / 10)");
+  cmd->add_option("--reference-h", opt->reference_h,
+                  "Use an abl run at this h as the reference (default: the exact solution if the scene has one, else min h / 10)");
   cmd->add_option("--epsilon", opt->epsilon, "Width of the regularized sign")->capture_default_str();
   cmd->add_option("--regularization", opt->regularization, "tanh or saturation")->check(CLI::IsMember({"tanh", "saturation"}));
   cmd->add_option("--eval-points", opt->eval_points, "Common times at which errors are measured")->capture_default_str();

@@ -138,8 +138,8 @@ int run_shard(const SweepOptions& opt) {
   out.close();
   if (!out) throw std::runtime_error("writing '" + tmp + "' failed");
   std::filesystem::rename(tmp, path);  // a shard's file appears only once it is complete
-  std::cerr << "moreau sweep: shard " << shard << "/" << shards << ": " << ran << " of " << total << " points, " << failed
-            << " failed -> " << path << "\n";
+  std::cerr << "moreau sweep: shard " << shard << "/" << shards << ": " << ran << " of " << total << " points, " << failed << " failed -> "
+            << path << "\n";
   return 0;
 }
 
@@ -170,8 +170,7 @@ int merge(const SweepOptions& opt) {
     while (++line_no, next(line)) {
       auto j = parse(line);
       const std::size_t idx = j.at("index");
-      if (!points.emplace(idx, std::move(j)).second)
-        throw std::runtime_error("point " + std::to_string(idx) + " appears twice");
+      if (!points.emplace(idx, std::move(j)).second) throw std::runtime_error("point " + std::to_string(idx) + " appears twice");
     }
   }
   if (sweep.is_null()) throw std::runtime_error("no shard files (*.jsonl) in '" + opt.merge_dir + "'");

@@ -99,8 +99,8 @@ class Watcher {
     // subscribeFunction rather than the member-function subscribe(), which LCM 1.3.1 and GCC 12's
     // UndefinedBehaviorSanitizer do not agree on.
     lc.subscribeFunction(channel, &Watcher::on_message, this);
-    std::cerr << "moreau watch: listening on " << channel << " ("
-              << (o_.lcm_url.empty() ? "LCM_DEFAULT_URL or LCM's default" : o_.lcm_url) << ")" << std::endl;
+    std::cerr << "moreau watch: listening on " << channel << " (" << (o_.lcm_url.empty() ? "LCM_DEFAULT_URL or LCM's default" : o_.lcm_url)
+              << ")" << std::endl;
 
     std::signal(SIGINT, on_interrupt);
     std::signal(SIGTERM, on_interrupt);
@@ -135,9 +135,7 @@ class Watcher {
     return code;
   }
 
-  static void on_message(const lcm::ReceiveBuffer* rbuf, const std::string& channel, Watcher* self) {
-    self->handle(rbuf, channel);
-  }
+  static void on_message(const lcm::ReceiveBuffer* rbuf, const std::string& channel, Watcher* self) { self->handle(rbuf, channel); }
 
   void handle(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
     if (log_) {
@@ -198,8 +196,8 @@ class Watcher {
     if (!tty_ && Clock::now() - last_plain_[s.job_id] >= std::chrono::seconds(1)) {
       last_plain_[s.job_id] = Clock::now();
       std::printf("%s  step %-10lld t = %-12s h = %-10s E = %-12s q = %s  v = %s\n", s.job_id.substr(0, 8).c_str(),
-                  static_cast<long long>(s.step), fmt(s.t).c_str(), fmt(s.h, 3).c_str(), fmt(s.energy).c_str(),
-                  vec(s.q).c_str(), vec(s.v).c_str());
+                  static_cast<long long>(s.step), fmt(s.t).c_str(), fmt(s.h, 3).c_str(), fmt(s.energy).c_str(), vec(s.q).c_str(),
+                  vec(s.v).c_str());
       std::fflush(stdout);
     }
   }
@@ -227,8 +225,8 @@ class Watcher {
     }
     if (e.kind == "converged") j.converged_time = e.t;
     clear_table();
-    std::printf("%s  %-9s step %lld, t = %s: %s\n", e.job_id.substr(0, 8).c_str(), e.kind.c_str(),
-                static_cast<long long>(e.step), fmt(e.t).c_str(), e.text.c_str());
+    std::printf("%s  %-9s step %lld, t = %s: %s\n", e.job_id.substr(0, 8).c_str(), e.kind.c_str(), static_cast<long long>(e.step),
+                fmt(e.t).c_str(), e.text.c_str());
     std::fflush(stdout);
     dirty_ = true;
     figure_dirty_ = figure_dirty_ || !o_.figure.empty();
@@ -253,8 +251,8 @@ class Watcher {
       const JobView& j = jobs_.at(id);
       if (!j.has_state) continue;
       std::printf("%-8s  %-10s %10lld %12s %10s %12s  %s / %s\n", id.substr(0, 8).c_str(), j.status.c_str(),
-                  static_cast<long long>(j.last.step), fmt(j.last.t).c_str(), fmt(j.last.h, 3).c_str(),
-                  fmt(j.last.energy).c_str(), vec(j.last.q).c_str(), vec(j.last.v).c_str());
+                  static_cast<long long>(j.last.step), fmt(j.last.t).c_str(), fmt(j.last.h, 3).c_str(), fmt(j.last.energy).c_str(),
+                  vec(j.last.q).c_str(), vec(j.last.v).c_str());
       ++lines;
     }
     drawn_lines_ = lines;

@@ -36,9 +36,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
-constexpr int kReplyTimeoutMs = 2000;    // an answer that takes longer is abandoned (e.g. ?wait=60)
-constexpr int kFirstByteWaitMs = 5;      // how long to wait for an answer before half-closing
-constexpr int kHealthTimeoutMs = 10000;  // /healthz must answer within this, else the server is stuck
+constexpr int kReplyTimeoutMs = 2000;                 // an answer that takes longer is abandoned (e.g. ?wait=60)
+constexpr int kFirstByteWaitMs = 5;                   // how long to wait for an answer before half-closing
+constexpr int kHealthTimeoutMs = 10000;               // /healthz must answer within this, else the server is stuck
 constexpr std::uintmax_t kRecycleBytes = 256u << 20;  // results kept before the server is restarted afresh
 constexpr int kRecycleEvery = 2000;                   // inputs between checks of the data directory
 

@@ -10,7 +10,6 @@
 #include "moreau/scene/scene.h"
 #include "support/allocation_counter.h"
 
-
 namespace moreau::scene {
 namespace {
 
@@ -50,8 +49,7 @@ TEST(Allocation, DynamicSizeRunDoesNotAllocatePerStep) {
   }
   doc["system"]["mass"] = mass;
   doc["system"]["potential"] = "sin(y1) + 0.1*y5^2";
-  doc["system"]["controller"] = {{{"type", "quadratic"}, {"weights", {1, 1, 1, 1, 1}}},
-                                 {{"type", "abs"}, {"gains", {1, 1, 1, 1, 1}}}};
+  doc["system"]["controller"] = {{{"type", "quadratic"}, {"weights", {1, 1, 1, 1, 1}}}, {{"type", "abs"}, {"gains", {1, 1, 1, 1, 1}}}};
   doc["initial"] = {{"q", {0.1, 0.2, 0.3, 0.4, 0.5}}, {"v", {1, -2, 3, -1, 2}}};
   Decimated obs;
   const long short_run = AllocationsOfRun(doc, 0.2, &obs);

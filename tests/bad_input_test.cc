@@ -30,8 +30,8 @@ using moreau::server::testing::TestServer;
 using Clock = std::chrono::steady_clock;
 
 constexpr std::size_t kMaxBody = 1u << 20;  // the server's body limit in this test
-constexpr double kMaxCaseSeconds = 5.0;    // no case may take longer: a hang is a failure
-constexpr int kReadTimeoutSeconds = 10;    // and cannot block the test for more than this
+constexpr double kMaxCaseSeconds = 5.0;     // no case may take longer: a hang is a failure
+constexpr int kReadTimeoutSeconds = 10;     // and cannot block the test for more than this
 
 // ---- A minimal HTTP/1.1 client over a POSIX socket: the bytes go out exactly as given (no header
 // normalization, no URL encoding, no default Content-Type), with "Connection: close".
@@ -198,32 +198,39 @@ std::vector<Case> cases() {
                      s["initial"] = {{"q", {0, 0}}};
                    }),
                    400, "/system/mass/1", "expected 2 entries"));
-  t.push_back(post("InitialQWrongLength", scene_body([](json& s) { s["initial"]["q"] = {0, 1}; }), 400, "/initial/q",
-                   "expected 1 entries (one per coordinate), got 2"));
-  t.push_back(post("InitialQString", scene_body([](json& s) { s["initial"]["q"] = "zero"; }), 400, "/initial/q",
-                   "got a string"));
+  t.push_back(post("InitialQWrongLength", scene_body([](json& s) {
+                     s["initial"]["q"] = {0, 1};
+                   }),
+                   400, "/initial/q", "expected 1 entries (one per coordinate), got 2"));
+  t.push_back(post("InitialQString", scene_body([](json& s) { s["initial"]["q"] = "zero"; }), 400, "/initial/q", "got a string"));
   t.push_back(post("MassIsANumber", scene_body([](json& s) { s["system"]["mass"] = 1e9; }), 400, "/system/mass",
                    "expected a square array of arrays"));
   t.push_back(post("StepIsBoolean", scene_body([](json& s) { s["integrator"]["h"] = true; }), 400, "/integrator/h",
                    "expected a number or an expression string, got a boolean"));
 
   // Unknown names.
-  t.push_back(post("UnknownSceneField", scene_body([](json& s) { s["integrater"] = {{"h", 0.1}}; }), 400, "/integrater",
-                   "unknown field 'integrater'"));
-  t.push_back(post("UnknownScheme", scene_body([](json& s) { s["integrator"]["scheme"] = "rk4"; }), 400,
-                   "/integrator/scheme", "unknown scheme 'rk4'"));
-  t.push_back(post("UnknownStepRule", scene_body([](json& s) { s["integrator"]["step_rule"] = "adaptive"; }), 400,
-                   "/integrator/step_rule", "got \"adaptive\""));
-  t.push_back(post("UnknownVariable", scene_body([](json& s) { s["system"]["potential"] = "q1^2 + zz"; }), 400,
-                   "/system/potential", "unknown name 'zz'"));
-  t.push_back(post("UnknownFunction", scene_body([](json& s) { s["system"]["potential"] = "foo(q1)"; }), 400,
-                   "/system/potential", "unknown function 'foo'"));
-  t.push_back(post("VelocityInMassMatrix", scene_body([](json& s) { s["system"]["mass"] = {{"1 + v1^2"}}; }), 400,
-                   "/system/mass/0/0", "'v1' cannot appear in the mass matrix"));
-  t.push_back(post("UnknownControllerTerm", scene_body([](json& s) { s["system"]["controller"] = {{{"type", "pid"}}}; }),
+  t.push_back(post("UnknownSceneField", scene_body([](json& s) {
+                     s["integrater"] = {{"h", 0.1}};
+                   }),
+                   400, "/integrater", "unknown field 'integrater'"));
+  t.push_back(post("UnknownScheme", scene_body([](json& s) { s["integrator"]["scheme"] = "rk4"; }), 400, "/integrator/scheme",
+                   "unknown scheme 'rk4'"));
+  t.push_back(post("UnknownStepRule", scene_body([](json& s) { s["integrator"]["step_rule"] = "adaptive"; }), 400, "/integrator/step_rule",
+                   "got \"adaptive\""));
+  t.push_back(post("UnknownVariable", scene_body([](json& s) { s["system"]["potential"] = "q1^2 + zz"; }), 400, "/system/potential",
+                   "unknown name 'zz'"));
+  t.push_back(post("UnknownFunction", scene_body([](json& s) { s["system"]["potential"] = "foo(q1)"; }), 400, "/system/potential",
+                   "unknown function 'foo'"));
+  t.push_back(post("VelocityInMassMatrix", scene_body([](json& s) { s["system"]["mass"] = {{"1 + v1^2"}}; }), 400, "/system/mass/0/0",
+                   "'v1' cannot appear in the mass matrix"));
+  t.push_back(post("UnknownControllerTerm", scene_body([](json& s) {
+                     s["system"]["controller"] = {{{"type", "pid"}}};
+                   }),
                    400, "/system/controller/0/type", "unknown controller term 'pid'"));
-  t.push_back(post("UnknownFeedbackType", lure_body([](json& s) { s["system"]["feedback"] = {{{"type", "magic"}}}; }), 400,
-                   "/system/feedback/0/type", "unknown feedback type 'magic'"));
+  t.push_back(post("UnknownFeedbackType", lure_body([](json& s) {
+                     s["system"]["feedback"] = {{{"type", "magic"}}};
+                   }),
+                   400, "/system/feedback/0/type", "unknown feedback type 'magic'"));
 
   // M not positive definite or not symmetric.
   t.push_back(post("MassNegative", scene_body([](json& s) { s["system"]["mass"] = {{-1}}; }), 400, "/system/mass",
@@ -242,12 +249,14 @@ std::vector<Case> cases() {
                    400, "/system/mass/1/0", "M is not symmetric"));
 
   // Non-monotone Lur'e graphs and a start outside the domain.
-  t.push_back(post("LureGraphDecreasingW",
-                   lure_body([](json& s) { s["system"]["feedback"][0]["vertices"] = {{-1, -1}, {0, 0.5}, {1, -0.5}}; }), 400,
-                   "/system/feedback/0/vertices/2/1", "not monotone: w decreases from 0.5 to -0.5"));
-  t.push_back(post("LureGraphDecreasingU",
-                   lure_body([](json& s) { s["system"]["feedback"][0]["vertices"] = {{1, -1}, {0, 0}, {1, 1}}; }), 400,
-                   "/system/feedback/0/vertices/1/0", "not monotone: u decreases from 1 to 0"));
+  t.push_back(post("LureGraphDecreasingW", lure_body([](json& s) {
+                     s["system"]["feedback"][0]["vertices"] = {{-1, -1}, {0, 0.5}, {1, -0.5}};
+                   }),
+                   400, "/system/feedback/0/vertices/2/1", "not monotone: w decreases from 0.5 to -0.5"));
+  t.push_back(post("LureGraphDecreasingU", lure_body([](json& s) {
+                     s["system"]["feedback"][0]["vertices"] = {{1, -1}, {0, 0}, {1, 1}};
+                   }),
+                   400, "/system/feedback/0/vertices/1/0", "not monotone: u decreases from 1 to 0"));
   t.push_back(post("LureGraphNegativeRay", lure_body([](json& s) { s["system"]["feedback"][0]["right"] = -1; }), 400,
                    "/system/feedback/0/right", "slope of the right ray must be finite and >= 0"));
   t.push_back(post("LureStartOutsideDomain", lure_body([](json& s) {
@@ -260,60 +269,61 @@ std::vector<Case> cases() {
   // NaN and Inf: JSON has no NaN, so an overflowing literal, the string "nan", and expressions that
   // evaluate to NaN or Inf at the initial state. An overflowing literal in the body is a syntax error
   // like any other: 400 "malformed JSON", not 500 (docs/reliability.md, "Bad input").
-  t.push_back(post("LiteralOverflowsDouble",
-                   splice(scene_body([](json& s) { s["integrator"]["h"] = "@H@"; }), "\"@H@\"", "1e999"), 400, "",
+  t.push_back(post("LiteralOverflowsDouble", splice(scene_body([](json& s) { s["integrator"]["h"] = "@H@"; }), "\"@H@\"", "1e999"), 400, "",
                    "number overflow parsing '1e999'"));
   t.push_back(post("NegativeLiteralOverflowsDouble",
                    splice(scene_body([](json& s) { s["integrator"]["t_end"] = "@T@"; }), "\"@T@\"", "-1e999"), 400, "",
                    "number overflow parsing '-1e999'"));
-  t.push_back(post("StepIsTheStringNaN", scene_body([](json& s) { s["integrator"]["h"] = "nan"; }), 400, "/integrator/h",
-                   "unknown name 'nan'"));
+  t.push_back(
+      post("StepIsTheStringNaN", scene_body([](json& s) { s["integrator"]["h"] = "nan"; }), 400, "/integrator/h", "unknown name 'nan'"));
   t.push_back(post("StepIsZeroOverZero", scene_body([](json& s) { s["integrator"]["h"] = "0/0"; }), 400, "/integrator/h",
                    "evaluates to a non-finite value"));
-  t.push_back(post("ExpressionLiteralOverflows", scene_body([](json& s) { s["integrator"]["t_end"] = "1e999"; }), 400,
-                   "/integrator/t_end", "number out of range '1e999'"));
+  t.push_back(post("ExpressionLiteralOverflows", scene_body([](json& s) { s["integrator"]["t_end"] = "1e999"; }), 400, "/integrator/t_end",
+                   "number out of range '1e999'"));
   t.push_back(post("ParameterLogOfMinusOne", scene_body([](json& s) {
                      s["parameters"] = {{"a", "log(-1)"}};
                      s["initial"]["v"] = {"a"};
                    }),
                    400, "/parameters/a", "evaluates to a non-finite value"));
-  t.push_back(post("UnusedParameterNonFinite", scene_body([](json& s) { s["parameters"] = {{"spare", "1/0"}}; }), 400,
-                   "/parameters/spare", "evaluates to a non-finite value"));
-  t.push_back(post("MassInfiniteAtStart", scene_body([](json& s) { s["system"]["mass"] = {{"1/q1"}}; }), 400,
-                   "/system/mass/0/0", "is not finite at the initial state"));
-  t.push_back(post("ForceInfiniteAtStart", scene_body([](json& s) { s["system"]["force"] = {"1/q1"}; }), 400,
-                   "/system/force/0", "not finite at the initial state"));
-  t.push_back(post("PotentialNaNAtStart", scene_body([](json& s) { s["system"]["potential"] = "q1^2/2 + log(q1 - 1)"; }),
-                   400, "/system/potential", "V(q) is not finite at the initial state"));
-  t.push_back(post("KineticEnergyOverflows", scene_body([](json& s) { s["initial"]["v"] = {1e308}; }), 400, "/initial/v",
-                   "kinetic energy"));
+  t.push_back(post("UnusedParameterNonFinite", scene_body([](json& s) {
+                     s["parameters"] = {{"spare", "1/0"}};
+                   }),
+                   400, "/parameters/spare", "evaluates to a non-finite value"));
+  t.push_back(post("MassInfiniteAtStart", scene_body([](json& s) { s["system"]["mass"] = {{"1/q1"}}; }), 400, "/system/mass/0/0",
+                   "is not finite at the initial state"));
+  t.push_back(post("ForceInfiniteAtStart", scene_body([](json& s) { s["system"]["force"] = {"1/q1"}; }), 400, "/system/force/0",
+                   "not finite at the initial state"));
+  t.push_back(post("PotentialNaNAtStart", scene_body([](json& s) { s["system"]["potential"] = "q1^2/2 + log(q1 - 1)"; }), 400,
+                   "/system/potential", "V(q) is not finite at the initial state"));
+  t.push_back(
+      post("KineticEnergyOverflows", scene_body([](json& s) { s["initial"]["v"] = {1e308}; }), 400, "/initial/v", "kinetic energy"));
   t.push_back(post("LureStorageOverflows", lure_body([](json& s) {
                      s["system"]["feedback"][0] = {{"type", "relay"}, {"gain", 1}};
                      s["initial"]["x"] = {1e308};
                    }),
                    400, "/initial/x", "storage function"));
-  t.push_back(post("LureGraphVertexNaN",
-                   lure_body([](json& s) { s["system"]["feedback"][0]["vertices"] = {{0, "0/0"}, {1, 1}}; }), 400,
-                   "/system/feedback/0/vertices/0/1", "evaluates to a non-finite value"));
+  t.push_back(post("LureGraphVertexNaN", lure_body([](json& s) {
+                     s["system"]["feedback"][0]["vertices"] = {{0, "0/0"}, {1, 1}};
+                   }),
+                   400, "/system/feedback/0/vertices/0/1", "evaluates to a non-finite value"));
 
   // Step and horizon.
-  t.push_back(post("StepZero", scene_body([](json& s) { s["integrator"]["h"] = 0; }), 400, "/integrator/h",
-                   "must be > 0, got 0"));
-  t.push_back(post("StepNegative", scene_body([](json& s) { s["integrator"]["h"] = -1e-3; }), 400, "/integrator/h",
-                   "must be > 0, got -0.001"));
+  t.push_back(post("StepZero", scene_body([](json& s) { s["integrator"]["h"] = 0; }), 400, "/integrator/h", "must be > 0, got 0"));
+  t.push_back(
+      post("StepNegative", scene_body([](json& s) { s["integrator"]["h"] = -1e-3; }), 400, "/integrator/h", "must be > 0, got -0.001"));
   t.push_back(post("EndEqualsStart", scene_body([](json& s) { s["integrator"]["t_end"] = 0; }), 400, "/integrator/t_end",
                    "must be > t0 (0), got 0"));
-  t.push_back(post("EndBeforeStart", scene_body([](json& s) { s["integrator"]["t0"] = 5; }), 400, "/integrator/t_end",
-                   "must be > t0 (5), got 2"));
+  t.push_back(
+      post("EndBeforeStart", scene_body([](json& s) { s["integrator"]["t0"] = 5; }), 400, "/integrator/t_end", "must be > t0 (5), got 2"));
   t.push_back(post("EndLostInRoundOff", scene_body([](json& s) {
                      s["integrator"]["t0"] = 1e300;
                      s["integrator"]["t_end"] = "1e300 + 1";
                    }),
                    400, "/integrator/t_end", "must be > t0"));
-  t.push_back(post("TooManyStepsForAnyScene", scene_body([](json& s) { s["integrator"]["h"] = 1e-12; }), 400,
-                   "/integrator/h", "more than the limit of 2000000000"));
-  t.push_back(post("TooManyStepsForThisServer", scene_body([](json& s) { s["integrator"]["h"] = 1e-6; }), 400,
-                   "/integrator/h", "this server runs at most 100000 steps per job"));
+  t.push_back(post("TooManyStepsForAnyScene", scene_body([](json& s) { s["integrator"]["h"] = 1e-12; }), 400, "/integrator/h",
+                   "more than the limit of 2000000000"));
+  t.push_back(post("TooManyStepsForThisServer", scene_body([](json& s) { s["integrator"]["h"] = 1e-6; }), 400, "/integrator/h",
+                   "this server runs at most 100000 steps per job"));
   t.push_back(post("TooManyStepsForThisServerAdaptive", scene_body([](json& s) {
                      s["integrator"]["h"] = 1e-6;
                      s["integrator"]["step_rule"] = "theorem-4.1";
@@ -324,8 +334,10 @@ std::vector<Case> cases() {
                      s["integrator"]["t_end"] = 5;
                    }),
                    400, "/output/every", "set /output/every to at least 3"));
-  t.push_back(post("OutputEveryHuge", scene_body([](json& s) { s["output"] = {{"every", 1e18}}; }), 400, "/output/every",
-                   "must be a whole number >= 1"));
+  t.push_back(post("OutputEveryHuge", scene_body([](json& s) {
+                     s["output"] = {{"every", 1e18}};
+                   }),
+                   400, "/output/every", "must be a whole number >= 1"));
 
   // Absurd sizes.
   t.push_back(post("FiftyThousandCoordinates", scene_body([](json& s) {
@@ -339,28 +351,23 @@ std::vector<Case> cases() {
                      for (int i = 0; i < 65; ++i) s["system"]["mass"].push_back(std::vector<int>(65, 0));
                    }),
                    400, "/system/mass", "more than 64 degrees of freedom"));
-  t.push_back(post("InitialQTwoHundredThousand",
-                   scene_body([](json& s) { s["initial"]["q"] = std::vector<int>(200000, 0); }), 400, "/initial/q",
-                   "got 200000"));
+  t.push_back(post("InitialQTwoHundredThousand", scene_body([](json& s) { s["initial"]["q"] = std::vector<int>(200000, 0); }), 400,
+                   "/initial/q", "got 200000"));
   t.push_back(post("LureGraphTwoThousandVertices", lure_body([](json& s) {
                      s["system"]["feedback"][0]["vertices"] = std::vector<std::vector<int>>(2000, {0, 0});
                    }),
                    400, "/system/feedback/0/vertices", "more than 1024 vertices"));
 
   // Expressions: nesting, length, and a message that quotes the text without cutting a UTF-8 character.
-  t.push_back(post("EightThousandNestedParentheses", scene_body([](json& s) {
-                     s["system"]["potential"] = std::string(8000, '(') + "q1" + std::string(8000, ')');
-                   }),
-                   400, "/system/potential", "nesting deeper than 128"));
-  t.push_back(post("TenThousandUnaryMinus",
-                   scene_body([](json& s) { s["system"]["potential"] = std::string(10000, '-') + "q1"; }), 400,
+  t.push_back(post("EightThousandNestedParentheses",
+                   scene_body([](json& s) { s["system"]["potential"] = std::string(8000, '(') + "q1" + std::string(8000, ')'); }), 400,
                    "/system/potential", "nesting deeper than 128"));
-  t.push_back(post("TenThousandNestedParentheses", scene_body([](json& s) {
-                     s["system"]["potential"] = std::string(10000, '(') + "q1" + std::string(10000, ')');
-                   }),
-                   400, "/system/potential", "expression longer than 16384 characters"));
-  t.push_back(post("ExpressionLongerThanLimit",
-                   scene_body([](json& s) { s["system"]["potential"] = repeat("q1+", 6000) + "q1"; }), 400,
+  t.push_back(post("TenThousandUnaryMinus", scene_body([](json& s) { s["system"]["potential"] = std::string(10000, '-') + "q1"; }), 400,
+                   "/system/potential", "nesting deeper than 128"));
+  t.push_back(post("TenThousandNestedParentheses",
+                   scene_body([](json& s) { s["system"]["potential"] = std::string(10000, '(') + "q1" + std::string(10000, ')'); }), 400,
+                   "/system/potential", "expression longer than 16384 characters"));
+  t.push_back(post("ExpressionLongerThanLimit", scene_body([](json& s) { s["system"]["potential"] = repeat("q1+", 6000) + "q1"; }), 400,
                    "/system/potential", "expression longer than 16384 characters"));
   t.push_back(post("ExpressionQuotedAcrossUtf8", scene_body([](json& s) {
                      s["system"]["potential"] = "q1 + " + repeat("\xc3\xa9", 150);  // U+00E9 straddles byte 200
@@ -380,8 +387,8 @@ std::vector<Case> cases() {
   t.push_back(post("BodyIsNull", "null", 400, "", "the body must be an object"));
   t.push_back(post("TrailingGarbage", valid + " {}", 400, "", "expected end of input"));
   t.push_back(post("JsonWithComment", "/* scene */ " + valid, 400, "", "invalid literal"));
-  t.push_back(post("JsonNestedTooDeep", "{\"scene\": {\"name\": " + std::string(100, '[') + std::string(100, ']') + "}}", 400,
-                   "", "nested deeper than 64 levels"));
+  t.push_back(post("JsonNestedTooDeep", "{\"scene\": {\"name\": " + std::string(100, '[') + std::string(100, ']') + "}}", 400, "",
+                   "nested deeper than 64 levels"));
 
   // Content types.
   t.push_back({"TextPlain", "POST", "/v1/jobs", "text/plain", valid, 415, "", "takes application/json, got 'text/plain'"});
@@ -391,13 +398,11 @@ std::vector<Case> cases() {
                "got 'multipart/form-data; boundary=xyz'"});
   t.push_back({"FormUrlencoded", "POST", "/v1/jobs", "application/x-www-form-urlencoded", "scene=manipulator", 415, "",
                "unsupported content type"});
-  t.push_back({"JsonPatchContentType", "POST", "/v1/jobs", "application/json-patch+json", valid, 415, "",
-               "takes application/json"});
+  t.push_back({"JsonPatchContentType", "POST", "/v1/jobs", "application/json-patch+json", valid, 415, "", "takes application/json"});
   t.push_back({"ContentTypeInvalidUtf8", "POST", "/v1/jobs", "text/\xff\xfe", valid, 415, "", "takes application/json"});
 
   // Too large.
-  t.push_back(post("BodyOverTheLimit", "{\"scene\": \"" + std::string(kMaxBody + 1024, 'x') + "\"}", 413, "",
-                   "at most 1048576 bytes"));
+  t.push_back(post("BodyOverTheLimit", "{\"scene\": \"" + std::string(kMaxBody + 1024, 'x') + "\"}", 413, "", "at most 1048576 bytes"));
 
   // The request's own fields.
   t.push_back(post("UnknownRequestField", request_body([](json& r) { r["colour"] = "blue"; }), 400, "/colour",
@@ -405,42 +410,54 @@ std::vector<Case> cases() {
   t.push_back(post("MissingScene", R"({"overrides": []})", 400, "/scene", "missing required field 'scene'"));
   t.push_back(post("SceneIsANumber", R"({"scene": 5})", 400, "/scene", "expected a scene object or the name"));
   t.push_back(post("UnknownShippedScene", R"({"scene": "no-such-scene"})", 400, "/scene", "no shipped scene by that name"));
-  t.push_back(post("ShippedScenePathTraversal", R"({"scene": "../../etc/passwd"})", 400, "/scene",
-                   "no shipped scene by that name"));
+  t.push_back(post("ShippedScenePathTraversal", R"({"scene": "../../etc/passwd"})", 400, "/scene", "no shipped scene by that name"));
 
   // Overrides.
-  t.push_back(post("OverrideNotAString", request_body([](json& r) { r["overrides"] = {5}; }), 400, "/overrides/0",
-                   "expected a string PATH=VALUE"));
+  t.push_back(
+      post("OverrideNotAString", request_body([](json& r) { r["overrides"] = {5}; }), 400, "/overrides/0", "expected a string PATH=VALUE"));
   t.push_back(post("OverridesNotAList", request_body([](json& r) { r["overrides"] = 5; }), 400, "/overrides",
                    "expected an array of \"PATH=VALUE\" or an object"));
   t.push_back(post("OverrideWithoutEquals", request_body([](json& r) { r["overrides"] = {"integrator.h"}; }), 400, "/overrides/0",
                    "is not of the form PATH=VALUE"));
-  t.push_back(post("OverridePathThroughANumber", request_body([](json& r) { r["overrides"] = {"integrator.h.x=1"}; }),
-                   400, "/integrator/h/x", "override path goes through a number"));
-  t.push_back(post("OverrideIndexOutOfRange", request_body([](json& r) { r["overrides"] = {"initial.q.5=1"}; }), 400,
-                   "/initial/q/5", "index 5 is out of range (size 1)"));
-  t.push_back(post("OverrideBadPointerEscape", request_body([](json& r) { r["overrides"] = {"/integrator/~2=1"}; }), 400,
-                   "/integrator/~2", "not a valid JSON pointer"));
-  t.push_back(post("OverrideValueNotJson", request_body([](json& r) { r["overrides"] = {"integrator.h={bad"}; }), 400,
-                   "/integrator/h", "unexpected character '{'"));
-  t.push_back(post("OverrideObjectUnknownField", request_body([](json& r) { r["overrides"] = {{"integrator.nope", 1}}; }),
+  t.push_back(post("OverridePathThroughANumber", request_body([](json& r) { r["overrides"] = {"integrator.h.x=1"}; }), 400,
+                   "/integrator/h/x", "override path goes through a number"));
+  t.push_back(post("OverrideIndexOutOfRange", request_body([](json& r) { r["overrides"] = {"initial.q.5=1"}; }), 400, "/initial/q/5",
+                   "index 5 is out of range (size 1)"));
+  t.push_back(post("OverrideBadPointerEscape", request_body([](json& r) { r["overrides"] = {"/integrator/~2=1"}; }), 400, "/integrator/~2",
+                   "not a valid JSON pointer"));
+  t.push_back(post("OverrideValueNotJson", request_body([](json& r) { r["overrides"] = {"integrator.h={bad"}; }), 400, "/integrator/h",
+                   "unexpected character '{'"));
+  t.push_back(post("OverrideObjectUnknownField", request_body([](json& r) {
+                     r["overrides"] = {{"integrator.nope", 1}};
+                   }),
                    400, "/integrator/nope", "unknown field 'nope'"));
-  t.push_back(post("OverrideObjectNull", request_body([](json& r) { r["overrides"] = {{"integrator.h", nullptr}}; }), 400,
-                   "/integrator/h", "got null"));
+  t.push_back(post("OverrideObjectNull", request_body([](json& r) {
+                     r["overrides"] = {{"integrator.h", nullptr}};
+                   }),
+                   400, "/integrator/h", "got null"));
 
   // Streaming settings.
-  t.push_back(post("StreamIsANumber", request_body([](json& r) { r["stream"] = 5; }), 400, "/stream",
-                   "expected true or an object"));
-  t.push_back(post("StreamPeriodZero", request_body([](json& r) { r["stream"] = {{"period", 0}}; }), 400,
-                   "/stream/period", "expected a positive number"));
-  t.push_back(post("StreamPeriodString", request_body([](json& r) { r["stream"] = {{"period", "1"}}; }), 400,
-                   "/stream/period", "expected a positive number"));
-  t.push_back(post("StreamChannelLowercase", request_body([](json& r) { r["stream"] = {{"channel", "moreau"}}; }), 400,
-                   "/stream/channel", "UPPER_SNAKE"));
-  t.push_back(post("StreamRealtimeString", request_body([](json& r) { r["stream"] = {{"realtime", "yes"}}; }), 400,
-                   "/stream/realtime", "expected true or false"));
-  t.push_back(post("StreamUnknownField", request_body([](json& r) { r["stream"] = {{"rate", 1}}; }), 400, "/stream/rate",
-                   "unknown field (expected channel, period, realtime)"));
+  t.push_back(post("StreamIsANumber", request_body([](json& r) { r["stream"] = 5; }), 400, "/stream", "expected true or an object"));
+  t.push_back(post("StreamPeriodZero", request_body([](json& r) {
+                     r["stream"] = {{"period", 0}};
+                   }),
+                   400, "/stream/period", "expected a positive number"));
+  t.push_back(post("StreamPeriodString", request_body([](json& r) {
+                     r["stream"] = {{"period", "1"}};
+                   }),
+                   400, "/stream/period", "expected a positive number"));
+  t.push_back(post("StreamChannelLowercase", request_body([](json& r) {
+                     r["stream"] = {{"channel", "moreau"}};
+                   }),
+                   400, "/stream/channel", "UPPER_SNAKE"));
+  t.push_back(post("StreamRealtimeString", request_body([](json& r) {
+                     r["stream"] = {{"realtime", "yes"}};
+                   }),
+                   400, "/stream/realtime", "expected true or false"));
+  t.push_back(post("StreamUnknownField", request_body([](json& r) {
+                     r["stream"] = {{"rate", 1}};
+                   }),
+                   400, "/stream/rate", "unknown field (expected channel, period, realtime)"));
 
   // Query parameters (on a finished job).
   t.push_back(get("WaitNotANumber", "/v1/jobs/{id}?wait=abc", 400, "'wait' must be a number in [0, 60]"));
@@ -463,8 +480,7 @@ std::vector<Case> cases() {
   t.push_back(get("JobIdPathTraversal", "/v1/jobs/../../etc/passwd", 404, "not found"));
   t.push_back(get("JobIdEncodedTraversal", "/v1/jobs/..%2F..%2Fetc%2Fpasswd", 404, "not found"));
   t.push_back(get("JobIdEncodedDotDot", "/v1/jobs/%2e%2e/report", 404, "no such job"));
-  t.push_back({"DeleteUnknownJob", "DELETE", "/v1/jobs/0123456789abcdef0123456789abcdef", std::nullopt, "", 404, "",
-               "no such job"});
+  t.push_back({"DeleteUnknownJob", "DELETE", "/v1/jobs/0123456789abcdef0123456789abcdef", std::nullopt, "", 404, "", "no such job"});
   t.push_back(get("EventsOfDotDot", "/v1/jobs/../events", 404, "no such job"));
   t.push_back(get("SceneEncodedTraversal", "/v1/scenes/..%2F..%2Fetc%2Fpasswd", 404, "not found"));
   t.push_back(get("UnknownSceneName", "/v1/scenes/no-such-scene", 404, "no such scene"));

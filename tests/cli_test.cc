@@ -43,8 +43,7 @@ const std::string kScene = std::string(MOREAU_SOURCE_DIR) + "/scenes/manipulator
 TEST(Cli, RunPrintsAReadableReport) {
   const Result r = Moreau("run " + kScene);
   ASSERT_EQ(r.status, 0) << r.out;
-  for (const char* part : {"completed: 10000 steps", "v == 0.0 exactly from step", "equilibrium", "energy",
-                           "solver", "wall time"})
+  for (const char* part : {"completed: 10000 steps", "v == 0.0 exactly from step", "equilibrium", "energy", "solver", "wall time"})
     EXPECT_NE(r.out.find(part), std::string::npos) << part << "\n" << r.out;
 }
 
@@ -52,8 +51,8 @@ TEST(Cli, JsonReportHasTheDocumentedFields) {
   const Result r = Moreau("run " + kScene + " --json");
   ASSERT_EQ(r.status, 0) << r.out;
   const auto j = nlohmann::json::parse(r.out);
-  for (const char* key : {"steps", "t_final", "converged_step", "converged_time", "final", "energy_nonincreasing",
-                          "equilibrium", "solver", "wall_seconds"})
+  for (const char* key :
+       {"steps", "t_final", "converged_step", "converged_time", "final", "energy_nonincreasing", "equilibrium", "solver", "wall_seconds"})
     EXPECT_TRUE(j.contains(key)) << key;
   EXPECT_EQ(j["steps"], 10000);
   EXPECT_DOUBLE_EQ(j["t_final"].get<double>(), 10.0);
@@ -163,8 +162,9 @@ TEST(Cli, SweepShardsAndMerge) {
   const std::string dir = moreau::test_support::scratch_dir() + "/sweep";
   std::filesystem::remove_all(dir);
   for (int i = 0; i < 3; ++i) {
-    const Result r = Moreau("sweep " + kScene + " --vary parameters.g=0:9.81:4 --vary 'initial.v=[0,1];[1,0]' --set integrator.t_end=2 --shard " +
-                            std::to_string(i) + "/3 --out " + dir);
+    const Result r =
+        Moreau("sweep " + kScene + " --vary parameters.g=0:9.81:4 --vary 'initial.v=[0,1];[1,0]' --set integrator.t_end=2 --shard " +
+               std::to_string(i) + "/3 --out " + dir);
     ASSERT_EQ(r.status, 0) << r.out;
   }
   const std::string csv = dir + "/merged.csv";
@@ -210,8 +210,10 @@ std::string BadInputDir() {
     std::filesystem::create_directories(d + "/shards");
     std::ofstream(d + "/overflow.json") << "{\"name\": \"x\", \"integrator\": {\"t_end\": 1, \"h\": 1e999}}\n";
     std::ofstream(d + "/shards/shard-0-of-1.jsonl")
-        << R"({"sweep": {"scene": "s.json", "points": 1, "shards": 1, "shard": 0, "vary": [], "set": []}})" << "\n"
-        << R"({"index": 0, "overrides": [], "report": {"steps": 1e999}})" << "\n";
+        << R"({"sweep": {"scene": "s.json", "points": 1, "shards": 1, "shard": 0, "vary": [], "set": []}})"
+        << "\n"
+        << R"({"index": 0, "overrides": [], "report": {"steps": 1e999}})"
+        << "\n";
     return d;
   }();
   return dir;
@@ -227,8 +229,8 @@ struct BadInput {
 class BadCommandLine : public ::testing::TestWithParam<BadInput> {};
 
 std::string Expand(std::string s) {
-  for (const auto& [key, value] : {std::pair<std::string, std::string>{"{tmp}", BadInputDir()},
-                                   {"{scenes}", std::string(MOREAU_SOURCE_DIR) + "/scenes"}}) {
+  for (const auto& [key, value] :
+       {std::pair<std::string, std::string>{"{tmp}", BadInputDir()}, {"{scenes}", std::string(MOREAU_SOURCE_DIR) + "/scenes"}}) {
     for (std::size_t at; (at = s.find(key)) != std::string::npos;) s.replace(at, key.size(), value);
   }
   return s;
@@ -251,7 +253,8 @@ INSTANTIATE_TEST_SUITE_P(
     ::testing::Values(
         // Parsing: a number that overflows a double, wherever the JSON comes from.
         BadInput{"NumberOutOfRangeInASceneFile", "run {tmp}/overflow.json", "/integrator/h: ", "number out of range at byte 46"},
-        BadInput{"NumberOutOfRangeInAnOverride", "run {scenes}/manipulator.json --set 'initial.v=[0,1e999]'", "/initial/v/1: ", "number out of range"},
+        BadInput{"NumberOutOfRangeInAnOverride", "run {scenes}/manipulator.json --set 'initial.v=[0,1e999]'",
+                 "/initial/v/1: ", "number out of range"},
         BadInput{"NumberOutOfRangeInAStudysScene", "study {tmp}/overflow.json", "/integrator/h: ", "number out of range"},
         BadInput{"NumberOutOfRangeInASweepShard", "sweep --merge {tmp}/shards", "shard-0-of-1.jsonl line 2", "number out of range"},
         // Size: endless or huge input is refused at the limit, not read to the end.
@@ -259,26 +262,43 @@ INSTANTIATE_TEST_SUITE_P(
         BadInput{"StudySceneFromDevZero", "study /dev/zero", "/: ", "larger than 64 MiB"},
         BadInput{"TrajectoryFromDevZero", "plot /dev/zero -o {tmp}/plot.png", "'/dev/zero' line 1", "longer than 1 MiB"},
         // Step counts: at least one step, and no count that overflows.
-        BadInput{"StepSoLongTheRunTakesNoStep", "run {scenes}/manipulator.json --set integrator.h=1e12", "/integrator/h: ", "longer than the interval"},
-        BadInput{"StepLongerThanTheInterval", "run {scenes}/manipulator.json --set integrator.h=1e9", "/integrator/h: ", "longer than the interval"},
-        BadInput{"AdaptiveRuleStepCountOverflows", "run {scenes}/manipulator.json --set integrator.step_rule=theorem-4.1 --set integrator.t_end=1e300", "/integrator/h: ", "needs at least"},
-        BadInput{"FixedRuleStepCountOverflows", "run {scenes}/manipulator.json --set integrator.h=1e-300", "/integrator/h: ", "steps, more than the limit"},
-        BadInput{"LureStepLongerThanTheInterval", "run {scenes}/lure-relay.json --set integrator.h=10", "/integrator/h: ", "longer than the interval"},
+        BadInput{"StepSoLongTheRunTakesNoStep", "run {scenes}/manipulator.json --set integrator.h=1e12",
+                 "/integrator/h: ", "longer than the interval"},
+        BadInput{"StepLongerThanTheInterval", "run {scenes}/manipulator.json --set integrator.h=1e9",
+                 "/integrator/h: ", "longer than the interval"},
+        BadInput{"AdaptiveRuleStepCountOverflows",
+                 "run {scenes}/manipulator.json --set integrator.step_rule=theorem-4.1 --set integrator.t_end=1e300",
+                 "/integrator/h: ", "needs at least"},
+        BadInput{"FixedRuleStepCountOverflows", "run {scenes}/manipulator.json --set integrator.h=1e-300",
+                 "/integrator/h: ", "steps, more than the limit"},
+        BadInput{"LureStepLongerThanTheInterval", "run {scenes}/lure-relay.json --set integrator.h=10",
+                 "/integrator/h: ", "longer than the interval"},
         // Lur'e graphs whose slopes overflow.
-        BadInput{"LureGraphSlopeOverflows", "run {scenes}/lure-graph.json --set 'system.feedback.0.vertices=[[-1e308,-1e308],[1e308,1e308]]'", "/system/feedback/0/vertices/1: ", "overflows"},
+        BadInput{"LureGraphSlopeOverflows",
+                 "run {scenes}/lure-graph.json --set 'system.feedback.0.vertices=[[-1e308,-1e308],[1e308,1e308]]'",
+                 "/system/feedback/0/vertices/1: ", "overflows"},
         // Studies: every h finite, positive and within the scene's interval and step limit.
         BadInput{"StudyNaNStep", "study {scenes}/damped-relay.json --h nan", "--h: ", "is not a positive finite step size"},
         BadInput{"StudyZeroInAStepList", "study {scenes}/damped-relay.json --h 1e-2,0", "--h: ", "is not a positive finite step size"},
-        BadInput{"StudyZeroReferenceStep", "study {scenes}/damped-relay.json --h 1e-2 --reference-h 0", "--reference-h: ", "not a positive finite step size"},
-        BadInput{"StudyNegativeReferenceStep", "study {scenes}/damped-relay.json --h 1e-2 --reference-h=-1", "--reference-h: ", "not a positive finite step size"},
+        BadInput{"StudyZeroReferenceStep", "study {scenes}/damped-relay.json --h 1e-2 --reference-h 0",
+                 "--reference-h: ", "not a positive finite step size"},
+        BadInput{"StudyNegativeReferenceStep", "study {scenes}/damped-relay.json --h 1e-2 --reference-h=-1",
+                 "--reference-h: ", "not a positive finite step size"},
         BadInput{"StudyStepLongerThanTheInterval", "study {scenes}/damped-relay.json --h 1e-2,100", "--h: ", "longer than the interval"},
         BadInput{"StudyStepCountOverflows", "study {scenes}/damped-relay.json --h 1e-300", "--h: ", "steps, more than the limit"},
-        BadInput{"StudyExactSolutionNotFinite", "study {scenes}/damped-relay.json --h 1e-2 --set 'exact.q.0=sqrt(3 - t)'", "/exact/q/0: ", "not finite"},
-        BadInput{"StudyTooManyEvalPoints", "study {scenes}/damped-relay.json --h 1e-2 --eval-points 1000000000", "--eval-points: ", "100000"},
+        BadInput{"StudyExactSolutionNotFinite", "study {scenes}/damped-relay.json --h 1e-2 --set 'exact.q.0=sqrt(3 - t)'",
+                 "/exact/q/0: ", "not finite"},
+        BadInput{"StudyTooManyEvalPoints", "study {scenes}/damped-relay.json --h 1e-2 --eval-points 1000000000",
+                 "--eval-points: ", "100000"},
         // Sweeps: values that are numbers, and a product of lists that fits.
-        BadInput{"SweepValueNotANumber", "sweep {scenes}/manipulator.json --vary integrator.h=abc:1:3 --out {tmp}/sweep", "--vary integrator.h", "'abc' is not a number"},
-        BadInput{"SweepValueOutOfRange", "sweep {scenes}/manipulator.json --vary integrator.h=1e999:1:3 --out {tmp}/sweep", "--vary integrator.h", "not a finite number"},
-        BadInput{"SweepTooManyPoints", "sweep {scenes}/manipulator.json --vary parameters.g=0:1:100000 --vary parameters.m1=1:2:100000 --vary parameters.m2=1:2:100000 --vary parameters.b=1:2:100000 --out {tmp}/sweep", "--vary", "more than 10000000 points"}),
+        BadInput{"SweepValueNotANumber", "sweep {scenes}/manipulator.json --vary integrator.h=abc:1:3 --out {tmp}/sweep",
+                 "--vary integrator.h", "'abc' is not a number"},
+        BadInput{"SweepValueOutOfRange", "sweep {scenes}/manipulator.json --vary integrator.h=1e999:1:3 --out {tmp}/sweep",
+                 "--vary integrator.h", "not a finite number"},
+        BadInput{"SweepTooManyPoints",
+                 "sweep {scenes}/manipulator.json --vary parameters.g=0:1:100000 --vary parameters.m1=1:2:100000 --vary "
+                 "parameters.m2=1:2:100000 --vary parameters.b=1:2:100000 --out {tmp}/sweep",
+                 "--vary", "more than 10000000 points"}),
     [](const auto& info) { return info.param.name; });
 
 // A FIFO has no size to trust and this one never ends: the scene is read up to the limit and refused

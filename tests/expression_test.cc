@@ -39,9 +39,7 @@ class ExprTest : public ::testing::Test {
     tape.eval(slots, &out, scratch.data());
     return out;
   }
-  double eval(std::string_view text, double x = 0.0, double y = 0.0, double z = 0.0) {
-    return eval(parse(text), x, y, z);
-  }
+  double eval(std::string_view text, double x = 0.0, double y = 0.0, double z = 0.0) { return eval(parse(text), x, y, z); }
 
   // Throws and returns the error, so the test can look at message and position.
   ExpressionError parse_error(std::string_view text) {
@@ -154,8 +152,7 @@ TEST_F(ExprTest, FunctionValuesMatchCmath) {
 
 TEST_F(ExprTest, ConstantFoldingUsesTheSameFunctions) {
   // A folded constant has exactly the value the tape computes for the same operation at run time.
-  const char* functions[] = {"sin", "cos", "tan", "asin", "acos", "atan", "sinh", "cosh",
-                             "tanh", "exp", "log", "sqrt", "abs"};
+  const char* functions[] = {"sin", "cos", "tan", "asin", "acos", "atan", "sinh", "cosh", "tanh", "exp", "log", "sqrt", "abs"};
   for (const char* f : functions) {
     const Node folded = parse(std::string(f) + "(0.37)");
     ASSERT_TRUE(g_.is_constant(folded)) << f;
@@ -272,18 +269,51 @@ TEST_F(ExprTest, EveryDerivativeRuleMatchesFiniteDifferences) {
   const std::vector<std::array<double, 3>> positive = {{0.3, 0.7, 0.4}, {1.1, 0.2, 0.9}, {2.0, 1.3, 0.5}};
   const std::vector<std::array<double, 3>> unit = {{0.3, 0.7, -0.4}, {-0.8, 0.2, 0.9}, {0.55, -0.6, 0.5}};
   const std::vector<Case> cases = {
-      {"x + y", general}, {"x - y", general}, {"x * y", general}, {"x / y", general}, {"y / x", general},
-      {"-x", general}, {"x^2", general}, {"x^3", general}, {"x^-2", general}, {"x^2.5", positive},
-      {"x^y", positive}, {"y^x", positive}, {"x^x", positive}, {"pow(x, a*b)", positive}, {"a^x", general},
-      {"x^(y*z)", positive}, {"sin(x)", general}, {"cos(x)", general}, {"tan(x)", general},
-      {"asin(x)", unit}, {"acos(x)", unit}, {"atan(x)", general}, {"atan2(x, y)", general},
-      {"atan2(y, x)", general}, {"atan2(x*y, x+2)", general}, {"sinh(x)", general}, {"cosh(x)", general},
-      {"tanh(x)", general}, {"exp(x)", general}, {"log(x)", positive}, {"sqrt(x)", positive},
-      {"abs(x)", general}, {"abs(x*y)", general}, {"min(x, y)", general}, {"max(x, y)", general},
-      {"min(y, x)", general}, {"max(x*x, y)", general}, {"min(x, 2*x)", positive},
-      {"sin(x*y)^2 / (1 + exp(-x))", general}, {"sqrt(x^2 + y^2 + z^2)", general},
-      {"log(cosh(x*y)) * atan(z - x)", general}, {"tan(x)*tan(x) + tan(x)", general},
-      {"sin(cos(sin(x*y)))", general}, {"exp(sin(x))^cos(y)", general}, {"a*x^2 + b*x + g", general},
+      {"x + y", general},
+      {"x - y", general},
+      {"x * y", general},
+      {"x / y", general},
+      {"y / x", general},
+      {"-x", general},
+      {"x^2", general},
+      {"x^3", general},
+      {"x^-2", general},
+      {"x^2.5", positive},
+      {"x^y", positive},
+      {"y^x", positive},
+      {"x^x", positive},
+      {"pow(x, a*b)", positive},
+      {"a^x", general},
+      {"x^(y*z)", positive},
+      {"sin(x)", general},
+      {"cos(x)", general},
+      {"tan(x)", general},
+      {"asin(x)", unit},
+      {"acos(x)", unit},
+      {"atan(x)", general},
+      {"atan2(x, y)", general},
+      {"atan2(y, x)", general},
+      {"atan2(x*y, x+2)", general},
+      {"sinh(x)", general},
+      {"cosh(x)", general},
+      {"tanh(x)", general},
+      {"exp(x)", general},
+      {"log(x)", positive},
+      {"sqrt(x)", positive},
+      {"abs(x)", general},
+      {"abs(x*y)", general},
+      {"min(x, y)", general},
+      {"max(x, y)", general},
+      {"min(y, x)", general},
+      {"max(x*x, y)", general},
+      {"min(x, 2*x)", positive},
+      {"sin(x*y)^2 / (1 + exp(-x))", general},
+      {"sqrt(x^2 + y^2 + z^2)", general},
+      {"log(cosh(x*y)) * atan(z - x)", general},
+      {"tan(x)*tan(x) + tan(x)", general},
+      {"sin(cos(sin(x*y)))", general},
+      {"exp(sin(x))^cos(y)", general},
+      {"a*x^2 + b*x + g", general},
   };
   for (const Case& c : cases) {
     const Node f = parse(c.text);
@@ -296,7 +326,8 @@ TEST_F(ExprTest, EveryDerivativeRuleMatchesFiniteDifferences) {
         const double exact = eval(df, p[0], p[1], p[2]);
         const double fd = finite_difference(f, slot, p);
         EXPECT_NEAR(exact, fd, 1e-6 * std::max(1.0, std::fabs(fd)))
-            << "d/d" << "xyz"[slot] << " " << c.text << " at (" << p[0] << ", " << p[1] << ", " << p[2] << ")";
+            << "d/d"
+            << "xyz"[slot] << " " << c.text << " at (" << p[0] << ", " << p[1] << ", " << p[2] << ")";
       }
     }
   }
@@ -516,8 +547,8 @@ TEST_F(ExprTest, BadArgumentsToTheBuilders) {
 TEST_F(ExprTest, RandomInputNeverCrashes) {
   // Random token soup and random bytes: every input either parses (and then evaluates and differentiates)
   // or throws ExpressionError.
-  const std::vector<std::string> tokens = {"x", "y", "1", ".5", "2e3", "(", ")", "+", "-", "*", "/", "^", ",",
-                                           "sin(", "atan2(", "min(", "pow(", "abs(", " ", "a", "#", "\xfe", "e"};
+  const std::vector<std::string> tokens = {"x", "y",    "1",      ".5",   "2e3",  "(",    ")", "+", "-", "*",    "/", "^",
+                                           ",", "sin(", "atan2(", "min(", "pow(", "abs(", " ", "a", "#", "\xfe", "e"};
   std::mt19937 rng(12345);
   int parsed = 0;
   for (int i = 0; i < 20000; ++i) {
@@ -595,8 +626,9 @@ TEST_F(ExprTest, FusedSinCosMatchesSinAndCos) {
   EXPECT_EQ(tape.num_outputs(), 4u);
   std::vector<double> scratch(tape.scratch_size());
   std::mt19937_64 rng(7);
-  std::vector<double> points = {0.0, -0.0, 1e-300, 5e-324, 0.785398163397448, 1.5707963267948966, 3.141592653589793,
-                                -2.5, 100.0, 1e5, 1e10, 1e22, 1e300, -1e300, INFINITY, -INFINITY, NAN};
+  std::vector<double> points = {
+      0.0,    -0.0,     1e-300,    5e-324, 0.785398163397448, 1.5707963267948966, 3.141592653589793, -2.5, 100.0, 1e5, 1e10, 1e22, 1e300,
+      -1e300, INFINITY, -INFINITY, NAN};
   for (int i = 0; i < 2000; ++i) {
     points.push_back(std::ldexp(std::uniform_real_distribution<double>(-1.0, 1.0)(rng), i % 80 - 20));
   }

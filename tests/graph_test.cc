@@ -101,11 +101,10 @@ TEST(Graph, SegmentsWhoseSlopeOverflowsAreRefused) {
     std::vector<double> u, w;
     int index;
   };
-  for (const Case& c : std::vector<Case>{
-           {{-1e308, 1e308}, {-1e308, 1e308}, 1},         // run and rise overflow: inf / inf = NaN
-           {{0, 1e-300}, {0, 1e300}, 1},                  // the slope overflows
-           {{0, 1e-300, 2e-300}, {0, 1e-300, 1e300}, 2},  // the second segment's slope overflows
-           {{-1e308, 1e308}, {0, 1}, 1}}) {               // the run overflows: slope 1 / inf = 0
+  for (const Case& c : std::vector<Case>{{{-1e308, 1e308}, {-1e308, 1e308}, 1},         // run and rise overflow: inf / inf = NaN
+                                         {{0, 1e-300}, {0, 1e300}, 1},                  // the slope overflows
+                                         {{0, 1e-300, 2e-300}, {0, 1e-300, 1e300}, 2},  // the second segment's slope overflows
+                                         {{-1e308, 1e308}, {0, 1}, 1}}) {               // the run overflows: slope 1 / inf = 0
     MonotoneGraph::Problem p;
     EXPECT_FALSE(MonotoneGraph::check(c.u, c.w, End::kSlope, 0, End::kSlope, 0, &p)) << c.u.back() << " " << c.w.back();
     EXPECT_EQ(p.field, "vertices");
@@ -151,8 +150,12 @@ TEST(Graph, ScalarResolventIsExact) {
   // Random points on random graphs: on the graph, on the line.
   std::mt19937 rng(7);
   std::uniform_real_distribution<double> U(-3.0, 3.0);
-  const std::vector<MonotoneGraph> graphs = {relay, corner, sat, MonotoneGraph::dead_zone(0.5, 2.0),
-                                             MonotoneGraph::mos(0.5, 1.5, 2.0), MonotoneGraph::adhesive(1.0, 4.0),
+  const std::vector<MonotoneGraph> graphs = {relay,
+                                             corner,
+                                             sat,
+                                             MonotoneGraph::dead_zone(0.5, 2.0),
+                                             MonotoneGraph::mos(0.5, 1.5, 2.0),
+                                             MonotoneGraph::adhesive(1.0, 4.0),
                                              MonotoneGraph::coulomb(0.7, 0.3)};
   for (int trial = 0; trial < 2000; ++trial) {
     const MonotoneGraph& g = graphs[trial % graphs.size()];
@@ -166,8 +169,8 @@ TEST(Graph, ScalarResolventIsExact) {
 
 // Independent reference: every piece pattern, the 2m x 2m linear system in (u, w) solved by full-pivot
 // LU, kept if every point lies on its piece. Unique when D + D^T > 0.
-bool BruteForce(const Eigen::MatrixXd& D, const Eigen::VectorXd& q, const std::vector<const MonotoneGraph*>& g,
-                Eigen::VectorXd& u, Eigen::VectorXd& w) {
+bool BruteForce(const Eigen::MatrixXd& D, const Eigen::VectorXd& q, const std::vector<const MonotoneGraph*>& g, Eigen::VectorXd& u,
+                Eigen::VectorXd& w) {
   const int m = static_cast<int>(q.size());
   long total = 1;
   for (int i = 0; i < m; ++i) total *= g[i]->num_pieces();
@@ -214,7 +217,7 @@ template <int M>
 void RandomProblems(int m, int trials, unsigned seed) {
   std::mt19937 rng(seed);
   std::normal_distribution<double> N(0.0, 1.0);
-  const std::vector<MonotoneGraph> pool = {MonotoneGraph::relay(1.0),      MonotoneGraph::complementarity(),
+  const std::vector<MonotoneGraph> pool = {MonotoneGraph::relay(1.0),           MonotoneGraph::complementarity(),
                                            MonotoneGraph::saturation(2.0, 1.0), MonotoneGraph::dead_zone(0.3, 1.5),
                                            MonotoneGraph::mos(0.2, 1.0, 3.0),   MonotoneGraph::adhesive(0.5, 2.0),
                                            MonotoneGraph::coulomb(0.5, 1.0),    MonotoneGraph::zero()};

@@ -15,7 +15,6 @@
 // (nlohmann::json literals here) and then warns; the pair below is matched by construction.
 #pragma GCC diagnostic ignored "-Wmismatched-new-delete"
 
-
 namespace moreau::scene {
 namespace {
 
@@ -60,16 +59,15 @@ TEST(Allocation, Example1) {
 }
 
 TEST(Allocation, CurvedConstraintWithPositionCorrection) {
-  nlohmann::json doc = {
-      {"system",
-       {{"type", "lagrangian"},
-        {"coordinates", {"x", "y"}},
-        {"mass", {{1, 0}, {0, 1}}},
-        {"potential", "9.81*y"},
-        {"controller", {{{"type", "abs"}, {"gains", {0.1, 0.1}}}}},
-        {"constraints", {{{"gap", "1 - x^2 - y^2"}, {"restitution", 0.3}}}}}},
-      {"initial", {{"q", {0, 0}}, {"v", {1.5, 0}}}},
-      {"integrator", {{"scheme", "moreau-jean"}, {"h", 1e-3}, {"t_end", 1}, {"position_correction", "projection"}}}};
+  nlohmann::json doc = {{"system",
+                         {{"type", "lagrangian"},
+                          {"coordinates", {"x", "y"}},
+                          {"mass", {{1, 0}, {0, 1}}},
+                          {"potential", "9.81*y"},
+                          {"controller", {{{"type", "abs"}, {"gains", {0.1, 0.1}}}}},
+                          {"constraints", {{{"gap", "1 - x^2 - y^2"}, {"restitution", 0.3}}}}}},
+                        {"initial", {{"q", {0, 0}}, {"v", {1.5, 0}}}},
+                        {"integrator", {{"scheme", "moreau-jean"}, {"h", 1e-3}, {"t_end", 1}, {"position_correction", "projection"}}}};
   EXPECT_EQ(ContactAllocations(doc, 0.2), ContactAllocations(doc, 3.0));
 }
 

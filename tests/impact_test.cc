@@ -275,18 +275,17 @@ TEST(Impact, Example1XIsIndependentOfTheImpacts) {
 TEST(Impact, ControllerAndContactInOneProblemStopTheBlockExactly) {
   const double m = 1.0, a = 10.0, s0 = 1.0, h = 1e-3;
   const double r5 = std::sqrt(5.0);
-  json doc = {
-      {"name", "ramp"},
-      {"parameters", {{"m", m}, {"g", kG}, {"a", a}}},
-      {"system",
-       {{"type", "lagrangian"},
-        {"coordinates", {"x", "y"}},
-        {"mass", {{"m", 0}, {0, "m"}}},
-        {"potential", "m*g*y"},
-        {"controller", {{{"type", "abs"}, {"gains", {"a", 0}}}}},
-        {"constraints", {{{"name", "ramp"}, {"gap", "y - x/2"}, {"restitution", 0}}}}}},
-      {"initial", {{"q", {0, 0}}, {"v", {2.0 * s0 / r5, s0 / r5}}}},
-      {"integrator", {{"scheme", "moreau-jean"}, {"h", h}, {"t_end", 0.5}}}};
+  json doc = {{"name", "ramp"},
+              {"parameters", {{"m", m}, {"g", kG}, {"a", a}}},
+              {"system",
+               {{"type", "lagrangian"},
+                {"coordinates", {"x", "y"}},
+                {"mass", {{"m", 0}, {0, "m"}}},
+                {"potential", "m*g*y"},
+                {"controller", {{{"type", "abs"}, {"gains", {"a", 0}}}}},
+                {"constraints", {{{"name", "ramp"}, {"gap", "y - x/2"}, {"restitution", 0}}}}}},
+              {"initial", {{"q", {0, 0}}, {"v", {2.0 * s0 / r5, s0 / r5}}}},
+              {"integrator", {{"scheme", "moreau-jean"}, {"h", h}, {"t_end", 0.5}}}};
   const ContactRun r = RunContacts(doc);
   const double dec = (m * kG + 2.0 * a) / (r5 * m);
   const double t_star = r5 * m * s0 / (m * kG + 2.0 * a);
@@ -312,23 +311,24 @@ TEST(Impact, ControllerAndContactInOneProblemStopTheBlockExactly) {
 // brought back to 0 after every step, and the report counts the corrections and the energy they add.
 TEST(Impact, CurvedConstraintDriftsAndTheProjectionCorrectsIt) {
   const double h = 1e-3;
-  json doc = {
-      {"name", "bowl"},
-      {"parameters", {{"g", kG}}},
-      {"system",
-       {{"type", "lagrangian"},
-        {"coordinates", {"x", "y"}},
-        {"mass", {{1, 0}, {0, 1}}},
-        {"potential", "g*y"},
-        {"constraints", {{{"name", "bowl"}, {"gap", "1 - x^2 - y^2"}, {"restitution", 0}}}}}},
-      {"initial", {{"q", {0, -1}}, {"v", {1.5, 0}}}},
-      {"integrator", {{"scheme", "moreau-jean"}, {"h", h}, {"t_end", 2}}}};
+  json doc = {{"name", "bowl"},
+              {"parameters", {{"g", kG}}},
+              {"system",
+               {{"type", "lagrangian"},
+                {"coordinates", {"x", "y"}},
+                {"mass", {{1, 0}, {0, 1}}},
+                {"potential", "g*y"},
+                {"constraints", {{{"name", "bowl"}, {"gap", "1 - x^2 - y^2"}, {"restitution", 0}}}}}},
+              {"initial", {{"q", {0, -1}}, {"v", {1.5, 0}}}},
+              {"integrator", {{"scheme", "moreau-jean"}, {"h", h}, {"t_end", 2}}}};
   const ContactRun drift = RunContacts(doc);
   EXPECT_LT(drift.diag.smallest_gap, -1e-4);
   EXPECT_EQ(drift.diag.corrected_steps, 0);
   int closed_steps = 0;
   for (std::size_t k = 10; k + 1 < drift.rec.t.size(); ++k) {
-    auto gap = [&](std::size_t j) { return 1.0 - drift.rec.q[2 * j] * drift.rec.q[2 * j] - drift.rec.q[2 * j + 1] * drift.rec.q[2 * j + 1]; };
+    auto gap = [&](std::size_t j) {
+      return 1.0 - drift.rec.q[2 * j] * drift.rec.q[2 * j] - drift.rec.q[2 * j + 1] * drift.rec.q[2 * j + 1];
+    };
     const double vx = drift.rec.v[2 * (k + 1)], vy = drift.rec.v[2 * (k + 1) + 1];
     const double qx = drift.rec.q[2 * k], qy = drift.rec.q[2 * k + 1];
     if (std::abs(qx * vx + qy * vy) > 1e-12) continue;  // not a closed-contact step
@@ -406,22 +406,37 @@ TEST_P(BadContactScene, ErrorNamesTheField) {
 INSTANTIATE_TEST_SUITE_P(
     Impact, BadContactScene,
     ::testing::Values(
-        BadContact{"AblWithConstraints", [](json& d) { d["integrator"]["scheme"] = "abl"; }, "/integrator/scheme", "cannot integrate unilateral constraints"},
-        BadContact{"RestitutionAboveOne", [](json& d) { d["system"]["constraints"][0]["restitution"] = 1.5; }, "/system/constraints/0/restitution", "[0, 1]"},
-        BadContact{"NegativeRestitution", [](json& d) { d["system"]["constraints"][0]["restitution"] = "-e"; }, "/system/constraints/0/restitution", "[0, 1]"},
-        BadContact{"GapWithVelocity", [](json& d) { d["system"]["constraints"][0]["gap"] = "y + y_dot"; }, "/system/constraints/0/gap", "cannot appear"},
-        BadContact{"GapUnknownName", [](json& d) { d["system"]["constraints"][0]["gap"] = "z"; }, "/system/constraints/0/gap", "unknown name 'z'"},
+        BadContact{"AblWithConstraints", [](json& d) { d["integrator"]["scheme"] = "abl"; }, "/integrator/scheme",
+                   "cannot integrate unilateral constraints"},
+        BadContact{"RestitutionAboveOne", [](json& d) { d["system"]["constraints"][0]["restitution"] = 1.5; },
+                   "/system/constraints/0/restitution", "[0, 1]"},
+        BadContact{"NegativeRestitution", [](json& d) { d["system"]["constraints"][0]["restitution"] = "-e"; },
+                   "/system/constraints/0/restitution", "[0, 1]"},
+        BadContact{"GapWithVelocity", [](json& d) { d["system"]["constraints"][0]["gap"] = "y + y_dot"; }, "/system/constraints/0/gap",
+                   "cannot appear"},
+        BadContact{"GapUnknownName", [](json& d) { d["system"]["constraints"][0]["gap"] = "z"; }, "/system/constraints/0/gap",
+                   "unknown name 'z'"},
         BadContact{"ConstantGap", [](json& d) { d["system"]["constraints"][0]["gap"] = "2*e"; }, "/system/constraints/0/gap", "constant"},
         BadContact{"MissingGap", [](json& d) { d["system"]["constraints"][0].erase("gap"); }, "/system/constraints/0", "missing 'gap'"},
-        BadContact{"UnknownConstraintField", [](json& d) { d["system"]["constraints"][0]["friction"] = 0.3; }, "/system/constraints/0/friction", "unknown field"},
+        BadContact{"UnknownConstraintField", [](json& d) { d["system"]["constraints"][0]["friction"] = 0.3; },
+                   "/system/constraints/0/friction", "unknown field"},
         BadContact{"ConstraintsNotArray", [](json& d) { d["system"]["constraints"] = "y"; }, "/system/constraints", "expected an array"},
-        BadContact{"DuplicateName", [](json& d) { d["system"]["constraints"].push_back({{"name", "floor"}, {"gap", "y + 1"}}); }, "/system/constraints/1/name", "duplicate"},
+        BadContact{"DuplicateName",
+                   [](json& d) {
+                     d["system"]["constraints"].push_back({{"name", "floor"}, {"gap", "y + 1"}});
+                   },
+                   "/system/constraints/1/name", "duplicate"},
         BadContact{"InitialViolates", [](json& d) { d["initial"]["q"][1] = -0.1; }, "/initial/q", "violates constraint 'floor'"},
-        BadContact{"NormController", [](json& d) { d["system"]["controller"].push_back({{"type", "norm"}, {"gain", 1}}); }, "/system/controller/1/type", "not supported by the moreau-jean"},
+        BadContact{"NormController",
+                   [](json& d) {
+                     d["system"]["controller"].push_back({{"type", "norm"}, {"gain", 1}});
+                   },
+                   "/system/controller/1/type", "not supported by the moreau-jean"},
         BadContact{"TheoremRule", [](json& d) { d["integrator"]["step_rule"] = "theorem-4.1"; }, "/integrator/step_rule", "fixed step"},
         BadContact{"K1", [](json& d) { d["integrator"]["k1"] = 1; }, "/integrator/k1", "abl"},
         BadContact{"Theta", [](json& d) { d["integrator"]["theta"] = 0.5; }, "/integrator/theta", "implicit-euler"},
-        BadContact{"BadCorrection", [](json& d) { d["integrator"]["position_correction"] = "baumgarte"; }, "/integrator/position_correction", "projection"},
+        BadContact{"BadCorrection", [](json& d) { d["integrator"]["position_correction"] = "baumgarte"; },
+                   "/integrator/position_correction", "projection"},
         BadContact{"BadUpdate", [](json& d) { d["integrator"]["position_update"] = "midpoint"; }, "/integrator/position_update", "mdi"},
         BadContact{"LureScheme", [](json& d) { d["integrator"]["scheme"] = "implicit-euler"; }, "/integrator/scheme", "lure systems"}),
     [](const auto& info) { return info.param.name; });

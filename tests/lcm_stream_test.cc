@@ -259,8 +259,8 @@ TEST(LcmStream, UdpmBetweenProcessesInAPrivateNetworkNamespace) {
                     "so that no multicast reaches the real network";
   }
   const fs::path dir = make_temp_dir("udpm");
-  const std::string cmd = std::string("sh ") + MOREAU_NETNS_SCRIPT + " " + MOREAU_SERVER_BINARY + " " + MOREAU_CLIENT_BINARY +
-                          " " + dir.string() + " > " + (dir / "script.out").string() + " 2>&1";
+  const std::string cmd = std::string("sh ") + MOREAU_NETNS_SCRIPT + " " + MOREAU_SERVER_BINARY + " " + MOREAU_CLIENT_BINARY + " " +
+                          dir.string() + " > " + (dir / "script.out").string() + " 2>&1";
   const int rc = run_shell(cmd);
   std::ifstream out_file(dir / "script.out");
   const std::string out((std::istreambuf_iterator<char>(out_file)), std::istreambuf_iterator<char>());

@@ -240,11 +240,10 @@ TEST(Lure, TwoStateRelaySlidesExactlyOnYZeroAndItsStorageFunctionDecreases) {
   // Velocities are the discrete derivative; row 0 is A x0 - B w0 with w0 = Sign(y0) = 1 (y0 = 1).
   const int n = 2;
   const double h = r.scene.settings.h;
-  EXPECT_EQ(r.rec.v[0], 0.0);    // (A x0)_1 = x2 = 0
+  EXPECT_EQ(r.rec.v[0], 0.0);         // (A x0)_1 = x2 = 0
   EXPECT_EQ(r.rec.v[1], -2.0 - 1.0);  // (A x0)_2 - 1 = -2 - 1
   for (std::size_t k = 1; k < r.rec.t.size(); k += 37)
-    for (int i = 0; i < n; ++i)
-      EXPECT_NEAR(r.rec.v[n * k + i], (r.rec.x[n * k + i] - r.rec.x[n * (k - 1) + i]) / h, 1e-9) << "k = " << k;
+    for (int i = 0; i < n; ++i) EXPECT_NEAR(r.rec.v[n * k + i], (r.rec.x[n * k + i] - r.rec.x[n * (k - 1) + i]) / h, 1e-9) << "k = " << k;
   // The sample's energy is W_k.
   const Eigen::MatrixXd& P = *r.scene.storage;
   for (std::size_t k = 0; k < r.rec.t.size(); k += 101) {
@@ -386,39 +385,102 @@ TEST_P(BadLureScene, ErrorNamesTheField) {
 INSTANTIATE_TEST_SUITE_P(
     Lure, BadLureScene,
     ::testing::Values(
-        BadLure{"NonMonotoneW", [](json& d) { d["system"]["feedback"][0]["vertices"][2] = {0, -1}; }, "/system/feedback/0/vertices/2/1", "not monotone"},
-        BadLure{"NonMonotoneU", [](json& d) { d["system"]["feedback"][0]["vertices"][3] = {-0.5, 2}; }, "/system/feedback/0/vertices/3/0", "not monotone"},
+        BadLure{"NonMonotoneW",
+                [](json& d) {
+                  d["system"]["feedback"][0]["vertices"][2] = {0, -1};
+                },
+                "/system/feedback/0/vertices/2/1", "not monotone"},
+        BadLure{"NonMonotoneU",
+                [](json& d) {
+                  d["system"]["feedback"][0]["vertices"][3] = {-0.5, 2};
+                },
+                "/system/feedback/0/vertices/3/0", "not monotone"},
         BadLure{"NegativeSlope", [](json& d) { d["system"]["feedback"][0]["right"] = -1; }, "/system/feedback/0/right", ">= 0"},
         BadLure{"BadEnd", [](json& d) { d["system"]["feedback"][0]["left"] = "floor"; }, "/system/feedback/0/left", "wall"},
-        BadLure{"RepeatedVertex", [](json& d) { d["system"]["feedback"][0]["vertices"][1] = {-1, -2}; }, "/system/feedback/0/vertices/1", "repeats"},
+        BadLure{"RepeatedVertex",
+                [](json& d) {
+                  d["system"]["feedback"][0]["vertices"][1] = {-1, -2};
+                },
+                "/system/feedback/0/vertices/1", "repeats"},
         BadLure{"VertexShape", [](json& d) { d["system"]["feedback"][0]["vertices"][1] = {1}; }, "/system/feedback/0/vertices/1", "[u, w]"},
-        BadLure{"UnknownFeedback", [](json& d) { d["system"]["feedback"][0] = {{"type", "hysteresis"}}; }, "/system/feedback/0/type", "unknown feedback type"},
-        BadLure{"NegativeRelayGain", [](json& d) { d["system"]["feedback"][0] = {{"type", "relay"}, {"gain", -1}}; }, "/system/feedback/0/gain", ">= 0"},
-        BadLure{"ZeroSaturationSlope", [](json& d) { d["system"]["feedback"][0] = {{"type", "saturation"}, {"slope", 0}, {"limit", 1}}; }, "/system/feedback/0/slope", "> 0"},
-        BadLure{"MosLimitBelowThreshold", [](json& d) { d["system"]["feedback"][0] = {{"type", "mos"}, {"threshold", 1}, {"limit", 0.5}, {"slope", 1}}; }, "/system/feedback/0/limit", "threshold"},
-        BadLure{"MissingGain", [](json& d) { d["system"]["feedback"][0] = {{"type", "relay"}}; }, "/system/feedback/0", "missing 'gain'"},
+        BadLure{"UnknownFeedback",
+                [](json& d) {
+                  d["system"]["feedback"][0] = {{"type", "hysteresis"}};
+                },
+                "/system/feedback/0/type", "unknown feedback type"},
+        BadLure{"NegativeRelayGain",
+                [](json& d) {
+                  d["system"]["feedback"][0] = {{"type", "relay"}, {"gain", -1}};
+                },
+                "/system/feedback/0/gain", ">= 0"},
+        BadLure{"ZeroSaturationSlope",
+                [](json& d) {
+                  d["system"]["feedback"][0] = {{"type", "saturation"}, {"slope", 0}, {"limit", 1}};
+                },
+                "/system/feedback/0/slope", "> 0"},
+        BadLure{"MosLimitBelowThreshold",
+                [](json& d) {
+                  d["system"]["feedback"][0] = {{"type", "mos"}, {"threshold", 1}, {"limit", 0.5}, {"slope", 1}};
+                },
+                "/system/feedback/0/limit", "threshold"},
+        BadLure{"MissingGain",
+                [](json& d) {
+                  d["system"]["feedback"][0] = {{"type", "relay"}};
+                },
+                "/system/feedback/0", "missing 'gain'"},
         BadLure{"UnknownGraphField", [](json& d) { d["system"]["feedback"][0]["slope"] = 1; }, "/system/feedback/0/slope", "unknown field"},
-        BadLure{"FeedbackCount", [](json& d) { d["system"]["feedback"].push_back({{"type", "relay"}, {"gain", 1}}); }, "/system/feedback", "expected 1 graphs"},
-        BadLure{"CShape", [](json& d) { d["system"]["C"] = {{1, 2, 3}}; }, "/system/C/0", "expected 2 entries"},
+        BadLure{"FeedbackCount",
+                [](json& d) {
+                  d["system"]["feedback"].push_back({{"type", "relay"}, {"gain", 1}});
+                },
+                "/system/feedback", "expected 1 graphs"},
+        BadLure{"CShape",
+                [](json& d) {
+                  d["system"]["C"] = {{1, 2, 3}};
+                },
+                "/system/C/0", "expected 2 entries"},
         BadLure{"BRows", [](json& d) { d["system"]["B"] = {{1}}; }, "/system/B", "expected 2 rows"},
-        BadLure{"ANotSquare", [](json& d) { d["system"]["A"] = {{0, 1, 0}, {-2, -3, 0}}; }, "/system/A/0", "square"},
+        BadLure{"ANotSquare",
+                [](json& d) {
+                  d["system"]["A"] = {{0, 1, 0}, {-2, -3, 0}};
+                },
+                "/system/A/0", "square"},
         BadLure{"MissingA", [](json& d) { d["system"].erase("A"); }, "/system", "missing required field 'A'"},
         BadLure{"PShape", [](json& d) { d["system"]["P"] = {{1}}; }, "/system/P", "expected 2 rows"},
         BadLure{"ThetaTooSmall", [](json& d) { d["integrator"]["theta"] = 0.3; }, "/integrator/theta", "[1/2, 1]"},
         BadLure{"LagrangianScheme", [](json& d) { d["integrator"]["scheme"] = "abl"; }, "/integrator/scheme", "lagrangian systems"},
         BadLure{"UnknownScheme", [](json& d) { d["integrator"]["scheme"] = "rk4"; }, "/integrator/scheme", "unknown scheme"},
         BadLure{"AdaptiveRule", [](json& d) { d["integrator"]["step_rule"] = "theorem-4.1"; }, "/integrator/step_rule", "fixed step"},
-        BadLure{"OutsideDomain", [](json& d) { d["initial"]["x"] = {-3, 0}; }, "/initial/x", "outside the domain"},
+        BadLure{"OutsideDomain",
+                [](json& d) {
+                  d["initial"]["x"] = {-3, 0};
+                },
+                "/initial/x", "outside the domain"},
         BadLure{"InitialSize", [](json& d) { d["initial"]["x"] = {1}; }, "/initial/x", "expected 2 entries"},
         BadLure{"LagrangianField", [](json& d) { d["system"]["mass"] = {{1}}; }, "/system/mass", "unknown field"},
-        BadLure{"BadStateName", [](json& d) { d["system"]["states"] = {"x", "1y"}; }, "/system/states/1", "expected a name"},
+        BadLure{"BadStateName",
+                [](json& d) {
+                  d["system"]["states"] = {"x", "1y"};
+                },
+                "/system/states/1", "expected a name"},
         // Every slope of a graph must be a finite number: near the largest double the rise and the run of a
         // segment overflow (2e308 / 2e308 = inf / inf = NaN), on a short steep segment the slope does.
-        BadLure{"GraphSlopeOverflowsNearTheLargestDouble", [](json& d) { d["system"]["feedback"][0]["vertices"] = {{-1e308, -1e308}, {1e308, 1e308}}; }, "/system/feedback/0/vertices/1", "overflows"},
-        BadLure{"GraphSlopeOverflowsOnAShortSteepSegment", [](json& d) { d["system"]["feedback"][0]["vertices"] = {{-1e-300, -1e300}, {1e-300, 1e300}}; }, "/system/feedback/0/vertices/1", "overflows"},
-        BadLure{"SaturationBreakpointOverflows", [](json& d) { d["system"]["feedback"][0] = {{"type", "saturation"}, {"slope", 1e-300}, {"limit", 1e300}}; }, "/system/feedback/0/slope", "overflows"},
-        BadLure{"MosTopOverflows", [](json& d) { d["system"]["feedback"][0] = {{"type", "mos"}, {"limit", 1e300}, {"slope", 1e300}}; }, "/system/feedback/0/slope", "overflows"},
-        BadLure{"AdhesiveBreakpointOverflows", [](json& d) { d["system"]["feedback"][0] = {{"type", "adhesive"}, {"force", 1e300}, {"stiffness", 1e-300}}; }, "/system/feedback/0/stiffness", "overflows"},
+        BadLure{"GraphSlopeOverflowsNearTheLargestDouble",
+                [](json& d) {
+                  d["system"]["feedback"][0]["vertices"] = {{-1e308, -1e308}, {1e308, 1e308}};
+                },
+                "/system/feedback/0/vertices/1", "overflows"},
+        BadLure{"GraphSlopeOverflowsOnAShortSteepSegment",
+                [](json& d) { d["system"]["feedback"][0]["vertices"] = {{-1e-300, -1e300}, {1e-300, 1e300}}; },
+                "/system/feedback/0/vertices/1", "overflows"},
+        BadLure{"SaturationBreakpointOverflows",
+                [](json& d) { d["system"]["feedback"][0] = {{"type", "saturation"}, {"slope", 1e-300}, {"limit", 1e300}}; },
+                "/system/feedback/0/slope", "overflows"},
+        BadLure{"MosTopOverflows", [](json& d) { d["system"]["feedback"][0] = {{"type", "mos"}, {"limit", 1e300}, {"slope", 1e300}}; },
+                "/system/feedback/0/slope", "overflows"},
+        BadLure{"AdhesiveBreakpointOverflows",
+                [](json& d) { d["system"]["feedback"][0] = {{"type", "adhesive"}, {"force", 1e300}, {"stiffness", 1e-300}}; },
+                "/system/feedback/0/stiffness", "overflows"},
         BadLure{"StepLongerThanTheInterval", [](json& d) { d["integrator"]["h"] = 1e9; }, "/integrator/h", "longer than the interval"},
         BadLure{"StepCountOverflows", [](json& d) { d["integrator"]["h"] = 1e-300; }, "/integrator/h", "steps, more than the limit"}),
     [](const auto& info) { return info.param.name; });

@@ -39,8 +39,10 @@ Eigen::VectorXd BruteForce(const Eigen::MatrixXd& P, const Eigen::VectorXd& x, c
     bool ok = true;
     const Eigen::VectorXd w = -(P * y + x);
     for (int i = 0; i < n && ok; ++i) {
-      if (s[i] != 0) ok = y(i) * s[i] >= 0.0;
-      else ok = std::abs(w(i)) <= a(i) * (1 + 1e-12);
+      if (s[i] != 0)
+        ok = y(i) * s[i] >= 0.0;
+      else
+        ok = std::abs(w(i)) <= a(i) * (1 + 1e-12);
     }
     if (ok) return y;
   }

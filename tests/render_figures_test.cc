@@ -18,8 +18,7 @@ namespace {
 TimeSeriesData small_trajectory() { return synthetic::trajectory(2001); }
 
 std::size_t count_markers(const Panel& p, Marker::Kind kind) {
-  return static_cast<std::size_t>(
-      std::count_if(p.markers.begin(), p.markers.end(), [&](const Marker& m) { return m.kind == kind; }));
+  return static_cast<std::size_t>(std::count_if(p.markers.begin(), p.markers.end(), [&](const Marker& m) { return m.kind == kind; }));
 }
 
 std::vector<SchemeRuns> power_law_study() {
@@ -56,8 +55,7 @@ TEST(RenderFigures, StateFigureHasPositionAndVelocityPanels) {
   EXPECT_EQ(count_markers(q, Marker::Kind::line), 1u);
   EXPECT_EQ(count_markers(v, Marker::Kind::line), 1u);
   EXPECT_EQ(count_markers(q, Marker::Kind::tick), d.impact_times.size());
-  const auto conv = std::find_if(q.markers.begin(), q.markers.end(),
-                                 [](const Marker& m) { return m.kind == Marker::Kind::line; });
+  const auto conv = std::find_if(q.markers.begin(), q.markers.end(), [](const Marker& m) { return m.kind == Marker::Kind::line; });
   EXPECT_DOUBLE_EQ(conv->x, *d.converged_time);
   EXPECT_THAT(conv->label, HasSubstr("converged t=4.06"));
   // Time runs edge to edge.
@@ -197,8 +195,12 @@ TEST(RenderFigures, EveryKindRendersToPngAndSvg) {
   FigureOptions o;
   o.width_px = 480;
   o.height_px = 360;
-  const Figure figures[] = {state_figure(d, o), energy_figure(d, o), step_figure(d, o), phase_figure(d, o),
-                            work_figure(power_law_study(), o), order_figure(power_law_study(), o)};
+  const Figure figures[] = {state_figure(d, o),
+                            energy_figure(d, o),
+                            step_figure(d, o),
+                            phase_figure(d, o),
+                            work_figure(power_law_study(), o),
+                            order_figure(power_law_study(), o)};
   for (const Figure& f : figures) {
     const Image im = decode_png(render_png_bytes(f));
     EXPECT_EQ(im.width, 480);

@@ -214,9 +214,7 @@ TEST(RenderDecimate, NonMonotonicCurveAlsoReducedAlongRows) {
   EXPECT_EQ(kept.back(), n - 1);
 }
 
-TEST(RenderValidation, AcceptsAGoodFigure) {
-  EXPECT_EQ(validation_error(one_series_figure({0, 1, 2}, {1, 2, 3})), "");
-}
+TEST(RenderValidation, AcceptsAGoodFigure) { EXPECT_EQ(validation_error(one_series_figure({0, 1, 2}, {1, 2, 3})), ""); }
 
 TEST(RenderValidation, EmptySeries) {
   const std::string msg = validation_error(one_series_figure({}, {}));

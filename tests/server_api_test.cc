@@ -361,10 +361,22 @@ TEST(ServerApi, TokenGuardsEveryEndpointButHealthz) {
   // Every route (and paths that match none: the check runs before routing), with no token, a wrong one,
   // one with a prefix of the token, the token with a suffix, and the token without the Bearer scheme.
   const std::string id = "/0123456789abcdef0123456789abcdef";
-  const std::string gets[] = {"/v1/jobs", "/v1/scenes", "/v1/scenes/manipulator", "/metrics", "/v1/jobs" + id,
-                              "/v1/jobs" + id + "/events", "/v1/jobs" + id + "/report", "/v1/jobs" + id + "/trajectory",
-                              "/v1/jobs" + id + "/figure", "/v1/studies", "/v1/studies" + id, "/v1/studies" + id + "/events",
-                              "/v1/studies" + id + "/table", "/v1/studies" + id + "/figure", "/no/such/route", "/healthz/x"};
+  const std::string gets[] = {"/v1/jobs",
+                              "/v1/scenes",
+                              "/v1/scenes/manipulator",
+                              "/metrics",
+                              "/v1/jobs" + id,
+                              "/v1/jobs" + id + "/events",
+                              "/v1/jobs" + id + "/report",
+                              "/v1/jobs" + id + "/trajectory",
+                              "/v1/jobs" + id + "/figure",
+                              "/v1/studies",
+                              "/v1/studies" + id,
+                              "/v1/studies" + id + "/events",
+                              "/v1/studies" + id + "/table",
+                              "/v1/studies" + id + "/figure",
+                              "/no/such/route",
+                              "/healthz/x"};
   httplib::Headers no_scheme = {{"Authorization", cfg.token}};
   httplib::Headers prefix = {{"Authorization", "Bearer correct horse"}};
   for (const auto& path : gets) {

@@ -233,8 +233,8 @@ std::string server_binary() {
 }
 
 std::vector<std::string> server_args(const fs::path& data, std::vector<std::string> extra = {}, int port = 0) {
-  std::vector<std::string> a = {server_binary(), "--host", "127.0.0.1", "--port", std::to_string(port), "--data", data.string(),
-                                "--keep-alive", "2"};
+  std::vector<std::string> a = {server_binary(), "--host",      "127.0.0.1",    "--port", std::to_string(port),
+                                "--data",        data.string(), "--keep-alive", "2"};
   a.insert(a.end(), extra.begin(), extra.end());
   return a;
 }
@@ -313,9 +313,7 @@ json damped_relay() { return json::parse(slurp("scenes/damped-relay.json").value
 json manipulator() { return json::parse(slurp("scenes/manipulator.json").value()); }
 
 // A job that runs until it is stopped: the manipulator over a very long horizon, few rows.
-json long_job() {
-  return {{"scene", "manipulator"}, {"overrides", {"integrator.t_end=1e6", "output.every=100000"}}};
-}
+json long_job() { return {{"scene", "manipulator"}, {"overrides", {"integrator.t_end=1e6", "output.every=100000"}}}; }
 
 // ---- a. SIGKILL while jobs run ----
 
@@ -332,8 +330,7 @@ TEST(ServerFault, KillNineWhileJobsRunThenRestart) {
   std::map<std::string, Finished> finished;  // every job seen final so far, with its results' digests
   // Kill moments: when this many of the round's short jobs are done (0: as soon as all are submitted).
   const std::vector<int> kill_after = {0, 2, 10, 24};
-  int total_jobs = 0, seen_done_total = 0, done_unseen_total = 0, failed_running_total = 0, failed_queued_total = 0,
-      tmp_left_total = 0;
+  int total_jobs = 0, seen_done_total = 0, done_unseen_total = 0, failed_running_total = 0, failed_queued_total = 0, tmp_left_total = 0;
   std::mt19937 rng(12345);
 
   for (std::size_t round = 0; round < kill_after.size(); ++round) {
@@ -457,10 +454,9 @@ TEST(ServerFault, KillNineWhileJobsRunThenRestart) {
     done_unseen_total += done_unseen;
     failed_running_total += failed_running;
     failed_queued_total += failed_queued;
-    std::cout << "[kill -9] round " << round << ": killed after " << seen_done.size() << " jobs seen done; "
-              << done_unseen << " more done at the kill, " << failed_running << " failed (running), " << failed_queued
-              << " failed (queued), " << tmp_left << " temporary files left by the kill; " << verified
-              << " finished results verified byte for byte\n";
+    std::cout << "[kill -9] round " << round << ": killed after " << seen_done.size() << " jobs seen done; " << done_unseen
+              << " more done at the kill, " << failed_running << " failed (running), " << failed_queued << " failed (queued), " << tmp_left
+              << " temporary files left by the kill; " << verified << " finished results verified byte for byte\n";
 
     // The restarted server takes new jobs; a clean stop exits 0.
     auto r = post_job(*c2, {{"scene", "damped-relay"}});
@@ -506,14 +502,15 @@ TEST(ServerFault, DataDirectoryUnderARegularFile) {
 
 bool can_bind_mount_read_only(const fs::path& dir) {
   const std::string d = dir.string();
-  return shell("unshare -m sh -c 'mount --bind \"" + d + "\" \"" + d + "\" && mount -o remount,ro,bind \"" + d + "\"' >/dev/null 2>&1") == 0;
+  return shell("unshare -m sh -c 'mount --bind \"" + d + "\" \"" + d + "\" && mount -o remount,ro,bind \"" + d + "\"' >/dev/null 2>&1") ==
+         0;
 }
 
 // `unshare -m sh -c 'mount --bind DIR DIR && mount -o remount,ro,bind DIR && exec moreau-server ...'`
 std::vector<std::string> read_only_server_args(const fs::path& ro_dir, const fs::path& data) {
-  std::vector<std::string> a = {"unshare", "-m", "sh", "-c",
-                                "mount --bind \"$1\" \"$1\" && mount -o remount,ro,bind \"$1\" && shift && exec \"$@\"",
-                                "sh", ro_dir.string()};
+  std::vector<std::string> a = {
+      "unshare", "-m",           "sh", "-c", "mount --bind \"$1\" \"$1\" && mount -o remount,ro,bind \"$1\" && shift && exec \"$@\"",
+      "sh",      ro_dir.string()};
   const auto s = server_args(data);
   a.insert(a.end(), s.begin(), s.end());
   return a;
@@ -599,16 +596,16 @@ TEST(ServerFault, DiskFullFailsTheJobAndTheServerRecovers) {
   const std::string m = mnt.string();
   // MOREAU_FAULT_NO_MOUNT=1 takes the RLIMIT_FSIZE path even where mounting is permitted.
   const char* no_mount = std::getenv("MOREAU_FAULT_NO_MOUNT");
-  const bool can_mount = !(no_mount && *no_mount == '1') &&
-                         shell("unshare -m sh -c 'mount -t tmpfs -o size=16k tmpfs \"" + m + "\"' >/dev/null 2>&1") == 0;
+  const bool can_mount =
+      !(no_mount && *no_mount == '1') && shell("unshare -m sh -c 'mount -t tmpfs -o size=16k tmpfs \"" + m + "\"' >/dev/null 2>&1") == 0;
 
   // With a tmpfs: files are reached through /proc/PID/root (the server's own mount namespace).
   std::unique_ptr<Running> srv;
   fs::path data, root;
   if (can_mount) {
     data = mnt / "data";
-    std::vector<std::string> a = {"unshare", "-m", "sh", "-c",
-                                  "mount -t tmpfs -o size=256k,mode=0755 tmpfs \"$1\" && shift && exec \"$@\"", "sh", m};
+    std::vector<std::string> a = {"unshare", "-m", "sh", "-c", "mount -t tmpfs -o size=256k,mode=0755 tmpfs \"$1\" && shift && exec \"$@\"",
+                                  "sh",      m};
     const auto s = server_args(data, {"--workers", "1"});
     a.insert(a.end(), s.begin(), s.end());
     srv = std::make_unique<Running>(start_server(a, tmp.path));
@@ -637,8 +634,7 @@ TEST(ServerFault, DiskFullFailsTheJobAndTheServerRecovers) {
     ASSERT_EQ(r->status, 202) << r->body;
     const std::string id = json::parse(r->body)["id"];
     ASSERT_EQ(wait_final(*c, id)["state"], "done");
-    before[id] = {digest(c->Get("/v1/jobs/" + id + "/report")->body),
-                  digest(c->Get("/v1/jobs/" + id + "/trajectory?format=csv")->body)};
+    before[id] = {digest(c->Get("/v1/jobs/" + id + "/report")->body), digest(c->Get("/v1/jobs/" + id + "/trajectory?format=csv")->body)};
   }
 
   // A job whose trajectory (about 1 MB) cannot fit.
@@ -725,8 +721,7 @@ TEST(ServerFault, DiskFullFailsTheJobAndTheServerRecovers) {
 
 TEST(ServerFault, CancellationStorm) {
   TempDir tmp("storm");
-  Running srv = start_server(server_args(tmp.path / "data", {"--workers", "2", "--queue", "1000", "--max-connections", "128"}),
-                             tmp.path);
+  Running srv = start_server(server_args(tmp.path / "data", {"--workers", "2", "--queue", "1000", "--max-connections", "128"}), tmp.path);
   constexpr int kSubmitters = 4, kCancellers = 4, kJobsPerSubmitter = 50;
   // About 10 ms of integration each (100k steps), 101 rows: long enough to be cancelled while running.
   const json body = {{"scene", "manipulator"}, {"overrides", {"integrator.t_end=100", "output.every=1000"}}};
@@ -828,9 +823,12 @@ TEST(ServerFault, CancellationStorm) {
     ++by_state[state];
     const std::string reason = j.value("reason", "");
     if (state == "cancelled") {
-      if (reason == "cancelled before it ran") ++cancelled_before_run;
-      else if (reason.rfind("cancelled by request", 0) == 0) ++cancelled_running;
-      else problem("cancelled with reason '" + reason + "'");
+      if (reason == "cancelled before it ran")
+        ++cancelled_before_run;
+      else if (reason.rfind("cancelled by request", 0) == 0)
+        ++cancelled_running;
+      else
+        problem("cancelled with reason '" + reason + "'");
     }
     auto rep = c->Get("/v1/jobs/" + id + "/report");
     if (rep && rep->status == 200) ++with_report;
@@ -868,12 +866,11 @@ TEST(ServerFault, CancellationStorm) {
   const double fresh_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
   EXPECT_LT(fresh_ms, 2000);
 
-  std::cout << "[storm] " << ids.size() << " jobs in " << storm_seconds << " s; DELETEs: " << delete_200 << " x 200, "
-            << delete_409 << " x 409, " << delete_other << " other; slowest DELETE " << delete_max_us.load() / 1000.0
-            << " ms; final: " << by_state["done"] << " done, " << by_state["cancelled"] << " cancelled ("
-            << cancelled_before_run << " before running, " << cancelled_running << " while running), "
-            << by_state["failed"] << " failed; " << with_report << " with a report; workers busy " << busy << ", queue "
-            << queue << "; a fresh job done in " << fresh_ms << " ms\n";
+  std::cout << "[storm] " << ids.size() << " jobs in " << storm_seconds << " s; DELETEs: " << delete_200 << " x 200, " << delete_409
+            << " x 409, " << delete_other << " other; slowest DELETE " << delete_max_us.load() / 1000.0
+            << " ms; final: " << by_state["done"] << " done, " << by_state["cancelled"] << " cancelled (" << cancelled_before_run
+            << " before running, " << cancelled_running << " while running), " << by_state["failed"] << " failed; " << with_report
+            << " with a report; workers busy " << busy << ", queue " << queue << "; a fresh job done in " << fresh_ms << " ms\n";
   c.reset();
   srv.child->signal(SIGTERM);
   const auto st = srv.child->wait_exit(10);

@@ -32,9 +32,7 @@ using json = nlohmann::json;
 using Clock = std::chrono::steady_clock;
 
 // A connection to 127.0.0.1:port from 127.0.0.`host`: a test acts as several clients.
-int connect_from(int host, int port, int timeout_ms = 10'000) {
-  return moreau::server::testing::connect_loopback(port, timeout_ms, host);
-}
+int connect_from(int host, int port, int timeout_ms = 10'000) { return moreau::server::testing::connect_loopback(port, timeout_ms, host); }
 
 struct RawResponse {
   int status = 0;
@@ -69,7 +67,8 @@ RawResponse read_response(int fd) {
     if (n < 0) break;
     buf.append(chunk, static_cast<std::size_t>(n));
   }
-  if (header_end != std::string::npos) r.body = buf.substr(header_end + 4, need == std::string::npos ? std::string::npos : need - header_end - 4);
+  if (header_end != std::string::npos)
+    r.body = buf.substr(header_end + 4, need == std::string::npos ? std::string::npos : need - header_end - 4);
   if (!r.closed) {
     // Whether the server closes right after: a read that returns 0 soon.
     pollfd p{fd, POLLIN, 0};
@@ -164,7 +163,8 @@ TEST(Hostile, BodyLimitHoldsForEveryFraming) {
   const std::int64_t before = peak_rss_kib();
   const std::string bomb = gzip(256u << 20);
   ASSERT_LT(bomb.size(), cfg.max_body_bytes * 8);
-  r = round_trip(port, post_head("/v1/jobs", "Content-Length: " + std::to_string(bomb.size()) + "\r\n", "Content-Encoding: gzip\r\n") + bomb);
+  r = round_trip(port,
+                 post_head("/v1/jobs", "Content-Length: " + std::to_string(bomb.size()) + "\r\n", "Content-Encoding: gzip\r\n") + bomb);
   EXPECT_EQ(r.status, 413) << r.head << r.body;
   // ... and chunked.
   r = round_trip(port, post_head("/v1/jobs", "Transfer-Encoding: chunked\r\n", "Content-Encoding: gzip\r\n") + chunked(bomb, 60000));

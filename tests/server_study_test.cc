@@ -22,9 +22,7 @@ using json = nlohmann::json;
 using Clock = std::chrono::steady_clock;
 namespace fs = std::filesystem;
 
-httplib::Result post_study(httplib::Client& c, const json& body) {
-  return c.Post("/v1/studies", body.dump(), "application/json");
-}
+httplib::Result post_study(httplib::Client& c, const json& body) { return c.Post("/v1/studies", body.dump(), "application/json"); }
 
 json wait_study(httplib::Client& c, const std::string& id, double seconds = 60) {
   const auto deadline = Clock::now() + std::chrono::duration<double>(seconds);
@@ -133,21 +131,41 @@ struct BadStudy {
 TEST(ServerStudy, BadStudiesNameTheField) {
   json ball = read_json_file("scenes/bouncing-ball-e0.5.json");
   const BadStudy cases[] = {
-      {"ladder", {{"scene", "damped-relay"}, {"study", {{"h", "1e-2:0:3"}}}}, 400, "/study/h", "request", "not a positive finite step size"},
+      {"ladder",
+       {{"scene", "damped-relay"}, {"study", {{"h", "1e-2:0:3"}}}},
+       400,
+       "/study/h",
+       "request",
+       "not a positive finite step size"},
       {"ladder_count", {{"scene", "damped-relay"}, {"study", {{"h", "1e-2:1e-3:1"}}}}, 400, "/study/h", "request", "COUNT"},
       {"h_negative", {{"scene", "damped-relay"}, {"study", {{"h", {1e-2, -1e-3}}}}}, 400, "/study/h/1", "request", "positive"},
       {"h_type", {{"scene", "damped-relay"}, {"study", {{"h", true}}}}, 400, "/study/h", "request", "ladder"},
-      {"scheme", {{"scene", "damped-relay"}, {"study", {{"schemes", {"abl", "rk4"}}}}}, 400, "/study/schemes/1", "request", "unknown scheme 'rk4'"},
+      {"scheme",
+       {{"scene", "damped-relay"}, {"study", {{"schemes", {"abl", "rk4"}}}}},
+       400,
+       "/study/schemes/1",
+       "request",
+       "unknown scheme 'rk4'"},
       {"scheme_twice", {{"scene", "damped-relay"}, {"study", {{"schemes", "abl,abl"}}}}, 400, "/study/schemes", "request", "twice"},
       {"repeats", {{"scene", "damped-relay"}, {"study", {{"repeats", 0}}}}, 400, "/study/repeats", "request", "integer in [1, 20]"},
       {"eval_points", {{"scene", "damped-relay"}, {"study", {{"eval_points", 1.5}}}}, 400, "/study/eval_points", "request", "integer"},
-      {"regularization", {{"scene", "damped-relay"}, {"study", {{"regularization", "atan"}}}}, 400, "/study/regularization", "request", "tanh"},
+      {"regularization",
+       {{"scene", "damped-relay"}, {"study", {{"regularization", "atan"}}}},
+       400,
+       "/study/regularization",
+       "request",
+       "tanh"},
       {"unknown_setting", {{"scene", "damped-relay"}, {"study", {{"tolerance", 1}}}}, 400, "/study/tolerance", "request", "unknown field"},
       {"study_type", {{"scene", "damped-relay"}, {"study", "fast"}}, 400, "/study", "request", "expected an object"},
       {"unknown_field", {{"scene", "damped-relay"}, {"stream", true}}, 400, "/stream", "request", "expected scene, overrides, study"},
       {"no_scene", {{"study", json::object()}}, 400, "/scene", "request", "missing required field"},
       {"too_much_work", {{"scene", "damped-relay"}, {"study", {{"h", {1e-9}}}}}, 400, "/study/h", "request", "integration steps"},
-      {"h_longer_than_the_interval", {{"scene", "damped-relay"}, {"study", {{"h", {1e-2, 1e9}}}}}, 400, "/study/h", "request", "longer than the interval"},
+      {"h_longer_than_the_interval",
+       {{"scene", "damped-relay"}, {"study", {{"h", {1e-2, 1e9}}}}},
+       400,
+       "/study/h",
+       "request",
+       "longer than the interval"},
       {"lure", {{"scene", "lure-relay"}}, 400, "/system/type", "scene", ""},
       {"constraints", {{"scene", ball}}, 400, "/system/constraints", "scene", "unilateral constraints"},
       {"bad_scene", {{"scene", "damped-relay"}, {"overrides", {"integrator.h=-1"}}}, 400, "/integrator/h", "scene", ""},

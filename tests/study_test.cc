@@ -96,10 +96,14 @@ TEST(Study, BadSettingsNameTheOption) {
 }
 
 TEST(Study, SettingsFromJson) {
-  const auto st = study_settings_from_json(
-      nlohmann::json{{"h", {1e-2, 1e-3}}, {"schemes", "abl,regularized"}, {"epsilon", 1e-4}, {"repeats", 2},
-                     {"eval_points", 50}, {"regularization", "saturation"}, {"reference_h", 1e-5}},
-      "/study");
+  const auto st = study_settings_from_json(nlohmann::json{{"h", {1e-2, 1e-3}},
+                                                          {"schemes", "abl,regularized"},
+                                                          {"epsilon", 1e-4},
+                                                          {"repeats", 2},
+                                                          {"eval_points", 50},
+                                                          {"regularization", "saturation"},
+                                                          {"reference_h", 1e-5}},
+                                           "/study");
   EXPECT_EQ(st.h, (std::vector<double>{1e-2, 1e-3}));
   EXPECT_EQ(st.schemes, (std::vector<StudyScheme>{StudyScheme::kAbl, StudyScheme::kRegularized}));
   EXPECT_EQ(st.epsilon, 1e-4);
@@ -214,25 +218,56 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 INSTANTIATE_TEST_SUITE_P(
     Study, BadStudy,
     ::testing::Values(
-        BadStudyCase{"NaNStep", [](StudySettings& st, nlohmann::json&) { st.h = {1e-2, kNaN}; }, "--h", "not a positive finite step size"},
+        BadStudyCase{"NaNStep",
+                     [](StudySettings& st, nlohmann::json&) {
+                       st.h = {1e-2, kNaN};
+                     },
+                     "--h", "not a positive finite step size"},
         BadStudyCase{"InfiniteStep", [](StudySettings& st, nlohmann::json&) { st.h = {kInf}; }, "--h", "not a positive finite step size"},
-        BadStudyCase{"ZeroStep", [](StudySettings& st, nlohmann::json&) { st.h = {1e-2, 0.0}; }, "--h", "not a positive finite step size"},
+        BadStudyCase{"ZeroStep",
+                     [](StudySettings& st, nlohmann::json&) {
+                       st.h = {1e-2, 0.0};
+                     },
+                     "--h", "not a positive finite step size"},
         BadStudyCase{"NegativeStep", [](StudySettings& st, nlohmann::json&) { st.h = {-1e-2}; }, "--h", "not a positive finite step size"},
         BadStudyCase{"EmptyLadder", [](StudySettings& st, nlohmann::json&) { st.h.clear(); }, "--h", "empty"},
-        BadStudyCase{"StepLongerThanTheInterval", [](StudySettings& st, nlohmann::json&) { st.h = {1e-2, 100.0}; }, "--h", "longer than the interval"},
-        BadStudyCase{"StepCountOverflows", [](StudySettings& st, nlohmann::json&) { st.h = {1e-300}; }, "--h", "steps, more than the limit"},
-        BadStudyCase{"StepCountAboveTheScenesLimit", [](StudySettings& st, nlohmann::json& d) { d["integrator"]["max_steps"] = 1000; d["integrator"]["h"] = 1e-2; st.h = {1e-2, 1e-3}; }, "--h", "more than the limit of 1000"},
-        BadStudyCase{"ZeroReferenceStep", [](StudySettings& st, nlohmann::json&) { st.reference_h = 0.0; }, "--reference-h", "not a positive finite step size"},
-        BadStudyCase{"NegativeReferenceStep", [](StudySettings& st, nlohmann::json&) { st.reference_h = -1e-4; }, "--reference-h", "not a positive finite step size"},
-        BadStudyCase{"NaNReferenceStep", [](StudySettings& st, nlohmann::json&) { st.reference_h = kNaN; }, "--reference-h", "not a positive finite step size"},
-        BadStudyCase{"ReferenceStepCountOverflows", [](StudySettings& st, nlohmann::json&) { st.reference_h = 1e-300; }, "--reference-h", "steps, more than the limit"},
-        BadStudyCase{"DefaultReferenceStepCountTooLarge", [](StudySettings& st, nlohmann::json& d) { d.erase("exact"); st.h = {1e-8}; }, "--reference-h", "min h / 10"},
+        BadStudyCase{"StepLongerThanTheInterval",
+                     [](StudySettings& st, nlohmann::json&) {
+                       st.h = {1e-2, 100.0};
+                     },
+                     "--h", "longer than the interval"},
+        BadStudyCase{"StepCountOverflows", [](StudySettings& st, nlohmann::json&) { st.h = {1e-300}; }, "--h",
+                     "steps, more than the limit"},
+        BadStudyCase{"StepCountAboveTheScenesLimit",
+                     [](StudySettings& st, nlohmann::json& d) {
+                       d["integrator"]["max_steps"] = 1000;
+                       d["integrator"]["h"] = 1e-2;
+                       st.h = {1e-2, 1e-3};
+                     },
+                     "--h", "more than the limit of 1000"},
+        BadStudyCase{"ZeroReferenceStep", [](StudySettings& st, nlohmann::json&) { st.reference_h = 0.0; }, "--reference-h",
+                     "not a positive finite step size"},
+        BadStudyCase{"NegativeReferenceStep", [](StudySettings& st, nlohmann::json&) { st.reference_h = -1e-4; }, "--reference-h",
+                     "not a positive finite step size"},
+        BadStudyCase{"NaNReferenceStep", [](StudySettings& st, nlohmann::json&) { st.reference_h = kNaN; }, "--reference-h",
+                     "not a positive finite step size"},
+        BadStudyCase{"ReferenceStepCountOverflows", [](StudySettings& st, nlohmann::json&) { st.reference_h = 1e-300; }, "--reference-h",
+                     "steps, more than the limit"},
+        BadStudyCase{"DefaultReferenceStepCountTooLarge",
+                     [](StudySettings& st, nlohmann::json& d) {
+                       d.erase("exact");
+                       st.h = {1e-8};
+                     },
+                     "--reference-h", "min h / 10"},
         BadStudyCase{"InfiniteEpsilon", [](StudySettings& st, nlohmann::json&) { st.epsilon = kInf; }, "--epsilon", "positive finite"},
-        BadStudyCase{"TooManyEvalPoints", [](StudySettings& st, nlohmann::json&) { st.eval_points = 1000000000; }, "--eval-points", "100000"},
+        BadStudyCase{"TooManyEvalPoints", [](StudySettings& st, nlohmann::json&) { st.eval_points = 1000000000; }, "--eval-points",
+                     "100000"},
         BadStudyCase{"TooManyRepeats", [](StudySettings& st, nlohmann::json&) { st.repeats = 1000; }, "--repeats", "20"},
         // The reference is the scene's closed form: it must be a number at every common time.
-        BadStudyCase{"ExactPositionNotFiniteOnTheGrid", [](StudySettings&, nlohmann::json& d) { d["exact"]["q"][0] = "sqrt(3 - t)"; }, "/exact/q/0", "not finite at t = "},
-        BadStudyCase{"ExactVelocityNotFiniteOnTheGrid", [](StudySettings&, nlohmann::json& d) { d["exact"]["v"][0] = "1/(t - 6)"; }, "/exact/v/0", "not finite at t = 6"}),
+        BadStudyCase{"ExactPositionNotFiniteOnTheGrid", [](StudySettings&, nlohmann::json& d) { d["exact"]["q"][0] = "sqrt(3 - t)"; },
+                     "/exact/q/0", "not finite at t = "},
+        BadStudyCase{"ExactVelocityNotFiniteOnTheGrid", [](StudySettings&, nlohmann::json& d) { d["exact"]["v"][0] = "1/(t - 6)"; },
+                     "/exact/v/0", "not finite at t = 6"}),
     [](const auto& info) { return info.param.name; });
 
 // A failed row has no errors: the table shows none (JSON null, an empty CSV cell, "-" in text), never

@@ -40,8 +40,7 @@ int rank(const Eigen::MatrixXd& X) {
 }
 
 // Maximises a function of z in R^k by Nelder-Mead (restarted from the best vertex).
-Eigen::VectorXd nelder_mead_max(const std::function<double(const Eigen::VectorXd&)>& f, Eigen::VectorXd z0, double step,
-                                int max_evals) {
+Eigen::VectorXd nelder_mead_max(const std::function<double(const Eigen::VectorXd&)>& f, Eigen::VectorXd z0, double step, int max_evals) {
   const int k = static_cast<int>(z0.size());
   Eigen::VectorXd best = z0;
   double fbest = f(z0);
@@ -129,8 +128,7 @@ StorageMatrixCheck check_storage_matrix(const Eigen::MatrixXd& A, const Eigen::M
   return c;
 }
 
-PositiveRealnessTest test_strict_positive_realness(const Eigen::MatrixXd& A, const Eigen::MatrixXd& B,
-                                                   const Eigen::MatrixXd& C) {
+PositiveRealnessTest test_strict_positive_realness(const Eigen::MatrixXd& A, const Eigen::MatrixXd& B, const Eigen::MatrixXd& C) {
   PositiveRealnessTest r;
   const int n = static_cast<int>(A.rows());
   const int m = static_cast<int>(B.cols());

@@ -33,17 +33,16 @@ std::string RunSummary::BriefReport() const {
   char buf[512];
   char conv[96];
   if (converged_step) {
-    std::snprintf(conv, sizeof conv, "v == 0 from step %lld (t = %.6g)",
-                  static_cast<long long>(*converged_step), converged_time.value_or(0.0));
+    std::snprintf(conv, sizeof conv, "v == 0 from step %lld (t = %.6g)", static_cast<long long>(*converged_step),
+                  converged_time.value_or(0.0));
   } else {
     std::snprintf(conv, sizeof conv, "not at rest");
   }
   std::snprintf(buf, sizeof buf,
                 "%s: %lld steps to t = %.6g, %s, energy %s (%.6g -> %.6g), solver max %d iterations, "
                 "residual %.2e, %.3f s",
-                to_string(status), static_cast<long long>(steps), t_final, conv,
-                energy_nonincreasing ? "non-increasing" : "increased", energy_initial, energy_final,
-                solver.max_iterations, solver.max_residual, wall_seconds());
+                to_string(status), static_cast<long long>(steps), t_final, conv, energy_nonincreasing ? "non-increasing" : "increased",
+                energy_initial, energy_final, solver.max_iterations, solver.max_residual, wall_seconds());
   std::string line = buf;
   if (!message.empty()) line += ": " + message;
   return line;

@@ -20,9 +20,7 @@ std::string series_name(const Panel& panel, std::size_t s) {
   return os.str();
 }
 
-[[noreturn]] void fail(const std::string& where, const std::string& what) {
-  throw FigureError(where + ": " + what);
-}
+[[noreturn]] void fail(const std::string& where, const std::string& what) { throw FigureError(where + ": " + what); }
 
 void check_axis(const Axis& axis, const std::string& where, const char* name) {
   const std::string w = where + ", " + name + " axis";
@@ -37,8 +35,7 @@ void check_axis(const Axis& axis, const std::string& where, const char* name) {
     if (axis.min && *axis.min <= 0) fail(w, "log scale needs a positive minimum, got " + std::to_string(*axis.min));
     if (axis.max && *axis.max <= 0) fail(w, "log scale needs a positive maximum, got " + std::to_string(*axis.max));
   }
-  if (!std::isfinite(axis.padding) || axis.padding < 0 || axis.padding > 1)
-    fail(w, "padding must be within [0, 1]");
+  if (!std::isfinite(axis.padding) || axis.padding < 0 || axis.padding > 1) fail(w, "padding must be within [0, 1]");
 }
 
 void check_values(const std::vector<double>& v, Scale scale, const std::string& where, const char* name) {
@@ -50,8 +47,7 @@ void check_values(const std::vector<double>& v, Scale scale, const std::string& 
     }
     if (scale == Scale::log && v[i] <= 0) {
       std::ostringstream os;
-      os << name << "[" << i << "] = " << v[i] << " is not positive, but the " << name
-         << " axis is logarithmic";
+      os << name << "[" << i << "] = " << v[i] << " is not positive, but the " << name << " axis is logarithmic";
       fail(where, os.str());
     }
   }
@@ -94,8 +90,7 @@ void validate(const Figure& f) {
     }
     for (std::size_t m = 0; m < panel.markers.size(); ++m) {
       const Marker& marker = panel.markers[m];
-      const std::string mw = pw + ", marker " + std::to_string(m) +
-                             (marker.label.empty() ? std::string() : " '" + marker.label + "'");
+      const std::string mw = pw + ", marker " + std::to_string(m) + (marker.label.empty() ? std::string() : " '" + marker.label + "'");
       if (!std::isfinite(marker.x)) fail(mw, "position is not finite");
       if (panel.x_axis.scale == Scale::log && marker.x <= 0) fail(mw, "position is not positive on a log x axis");
       check_color(marker.color, mw);

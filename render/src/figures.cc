@@ -44,9 +44,9 @@ Window time_window(const std::vector<double>& t, const FigureOptions& o, const c
   w.begin = static_cast<std::size_t>(first - t.begin());
   w.end = static_cast<std::size_t>(last - t.begin());
   // A window between two samples still shows the segment joining them.
-  require(w.begin < w.end || (w.begin > 0 && w.begin < t.size()),
-          std::string(who) + ": time window [" + fmt(w.t0) + ", " + fmt(w.t1) + "] contains no samples (data spans [" +
-              fmt(t.front()) + ", " + fmt(t.back()) + "])");
+  require(w.begin < w.end || (w.begin > 0 && w.begin < t.size()), std::string(who) + ": time window [" + fmt(w.t0) + ", " + fmt(w.t1) +
+                                                                      "] contains no samples (data spans [" + fmt(t.front()) + ", " +
+                                                                      fmt(t.back()) + "])");
   if (w.begin > 0) --w.begin;
   if (w.end < t.size()) ++w.end;
   return w;
@@ -74,15 +74,14 @@ std::vector<std::size_t> pick_coordinates(const TimeSeriesData& d, const FigureO
     std::iota(idx.begin(), idx.end(), std::size_t{0});
   }
   for (std::size_t i : idx)
-    require(i < n, std::string(who) + ": coordinate index " + std::to_string(i) + " is out of range (the data has " +
-                       std::to_string(n) + " coordinates)");
+    require(i < n, std::string(who) + ": coordinate index " + std::to_string(i) + " is out of range (the data has " + std::to_string(n) +
+                       " coordinates)");
   require(!idx.empty(), std::string(who) + ": no coordinates to plot");
   return idx;
 }
 
 void check_length(const std::vector<double>& v, std::size_t n, const std::string& what, const char* who) {
-  require(v.size() == n, std::string(who) + ": " + what + " has " + std::to_string(v.size()) +
-                             " values but t has " + std::to_string(n));
+  require(v.size() == n, std::string(who) + ": " + what + " has " + std::to_string(v.size()) + " values but t has " + std::to_string(n));
 }
 
 // On a log axis, values <= 0 cannot be drawn: drop those points and say so in the label.
@@ -122,9 +121,8 @@ void add_events(Panel& panel, const TimeSeriesData& d, const Window& w, bool lab
   for (double t : d.impact_times)
     if (t >= w.t0 && t <= w.t1) panel.markers.push_back({t, "impacts", Marker::Kind::tick, std::nullopt});
   if (d.converged_time && *d.converged_time >= w.t0 && *d.converged_time <= w.t1) {
-    panel.markers.push_back({*d.converged_time,
-                             label_convergence ? "converged t=" + fmt(*d.converged_time) : std::string(),
-                             Marker::Kind::line, std::nullopt});
+    panel.markers.push_back(
+        {*d.converged_time, label_convergence ? "converged t=" + fmt(*d.converged_time) : std::string(), Marker::Kind::line, std::nullopt});
   }
 }
 
@@ -151,8 +149,8 @@ Figure state_figure(const TimeSeriesData& d, const FigureOptions& o) {
   Figure f = base_figure(o);
   const std::vector<double> t = slice(d.t, w);
 
-  auto make_panel = [&](const std::vector<std::vector<double>>& data, const std::vector<std::string>& names,
-                        const char* prefix, const char* title, const char* y_label, bool first) {
+  auto make_panel = [&](const std::vector<std::vector<double>>& data, const std::vector<std::string>& names, const char* prefix,
+                        const char* title, const char* y_label, bool first) {
     Panel p;
     p.title = title;
     p.x_label = "t";
@@ -216,9 +214,8 @@ Figure step_figure(const TimeSeriesData& d, const FigureOptions& o) {
   const char* who = "step_figure";
   require(!d.h.empty(), std::string(who) + ": no step sizes (h is empty)");
   require(d.h.size() == d.t.size() || d.h.size() + 1 == d.t.size(),
-          std::string(who) + ": h has " + std::to_string(d.h.size()) + " values; expected " +
-              std::to_string(d.t.size()) + " (one per sample) or " + std::to_string(d.t.size() - 1) +
-              " (one per step)");
+          std::string(who) + ": h has " + std::to_string(d.h.size()) + " values; expected " + std::to_string(d.t.size()) +
+              " (one per sample) or " + std::to_string(d.t.size() - 1) + " (one per step)");
   const std::vector<double> t(d.t.begin(), d.t.begin() + static_cast<std::ptrdiff_t>(d.h.size()));
   FigureOptions oo = o;
   if (!oo.t1) oo.t1 = d.t.back();
@@ -253,8 +250,7 @@ Figure phase_figure(const TimeSeriesData& d, const FigureOptions& o) {
   p.y_axis.scale = o.y_scale.value_or(Scale::linear);
   for (std::size_t k = 0; k < coords.size(); ++k) {
     const std::size_t i = coords[k];
-    require(i < d.q.size() && i < d.v.size(),
-            std::string(who) + ": coordinate " + std::to_string(i) + " needs both q and v");
+    require(i < d.q.size() && i < d.v.size(), std::string(who) + ": coordinate " + std::to_string(i) + " needs both q and v");
     check_length(d.q[i], d.t.size(), "q[" + std::to_string(i) + "]", who);
     check_length(d.v[i], d.t.size(), "v[" + std::to_string(i) + "]", who);
     Series s;
@@ -313,9 +309,8 @@ Figure study_figure(const std::vector<SchemeRuns>& runs, const FigureOptions& o,
   for (std::size_t k = 0; k < runs.size(); ++k) {
     const SchemeRuns& r = runs[k];
     const std::vector<double>& xs = work ? r.run_time_s : r.h;
-    require(xs.size() == r.error.size(), std::string(who) + ": scheme '" + r.scheme + "' has " +
-                                             std::to_string(xs.size()) + (work ? " run times" : " step sizes") +
-                                             " but " + std::to_string(r.error.size()) + " errors");
+    require(xs.size() == r.error.size(), std::string(who) + ": scheme '" + r.scheme + "' has " + std::to_string(xs.size()) +
+                                             (work ? " run times" : " step sizes") + " but " + std::to_string(r.error.size()) + " errors");
     Series s;
     s.label = r.scheme.empty() ? "scheme " + std::to_string(k + 1) : r.scheme;
     if (!work) {

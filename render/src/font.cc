@@ -26,19 +26,41 @@ std::u32string decode_utf8(std::string_view s) {
     const auto c = static_cast<unsigned char>(s[i]);
     int len = 0;
     char32_t cp = 0;
-    if (c < 0x80) { cp = c; len = 1; }
-    else if ((c & 0xE0) == 0xC0) { cp = c & 0x1F; len = 2; }
-    else if ((c & 0xF0) == 0xE0) { cp = c & 0x0F; len = 3; }
-    else if ((c & 0xF8) == 0xF0) { cp = c & 0x07; len = 4; }
-    else { out.push_back(U'\uFFFD'); ++i; continue; }
-    if (i + len > s.size()) { out.push_back(U'\uFFFD'); break; }
+    if (c < 0x80) {
+      cp = c;
+      len = 1;
+    } else if ((c & 0xE0) == 0xC0) {
+      cp = c & 0x1F;
+      len = 2;
+    } else if ((c & 0xF0) == 0xE0) {
+      cp = c & 0x0F;
+      len = 3;
+    } else if ((c & 0xF8) == 0xF0) {
+      cp = c & 0x07;
+      len = 4;
+    } else {
+      out.push_back(U'\uFFFD');
+      ++i;
+      continue;
+    }
+    if (i + len > s.size()) {
+      out.push_back(U'\uFFFD');
+      break;
+    }
     bool ok = true;
     for (int k = 1; k < len; ++k) {
       const auto cc = static_cast<unsigned char>(s[i + k]);
-      if ((cc & 0xC0) != 0x80) { ok = false; break; }
+      if ((cc & 0xC0) != 0x80) {
+        ok = false;
+        break;
+      }
       cp = (cp << 6) | (cc & 0x3F);
     }
-    if (!ok) { out.push_back(U'\uFFFD'); ++i; continue; }
+    if (!ok) {
+      out.push_back(U'\uFFFD');
+      ++i;
+      continue;
+    }
     out.push_back(cp);
     i += len;
   }
@@ -107,8 +129,7 @@ class FontCache {
           faces_[1] = faces_[0];
           continue;
         }
-        throw std::runtime_error("cannot load font " + files[b] +
-                                 " (install fonts-dejavu-core or set MOREAU_FONT_DIR)");
+        throw std::runtime_error("cannot load font " + files[b] + " (install fonts-dejavu-core or set MOREAU_FONT_DIR)");
       }
     }
   }
@@ -137,8 +158,7 @@ class FontCache {
   const Glyph& glyph_locked(char32_t cp, int px, bool bold) { return glyph_entry(cp, px, bold).glyph; }
 
   const Entry& glyph_entry(char32_t cp, int px, bool bold) {
-    const std::uint64_t key = (static_cast<std::uint64_t>(cp) << 24) | (static_cast<std::uint64_t>(px) << 1) |
-                              (bold ? 1u : 0u);
+    const std::uint64_t key = (static_cast<std::uint64_t>(cp) << 24) | (static_cast<std::uint64_t>(px) << 1) | (bold ? 1u : 0u);
     auto it = glyphs_.find(key);
     if (it != glyphs_.end()) return it->second;
     FT_Face face = face_for(bold, px);

@@ -15,14 +15,14 @@ std::u32string decode_utf8(std::string_view s);
 struct Glyph {
   int advance = 0;  // 26.6 fixed point
   int width = 0, height = 0;
-  int left = 0, top = 0;  // bitmap offset from the pen position (top: above the baseline)
+  int left = 0, top = 0;               // bitmap offset from the pen position (top: above the baseline)
   std::vector<std::uint8_t> coverage;  // width * height, rows top-down
 };
 
 struct FontMetrics {
-  int ascender = 0;   // pixels above the baseline
-  int descender = 0;  // pixels below the baseline (positive)
-  int cap_height = 0; // height of 'H'
+  int ascender = 0;    // pixels above the baseline
+  int descender = 0;   // pixels below the baseline (positive)
+  int cap_height = 0;  // height of 'H'
   int line_height() const { return ascender + descender; }
 };
 

@@ -161,8 +161,10 @@ bool clip_segment(Point& a, Point& b, const Rect& r) {
       continue;
     }
     const double t = q[i] / p[i];
-    if (p[i] < 0) t0 = std::max(t0, t);
-    else t1 = std::min(t1, t);
+    if (p[i] < 0)
+      t0 = std::max(t0, t);
+    else
+      t1 = std::min(t1, t);
     if (t0 > t1) return false;
   }
   const Point a0 = a;
@@ -173,8 +175,7 @@ bool clip_segment(Point& a, Point& b, const Rect& r) {
 
 class Batcher {
  public:
-  Batcher(GlContext& gl, int tile_x, int tile_y, int tile_w, int tile_h)
-      : gl_(gl), tx_(tile_x), ty_(tile_y), tw_(tile_w), th_(tile_h) {
+  Batcher(GlContext& gl, int tile_x, int tile_y, int tile_w, int tile_h) : gl_(gl), tx_(tile_x), ty_(tile_y), tw_(tile_w), th_(tile_h) {
     verts_.reserve(1 << 16);
   }
 
@@ -224,9 +225,7 @@ class Batcher {
     }
   }
 
-  bool visible(const Rect& r) const {
-    return r.right() >= tx_ && r.x <= tx_ + tw_ && r.bottom() >= ty_ && r.y <= ty_ + th_;
-  }
+  bool visible(const Rect& r) const { return r.right() >= tx_ && r.x <= tx_ + tw_ && r.bottom() >= ty_ && r.y <= ty_ + th_; }
 
   void vertex(double x, double y, Rgba c, float u = 0, float v = 0) {
     verts_.push_back({static_cast<float>(x), static_cast<float>(y), u, v, {c.r, c.g, c.b, c.a}});
@@ -266,9 +265,9 @@ class Batcher {
     state(std::nullopt, d.clip);
     const Rect view{tx_ - d.radius, ty_ - d.radius, tw_ + 2 * d.radius, th_ + 2 * d.radius};
     for (const Point& c : d.centers)
-      if (view.contains(c.x, c.y) && (!d.clip || Rect{d.clip->x - d.radius, d.clip->y - d.radius,
-                                                       d.clip->w + 2 * d.radius, d.clip->h + 2 * d.radius}
-                                                      .contains(c.x, c.y)))
+      if (view.contains(c.x, c.y) &&
+          (!d.clip ||
+           Rect{d.clip->x - d.radius, d.clip->y - d.radius, d.clip->w + 2 * d.radius, d.clip->h + 2 * d.radius}.contains(c.x, c.y)))
         disc(c, d.radius, d.color);
   }
 
@@ -341,8 +340,10 @@ class Batcher {
     const ShapedText sup = t.superscript.empty() ? ShapedText{} : shape_text(t.superscript, sup_px, t.bold);
     const int width = shaped.width + sup.width;
     double offset = 0;
-    if (t.align == Text::Align::center) offset = std::round(width / 2.0);
-    else if (t.align == Text::Align::right) offset = width;
+    if (t.align == Text::Align::center)
+      offset = std::round(width / 2.0);
+    else if (t.align == Text::Align::right)
+      offset = width;
     glyphs(t, shaped, -offset, 0);
     if (!t.superscript.empty()) glyphs(t, sup, shaped.width - offset, -superscript_rise(t.size_px));
   }
@@ -454,6 +455,6 @@ Image rasterize_with_opengl(const Scene& scene) {
 // The entry point the loader (gl_loader.cc) looks up: this file is built as its own shared module, so
 // that OSMesa and LLVM are loaded only by a process that draws a PNG.
 extern "C" __attribute__((visibility("default"))) void moreau_render_gl_rasterize(const moreau::render::detail::Scene* scene,
-                                                                                 moreau::render::Image* image) {
+                                                                                  moreau::render::Image* image) {
   *image = moreau::render::detail::rasterize_with_opengl(*scene);
 }

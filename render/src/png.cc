@@ -35,8 +35,7 @@ void read_bytes(png_structp png, png_bytep out, png_size_t n) {
 }  // namespace
 
 std::vector<std::uint8_t> encode_png(const Image& image, const PngOptions& options) {
-  if (image.width <= 0 || image.height <= 0 ||
-      image.rgba.size() != static_cast<std::size_t>(image.width) * image.height * 4)
+  if (image.width <= 0 || image.height <= 0 || image.rgba.size() != static_cast<std::size_t>(image.width) * image.height * 4)
     throw std::invalid_argument("encode_png: image size does not match its pixel data");
   std::vector<std::uint8_t> out;
   out.reserve(static_cast<std::size_t>(image.width) * image.height / 8);
@@ -46,8 +45,8 @@ std::vector<std::uint8_t> encode_png(const Image& image, const PngOptions& optio
   try {
     if (!info) throw std::runtime_error("libpng: cannot create info struct");
     png_set_write_fn(png, &out, append, no_flush);
-    png_set_IHDR(png, info, static_cast<png_uint_32>(image.width), static_cast<png_uint_32>(image.height), 8,
-                 PNG_COLOR_TYPE_RGB, PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+    png_set_IHDR(png, info, static_cast<png_uint_32>(image.width), static_cast<png_uint_32>(image.height), 8, PNG_COLOR_TYPE_RGB,
+                 PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
     png_set_compression_level(png, std::clamp(options.compression_level, 0, 9));
     // Plots are mostly flat colour: the Up filter turns repeated rows into zeros, which the fast
     // zlib levels compress well, at a fraction of the cost of trying every filter per row.
@@ -56,8 +55,7 @@ std::vector<std::uint8_t> encode_png(const Image& image, const PngOptions& optio
     png_set_filler(png, 0, PNG_FILLER_AFTER);  // the input rows are RGBA; the alpha byte is dropped
     std::vector<png_bytep> rows(static_cast<std::size_t>(image.height));
     for (int r = 0; r < image.height; ++r)
-      rows[static_cast<std::size_t>(r)] =
-          const_cast<png_bytep>(image.rgba.data() + static_cast<std::size_t>(r) * image.width * 4);
+      rows[static_cast<std::size_t>(r)] = const_cast<png_bytep>(image.rgba.data() + static_cast<std::size_t>(r) * image.width * 4);
     png_write_image(png, rows.data());
     png_write_end(png, nullptr);
   } catch (...) {
@@ -86,8 +84,7 @@ Image decode_png(std::span<const std::uint8_t> data) {
     if (color == PNG_COLOR_TYPE_GRAY && depth < 8) png_set_expand_gray_1_2_4_to_8(png);
     if (png_get_valid(png, info, PNG_INFO_tRNS)) png_set_tRNS_to_alpha(png);
     if (color == PNG_COLOR_TYPE_GRAY || color == PNG_COLOR_TYPE_GRAY_ALPHA) png_set_gray_to_rgb(png);
-    if (!(color & PNG_COLOR_MASK_ALPHA) && !png_get_valid(png, info, PNG_INFO_tRNS))
-      png_set_filler(png, 0xff, PNG_FILLER_AFTER);
+    if (!(color & PNG_COLOR_MASK_ALPHA) && !png_get_valid(png, info, PNG_INFO_tRNS)) png_set_filler(png, 0xff, PNG_FILLER_AFTER);
     png_read_update_info(png, info);
     image.width = static_cast<int>(png_get_image_width(png, info));
     image.height = static_cast<int>(png_get_image_height(png, info));

@@ -60,12 +60,16 @@ Limits axis_limits(const Axis& axis, Range data, const std::string& where) {
   if (axis.max) lim.hi = *axis.max;
   if (!(lim.hi > lim.lo)) {  // one explicit side beyond the data
     if (axis.scale == Scale::log) {
-      if (axis.min) lim.hi = lim.lo * 10;
-      else lim.lo = lim.hi / 10;
+      if (axis.min)
+        lim.hi = lim.lo * 10;
+      else
+        lim.lo = lim.hi / 10;
     } else {
       const double w = std::max(1.0, std::abs(axis.min ? lim.lo : lim.hi) * 0.1);
-      if (axis.min) lim.hi = lim.lo + w;
-      else lim.lo = lim.hi - w;
+      if (axis.min)
+        lim.hi = lim.lo + w;
+      else
+        lim.lo = lim.hi - w;
     }
   }
   // Both ends and the span must be representable, and the span resolvable in double precision.
@@ -76,8 +80,7 @@ Limits axis_limits(const Axis& axis, Range data, const std::string& where) {
       !(span > 1e-12 * std::max({std::abs(a), std::abs(b), log ? 1.0 : 0.0}))) {
     std::ostringstream os;
     os.precision(12);
-    os << where << ": the range [" << lim.lo << ", " << lim.hi << "] is too " << (std::isfinite(span) ? "narrow" : "wide")
-       << " to draw";
+    os << where << ": the range [" << lim.lo << ", " << lim.hi << "] is too " << (std::isfinite(span) ? "narrow" : "wide") << " to draw";
     throw FigureError(os.str());
   }
   return lim;
@@ -92,13 +95,20 @@ std::pair<std::string, std::string> display_label(const std::string& label) {
   if (ten == std::string::npos || ten + 2 == label.size()) return {out, {}};
   std::string sup;
   for (char32_t c : decode_utf8(std::string_view(label).substr(ten + 2))) {
-    if (c == U'\u207B') sup += "\u2212";
-    else if (c == U'\u2070') sup += '0';
-    else if (c == U'\u00B9') sup += '1';
-    else if (c == U'\u00B2') sup += '2';
-    else if (c == U'\u00B3') sup += '3';
-    else if (c >= U'\u2074' && c <= U'\u2079') sup += static_cast<char>('4' + (c - U'\u2074'));
-    else return {out, {}};
+    if (c == U'\u207B')
+      sup += "\u2212";
+    else if (c == U'\u2070')
+      sup += '0';
+    else if (c == U'\u00B9')
+      sup += '1';
+    else if (c == U'\u00B2')
+      sup += '2';
+    else if (c == U'\u00B3')
+      sup += '3';
+    else if (c >= U'\u2074' && c <= U'\u2079')
+      sup += static_cast<char>('4' + (c - U'\u2074'));
+    else
+      return {out, {}};
   }
   return {label.substr(0, ten + 2), sup};
 }
@@ -169,8 +179,7 @@ class Builder {
       double cx = first.x + first.w / 2;
       const double w = text_width(f_.title, st_.figure_title_px, true);
       cx = std::clamp(cx, w / 2 + st_.pad, f_.width_px - w / 2 - st_.pad);
-      add(Text{f_.title, {}, std::round(cx), st_.pad * 0.8 + m.ascender, st_.figure_title_px, true, false,
-               Text::Align::center, kText});
+      add(Text{f_.title, {}, std::round(cx), st_.pad * 0.8 + m.ascender, st_.figure_title_px, true, false, Text::Align::center, kText});
     }
     return std::move(scene_);
   }
@@ -217,9 +226,9 @@ class Builder {
       const double y0 = std::round(g.slot_top + g.title_height);
       const double y1 = std::round(g.slot_top + slot - g.bottom_height);
       if (y1 - y0 < 24) {
-        throw FigureError("figure height " + std::to_string(f_.height_px) + " px is too small for " +
-                          std::to_string(n) + " panel(s): the plot area of panel " + std::to_string(i) +
-                          " would be " + std::to_string(static_cast<int>(y1 - y0)) + " px tall");
+        throw FigureError("figure height " + std::to_string(f_.height_px) + " px is too small for " + std::to_string(n) +
+                          " panel(s): the plot area of panel " + std::to_string(i) + " would be " +
+                          std::to_string(static_cast<int>(y1 - y0)) + " px tall");
       }
       pl.plot.y = y0;
       pl.plot.h = y1 - y0;
@@ -229,8 +238,7 @@ class Builder {
         for (double v : s.x) xr.add(v);
         for (double v : s.y) yr.add(v);
       }
-      const std::string where =
-          "panel " + std::to_string(i) + (panel.title.empty() ? std::string() : " '" + panel.title + "'");
+      const std::string where = "panel " + std::to_string(i) + (panel.title.empty() ? std::string() : " '" + panel.title + "'");
       const Limits xl = axis_limits(panel.x_axis, xr, where + ", x axis");
       const Limits yl = axis_limits(panel.y_axis, yr, where + ", y axis");
       pl.x = AxisMap{panel.x_axis.scale, xl.lo, xl.hi, 0, 1};
@@ -254,8 +262,8 @@ class Builder {
         pl.plot.x = left;
         pl.plot.w = f_.width_px - left - right;
         if (pl.plot.w < 24) {
-          throw FigureError("figure width " + std::to_string(f_.width_px) +
-                            " px is too small for the axis labels of panel " + std::to_string(i));
+          throw FigureError("figure width " + std::to_string(f_.width_px) + " px is too small for the axis labels of panel " +
+                            std::to_string(i));
         }
         pl.x.pixel_lo = pl.plot.x;
         pl.x.pixel_hi = pl.plot.right();
@@ -332,9 +340,7 @@ class Builder {
         add(std::move(d));
       }
       if (!series.label.empty()) {
-        const auto kind = line && dots ? LegendEntry::Kind::line_dots
-                          : line       ? LegendEntry::Kind::line
-                                       : LegendEntry::Kind::dots;
+        const auto kind = line && dots ? LegendEntry::Kind::line_dots : line ? LegendEntry::Kind::line : LegendEntry::Kind::dots;
         legend.push_back({series.label, kind, color});
       }
     }
@@ -354,10 +360,8 @@ class Builder {
         if (!seen_cols.insert(col).second) continue;
         add_rect(std::round(px - tick_w / 2), plot.bottom() - tick_h, tick_w, tick_h, c, plot);
         obstacles.push_back({px, plot.bottom() - tick_h / 2});
-        if (!m.label.empty() &&
-            std::none_of(legend.begin(), legend.end(), [&](const LegendEntry& e) {
-              return e.kind == LegendEntry::Kind::tick && e.label == m.label;
-            }))
+        if (!m.label.empty() && std::none_of(legend.begin(), legend.end(),
+                                             [&](const LegendEntry& e) { return e.kind == LegendEntry::Kind::tick && e.label == m.label; }))
           legend.push_back({m.label, LegendEntry::Kind::tick, c});
       }
       const FontMetrics lm = font_metrics(st_.legend_px, false);
@@ -427,26 +431,30 @@ class Builder {
       if (t.label.empty()) continue;
       const double x = plot.x - fw - tl - std::round(st_.tick_px * 0.3);
       auto [text, sup] = display_label(t.label);
-      add(Text{text, sup, x, std::round(py + tick_m.cap_height / 2.0), st_.tick_px, false, false, Text::Align::right,
-               kText});
+      add(Text{text, sup, x, std::round(py + tick_m.cap_height / 2.0), st_.tick_px, false, false, Text::Align::right, kText});
     }
 
     // Axis labels and panel title.
     if (!panel.x_label.empty()) {
       const double base = std::round(x_labels_bottom + st_.tick_px * 0.3 + label_m.ascender);
-      add(Text{panel.x_label, {}, std::round(plot.x + plot.w / 2), base, st_.label_px, false, false,
-               Text::Align::center, kText});
+      add(Text{panel.x_label, {}, std::round(plot.x + plot.w / 2), base, st_.label_px, false, false, Text::Align::center, kText});
     }
     if (!panel.y_label.empty()) {
-      add(Text{panel.y_label, {}, std::round(st_.pad + label_m.ascender), std::round(plot.y + plot.h / 2),
-               st_.label_px, false, true, Text::Align::center, kText});
+      add(Text{panel.y_label,
+               {},
+               std::round(st_.pad + label_m.ascender),
+               std::round(plot.y + plot.h / 2),
+               st_.label_px,
+               false,
+               true,
+               Text::Align::center,
+               kText});
     }
     if (!panel.title.empty()) {
       const FontMetrics tm = font_metrics(st_.title_px, true);
       // Just above the axes box: the descenders clear it by a third of the padding.
       const double base = std::round(plot.y - fw - st_.pad * 0.3 - tm.descender);
-      add(Text{panel.title, {}, std::round(plot.x + plot.w / 2), base,
-               st_.title_px, true, false, Text::Align::center, kText});
+      add(Text{panel.title, {}, std::round(plot.x + plot.w / 2), base, st_.title_px, true, false, Text::Align::center, kText});
     }
 
     // Marker labels on a light backing so grid and lines do not run through them.
@@ -467,13 +475,12 @@ class Builder {
     for (std::size_t i = 1; i < pts.size(); i += stride) {
       const double dx = pts[i].x - pts[i - 1].x, dy = pts[i].y - pts[i - 1].y;
       const int k = static_cast<int>(std::min(32.0, std::hypot(dx, dy) / 12.0));
-      for (int j = 1; j < k; ++j)
-        out.push_back({pts[i - 1].x + dx * j / k, pts[i - 1].y + dy * j / k});
+      for (int j = 1; j < k; ++j) out.push_back({pts[i - 1].x + dx * j / k, pts[i - 1].y + dy * j / k});
     }
   }
 
-  void draw_legend(const Panel& panel, const Rect& plot, const std::vector<LegendEntry>& entries,
-                   const std::vector<Point>& obstacles, const std::vector<Rect>& label_boxes) {
+  void draw_legend(const Panel& panel, const Rect& plot, const std::vector<LegendEntry>& entries, const std::vector<Point>& obstacles,
+                   const std::vector<Rect>& label_boxes) {
     const int fpx = st_.legend_px;
     const FontMetrics m = font_metrics(fpx, false);
     const double row = std::round(m.line_height() * 1.2);

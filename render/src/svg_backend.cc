@@ -58,8 +58,8 @@ class Writer {
 
   std::string write() {
     os_ << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
-        << "<svg xmlns=\"http://www.w3.org/2000/svg\" version=\"1.1\" width=\"" << scene_.width << "\" height=\""
-        << scene_.height << "\" viewBox=\"0 0 " << scene_.width << " " << scene_.height << "\">\n";
+        << "<svg xmlns=\"http://www.w3.org/2000/svg\" version=\"1.1\" width=\"" << scene_.width << "\" height=\"" << scene_.height
+        << "\" viewBox=\"0 0 " << scene_.width << " " << scene_.height << "\">\n";
     // Clip paths, one per distinct clip rectangle (the plot areas).
     os_ << "<defs>\n";
     for (const Item& item : scene_.items) declare_clip(clip_of(item));
@@ -75,8 +75,10 @@ class Writer {
   static std::optional<Rect> clip_of(const Item& item) {
     return std::visit(
         [](const auto& it) -> std::optional<Rect> {
-          if constexpr (std::is_same_v<std::decay_t<decltype(it)>, Text>) return std::nullopt;
-          else return it.clip;
+          if constexpr (std::is_same_v<std::decay_t<decltype(it)>, Text>)
+            return std::nullopt;
+          else
+            return it.clip;
         },
         item);
   }
@@ -87,8 +89,8 @@ class Writer {
     if (!r || clips_.count(key(*r))) return;
     const std::string id = "plot" + std::to_string(clips_.size());
     clips_[key(*r)] = id;
-    os_ << "<clipPath id=\"" << id << "\"><rect x=\"" << num(r->x) << "\" y=\"" << num(r->y) << "\" width=\""
-        << num(r->w) << "\" height=\"" << num(r->h) << "\"/></clipPath>\n";
+    os_ << "<clipPath id=\"" << id << "\"><rect x=\"" << num(r->x) << "\" y=\"" << num(r->y) << "\" width=\"" << num(r->w) << "\" height=\""
+        << num(r->h) << "\"/></clipPath>\n";
   }
 
   std::string clip_attr(const std::optional<Rect>& r) {
@@ -97,42 +99,37 @@ class Writer {
   }
 
   void add(const FillRect& f) {
-    os_ << "<rect x=\"" << num(f.rect.x) << "\" y=\"" << num(f.rect.y) << "\" width=\"" << num(f.rect.w)
-        << "\" height=\"" << num(f.rect.h) << "\" fill=\"" << color(f.color) << "\"" << opacity(f.color, "fill-opacity")
-        << clip_attr(f.clip) << "/>\n";
+    os_ << "<rect x=\"" << num(f.rect.x) << "\" y=\"" << num(f.rect.y) << "\" width=\"" << num(f.rect.w) << "\" height=\"" << num(f.rect.h)
+        << "\" fill=\"" << color(f.color) << "\"" << opacity(f.color, "fill-opacity") << clip_attr(f.clip) << "/>\n";
   }
 
   void add(const Stroke& s) {
-    const std::string style = " fill=\"none\" stroke=\"" + color(s.color) + "\" stroke-width=\"" + num(s.width) +
-                              "\"" + opacity(s.color, "stroke-opacity") +
-                              (s.dashed ? " stroke-dasharray=\"" + num(std::max(4.0, 4 * s.width)) + " " +
-                                              num(std::max(3.0, 3 * s.width)) + "\""
-                                        : std::string()) +
-                              clip_attr(s.clip);
+    const std::string style =
+        " fill=\"none\" stroke=\"" + color(s.color) + "\" stroke-width=\"" + num(s.width) + "\"" + opacity(s.color, "stroke-opacity") +
+        (s.dashed ? " stroke-dasharray=\"" + num(std::max(4.0, 4 * s.width)) + " " + num(std::max(3.0, 3 * s.width)) + "\""
+                  : std::string()) +
+        clip_attr(s.clip);
     if (s.series) {
       os_ << "<polyline stroke-linejoin=\"round\" stroke-linecap=\"round\"" << style << " points=\"";
-      for (std::size_t i = 0; i < s.points.size(); ++i)
-        os_ << (i ? " " : "") << num(s.points[i].x) << "," << num(s.points[i].y);
+      for (std::size_t i = 0; i < s.points.size(); ++i) os_ << (i ? " " : "") << num(s.points[i].x) << "," << num(s.points[i].y);
       os_ << "\"/>\n";
       return;
     }
     os_ << "<path" << style << " d=\"";
-    for (std::size_t i = 0; i < s.points.size(); ++i)
-      os_ << (i ? " L" : "M") << num(s.points[i].x) << " " << num(s.points[i].y);
+    for (std::size_t i = 0; i < s.points.size(); ++i) os_ << (i ? " L" : "M") << num(s.points[i].x) << " " << num(s.points[i].y);
     os_ << "\"/>\n";
   }
 
   void add(const Dots& d) {
     os_ << "<g fill=\"" << color(d.color) << "\"" << opacity(d.color, "fill-opacity") << clip_attr(d.clip) << ">";
-    for (const Point& c : d.centers)
-      os_ << "<circle cx=\"" << num(c.x) << "\" cy=\"" << num(c.y) << "\" r=\"" << num(d.radius) << "\"/>";
+    for (const Point& c : d.centers) os_ << "<circle cx=\"" << num(c.x) << "\" cy=\"" << num(c.y) << "\" r=\"" << num(d.radius) << "\"/>";
     os_ << "</g>\n";
   }
 
   void add(const Text& t) {
     const char* anchor = t.align == Text::Align::left ? "start" : t.align == Text::Align::center ? "middle" : "end";
-    os_ << "<text x=\"" << num(t.x) << "\" y=\"" << num(t.y) << "\" font-size=\"" << t.size_px << "\" text-anchor=\""
-        << anchor << "\" fill=\"" << color(t.color) << "\"";
+    os_ << "<text x=\"" << num(t.x) << "\" y=\"" << num(t.y) << "\" font-size=\"" << t.size_px << "\" text-anchor=\"" << anchor
+        << "\" fill=\"" << color(t.color) << "\"";
     if (t.bold) os_ << " font-weight=\"bold\"";
     if (t.vertical) os_ << " transform=\"rotate(-90 " << num(t.x) << " " << num(t.y) << ")\"";
     os_ << ">" << escape(t.text);

@@ -95,8 +95,7 @@ std::vector<Tick> linear_ticks(double lo, double hi, int max_ticks) {
 }
 
 std::string decade_label(int exponent) {
-  static const char* const sup[] = {"\u2070", "\u00B9", "\u00B2", "\u00B3", "\u2074",
-                                    "\u2075", "\u2076", "\u2077", "\u2078", "\u2079"};
+  static const char* const sup[] = {"\u2070", "\u00B9", "\u00B2", "\u00B3", "\u2074", "\u2075", "\u2076", "\u2077", "\u2078", "\u2079"};
   std::string s = "10";
   if (exponent < 0) s += "\u207B";
   const std::string digits = std::to_string(std::abs(exponent));
@@ -188,8 +187,7 @@ namespace {
 
 // One pass of run decimation: runs of consecutive points whose `key` coordinate falls in the same
 // pixel keep their first, extreme `other` values, and last point.
-std::vector<std::size_t> decimate_pass(std::span<const double> key, std::span<const double> other,
-                                       const std::vector<std::size_t>& idx) {
+std::vector<std::size_t> decimate_pass(std::span<const double> key, std::span<const double> other, const std::vector<std::size_t>& idx) {
   std::vector<std::size_t> out;
   out.reserve(std::min<std::size_t>(idx.size(), 4096));
   const std::size_t n = idx.size();

@@ -27,7 +27,8 @@ inline double select_le_of(double a, double b, double c, double d) { return b < 
 
 double apply(Op op, double x, double y, double z, double w) {
   switch (op) {
-    case Op::kConst: case Op::kVar: break;
+    case Op::kConst:
+    case Op::kVar: break;
     case Op::kAdd: return x + y;
     case Op::kSub: return x - y;
     case Op::kMul: return x * y;
@@ -61,10 +62,17 @@ double apply(Op op, double x, double y, double z, double w) {
 // Number of operands of a graph node; 0 for leaves and for ops that no builder may create.
 int arity(Op op) {
   switch (op) {
-    case Op::kConst: case Op::kVar: case Op::kSinCos: return 0;
-    case Op::kAdd: case Op::kSub: case Op::kMul: case Op::kDiv: case Op::kPow: case Op::kAtan2:
-    case Op::kMin: case Op::kMax:
-      return 2;
+    case Op::kConst:
+    case Op::kVar:
+    case Op::kSinCos: return 0;
+    case Op::kAdd:
+    case Op::kSub:
+    case Op::kMul:
+    case Op::kDiv:
+    case Op::kPow:
+    case Op::kAtan2:
+    case Op::kMin:
+    case Op::kMax: return 2;
     case Op::kSelectLe: return 4;
     default: return 1;
   }
@@ -101,11 +109,10 @@ struct FunctionInfo {
   int args;
 };
 constexpr FunctionInfo kFunctions[] = {
-    {"sin", Op::kSin, 1},   {"cos", Op::kCos, 1},   {"tan", Op::kTan, 1},     {"asin", Op::kAsin, 1},
-    {"acos", Op::kAcos, 1}, {"atan", Op::kAtan, 1}, {"atan2", Op::kAtan2, 2}, {"sinh", Op::kSinh, 1},
-    {"cosh", Op::kCosh, 1}, {"tanh", Op::kTanh, 1}, {"exp", Op::kExp, 1},     {"log", Op::kLog, 1},
-    {"sqrt", Op::kSqrt, 1}, {"abs", Op::kAbs, 1},   {"min", Op::kMin, 2},     {"max", Op::kMax, 2},
-    {"pow", Op::kPow, 2},
+    {"sin", Op::kSin, 1},   {"cos", Op::kCos, 1},     {"tan", Op::kTan, 1},   {"asin", Op::kAsin, 1}, {"acos", Op::kAcos, 1},
+    {"atan", Op::kAtan, 1}, {"atan2", Op::kAtan2, 2}, {"sinh", Op::kSinh, 1}, {"cosh", Op::kCosh, 1}, {"tanh", Op::kTanh, 1},
+    {"exp", Op::kExp, 1},   {"log", Op::kLog, 1},     {"sqrt", Op::kSqrt, 1}, {"abs", Op::kAbs, 1},   {"min", Op::kMin, 2},
+    {"max", Op::kMax, 2},   {"pow", Op::kPow, 2},
 };
 
 std::string format_number(double v) {
@@ -126,13 +133,11 @@ bool is_name_char(char c) { return is_name_start(c) || is_digit(c); }
 
 class Parser {
  public:
-  Parser(Graph& graph, std::string_view text, const Graph::Resolver& resolve)
-      : g_(graph), s_(text), resolve_(resolve) {}
+  Parser(Graph& graph, std::string_view text, const Graph::Resolver& resolve) : g_(graph), s_(text), resolve_(resolve) {}
 
   Node parse() {
     if (s_.size() > kMaxTextLength) {
-      throw ExpressionError("expression longer than " + std::to_string(kMaxTextLength) + " characters",
-                            kMaxTextLength);
+      throw ExpressionError("expression longer than " + std::to_string(kMaxTextLength) + " characters", kMaxTextLength);
     }
     skip_space();
     if (pos_ == s_.size()) throw ExpressionError("empty expression", 0);
@@ -353,8 +358,8 @@ class Parser {
     }
     expect_close();
     if (count != fn->args) {
-      throw ExpressionError(std::string(name) + " takes " + std::to_string(fn->args) +
-                                (fn->args == 1 ? " argument" : " arguments") + ", got " + std::to_string(count),
+      throw ExpressionError(std::string(name) + " takes " + std::to_string(fn->args) + (fn->args == 1 ? " argument" : " arguments") +
+                                ", got " + std::to_string(count),
                             start);
     }
     return fn->args == 1 ? g_.unary(fn->op, args[0]) : g_.binary(fn->op, args[0], args[1]);
@@ -404,8 +409,7 @@ struct Graph::Impl {
   std::unordered_map<Key, Node, KeyHash> map;
 };
 
-Graph::Graph(const Graph& other)
-    : nodes_(other.nodes_), index_(other.index_ ? std::make_shared<Impl>(*other.index_) : nullptr) {}
+Graph::Graph(const Graph& other) : nodes_(other.nodes_), index_(other.index_ ? std::make_shared<Impl>(*other.index_) : nullptr) {}
 
 Graph& Graph::operator=(const Graph& other) {
   if (this != &other) {
@@ -481,8 +485,7 @@ Node Graph::unary(Op op, Node a) {
       if (ea.op == Op::kNeg || ea.op == Op::kAbs) return unary(Op::kAbs, ea.a);
       if (ea.op == Op::kSquare) return a;
       break;
-    default:
-      break;
+    default: break;
   }
   Entry e{op, a};
   return intern(e);
@@ -498,8 +501,7 @@ Node Graph::binary(Op op, Node a, Node b) {
   auto arg_of = [this](Node n) { return nodes_[static_cast<std::size_t>(n)].a; };
 
   if (is_const(a) && is_const(b)) {
-    return constant(apply(op, nodes_[static_cast<std::size_t>(a)].value, nodes_[static_cast<std::size_t>(b)].value,
-                          0.0, 0.0));
+    return constant(apply(op, nodes_[static_cast<std::size_t>(a)].value, nodes_[static_cast<std::size_t>(b)].value, 0.0, 0.0));
   }
   // IEEE addition and multiplication are commutative, so a canonical operand order (constant first, then
   // by index) is exact and lets a*b and b*a share one node.
@@ -507,44 +509,43 @@ Node Graph::binary(Op op, Node a, Node b) {
 
   switch (op) {
     case Op::kAdd:
-      if (is_value(a, 0.0)) return b;                                         // 0 + x
-      if (op_of(b) == Op::kNeg) return binary(Op::kSub, a, arg_of(b));         // a + (-y) = a - y
-      if (op_of(a) == Op::kNeg) return binary(Op::kSub, b, arg_of(a));         // (-y) + b = b - y
+      if (is_value(a, 0.0)) return b;                                   // 0 + x
+      if (op_of(b) == Op::kNeg) return binary(Op::kSub, a, arg_of(b));  // a + (-y) = a - y
+      if (op_of(a) == Op::kNeg) return binary(Op::kSub, b, arg_of(a));  // (-y) + b = b - y
       break;
     case Op::kSub:
-      if (a == b) return constant(0.0);                                       // x - x
-      if (is_value(b, 0.0)) return a;                                         // x - 0
-      if (is_value(a, 0.0)) return unary(Op::kNeg, b);                        // 0 - x
-      if (op_of(b) == Op::kNeg) return binary(Op::kAdd, a, arg_of(b));         // a - (-y) = a + y
+      if (a == b) return constant(0.0);                                 // x - x
+      if (is_value(b, 0.0)) return a;                                   // x - 0
+      if (is_value(a, 0.0)) return unary(Op::kNeg, b);                  // 0 - x
+      if (op_of(b) == Op::kNeg) return binary(Op::kAdd, a, arg_of(b));  // a - (-y) = a + y
       break;
     case Op::kMul:
       if (is_const(a)) {
         const double c = nodes_[static_cast<std::size_t>(a)].value;
-        if (c == 0.0) return constant(0.0);                                   // 0 * x
-        if (c == 1.0) return b;                                               // 1 * x
-        if (c == -1.0) return unary(Op::kNeg, b);                             // -1 * x
+        if (c == 0.0) return constant(0.0);                                          // 0 * x
+        if (c == 1.0) return b;                                                      // 1 * x
+        if (c == -1.0) return unary(Op::kNeg, b);                                    // -1 * x
         if (op_of(b) == Op::kNeg) return binary(Op::kMul, constant(-c), arg_of(b));  // c*(-y) = (-c)*y
       } else if (op_of(a) == Op::kNeg && op_of(b) == Op::kNeg) {
-        return binary(Op::kMul, arg_of(a), arg_of(b));                        // (-x)*(-y) = x*y
+        return binary(Op::kMul, arg_of(a), arg_of(b));  // (-x)*(-y) = x*y
       }
       break;
     case Op::kDiv:
-      if (is_value(b, 1.0)) return a;                                         // x / 1
-      if (is_value(b, -1.0)) return unary(Op::kNeg, a);                       // x / -1
-      if (is_value(a, 0.0)) return constant(0.0);                             // 0 / x
+      if (is_value(b, 1.0)) return a;                    // x / 1
+      if (is_value(b, -1.0)) return unary(Op::kNeg, a);  // x / -1
+      if (is_value(a, 0.0)) return constant(0.0);        // 0 / x
       break;
     case Op::kPow:
-      if (is_value(b, 0.0)) return constant(1.0);                             // x^0
-      if (is_value(b, 1.0)) return a;                                         // x^1
-      if (is_value(b, 2.0)) return unary(Op::kSquare, a);                     // x^2
-      if (is_value(a, 1.0)) return constant(1.0);                             // 1^y (= 1 in IEEE, even for NaN)
+      if (is_value(b, 0.0)) return constant(1.0);          // x^0
+      if (is_value(b, 1.0)) return a;                      // x^1
+      if (is_value(b, 2.0)) return unary(Op::kSquare, a);  // x^2
+      if (is_value(a, 1.0)) return constant(1.0);          // 1^y (= 1 in IEEE, even for NaN)
       break;
     case Op::kMin:
     case Op::kMax:
       if (a == b) return a;
       break;
-    default:
-      break;
+    default: break;
   }
   Entry e{op, a, b};
   return intern(e);
@@ -669,7 +670,11 @@ std::string Graph::to_string(Node f, const SlotNamer& slot_name) const {
           out += std::to_string(e.slot);
         }
         break;
-      case Op::kAdd: case Op::kSub: case Op::kMul: case Op::kDiv: case Op::kPow: {
+      case Op::kAdd:
+      case Op::kSub:
+      case Op::kMul:
+      case Op::kDiv:
+      case Op::kPow: {
         static constexpr const char* kInfix[] = {"+", "-", "*", "/", "^"};
         push_text(")");
         push_node(e.b);
@@ -762,7 +767,8 @@ Node Graph::derivative(Node f, int slot) {
 
     Node r = zero;
     switch (e.op) {
-      case Op::kConst: case Op::kVar: break;
+      case Op::kConst:
+      case Op::kVar: break;
       case Op::kAdd: r = add(du, dv); break;
       case Op::kSub: r = sub(du, dv); break;
       case Op::kMul: r = add(mul(du, v), mul(u, dv)); break;
@@ -929,9 +935,9 @@ void Tape::eval(const double* slots, double* outputs, double* scratch) const {
         ++i;
         continue;
       }
-      case Op::kConst: case Op::kVar:
-      default:
-        __builtin_unreachable();  // leaves are not instructions; lets the switch skip its range check
+      case Op::kConst:
+      case Op::kVar:
+      default: __builtin_unreachable();  // leaves are not instructions; lets the switch skip its range check
     }
     r[i] = v;
   }

@@ -15,8 +15,7 @@ using nlohmann::json;
 MonotoneGraph read_feedback_graph(const json& f, const std::string& ptr, std::string& type, const ConstantReader& constant) {
   require_object(f, ptr);
   static const char* kTypes = "relay, coulomb, saturation, dead_zone, complementarity, mos, adhesive, graph";
-  if (!f.contains("type") || !f["type"].is_string())
-    throw SceneError(ptr + "/type", std::string("missing feedback type (") + kTypes + ")");
+  if (!f.contains("type") || !f["type"].is_string()) throw SceneError(ptr + "/type", std::string("missing feedback type (") + kTypes + ")");
   type = f["type"].get<std::string>();
   auto value = [&](const char* key, bool required, double fallback) {
     if (!f.contains(key)) {

@@ -13,9 +13,12 @@ namespace moreau::scene {
 std::string json_pointer_token(std::string_view key) {
   std::string out;
   for (char c : key) {
-    if (c == '~') out += "~0";
-    else if (c == '/') out += "~1";
-    else out += c;
+    if (c == '~')
+      out += "~0";
+    else if (c == '/')
+      out += "~1";
+    else
+      out += c;
   }
   return out;
 }
@@ -64,7 +67,7 @@ class JsonErrorFinder : public nlohmann::json_sax<json> {
   std::string token;         // the last token read (for a number out of range: the number)
   int id = 0;                // nlohmann's exception id: 1xx syntax errors, 406 a number out of range
   std::string message;
-  std::string pointer;       // of the value being read; "" for the whole document
+  std::string pointer;  // of the value being read; "" for the whole document
 
   bool null() override { return value(); }
   bool boolean(bool) override { return value(); }
@@ -158,8 +161,7 @@ SceneError json_error(std::string_view text, const JsonErrorFinder& e, const std
 
 nlohmann::json parse_json_text(std::string_view text, const std::string& source) {
   if (const auto at = json_depth_exceeded(text)) {
-    throw SceneError("/", source + ": JSON nested deeper than " + std::to_string(kMaxJsonDepth) + " levels at byte " +
-                              std::to_string(*at));
+    throw SceneError("/", source + ": JSON nested deeper than " + std::to_string(kMaxJsonDepth) + " levels at byte " + std::to_string(*at));
   }
   // No exceptions from the parser: an out-of-range number is nlohmann's out_of_range, not its
   // parse_error, and one missed catch aborts the process.
@@ -174,9 +176,12 @@ std::optional<std::size_t> json_depth_exceeded(std::string_view text, int max_de
   for (std::size_t i = 0; i < text.size(); ++i) {
     const char c = text[i];
     if (in_string) {
-      if (escaped) escaped = false;
-      else if (c == '\\') escaped = true;
-      else if (c == '"') in_string = false;
+      if (escaped)
+        escaped = false;
+      else if (c == '\\')
+        escaped = true;
+      else if (c == '"')
+        in_string = false;
     } else if (c == '"') {
       in_string = true;
     } else if (c == '[' || c == '{') {
@@ -194,8 +199,7 @@ void apply_override(nlohmann::json& doc, const std::string& assignment) {
     throw SceneError("/", "override '" + assignment + "' is not of the form PATH=VALUE (e.g. integrator.h=1e-4)");
   const std::string path = assignment.substr(0, eq);
   const std::string text = assignment.substr(eq + 1);
-  if (json_depth_exceeded(text))
-    throw SceneError(path, "override value nested deeper than " + std::to_string(kMaxJsonDepth) + " levels");
+  if (json_depth_exceeded(text)) throw SceneError(path, "override value nested deeper than " + std::to_string(kMaxJsonDepth) + " levels");
   std::vector<std::string> tokens;
   try {
     tokens = path_tokens(path);
@@ -231,7 +235,8 @@ void apply_override(nlohmann::json& doc, const std::string& assignment) {
       } catch (const std::exception&) {
         throw SceneError(ptr, "override path: '" + tok + "' is not an array index");
       }
-      if (idx >= node->size()) throw SceneError(ptr, "override path: index " + tok + " is out of range (size " + std::to_string(node->size()) + ")");
+      if (idx >= node->size())
+        throw SceneError(ptr, "override path: index " + tok + " is out of range (size " + std::to_string(node->size()) + ")");
       node = &(*node)[idx];
     } else if (node->is_object() || node->is_null()) {
       node = &(*node)[tok];
@@ -258,8 +263,8 @@ nlohmann::json read_scene_file(const std::string& path) {
   }
   if (in.bad()) throw SceneError("/", "cannot read scene file '" + path + "'");
   if (text.size() > kMaxSceneFileBytes)
-    throw SceneError("/", "scene file '" + path + "' is larger than " + std::to_string(kMaxSceneFileBytes >> 20) +
-                              " MiB, the limit for scene files");
+    throw SceneError(
+        "/", "scene file '" + path + "' is larger than " + std::to_string(kMaxSceneFileBytes >> 20) + " MiB, the limit for scene files");
   return parse_json_text(text, "scene file '" + path + "'");
 }
 

@@ -31,7 +31,6 @@ std::string vec(const std::vector<double>& v) {
 // JSON has no NaN or Inf: a non-finite value becomes null rather than an invalid document.
 nlohmann::json num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
 
-
 nlohmann::json energy_json(const EnergyTrack& e) {
   if (!e.evaluated) return nullptr;
   nlohmann::json j = {{"initial", num(e.initial)},
@@ -112,8 +111,8 @@ std::string contact_text(const LagrangianScene& scene, const RunSummary& s, cons
   std::ostringstream os;
   std::string names;
   for (std::size_t i = 0; i < scene.coordinates.size(); ++i) names += (i ? ", " : "") + scene.coordinates[i];
-  os << "Moreau: " << (scene.name.empty() ? "scene" : scene.name) << " (" << scene.n << " DOF: " << names
-     << "), scheme " << scheme_name(scene.scheme) << ", fixed h = " << fmt(scene.settings.h) << ", t in [" << fmt(scene.settings.t0) << ", "
+  os << "Moreau: " << (scene.name.empty() ? "scene" : scene.name) << " (" << scene.n << " DOF: " << names << "), scheme "
+     << scheme_name(scene.scheme) << ", fixed h = " << fmt(scene.settings.h) << ", t in [" << fmt(scene.settings.t0) << ", "
      << fmt(scene.settings.t_end) << "]\n";
   os << "  status        " << to_string(s.status) << ": " << s.steps << " steps to t = " << fmt(s.t_final) << "\n";
   if (!s.message.empty()) os << "  message       " << s.message << "\n";
@@ -147,11 +146,11 @@ std::string contact_text(const LagrangianScene& scene, const RunSummary& s, cons
     }
     for (int i = 0; i < c->constraints; ++i) {
       if (c->settle_step[i] >= 0)
-        os << "                contact " << name_of(scene, i) << " closed (impulse every step, U == 0.0) from t = " << fmt(c->settle_time[i])
-           << "\n";
+        os << "                contact " << name_of(scene, i)
+           << " closed (impulse every step, U == 0.0) from t = " << fmt(c->settle_time[i]) << "\n";
     }
-    os << "  smallest gap  " << fmt(c->smallest_gap) << " (" << name_of(scene, c->smallest_gap_constraint) << ", t = "
-       << fmt(c->smallest_gap_time) << ")" << (c->smallest_gap < 0.0 ? ": penetration" : "") << "\n";
+    os << "  smallest gap  " << fmt(c->smallest_gap) << " (" << name_of(scene, c->smallest_gap_constraint)
+       << ", t = " << fmt(c->smallest_gap_time) << ")" << (c->smallest_gap < 0.0 ? ": penetration" : "") << "\n";
     os << "  positions     update " << scene.position_update << "; correction " << scene.position_correction;
     if (c->correction_enabled) {
       os << ": " << c->corrected_steps << " steps projected onto h >= 0";
@@ -244,8 +243,8 @@ std::string report_text(const LagrangianScene& scene, const RunSummary& s, const
   }
   if (s.equilibrium.evaluated) {
     os << "  equilibrium   dist(-F(t,Q,0) - grad V(Q), dPhi(0)) = " << fmt(s.equilibrium.residual)
-       << (s.equilibrium.residual == 0.0 ? " (an equilibrium)" : " (not an equilibrium)") << "; in the interior: "
-       << (s.equilibrium.interior ? "yes" : "no") << "\n";
+       << (s.equilibrium.residual == 0.0 ? " (an equilibrium)" : " (not an equilibrium)")
+       << "; in the interior: " << (s.equilibrium.interior ? "yes" : "no") << "\n";
   }
   os << "  energy        E_k = 1/2 <M(Q^k) V^k, V^k> " << (s.energy_nonincreasing ? "non-increasing" : "increased")
      << ": E_0 = " << fmt(s.energy_initial) << ", E_N = " << fmt(s.energy_final);
@@ -290,7 +289,9 @@ nlohmann::json stability_json(const LureScene& sc) {
   j["strictly_positive_real"] = t.spr;
   j["test"] = t.method;
   j["A_hurwitz"] = {{"holds", t.hurwitz}, {"spectral_abscissa", num(t.spectral_abscissa)}};
-  j["frequency_condition"] = {{"holds", t.frequency}, {"min_eigenvalue", num(t.min_frequency_eigenvalue)}, {"at_omega", num(t.argmin_omega)},
+  j["frequency_condition"] = {{"holds", t.frequency},
+                              {"min_eigenvalue", num(t.min_frequency_eigenvalue)},
+                              {"at_omega", num(t.argmin_omega)},
                               {"evaluations", t.frequencies}};
   j["CB_symmetric_positive_definite"] = {{"holds", t.cb_symmetric_positive}, {"min_eigenvalue", num(t.cb_min_eigenvalue)}};
   j["high_frequency_condition"] = {{"holds", t.high_frequency}, {"min_eigenvalue", num(t.high_frequency_min_eigenvalue)}};
@@ -354,9 +355,10 @@ std::string report_text(const LureScene& sc, const RunSummary& s, const LureDiag
   std::string names, fb;
   for (std::size_t i = 0; i < sc.states.size(); ++i) names += (i ? ", " : "") + sc.states[i];
   for (std::size_t i = 0; i < sc.feedback_types.size(); ++i) fb += (i ? ", " : "") + sc.feedback_types[i];
-  os << "Moreau: " << (sc.name.empty() ? "scene" : sc.name) << " (Lur'e system, " << sc.n << (sc.n == 1 ? " state: " : " states: ") << names << "; " << sc.m
-     << " output" << (sc.m == 1 ? "" : "s") << ", feedback " << fb << "), scheme " << scheme_name(sc.scheme) << ", theta = " << fmt(sc.settings.theta)
-     << ", h = " << fmt(sc.settings.h) << ", t in [" << fmt(sc.settings.t0) << ", " << fmt(sc.settings.t_end) << "]\n";
+  os << "Moreau: " << (sc.name.empty() ? "scene" : sc.name) << " (Lur'e system, " << sc.n << (sc.n == 1 ? " state: " : " states: ") << names
+     << "; " << sc.m << " output" << (sc.m == 1 ? "" : "s") << ", feedback " << fb << "), scheme " << scheme_name(sc.scheme)
+     << ", theta = " << fmt(sc.settings.theta) << ", h = " << fmt(sc.settings.h) << ", t in [" << fmt(sc.settings.t0) << ", "
+     << fmt(sc.settings.t_end) << "]\n";
   os << "  status        " << to_string(s.status) << ": " << s.steps << " steps to t = " << fmt(s.t_final) << "\n";
   if (!s.message.empty()) os << "  message       " << s.message << "\n";
   os << "  final state   x = " << vec(s.q_final) << "\n";
@@ -377,10 +379,10 @@ std::string report_text(const LureScene& sc, const RunSummary& s, const LureDiag
   }
   if (sc.P) {
     const StorageMatrixCheck& c = sc.p_check;
-    os << "  Lemmas 1-2    P given: P = P^T " << (c.symmetric ? "holds" : "FAILS") << "; P > 0 " << (c.positive_definite ? "holds" : "FAILS")
-       << " (lambda_min " << fmt(c.min_eigenvalue) << "); PA + A^T P < 0 " << (c.dissipative ? "holds" : "FAILS") << " (lambda_max "
-       << fmt(c.max_eigenvalue_pa) << "); B^T P = C " << (c.output_matches ? "holds" : "FAILS") << " (residual "
-       << fmt(c.output_residual) << ")\n";
+    os << "  Lemmas 1-2    P given: P = P^T " << (c.symmetric ? "holds" : "FAILS") << "; P > 0 "
+       << (c.positive_definite ? "holds" : "FAILS") << " (lambda_min " << fmt(c.min_eigenvalue) << "); PA + A^T P < 0 "
+       << (c.dissipative ? "holds" : "FAILS") << " (lambda_max " << fmt(c.max_eigenvalue_pa) << "); B^T P = C "
+       << (c.output_matches ? "holds" : "FAILS") << " (residual " << fmt(c.output_residual) << ")\n";
   } else {
     const PositiveRealnessTest& t = sc.spr;
     os << "  Lemmas 1-2    P not given; (A, B, C) strictly positive real: " << (t.spr ? "yes" : "no") << "\n";

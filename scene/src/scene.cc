@@ -34,9 +34,8 @@ bool is_identifier(const std::string& s) {
 }
 
 const std::set<std::string>& function_names() {
-  static const std::set<std::string> names = {"sin",  "cos",  "tan",  "asin", "acos", "atan", "atan2",
-                                              "sinh", "cosh", "tanh", "exp",  "log",  "sqrt", "abs",
-                                              "min",  "max",  "pow"};
+  static const std::set<std::string> names = {"sin",  "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh",
+                                              "tanh", "exp", "log", "sqrt", "abs",  "min",  "max",   "pow"};
   return names;
 }
 
@@ -101,8 +100,7 @@ class Compiler {
       }
       if (auto it = coord_slot_.find(name); it != coord_slot_.end()) {
         const bool is_velocity = it->second > n_;
-        if ((is_velocity && (allowed & kVelocity)) || (!is_velocity && (allowed & kPosition)))
-          return graph_.variable(it->second);
+        if ((is_velocity && (allowed & kVelocity)) || (!is_velocity && (allowed & kPosition))) return graph_.variable(it->second);
         disallowed = name;
         return std::nullopt;
       }
@@ -117,8 +115,8 @@ class Compiler {
       if (!disallowed.empty()) {
         throw SceneError(ptr, "'" + disallowed + "' cannot appear in " + what + " (in '" + text + "')");
       }
-      throw SceneError(ptr, std::string(e.what()) + " at character " + std::to_string(e.position()) + " of '" +
-                                utf8_prefix(text, 200) + "'");
+      throw SceneError(ptr,
+                       std::string(e.what()) + " at character " + std::to_string(e.position()) + " of '" + utf8_prefix(text, 200) + "'");
     }
   }
 
@@ -136,7 +134,6 @@ class Compiler {
     if (!(v > 0.0)) throw SceneError(ptr, "must be > 0, got " + format(v));
     return v;
   }
-
 
   const json& array_of(const json& j, const std::string& ptr, std::size_t size, const std::string& what) {
     if (!j.is_array()) throw SceneError(ptr, "expected " + what + ", got " + type_name(j));
@@ -261,8 +258,8 @@ class Compiler {
     if (system.contains("potential_gradient")) {
       const json& pg = array_of(system["potential_gradient"], "/system/potential_gradient", static_cast<std::size_t>(n_), "an array");
       for (int i = 0; i < n_; ++i)
-        g_[i] = expression(pg[i], "/system/potential_gradient/" + std::to_string(i), kPosition,
-                           "the potential gradient (depends on q only)");
+        g_[i] =
+            expression(pg[i], "/system/potential_gradient/" + std::to_string(i), kPosition, "the potential gradient (depends on q only)");
     }
     if (system.contains("force")) {
       const json& f = array_of(system["force"], "/system/force", static_cast<std::size_t>(n_), "an array");
@@ -352,8 +349,8 @@ class Compiler {
     if (!doc_.contains("integrator")) throw SceneError("/integrator", "missing required field 'integrator' (h and t_end)");
     const json& in = doc_["integrator"];
     require_object(in, "/integrator");
-    check_fields(in, "/integrator", {"scheme", "h", "t_end", "t0", "step_rule", "k1", "k3", "max_steps", "position_correction",
-                                     "position_update", "theta"});
+    check_fields(in, "/integrator",
+                 {"scheme", "h", "t_end", "t0", "step_rule", "k1", "k3", "max_steps", "position_correction", "position_update", "theta"});
     const bool constrained = !scene.constraint_names.empty();
     scene.scheme = constrained ? Scheme::kMoreauJean : Scheme::kAbl;
     if (in.contains("scheme")) {
@@ -361,7 +358,8 @@ class Compiler {
       const std::string name = in["scheme"].get<std::string>();
       const std::optional<Scheme> named = scheme_from_name(name);
       if (named == Scheme::kImplicitEuler)
-        throw SceneError("/integrator/scheme", "the implicit-euler scheme is for lure systems; a lagrangian system takes abl or moreau-jean");
+        throw SceneError("/integrator/scheme",
+                         "the implicit-euler scheme is for lure systems; a lagrangian system takes abl or moreau-jean");
       if (!named) throw SceneError("/integrator/scheme", "unknown scheme '" + name + "' (expected: abl, moreau-jean)");
       scene.scheme = *named;
       if (scene.scheme == Scheme::kAbl && constrained)
@@ -380,8 +378,7 @@ class Compiler {
       const json& f = in[field];
       const std::string value = f.is_string() ? f.get<std::string>() : "";
       if (std::string(field) == "position_correction") {
-        if (value != "none" && value != "projection")
-          throw SceneError(ptr, "expected \"none\" or \"projection\", got " + brief(f));
+        if (value != "none" && value != "projection") throw SceneError(ptr, "expected \"none\" or \"projection\", got " + brief(f));
         scene.position_correction = value;
       } else {
         if (value != "mdi" && value != "standard") throw SceneError(ptr, "expected \"mdi\" or \"standard\", got " + brief(f));
@@ -391,14 +388,16 @@ class Compiler {
     if (mj) {
       for (const char* field : {"k1", "k3"})
         if (in.contains(field))
-          throw SceneError(std::string("/integrator/") + field, "k1 and k3 belong to the step rules of the abl scheme; moreau-jean uses a fixed step");
+          throw SceneError(std::string("/integrator/") + field,
+                           "k1 and k3 belong to the step rules of the abl scheme; moreau-jean uses a fixed step");
       if (scene.controller.norm_gain > 0.0) {
         const json& c = doc_["system"]["controller"];
         std::string ptr = "/system/controller";
         for (std::size_t k = 0; k < c.size(); ++k)
           if (c[k].contains("type") && c[k]["type"] == "norm") ptr += "/" + std::to_string(k) + "/type";
-        throw SceneError(ptr, "the norm controller term is not separable and is not supported by the moreau-jean scheme "
-                              "(use quadratic and abs terms)");
+        throw SceneError(ptr,
+                         "the norm controller term is not separable and is not supported by the moreau-jean scheme "
+                         "(use quadratic and abs terms)");
       }
     }
     AblSettings& s = scene.settings;
@@ -411,10 +410,14 @@ class Compiler {
     if (in.contains("step_rule")) {
       const json& r = in["step_rule"];
       const std::string rule = r.is_string() ? r.get<std::string>() : "";
-      if (rule == "fixed") s.step_rule = StepRule::kFixed;
-      else if (rule == "theorem-4.1") s.step_rule = StepRule::kTheorem41;
-      else if (rule == "theorem-4.2") s.step_rule = StepRule::kTheorem42;
-      else throw SceneError("/integrator/step_rule", "expected \"fixed\", \"theorem-4.1\" or \"theorem-4.2\", got " + brief(r));
+      if (rule == "fixed")
+        s.step_rule = StepRule::kFixed;
+      else if (rule == "theorem-4.1")
+        s.step_rule = StepRule::kTheorem41;
+      else if (rule == "theorem-4.2")
+        s.step_rule = StepRule::kTheorem42;
+      else
+        throw SceneError("/integrator/step_rule", "expected \"fixed\", \"theorem-4.1\" or \"theorem-4.2\", got " + brief(r));
       if (mj && s.step_rule != StepRule::kFixed)
         throw SceneError("/integrator/step_rule", "the moreau-jean scheme uses a fixed step; the theorem rules belong to abl");
     }
@@ -496,7 +499,8 @@ class Compiler {
       for (const char* part : {"q", "v"}) {
         const std::string ptr = std::string("/exact/") + part;
         const json& arr = array_of(ex[part], ptr, static_cast<std::size_t>(n_), "an array of expressions in t");
-        for (int i = 0; i < n_; ++i) outs.push_back(expression(arr[i], ptr + "/" + std::to_string(i), kTime, "an exact solution (a function of t)"));
+        for (int i = 0; i < n_; ++i)
+          outs.push_back(expression(arr[i], ptr + "/" + std::to_string(i), kTime, "an exact solution (a function of t)"));
       }
       scene.exact_tape = std::make_shared<expr::Tape>(expr::Tape::compile(graph_, outs, 1 + 2 * n_));
     }
@@ -589,8 +593,7 @@ class Compiler {
         throw SceneError(doc_["system"].contains("force") ? "/system/force/" + std::to_string(i) : "/system/potential",
                          "the generalized force grad V + F is not finite at the initial state (component " + std::to_string(i) + ")");
     for (int i = 0; i < n_ * n_; ++i)
-      if (!std::isfinite(values[n_ * n_ + n_ + i]))
-        throw SceneError("/system/coriolis", "C(q, v) is not finite at the initial state");
+      if (!std::isfinite(values[n_ * n_ + n_ + i])) throw SceneError("/system/coriolis", "C(q, v) is not finite at the initial state");
     // V itself enters the reports (the Lagrange-Dirichlet W = kinetic + V): finite where the run starts.
     if (potential_ >= 0 && !std::isfinite(values[2 * n_ * n_ + n_]))
       throw SceneError("/system/potential", "V(q) is not finite at the initial state (" + format(values[2 * n_ * n_ + n_]) + ")");
@@ -611,8 +614,8 @@ class Compiler {
           const double a = values[i * n_ + j], b = values[j * n_ + i];
           if (std::abs(a - b) > 1e-12 * (std::abs(a) + std::abs(b)) && std::abs(a - b) > 1e-300) {
             throw SceneError("/system/mass/" + std::to_string(j) + "/" + std::to_string(i),
-                             "M is not symmetric: M[" + std::to_string(i) + "][" + std::to_string(j) + "] = " + format(a) +
-                                 " but M[" + std::to_string(j) + "][" + std::to_string(i) + "] = " + format(b) +
+                             "M is not symmetric: M[" + std::to_string(i) + "][" + std::to_string(j) + "] = " + format(a) + " but M[" +
+                                 std::to_string(j) + "][" + std::to_string(i) + "] = " + format(b) +
                                  (q == scene.q0 ? std::string(" at the initial state") : std::string(" at another q")));
           }
         }
@@ -679,8 +682,7 @@ class Compiler {
       }
     };
     for (int i = 0; i < n_; ++i)
-      for (int j = i; j < n_; ++j)
-        place(sym(i, j), i == j ? std::vector<int>{i + j * n_} : std::vector<int>{i + j * n_, j + i * n_}, true);
+      for (int j = i; j < n_; ++j) place(sym(i, j), i == j ? std::vector<int>{i + j * n_} : std::vector<int>{i + j * n_, j + i * n_}, true);
     for (int i = 0; i < n_; ++i)
       for (int j = 0; j < n_; ++j) place(C_[i * n_ + j], {nn + i + j * n_}, false);
     for (int i = 0; i < n_; ++i) place(g_[i], {2 * nn + i}, false);
@@ -769,10 +771,12 @@ LureScene Compiler::compile_lure() {
   check_fields(system, "/system", {"type", "states", "A", "B", "C", "feedback", "P"});
   check_all_parameters();
   for (const char* f : {"A", "B", "C", "feedback"})
-    if (!system.contains(f)) throw SceneError("/system", std::string("missing required field '") + f + "' (x' = A x - B y_L, y = C x, y_L in d phi(y))");
+    if (!system.contains(f))
+      throw SceneError("/system", std::string("missing required field '") + f + "' (x' = A x - B y_L, y = C x, y_L in d phi(y))");
   scene.A = constant_matrix(system["A"], "/system/A", -1, -1, "the n x n matrix A");
   const int n = static_cast<int>(scene.A.rows());
-  if (scene.A.cols() != n) throw SceneError("/system/A/0", "A must be square: " + std::to_string(n) + " rows but " + std::to_string(scene.A.cols()) + " columns");
+  if (scene.A.cols() != n)
+    throw SceneError("/system/A/0", "A must be square: " + std::to_string(n) + " rows but " + std::to_string(scene.A.cols()) + " columns");
   scene.B = constant_matrix(system["B"], "/system/B", n, -1, "B has one row per state");
   const int m = static_cast<int>(scene.B.cols());
   if (m > kMaxConstraints) throw SceneError("/system/B", "more than " + std::to_string(kMaxConstraints) + " feedback components");
@@ -783,7 +787,8 @@ LureScene Compiler::compile_lure() {
   const json& fb = system["feedback"];
   if (!fb.is_array()) throw SceneError("/system/feedback", "expected an array with one graph per output, got " + type_name(fb));
   if (fb.size() != static_cast<std::size_t>(m))
-    throw SceneError("/system/feedback", "expected " + std::to_string(m) + " graphs (one per output y = C x), got " + std::to_string(fb.size()));
+    throw SceneError("/system/feedback",
+                     "expected " + std::to_string(m) + " graphs (one per output y = C x), got " + std::to_string(fb.size()));
   for (int i = 0; i < m; ++i) {
     std::string type;
     scene.feedback.push_back(read_feedback_graph(fb[i], "/system/feedback/" + std::to_string(i), type,
@@ -832,7 +837,8 @@ LureScene Compiler::compile_lure() {
     if (ex.contains("x")) {
       std::vector<Node> outs;
       const json& arr = array_of(ex["x"], "/exact/x", static_cast<std::size_t>(n), "an array of expressions in t");
-      for (int i = 0; i < n; ++i) outs.push_back(expression(arr[i], "/exact/x/" + std::to_string(i), kTime, "an exact solution (a function of t)"));
+      for (int i = 0; i < n; ++i)
+        outs.push_back(expression(arr[i], "/exact/x/" + std::to_string(i), kTime, "an exact solution (a function of t)"));
       scene.exact_tape = std::make_shared<expr::Tape>(expr::Tape::compile(graph_, outs, 1));
     }
     if (ex.contains("rest_time")) scene.exact_rest_time = constant(ex["rest_time"], "/exact/rest_time");

@@ -40,9 +40,7 @@ const std::string& Simulation::system_type() const { return lure_ ? kLure : kLag
 Scheme Simulation::scheme() const { return lure_ ? lure_->scheme : lagrangian_->scheme; }
 int Simulation::dof() const { return lure_ ? lure_->n : lagrangian_->n; }
 const std::vector<std::string>& Simulation::position_names() const { return lure_ ? lure_->states : lagrangian_->coordinates; }
-const std::vector<std::string>& Simulation::velocity_names() const {
-  return lure_ ? lure_->state_rates : lagrangian_->velocities;
-}
+const std::vector<std::string>& Simulation::velocity_names() const { return lure_ ? lure_->state_rates : lagrangian_->velocities; }
 double Simulation::t0() const { return lure_ ? lure_->settings.t0 : lagrangian_->settings.t0; }
 double Simulation::t_end() const { return lure_ ? lure_->settings.t_end : lagrangian_->settings.t_end; }
 double Simulation::h() const { return lure_ ? lure_->settings.h : lagrangian_->settings.h; }

@@ -24,8 +24,15 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 class GridSampler : public RunObserver {
  public:
   GridSampler(const std::vector<double>& grid, int n, double chatter_from, const std::atomic<bool>* cancel)
-      : grid_(grid), n_(n), chatter_from_(chatter_from), cancel_(cancel), q_(grid.size() * n, kNaN),
-        v_(grid.size() * n, kNaN), prev_q_(n), prev_v_(n), last_sign_(n, 0) {}
+      : grid_(grid),
+        n_(n),
+        chatter_from_(chatter_from),
+        cancel_(cancel),
+        q_(grid.size() * n, kNaN),
+        v_(grid.size() * n, kNaN),
+        prev_q_(n),
+        prev_v_(n),
+        last_sign_(n, 0) {}
 
   bool keep_going(std::int64_t, double) override { return !(cancel_ && cancel_->load(std::memory_order_relaxed)); }
 
@@ -99,8 +106,8 @@ class CancelCheck : public RunObserver {
 
 // output_every: 1 for the runs whose every state is sampled, a huge value for timed runs.
 template <int N>
-RunSummary run_scheme_fixed(const LagrangianScene& scene, StudyScheme scheme, double h,
-                            const StudySettings& st, RunObserver* observer, std::int64_t output_every) {
+RunSummary run_scheme_fixed(const LagrangianScene& scene, StudyScheme scheme, double h, const StudySettings& st, RunObserver* observer,
+                            std::int64_t output_every) {
   SceneModel<N> model(scene);
   const Vec<N> q0 = Eigen::Map<const Eigen::VectorXd>(scene.q0.data(), scene.n);
   const Vec<N> v0 = Eigen::Map<const Eigen::VectorXd>(scene.v0.data(), scene.n);
@@ -125,11 +132,10 @@ RunSummary run_scheme_fixed(const LagrangianScene& scene, StudyScheme scheme, do
   return integrator.run(q0, v0, observer);
 }
 
-RunSummary run_scheme(const LagrangianScene& scene, StudyScheme scheme, double h, const StudySettings& st,
-                      RunObserver* observer, std::int64_t output_every = 1) {
-  const RunSummary s = dispatch_dof(scene.n, [&](auto dof) {
-    return run_scheme_fixed<decltype(dof)::value>(scene, scheme, h, st, observer, output_every);
-  });
+RunSummary run_scheme(const LagrangianScene& scene, StudyScheme scheme, double h, const StudySettings& st, RunObserver* observer,
+                      std::int64_t output_every = 1) {
+  const RunSummary s =
+      dispatch_dof(scene.n, [&](auto dof) { return run_scheme_fixed<decltype(dof)::value>(scene, scheme, h, st, observer, output_every); });
   if (s.status == RunStatus::kCancelled && st.cancel && st.cancel->load()) throw StudyCancelled();
   return s;
 }
@@ -237,15 +243,16 @@ std::vector<double> parse_ladder(const std::string& text) {
 
 void check_study_settings(const LagrangianScene& scene, const StudySettings& st) {
   if (!scene.constraint_names.empty())
-    throw SceneError("/system/constraints",
-                     "studies compare abl, explicit and regularized, which do not integrate unilateral constraints");
+    throw SceneError("/system/constraints", "studies compare abl, explicit and regularized, which do not integrate unilateral constraints");
   if (st.h.empty()) throw SceneError("--h", "empty ladder");
   if (st.schemes.empty()) throw SceneError("--schemes", "expected at least one scheme");
   if (st.eval_points < 2 || st.eval_points > kMaxEvalPoints)
-    throw SceneError("--eval-points", "must be between 2 and " + std::to_string(kMaxEvalPoints) + ", got " + std::to_string(st.eval_points));
+    throw SceneError("--eval-points",
+                     "must be between 2 and " + std::to_string(kMaxEvalPoints) + ", got " + std::to_string(st.eval_points));
   if (st.repeats < 1 || st.repeats > kMaxRepeats)
     throw SceneError("--repeats", "must be between 1 and " + std::to_string(kMaxRepeats) + ", got " + std::to_string(st.repeats));
-  if (!(st.epsilon > 0.0) || !std::isfinite(st.epsilon)) throw SceneError("--epsilon", "must be a positive finite number, got " + fmt(st.epsilon));
+  if (!(st.epsilon > 0.0) || !std::isfinite(st.epsilon))
+    throw SceneError("--epsilon", "must be a positive finite number, got " + fmt(st.epsilon));
   // Every run's h as the scene's own h is checked at load: positive and finite, at least one step over
   // [t0, t_end], and a step count within /integrator/max_steps, computed in double before any integer
   // conversion (a double at or beyond 2^63 converts to int64 with undefined behaviour). A NaN h would
@@ -257,11 +264,12 @@ void check_study_settings(const LagrangianScene& scene, const StudySettings& st)
     if (!std::isfinite(h) || !(h > 0.0)) throw SceneError(option, what + " = " + fmt(h) + " is not a positive finite step size");
     const double ratio = span / h;
     if (ratio < 1.0 - 1e-9)
-      throw SceneError(option, what + " = " + fmt(h) + " is longer than the interval " + interval + ": a run would not take a single step of h");
+      throw SceneError(option,
+                       what + " = " + fmt(h) + " is longer than the interval " + interval + ": a run would not take a single step of h");
     const double steps = ratio > 9e18 ? ratio : static_cast<double>(fixed_step_count(t0, t_end, h));
     if (steps > static_cast<double>(limit))
-      throw SceneError(option, what + " = " + fmt(h) + " over " + interval + " needs " + fmt(steps) +
-                                   " steps, more than the limit of " + std::to_string(limit) + " (/integrator/max_steps)");
+      throw SceneError(option, what + " = " + fmt(h) + " over " + interval + " needs " + fmt(steps) + " steps, more than the limit of " +
+                                   std::to_string(limit) + " (/integrator/max_steps)");
   };
   for (double h : st.h) check_h(h, "--h", "h");
   if (st.reference_h) {
@@ -395,7 +403,8 @@ StudySettings study_settings_from_json(const nlohmann::json& j, const std::strin
   StudySettings st;
   st.h = parse_ladder("1e-1:1e-5:9");
   if (j.is_null()) return st;
-  if (!j.is_object()) throw SceneError(pointer, "expected an object {h?, schemes?, reference_h?, epsilon?, regularization?, eval_points?, repeats?}");
+  if (!j.is_object())
+    throw SceneError(pointer, "expected an object {h?, schemes?, reference_h?, epsilon?, regularization?, eval_points?, repeats?}");
   auto positive = [&](const nlohmann::json& v, const std::string& ptr) {
     if (!v.is_number() || !std::isfinite(v.get<double>()) || !(v.get<double>() > 0.0))
       throw SceneError(ptr, "expected a positive finite number");
@@ -574,8 +583,8 @@ std::string StudyResult::to_csv() const {
   for (const auto& r : rows) {
     os << scheme_name(r.scheme) << ',' << cell(r.h) << ',' << r.status << ',' << r.steps << ',' << cell(r.wall_seconds) << ','
        << cell(r.q_max_error) << ',' << cell(r.q_l2_error) << ',' << cell(r.v_max_error) << ',' << cell(r.v_l2_error) << ','
-       << cell(r.final_error) << ',' << opt(r.converged_time) << ',' << opt(r.converged_time_error) << ','
-       << r.chatter_sign_changes << ',' << cell(r.chatter_amplitude) << '\n';
+       << cell(r.final_error) << ',' << opt(r.converged_time) << ',' << opt(r.converged_time_error) << ',' << r.chatter_sign_changes << ','
+       << cell(r.chatter_amplitude) << '\n';
   }
   return os.str();
 }
@@ -584,8 +593,8 @@ std::string StudyResult::to_text() const {
   std::ostringstream os;
   char line[320];
   os << "Study of " << scene << " against the " << reference << "\n";
-  std::snprintf(line, sizeof line, "  %-11s %-9s %-10s %10s %11s %11s %11s %11s %8s %10s\n", "scheme", "h", "status", "steps",
-                "wall [s]", "q max err", "v max err", "final err", "chatter", "t_conv");
+  std::snprintf(line, sizeof line, "  %-11s %-9s %-10s %10s %11s %11s %11s %11s %8s %10s\n", "scheme", "h", "status", "steps", "wall [s]",
+                "q max err", "v max err", "final err", "chatter", "t_conv");
   os << line;
   // A value that is not a number (the errors of a failed row, an order fitted from fewer than two
   // points) is shown as "-".

@@ -135,8 +135,8 @@ TrajectoryColumns read_trajectory_csv(std::istream& in, const std::string& sourc
       values.push_back(v);
     }
     if (values.size() != cols.size())
-      throw std::runtime_error(source + " line " + std::to_string(row) + ": expected " + std::to_string(cols.size()) +
-                               " values, got " + std::to_string(values.size()));
+      throw std::runtime_error(source + " line " + std::to_string(row) + ": expected " + std::to_string(cols.size()) + " values, got " +
+                               std::to_string(values.size()));
     data.t.push_back(values[0]);
     data.h.push_back(values[1]);
     for (std::size_t i = 0; i < n; ++i) {

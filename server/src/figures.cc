@@ -8,7 +8,6 @@
 
 #include "moreau/scene/study.h"
 
-
 #ifdef MOREAU_SERVER_HAVE_RENDER
 #include "moreau/render/figures.h"
 #include "moreau/render/render.h"
@@ -18,16 +17,14 @@
 
 namespace moreau::server {
 
-bool is_figure_kind(std::string_view kind) {
-  return kind == "state" || kind == "energy" || kind == "step" || kind == "phase";
-}
+bool is_figure_kind(std::string_view kind) { return kind == "state" || kind == "energy" || kind == "step" || kind == "phase"; }
 
 #ifdef MOREAU_SERVER_HAVE_RENDER
 
 bool figures_available() { return true; }
 
-std::vector<std::uint8_t> figure_png(std::string_view kind, std::string_view csv, std::optional<double> converged_time,
-                                     int width, int height, const std::string& title) {
+std::vector<std::uint8_t> figure_png(std::string_view kind, std::string_view csv, std::optional<double> converged_time, int width,
+                                     int height, const std::string& title) {
   // The stored CSV, read in place (no copy of what may be hundreds of megabytes).
   struct ViewBuffer : std::streambuf {
     explicit ViewBuffer(std::string_view s) {
@@ -43,11 +40,16 @@ std::vector<std::uint8_t> figure_png(std::string_view kind, std::string_view csv
   opt.height_px = height;
   opt.title = title;
   render::Figure fig;
-  if (kind == "state") fig = render::state_figure(data, opt);
-  else if (kind == "energy") fig = render::energy_figure(data, opt);
-  else if (kind == "step") fig = render::step_figure(data, opt);
-  else if (kind == "phase") fig = render::phase_figure(data, opt);
-  else throw std::runtime_error("unknown figure kind (expected state, energy, step or phase)");
+  if (kind == "state")
+    fig = render::state_figure(data, opt);
+  else if (kind == "energy")
+    fig = render::energy_figure(data, opt);
+  else if (kind == "step")
+    fig = render::step_figure(data, opt);
+  else if (kind == "phase")
+    fig = render::phase_figure(data, opt);
+  else
+    throw std::runtime_error("unknown figure kind (expected state, energy, step or phase)");
   return render::render_png_bytes(fig);
 }
 
@@ -69,8 +71,7 @@ std::vector<std::uint8_t> study_figure_png(std::string_view, const std::string&,
   throw std::runtime_error("this server was built without render/: figures are not available");
 }
 
-std::vector<std::uint8_t> figure_png(std::string_view, std::string_view, std::optional<double>, int, int,
-                                     const std::string&) {
+std::vector<std::uint8_t> figure_png(std::string_view, std::string_view, std::optional<double>, int, int, const std::string&) {
   throw std::runtime_error("this server was built without render/: figures are not available");
 }
 

@@ -18,8 +18,8 @@ bool is_figure_kind(std::string_view kind);
 
 // The PNG of figure `kind` for the trajectory CSV. Throws std::runtime_error (or render's FigureError)
 // with a clear message.
-std::vector<std::uint8_t> figure_png(std::string_view kind, std::string_view csv, std::optional<double> converged_time,
-                                     int width, int height, const std::string& title);
+std::vector<std::uint8_t> figure_png(std::string_view kind, std::string_view csv, std::optional<double> converged_time, int width,
+                                     int height, const std::string& title);
 
 // The PNG of a study's "work" or "order" figure, from its stored result.json (as `moreau study --work` /
 // `--order` draw them). Throws std::runtime_error or std::invalid_argument with a clear message.

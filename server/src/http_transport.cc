@@ -224,8 +224,8 @@ std::string GuardedHttpServer::admit(const std::string& client, socket_t sock) {
   if (t_refuse_only || open_ >= limits_.max_connections) {
     refused = "this server holds at most " + std::to_string(limits_.max_connections) + " connections at once";
   } else if (per_client_[client] >= limits_.max_connections_per_client) {
-    refused = "this server holds at most " + std::to_string(limits_.max_connections_per_client) +
-              " connections from one client address at once";
+    refused =
+        "this server holds at most " + std::to_string(limits_.max_connections_per_client) + " connections from one client address at once";
   }
   if (!refused.empty()) {
     if (per_client_[client] == 0) per_client_.erase(client);

@@ -33,8 +33,8 @@
 namespace moreau::server {
 
 struct TransportLimits {
-  int max_connections = 512;             // open connections in all (each holds one thread)
-  int max_connections_per_client = 64;   // open connections from one client address
+  int max_connections = 512;                         // open connections in all (each holds one thread)
+  int max_connections_per_client = 64;               // open connections from one client address
   std::chrono::milliseconds header_timeout{10'000};  // request line and headers, from their first byte
   std::chrono::milliseconds body_timeout{60'000};    // the whole body, from the end of the headers
   std::chrono::milliseconds write_timeout{10'000};   // one write to a client that does not read
@@ -46,10 +46,10 @@ struct TransportLimits {
 
 // What a request's handler may learn about, and ask of, its connection.
 struct ConnectionContext {
-  std::string client;          // the client's address
-  bool close_after = false;    // close the connection after this response (its body was not all read)
-  bool timed_out = false;      // a read of this request passed its deadline
-  bool too_large = false;      // the request's raw body passed its byte limit
+  std::string client;              // the client's address
+  bool close_after = false;        // close the connection after this response (its body was not all read)
+  bool timed_out = false;          // a read of this request passed its deadline
+  bool too_large = false;          // the request's raw body passed its byte limit
   bool headers_too_large = false;  // its request line and headers passed max_header_bytes
 };
 
@@ -57,9 +57,9 @@ struct ConnectionContext {
 ConnectionContext* current_connection();
 
 struct TransportStats {
-  std::int64_t open = 0;                 // connections open now
-  std::int64_t refused_total = 0;        // connections refused (over a connection limit)
-  std::int64_t timed_out_total = 0;      // requests whose headers or body missed their deadline
+  std::int64_t open = 0;             // connections open now
+  std::int64_t refused_total = 0;    // connections refused (over a connection limit)
+  std::int64_t timed_out_total = 0;  // requests whose headers or body missed their deadline
 };
 
 class GuardedHttpServer : public httplib::Server {

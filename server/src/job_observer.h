@@ -17,8 +17,8 @@ namespace moreau::server {
 
 class JobObserver final : public RunObserver {
  public:
-  JobObserver(Job& job, scene::TrajectoryCsvWriter& csv, std::int64_t record_every, std::int64_t engine_every,
-              std::int64_t max_samples, StreamObserver* stream, std::function<void()> progress)
+  JobObserver(Job& job, scene::TrajectoryCsvWriter& csv, std::int64_t record_every, std::int64_t engine_every, std::int64_t max_samples,
+              StreamObserver* stream, std::function<void()> progress)
       : job_(job),
         csv_(csv),
         every_(std::max<std::int64_t>(1, record_every)),

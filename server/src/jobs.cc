@@ -40,9 +40,7 @@ json finite_or_null(double v) { return std::isfinite(v) ? json(v) : json(nullptr
 
 }  // namespace
 
-double unix_now() {
-  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
-}
+double unix_now() { return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count(); }
 
 std::int64_t max_trajectory_row_bytes(const scene::Simulation& sim) {
   const auto columns = static_cast<std::int64_t>(sim.position_names().size() + sim.velocity_names().size() + 3);
@@ -267,9 +265,8 @@ void JobManager::recover() {
     }
     found.push_back(std::move(job));
   }
-  std::sort(found.begin(), found.end(), [](const auto& a, const auto& b) {
-    return a->created != b->created ? a->created < b->created : a->id < b->id;
-  });
+  std::sort(found.begin(), found.end(),
+            [](const auto& a, const auto& b) { return a->created != b->created ? a->created < b->created : a->id < b->id; });
   {
     std::lock_guard lock(mu_);
     for (auto& job : found) {
@@ -327,8 +324,7 @@ void JobManager::stop() {
   for (auto& job : all) wake(*job);
 }
 
-JobManager::Submit JobManager::submit(const std::shared_ptr<Job>& job, const json& scene_doc, int* retry_after,
-                                      const json* study_doc) {
+JobManager::Submit JobManager::submit(const std::shared_ptr<Job>& job, const json& scene_doc, int* retry_after, const json* study_doc) {
   {
     std::lock_guard lock(mu_);
     if (stopping_) return Submit::kStopping;
@@ -522,8 +518,7 @@ void JobManager::wait_final(Job& job, std::chrono::milliseconds timeout) const {
   job.cv.wait_for(lock, timeout, [&] { return is_final(job.state) || stopping_.load(); });
 }
 
-std::vector<SseEvent> JobManager::events_after(Job& job, std::uint64_t after, std::chrono::milliseconds timeout,
-                                               bool& done) const {
+std::vector<SseEvent> JobManager::events_after(Job& job, std::uint64_t after, std::chrono::milliseconds timeout, bool& done) const {
   std::unique_lock lock(job.mu);
   auto has_new = [&] { return !job.events.empty() && job.events.back().id > after; };
   job.cv.wait_for(lock, timeout, [&] { return has_new() || is_final(job.state) || stopping_.load(); });
@@ -563,8 +558,10 @@ void JobManager::run(const std::shared_ptr<Job>& job) {
   if (job->cancel) {
     job->sim.reset();
     job->study_scene.reset();
-    if (job->shutdown && !job->cancel_requested) set_state(*job, JobState::kFailed, kReasonStoppedQueued);
-    else set_state(*job, JobState::kCancelled, "cancelled before it ran");
+    if (job->shutdown && !job->cancel_requested)
+      set_state(*job, JobState::kFailed, kReasonStoppedQueued);
+    else
+      set_state(*job, JobState::kCancelled, "cancelled before it ran");
     return;
   }
   set_state(*job, JobState::kRunning, "");
@@ -580,20 +577,18 @@ void JobManager::run(const std::shared_ptr<Job>& job) {
     commit->stream = std::make_shared<JobStream>(job->id, job->stream, sim.dof());
     hub_.add(commit->stream);
     stream_observer.emplace(commit->stream, sim.t0(), &job->cancel);
-    commit->stream->push_event("started", 0, sim.t0(),
-                               "job " + job->id + " started: " + sim.name() + ", t in [" + std::to_string(sim.t0()) +
-                                   ", " + std::to_string(sim.t_end()) + "]");
+    commit->stream->push_event(
+        "started", 0, sim.t0(),
+        "job " + job->id + " started: " + sim.name() + ", t in [" + std::to_string(sim.t0()) + ", " + std::to_string(sim.t_end()) + "]");
   }
 
   const fs::path csv_tmp = job->dir / "trajectory.csv.tmp";
   scene::TrajectoryCsvWriter csv(csv_tmp.string(), sim.position_names(), sim.velocity_names());
   auto progress = [this, &job] {
-    push_event(*job, "progress",
-               {{"t", job->t_now.load()}, {"step", job->step_now.load()}, {"t0", job->t0}, {"t_end", job->t_end}});
+    push_event(*job, "progress", {{"t", job->t_now.load()}, {"step", job->step_now.load()}, {"t0", job->t0}, {"t_end", job->t_end}});
   };
   const std::int64_t max_rows = max_trajectory_rows(config_, sim);
-  JobObserver observer(*job, csv, job->record_every, sim.output_every(), max_rows,
-                       stream_observer ? &*stream_observer : nullptr, progress);
+  JobObserver observer(*job, csv, job->record_every, sim.output_every(), max_rows, stream_observer ? &*stream_observer : nullptr, progress);
 
   RunSummary summary = sim.run(&observer);
   observer.finish();
@@ -617,7 +612,8 @@ void JobManager::run(const std::shared_ptr<Job>& job) {
   if (observer.overflow()) {
     summary.status = RunStatus::kFailed;
     summary.message = "the trajectory reached this server's limit of " + std::to_string(max_rows) +
-                      " output samples (--max-samples, --max-result-bytes) at t = " + std::to_string(job->t_now.load()) + ": raise /output/every";
+                      " output samples (--max-samples, --max-result-bytes) at t = " + std::to_string(job->t_now.load()) +
+                      ": raise /output/every";
   }
   commit->state = JobState::kDone;
   if (summary.status == RunStatus::kFailed) {
@@ -692,8 +688,7 @@ void JobManager::run_study(const std::shared_ptr<Job>& job, std::unique_ptr<Comm
 void JobManager::fail_to_store(Job& job, const std::string& what) {
   // A full or failing disk: the partial results would go on holding the space, and are of no use.
   std::error_code ec;
-  for (const char* name : {"trajectory.csv.tmp", "report.json.tmp", "table.csv.tmp", "result.json.tmp"})
-    fs::remove(job.dir / name, ec);
+  for (const char* name : {"trajectory.csv.tmp", "report.json.tmp", "table.csv.tmp", "result.json.tmp"}) fs::remove(job.dir / name, ec);
   job.sim.reset();
   std::cerr << "moreau-server: job " << job.id << ": cannot store the results: " << what << "\n";
   set_state(job, JobState::kFailed, "cannot store the results: " + what);

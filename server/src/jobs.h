@@ -78,8 +78,8 @@ struct Job {
   std::int64_t rows_total = 0;
   std::atomic<std::int64_t> rows_done{0};
 
-  std::atomic<bool> cancel{false};    // the run stops at its next check (every 256 steps: within 50 ms)
-  std::atomic<bool> shutdown{false};  // ... because the server is stopping
+  std::atomic<bool> cancel{false};            // the run stops at its next check (every 256 steps: within 50 ms)
+  std::atomic<bool> shutdown{false};          // ... because the server is stopping
   std::atomic<bool> cancel_requested{false};  // ... because a client asked (DELETE): it ends cancelled
 
   // The job's files: readers hold it shared while they check `deleted` and open what they read; pruning
@@ -185,8 +185,7 @@ class JobManager {
   // Writes job.json (atomically; fsync'ed with kFsync). Throws std::runtime_error.
   void write_record(const nlohmann::json& record, const Job& job, Durability durability) const;
   // The record of `job` as it would be in `state`; job.mu must be held.
-  static nlohmann::json record_locked(const Job& job, JobState state, const std::string& reason, double started,
-                                      double finished);
+  static nlohmann::json record_locked(const Job& job, JobState state, const std::string& reason, double started, double finished);
   void count_finished(std::int64_t steps, double integrate_seconds, double wall_seconds);
 
   const ServerConfig& config_;

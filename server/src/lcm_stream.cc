@@ -20,8 +20,7 @@ void set_channels(StreamSettings& s, const std::string& job_id) {
 }
 
 std::int64_t utime_now() {
-  return std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::system_clock::now().time_since_epoch())
-      .count();
+  return std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
 }
 
 // ---- JobStream ----
@@ -228,8 +227,8 @@ void StreamObserver::publish_and_advance(const Sample& s) {
   next_t_ = t0_ + period_ * (std::floor((s.t - t0_) / period_ + 1e-9) + 1.0);
   if (realtime_) {
     // Sleep in short slices so that a cancellation is seen within a few milliseconds.
-    const auto target = wall_start_ + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-                                          std::chrono::duration<double>(s.t - t0_));
+    const auto target =
+        wall_start_ + std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(s.t - t0_));
     while (!(cancel_ && cancel_->load(std::memory_order_relaxed))) {
       const auto now = std::chrono::steady_clock::now();
       if (now >= target) break;
@@ -248,8 +247,7 @@ void StreamObserver::flush_last(const RunSummary& summary) {
   // A failed run's summary has no energy for its last state: the last periodic state stands.
   if (summary.status == RunStatus::kFailed || summary.status == RunStatus::kCancelled) return;
   if (summary.steps == last_published_step_ || summary.q_final.size() != n || summary.v_final.size() != n) return;
-  stream_->push_state(summary.steps, summary.t_final, last_h_, summary.q_final.data(), summary.v_final.data(),
-                      summary.energy_final);
+  stream_->push_state(summary.steps, summary.t_final, last_h_, summary.q_final.data(), summary.v_final.data(), summary.energy_final);
   last_published_step_ = summary.steps;
 }
 

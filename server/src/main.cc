@@ -38,7 +38,9 @@ int main(int argc, char** argv) {
   app.add_option("--io-threads", cfg.io_threads, "Threads that make finished jobs' results durable (fsync, rename)")
       ->capture_default_str()
       ->check(CLI::Range(1, 64));
-  app.add_option("--queue", cfg.queue, "Queued jobs beyond which submissions get 429")->capture_default_str()->check(CLI::Range(0, 1000000));
+  app.add_option("--queue", cfg.queue, "Queued jobs beyond which submissions get 429")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 1000000));
   app.add_option("--max-connections", cfg.max_connections, "Open connections at most (more: 503 at once)")
       ->capture_default_str()
       ->check(CLI::Range(2, 900));
@@ -70,11 +72,12 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, 64));
   app.add_option("--lcm-url", cfg.lcm_url, "LCM URL for live state (default: LCM_DEFAULT_URL, else LCM's default)");
   app.add_option("--token", cfg.token, "Require 'Authorization: Bearer TOKEN' (default: MOREAU_TOKEN)");
-  app.add_flag("--allow-unauthenticated-remote", cfg.allow_unauthenticated_remote,
-               "Allow a non-loopback --host without a token");
+  app.add_flag("--allow-unauthenticated-remote", cfg.allow_unauthenticated_remote, "Allow a non-loopback --host without a token");
   app.add_option("--max-body", cfg.max_body_bytes, "Largest request body, bytes (larger: 413)")->capture_default_str();
   app.add_option("--max-steps", cfg.max_steps, "Integration steps per job at most")->capture_default_str()->check(CLI::PositiveNumber);
-  app.add_option("--max-samples", cfg.max_samples, "Trajectory rows per job at most")->capture_default_str()->check(CLI::Range(std::int64_t{3}, std::int64_t{1} << 40));
+  app.add_option("--max-samples", cfg.max_samples, "Trajectory rows per job at most")
+      ->capture_default_str()
+      ->check(CLI::Range(std::int64_t{3}, std::int64_t{1} << 40));
   app.add_option("--keep-alive", cfg.keep_alive_seconds, "Seconds an idle keep-alive connection stays open")->capture_default_str();
   app.add_option("--keep-alive-requests", cfg.keep_alive_requests,
                  "Requests served on one connection before it is closed (lets waiting connections in)")
@@ -105,9 +108,8 @@ int main(int argc, char** argv) {
       throw std::runtime_error("cannot use data directory '" + cfg.data_dir + "': " + e.what());
     }
     const int port = server.start();
-    std::cout << "moreau-server: listening on http://" << (cfg.host.find(':') != std::string::npos ? "[" + cfg.host + "]" : cfg.host)
-              << ":" << port << " (data " << cfg.data_dir << (cfg.token.empty() ? ", no token" : ", token required") << ")"
-              << std::endl;
+    std::cout << "moreau-server: listening on http://" << (cfg.host.find(':') != std::string::npos ? "[" + cfg.host + "]" : cfg.host) << ":"
+              << port << " (data " << cfg.data_dir << (cfg.token.empty() ? ", no token" : ", token required") << ")" << std::endl;
     std::thread([&server, signals] {
       int sig = 0;
       sigwait(&signals, &sig);

@@ -61,8 +61,8 @@ void send_json(Response& res, int status, const json& j) {
 
 // Error bodies: {"error": what went wrong, "pointer": the JSON pointer of the field at fault,
 // "where": "scene" (pointer into the scene) or "request" (pointer into the request body), "reason"}.
-void send_error(Response& res, int status, const std::string& error, const std::string& pointer = "",
-                const std::string& reason = "", const std::string& where = "") {
+void send_error(Response& res, int status, const std::string& error, const std::string& pointer = "", const std::string& reason = "",
+                const std::string& where = "") {
   json j = {{"error", error}};
   if (!pointer.empty()) j["pointer"] = pointer;
   if (!where.empty()) j["where"] = where;
@@ -91,9 +91,7 @@ bool constant_time_equal(const std::string& given, const std::string& secret) {
   return diff == 0;
 }
 
-bool is_loopback(const std::string& host) {
-  return host == "localhost" || host == "::1" || host.rfind("127.", 0) == 0;
-}
+bool is_loopback(const std::string& host) { return host == "localhost" || host == "::1" || host.rfind("127.", 0) == 0; }
 
 std::string fmt_g(double v) {
   char buf[40];
@@ -108,8 +106,7 @@ std::optional<double> number_param(const Request& req, const char* name, double 
   char* end = nullptr;
   const double d = std::strtod(v.c_str(), &end);
   if (v.empty() || *end != '\0' || !std::isfinite(d) || d < lo || d > hi)
-    throw std::invalid_argument(std::string("query parameter '") + name + "' must be a number in [" + fmt_g(lo) + ", " +
-                                fmt_g(hi) + "]");
+    throw std::invalid_argument(std::string("query parameter '") + name + "' must be a number in [" + fmt_g(lo) + ", " + fmt_g(hi) + "]");
   return d;
 }
 
@@ -209,8 +206,7 @@ class Budget {
 
 class Server::Impl {
  public:
-  explicit Impl(ServerConfig config)
-      : cfg_(std::move(config)), hub_(cfg_.lcm_url), jobs_(cfg_, hub_), http_(transport_limits(cfg_)) {
+  explicit Impl(ServerConfig config) : cfg_(std::move(config)), hub_(cfg_.lcm_url), jobs_(cfg_, hub_), http_(transport_limits(cfg_)) {
     if (cfg_.scenes_dir.empty()) cfg_.scenes_dir = default_scenes_dir();
     if (!cfg_.lcm_url.empty()) hub_.open();
     jobs_.recover();
@@ -249,7 +245,7 @@ class Server::Impl {
       stopped_ = true;
     }
     stop_cv_.notify_all();  // the housekeeper
-    jobs_.stop();  // ends event streams, long polls and running jobs first
+    jobs_.stop();           // ends event streams, long polls and running jobs first
     http_.stop();
     http_.shut_down_connections();  // idle keep-alive and slow connections end now, not at their deadlines
     if (listener_.joinable()) listener_.join();
@@ -369,9 +365,9 @@ class Server::Impl {
       case JobManager::Submit::kQueued: break;
       case JobManager::Submit::kQueueFull:
         res.set_header("Retry-After", std::to_string(retry_after));
-        return send_error(res, 429, "queue full", "",
-                          "the server holds " + std::to_string(cfg_.queue) + " queued jobs at most; retry in " +
-                              std::to_string(retry_after) + " s");
+        return send_error(
+            res, 429, "queue full", "",
+            "the server holds " + std::to_string(cfg_.queue) + " queued jobs at most; retry in " + std::to_string(retry_after) + " s");
       case JobManager::Submit::kStopping: return send_error(res, 503, "server stopping");
     }
     const json j = job_json(*job, nullptr);
@@ -471,8 +467,8 @@ class Server::Impl {
   LcmHub hub_;
   JobManager jobs_;
   GuardedHttpServer http_;
-  Budget waiting_{cfg_.max_waiting};        // long polls and event streams open now
-  Budget drawing_{cfg_.figures_at_once};    // figures being drawn now
+  Budget waiting_{cfg_.max_waiting};      // long polls and event streams open now
+  Budget drawing_{cfg_.figures_at_once};  // figures being drawn now
   std::thread listener_;
   std::thread housekeeper_;
   int port_ = -1;
@@ -548,8 +544,8 @@ void Server::Impl::setup_routes() {
       ++responses_[res.status];
     }
     if (cfg_.log_requests) {
-      std::fprintf(stderr, "moreau-server: %s %s %d %zu\n", log_escaped(req.method, 16).c_str(), log_escaped(req.path).c_str(),
-                   res.status, res.body.size());
+      std::fprintf(stderr, "moreau-server: %s %s %d %zu\n", log_escaped(req.method, 16).c_str(), log_escaped(req.path).c_str(), res.status,
+                   res.body.size());
     }
   });
 
@@ -598,8 +594,7 @@ json post_body(const std::string& text, const std::vector<std::string>& fields, 
   // Bounded nesting before parsing: the JSON library copies and prints recursively.
   if (const auto at = scene::json_depth_exceeded(text)) {
     throw BadRequest{400, "malformed JSON", "",
-                     "nested deeper than " + std::to_string(scene::kMaxJsonDepth) + " levels at byte " + std::to_string(*at),
-                     "request"};
+                     "nested deeper than " + std::to_string(scene::kMaxJsonDepth) + " levels at byte " + std::to_string(*at), "request"};
   }
   json body = json::parse(text, nullptr, false);
   if (body.is_discarded()) {
@@ -665,7 +660,8 @@ json Server::Impl::request_scene(const json& body) const {
   } else if (scene.is_string()) {
     const auto files = scene_files();
     auto it = files.find(scene.get<std::string>());
-    if (it == files.end()) throw BadRequest{400, "invalid request", "/scene", "no shipped scene by that name (GET /v1/scenes lists them)", "request"};
+    if (it == files.end())
+      throw BadRequest{400, "invalid request", "/scene", "no shipped scene by that name (GET /v1/scenes lists them)", "request"};
     doc = scene::read_scene_file(it->second.string());
   } else {
     throw BadRequest{400, "invalid request", "/scene", "expected a scene object or the name of a shipped scene", "request"};
@@ -731,8 +727,7 @@ bool Server::Impl::screen(const Request& req, Response& res) {
     if (cl == 0) const_cast<Request&>(req).headers.emplace("Content-Length", "0");
     return false;
   }
-  if (te == 0 && cl == 0)
-    return refuse(411, "length required", "send the body with Content-Length or Transfer-Encoding: chunked");
+  if (te == 0 && cl == 0) return refuse(411, "length required", "send the body with Content-Length or Transfer-Encoding: chunked");
   const std::string type_header = req.get_header_value("Content-Type");
   const std::string content_type = lower(trim(type_header.substr(0, type_header.find(';'))));
   if (content_type != "application/json")
@@ -790,7 +785,8 @@ void Server::Impl::post_job(const Request&, Response& res, const std::string& te
           const std::string ptr = "/stream/" + key;
           if (key == "channel") {
             if (!value.is_string() || !valid_channel_prefix(value.get<std::string>()))
-              throw BadRequest{400, "invalid request", ptr, "expected an UPPER_SNAKE channel prefix such as \"MOREAU\" ([A-Z][A-Z0-9_]*, at most 64)", "request"};
+              throw BadRequest{400, "invalid request", ptr,
+                               "expected an UPPER_SNAKE channel prefix such as \"MOREAU\" ([A-Z][A-Z0-9_]*, at most 64)", "request"};
             stream.prefix = value.get<std::string>();
           } else if (key == "period") {
             if (!value.is_number() || !(value.get<double>() > 0) || !std::isfinite(value.get<double>()))
@@ -844,8 +840,7 @@ void Server::Impl::post_job(const Request&, Response& res, const std::string& te
       throw BadRequest{422, "result too large", "/output/every",
                        "the trajectory could take about " + std::to_string(rows) + " rows of up to " + std::to_string(row_bytes) +
                            " bytes (" + std::to_string(rows / 1'000'000 * row_bytes) + " MB); this server stores at most " +
-                           std::to_string(cfg_.max_result_bytes) + " bytes per job: set /output/every to at least " +
-                           std::to_string(need),
+                           std::to_string(cfg_.max_result_bytes) + " bytes per job: set /output/every to at least " + std::to_string(need),
                        "scene"};
     }
     // Streaming needs a sample at least once per period: sample the run more finely than the
@@ -904,9 +899,8 @@ void Server::Impl::post_study(const Request&, Response& res, const std::string& 
     if (planned > cfg_.max_steps) {
       throw BadRequest{400, "invalid request", "/study/h",
                        "this study takes about " + std::to_string(planned) + " integration steps over all its runs (" +
-                           std::to_string(st.schemes.size()) + " schemes, " + std::to_string(st.h.size()) +
-                           " step sizes, 1 + " + std::to_string(st.repeats) +
-                           " runs each); this server runs at most " + std::to_string(cfg_.max_steps) +
+                           std::to_string(st.schemes.size()) + " schemes, " + std::to_string(st.h.size()) + " step sizes, 1 + " +
+                           std::to_string(st.repeats) + " runs each); this server runs at most " + std::to_string(cfg_.max_steps) +
                            " steps per job: use larger step sizes, fewer schemes or fewer repeats",
                        "request"};
     }
@@ -1015,28 +1009,31 @@ void Server::Impl::job_events(const Request& req, Response& res, JobKind kind) {
     }
     const bool digits = !v.empty() && v.size() <= 19 && std::all_of(v.begin(), v.end(), [](char c) { return c >= '0' && c <= '9'; });
     if (!digits || std::stoull(v) > issued) {
-      return send_error(res, 400, "bad Last-Event-ID", "",
-                        "Last-Event-ID must be an event id this job has sent (0 to " + std::to_string(issued) + "), got '" +
-                            v.substr(0, 40) + "'");
+      return send_error(
+          res, 400, "bad Last-Event-ID", "",
+          "Last-Event-ID must be an event id this job has sent (0 to " + std::to_string(issued) + "), got '" + v.substr(0, 40) + "'");
     }
     *last = std::stoull(v);
   }
   if (!waiting_.try_take()) return too_many_waiting(res);
   res.set_header("Cache-Control", "no-cache");
   res.set_header("X-Accel-Buffering", "no");
-  res.set_chunked_content_provider("text/event-stream", [this, job, last](std::size_t, httplib::DataSink& sink) {
-    bool done = false;
-    const auto events = jobs_.events_after(*job, *last, std::chrono::seconds(15), done);
-    std::string out;
-    for (const auto& e : events) {
-      out += "id: " + std::to_string(e.id) + "\nevent: " + e.name + "\ndata: " + e.data + "\n\n";
-      *last = e.id;
-    }
-    if (out.empty() && !done) out = ": keep-alive\n\n";
-    if (!out.empty() && !sink.write(out.data(), out.size())) return false;
-    if (done) sink.done();
-    return true;
-  }, [this](bool) { waiting_.give_back(); });
+  res.set_chunked_content_provider(
+      "text/event-stream",
+      [this, job, last](std::size_t, httplib::DataSink& sink) {
+        bool done = false;
+        const auto events = jobs_.events_after(*job, *last, std::chrono::seconds(15), done);
+        std::string out;
+        for (const auto& e : events) {
+          out += "id: " + std::to_string(e.id) + "\nevent: " + e.name + "\ndata: " + e.data + "\n\n";
+          *last = e.id;
+        }
+        if (out.empty() && !done) out = ": keep-alive\n\n";
+        if (!out.empty() && !sink.write(out.data(), out.size())) return false;
+        if (done) sink.done();
+        return true;
+      },
+      [this](bool) { waiting_.give_back(); });
 }
 
 void Server::Impl::job_report(const Request& req, Response& res) {
@@ -1078,7 +1075,8 @@ void Server::Impl::job_trajectory(const Request& req, Response& res) {
       return send_error(res, 409, "no trajectory yet", "",
                         std::string("the job is ") + to_string(state_of(*job)) + "; the trajectory is served once it has finished");
     }
-    if (!reader->open((job->dir / "trajectory.csv").string(), window, format == "csv" ? TrajectoryReader::Format::kCsv : TrajectoryReader::Format::kJson, &error))
+    if (!reader->open((job->dir / "trajectory.csv").string(), window,
+                      format == "csv" ? TrajectoryReader::Format::kCsv : TrajectoryReader::Format::kJson, &error))
       return send_error(res, 500, "stored trajectory unreadable", "", error);
   }
   res.status = 200;

@@ -116,8 +116,10 @@ bool TrajectoryReader::next(std::string& out, std::size_t budget) {
     }
     if (!first_in_column_) out += ',';
     first_in_column_ = false;
-    if (json_number(cell)) out += cell;
-    else out += "null";
+    if (json_number(cell))
+      out += cell;
+    else
+      out += "null";
   }
   return true;
 }

@@ -58,9 +58,9 @@ enum class StepRule { kFixed, kTheorem41, kTheorem42 };
 enum class VelocityUpdate { kImplicit, kExplicit };
 
 struct AblSettings {
-  double h = 1e-3;      // the step h (fixed rule) or its upper bound (Theorems 4.1, 4.2), seconds
-  double t0 = 0.0;      // initial time, seconds
-  double t_end = 1.0;   // final time, seconds
+  double h = 1e-3;     // the step h (fixed rule) or its upper bound (Theorems 4.1, 4.2), seconds
+  double t0 = 0.0;     // initial time, seconds
+  double t_end = 1.0;  // final time, seconds
   StepRule step_rule = StepRule::kFixed;
   VelocityUpdate velocity_update = VelocityUpdate::kImplicit;
   std::optional<double> k1;  // lower bound of M(q) (Assumption 3.1); local value if absent
@@ -152,8 +152,8 @@ class AblIntegrator {
         st.iterations = 1;  // one linear solve with M
       } else if (!solver_.solve(P_, x_, y_, st)) {
         return rec.fail(k, t, q.data(), v.data(),
-                        "the one-step inclusion (6.5) was not solved to round-off (residual " +
-                            std::to_string(st.residual) + ", tolerance " + std::to_string(st.tolerance) + ")");
+                        "the one-step inclusion (6.5) was not solved to round-off (residual " + std::to_string(st.residual) +
+                            ", tolerance " + std::to_string(st.tolerance) + ")");
       }
       rec.solver_step(st.iterations, st.residual, st.used_fallback);
       s.solver.rest_steps += (st.iterations == 0);  // the y = 0 closed form of Lemma 6.1

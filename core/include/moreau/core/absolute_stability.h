@@ -25,13 +25,13 @@ namespace moreau {
 
 struct StorageMatrixCheck {
   bool symmetric = false;
-  double asymmetry = 0.0;           // max |P - P^T| / max |P|
+  double asymmetry = 0.0;  // max |P - P^T| / max |P|
   bool positive_definite = false;
-  double min_eigenvalue = 0.0;      // of (P + P^T) / 2
-  bool dissipative = false;         // P A + A^T P < 0
-  double max_eigenvalue_pa = 0.0;   // largest eigenvalue of P A + A^T P (= -lambda_min(Q))
-  bool output_matches = false;      // B^T P = C
-  double output_residual = 0.0;     // max |B^T P - C| / (max |B| max |P| + max |C|)
+  double min_eigenvalue = 0.0;     // of (P + P^T) / 2
+  bool dissipative = false;        // P A + A^T P < 0
+  double max_eigenvalue_pa = 0.0;  // largest eigenvalue of P A + A^T P (= -lambda_min(Q))
+  bool output_matches = false;     // B^T P = C
+  double output_residual = 0.0;    // max |B^T P - C| / (max |B| max |P| + max |C|)
   bool all() const { return symmetric && positive_definite && dissipative && output_matches; }
 };
 
@@ -40,29 +40,28 @@ StorageMatrixCheck check_storage_matrix(const Eigen::MatrixXd& A, const Eigen::M
 
 struct PositiveRealnessTest {
   bool hurwitz = false;
-  double spectral_abscissa = 0.0;       // max Re lambda(A)
+  double spectral_abscissa = 0.0;  // max Re lambda(A)
   bool controllable = false;
   bool observable = false;
-  bool cb_symmetric_positive = false;   // CB = (CB)^T > 0
+  bool cb_symmetric_positive = false;  // CB = (CB)^T > 0
   double cb_min_eigenvalue = 0.0;
-  bool high_frequency = false;          // -(CAB + (CAB)^T) > 0
+  bool high_frequency = false;  // -(CAB + (CAB)^T) > 0
   double high_frequency_min_eigenvalue = 0.0;
-  bool frequency = false;               // lambda_min(G(jw) + G(jw)^H) > 0 on the sweep
+  bool frequency = false;                 // lambda_min(G(jw) + G(jw)^H) > 0 on the sweep
   double min_frequency_eigenvalue = 0.0;  // min over the sweep of (1 + (w/wc)^2) lambda_min(G + G^H)
   double argmin_omega = 0.0;
-  int frequencies = 0;                  // evaluations of G(jw)
+  int frequencies = 0;  // evaluations of G(jw)
   double omega_min = 0.0, omega_max = 0.0;
-  bool spr = false;                     // all of the above except minimality
-  std::string method;                   // how it was tested, in words
+  bool spr = false;    // all of the above except minimality
+  std::string method;  // how it was tested, in words
 
-  bool storage_found = false;           // a P passing check_storage_matrix()
+  bool storage_found = false;  // a P passing check_storage_matrix()
   bool storage_attempted = false;
   std::string storage_method;
   Eigen::MatrixXd P;
   StorageMatrixCheck storage_check;
 };
 
-PositiveRealnessTest test_strict_positive_realness(const Eigen::MatrixXd& A, const Eigen::MatrixXd& B,
-                                                   const Eigen::MatrixXd& C);
+PositiveRealnessTest test_strict_positive_realness(const Eigen::MatrixXd& A, const Eigen::MatrixXd& B, const Eigen::MatrixXd& C);
 
 }  // namespace moreau

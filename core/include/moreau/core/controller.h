@@ -37,9 +37,7 @@ struct Controller {
   // alpha of Assumption 4.1: sum a_i |v_i| >= min_i a_i ||v||_1 >= min_i a_i ||v||_2.
   double alpha() const { return (size() == 0 ? 0.0 : gains.minCoeff()) + norm_gain; }
 
-  double value(const Vec<N>& v) const {
-    return 0.5 * v.dot(weights.cwiseProduct(v)) + gains.dot(v.cwiseAbs()) + norm_gain * v.norm();
-  }
+  double value(const Vec<N>& v) const { return 0.5 * v.dot(weights.cwiseProduct(v)) + gains.dot(v.cwiseAbs()) + norm_gain * v.norm(); }
 
   // Distance from z to dPhi(0) = A [-1, 1]^n + a_norm B (a box plus a ball): the equilibrium residual of
   // Theorem 4.3 with z = -F(Q, 0) - grad V(Q). Zero when z lies in dPhi(0).

@@ -73,8 +73,7 @@ class GraphInclusionSolver {
   // Whether component i of the last solution lies on a vertical piece of its graph (u_i exact).
   bool on_vertical_piece(int i) const { return graphs_ && graphs_[i]->piece(pieces_(i)).vertical; }
 
-  bool solve(const Mat<M>& D, const Vec<M>& q, const MonotoneGraph* const* graphs, Vec<M>& u, Vec<M>& w,
-             GraphSolveStats& st) {
+  bool solve(const Mat<M>& D, const Vec<M>& q, const MonotoneGraph* const* graphs, Vec<M>& u, Vec<M>& w, GraphSolveStats& st) {
     st = GraphSolveStats{};
     graphs_ = graphs;
     const int m = m_;
@@ -143,8 +142,8 @@ class GraphInclusionSolver {
   double diag(const Mat<M>& D, int i) const { return D(i, i) > 0.0 ? D(i, i) : std::max(scale_d_, 1e-300); }
 
   double round_off(const Vec<M>& q, const Vec<M>& u, const Vec<M>& w) const {
-    const double scale = q.cwiseAbs().maxCoeff() + scale_d_ * w.cwiseAbs().maxCoeff() + u.cwiseAbs().maxCoeff() +
-                         w.cwiseAbs().maxCoeff() + graph_scale_;
+    const double scale =
+        q.cwiseAbs().maxCoeff() + scale_d_ * w.cwiseAbs().maxCoeff() + u.cwiseAbs().maxCoeff() + w.cwiseAbs().maxCoeff() + graph_scale_;
     return std::numeric_limits<double>::epsilon() * std::max(scale, 1e-300);
   }
 

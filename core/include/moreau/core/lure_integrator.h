@@ -71,8 +71,8 @@ class LureIntegrator {
   using MatD = Mat<Mo>;
 
   // graphs: one per output; P (optional) the storage matrix of W = 1/2 x^T P x.
-  LureIntegrator(const Mat<N>& A, const MatB& B, const MatC& C, const std::vector<MonotoneGraph>& graphs,
-                 const LureSettings& settings, const std::optional<Mat<N>>& P = std::nullopt)
+  LureIntegrator(const Mat<N>& A, const MatB& B, const MatC& C, const std::vector<MonotoneGraph>& graphs, const LureSettings& settings,
+                 const std::optional<Mat<N>>& P = std::nullopt)
       : A_(A), B_(B), C_(C), graphs_(graphs), settings_(settings), P_(P) {
     n_ = static_cast<int>(A.rows());
     m_ = static_cast<int>(C.rows());
@@ -193,9 +193,9 @@ class LureIntegrator {
  private:
   struct StepMatrices {
     double h = 0.0;
-    Mat<N> Phi;   // Wt (I + h (1 - theta) A)
-    MatB G;       // h Wt B
-    MatD D;       // C G
+    Mat<N> Phi;  // Wt (I + h (1 - theta) A)
+    MatB G;      // h Wt B
+    MatD D;      // C G
   };
 
   void prepare(double h, StepMatrices& sm) const {

@@ -60,8 +60,8 @@ class MonotoneGraph {
   MonotoneGraph() : MonotoneGraph(zero()) {}
 
   // Checks a description; returns true when it is a maximal monotone graph, else fills `problem`.
-  static bool check(const std::vector<double>& u, const std::vector<double>& w, End left, double left_slope, End right,
-                    double right_slope, Problem* problem) {
+  static bool check(const std::vector<double>& u, const std::vector<double>& w, End left, double left_slope, End right, double right_slope,
+                    Problem* problem) {
     auto fail = [&](std::string field, int index, int coordinate, std::string reason) {
       if (problem) *problem = Problem{std::move(field), index, coordinate, std::move(reason)};
       return false;
@@ -76,9 +76,9 @@ class MonotoneGraph {
                     "not monotone: u decreases from " + fmt(u[k - 1]) + " to " + fmt(u[k]) +
                         " (vertices must be listed with u and w both non-decreasing)");
       if (w[k] < w[k - 1])
-        return fail("vertices", static_cast<int>(k), 1,
-                    "not monotone: w decreases from " + fmt(w[k - 1]) + " to " + fmt(w[k]) +
-                        " (a monotone graph never goes down as u increases)");
+        return fail(
+            "vertices", static_cast<int>(k), 1,
+            "not monotone: w decreases from " + fmt(w[k - 1]) + " to " + fmt(w[k]) + " (a monotone graph never goes down as u increases)");
       if (u[k] == u[k - 1] && w[k] == w[k - 1]) return fail("vertices", static_cast<int>(k), -1, "repeats the previous vertex");
       // A sloped segment (neither vertical nor horizontal) has slope rise / run (build_pieces): near the
       // largest double the run or the rise overflows (1e308 - -1e308), and a short steep segment's
@@ -143,8 +143,7 @@ class MonotoneGraph {
   // stiffness <= 0 or infinite: rigid adhesion (a vertical segment from 0 to f at u = 0).
   static MonotoneGraph adhesive(double force, double stiffness) {
     if (force == 0.0) return complementarity();
-    if (!(stiffness > 0.0) || !std::isfinite(stiffness))
-      return MonotoneGraph({0.0, 0.0}, {0.0, force}, End::kWall, 0.0, End::kSlope, 0.0);
+    if (!(stiffness > 0.0) || !std::isfinite(stiffness)) return MonotoneGraph({0.0, 0.0}, {0.0, force}, End::kWall, 0.0, End::kSlope, 0.0);
     return MonotoneGraph({0.0, force / stiffness}, {0.0, force}, End::kWall, 0.0, End::kSlope, 0.0);
   }
   static MonotoneGraph zero() { return MonotoneGraph({0.0}, {0.0}, End::kSlope, 0.0, End::kSlope, 0.0); }
@@ -167,8 +166,8 @@ class MonotoneGraph {
   }
 
   bool operator==(const MonotoneGraph& o) const {
-    return u_ == o.u_ && w_ == o.w_ && left_ == o.left_ && right_ == o.right_ &&
-           (left_ == End::kWall || left_slope_ == o.left_slope_) && (right_ == End::kWall || right_slope_ == o.right_slope_);
+    return u_ == o.u_ && w_ == o.w_ && left_ == o.left_ && right_ == o.right_ && (left_ == End::kWall || left_slope_ == o.left_slope_) &&
+           (right_ == End::kWall || right_slope_ == o.right_slope_);
   }
 
   // ---- evaluation ---------------------------------------------------------------------------------
@@ -281,8 +280,10 @@ class MonotoneGraph {
     pieces_.clear();
     pieces_.reserve(static_cast<std::size_t>(K + 1));
     // Left end: piece 0.
-    if (left_ == End::kWall) pieces_.push_back(GraphPiece{true, u_[0], w_[0], 0.0, -inf, w_[0]});
-    else pieces_.push_back(GraphPiece{false, u_[0], w_[0], left_slope_, -inf, u_[0]});
+    if (left_ == End::kWall)
+      pieces_.push_back(GraphPiece{true, u_[0], w_[0], 0.0, -inf, w_[0]});
+    else
+      pieces_.push_back(GraphPiece{false, u_[0], w_[0], left_slope_, -inf, u_[0]});
     // Segments between vertices k-1 and k: piece k.
     for (int k = 1; k < K; ++k) {
       if (u_[k] == u_[k - 1]) {
@@ -293,8 +294,10 @@ class MonotoneGraph {
       }
     }
     // Right end: piece K.
-    if (right_ == End::kWall) pieces_.push_back(GraphPiece{true, u_[K - 1], w_[K - 1], 0.0, w_[K - 1], inf});
-    else pieces_.push_back(GraphPiece{false, u_[K - 1], w_[K - 1], right_slope_, u_[K - 1], inf});
+    if (right_ == End::kWall)
+      pieces_.push_back(GraphPiece{true, u_[K - 1], w_[K - 1], 0.0, w_[K - 1], inf});
+    else
+      pieces_.push_back(GraphPiece{false, u_[K - 1], w_[K - 1], right_slope_, u_[K - 1], inf});
     scale_ = 0.0;
     for (int k = 0; k < K; ++k) scale_ = std::max({scale_, std::abs(u_[k]), std::abs(w_[k])});
   }

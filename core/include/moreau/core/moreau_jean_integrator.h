@@ -270,8 +270,7 @@ class MoreauJeanIntegrator {
         GraphSolveStats st;
         if (!solver_.solve(D_, qv_, ptrs_.data(), u_, w_, st)) {
           char buf[200];
-          std::snprintf(buf, sizeof buf,
-                        "the one-step complementarity problem was not solved to round-off (residual %.3g, tolerance %.3g)",
+          std::snprintf(buf, sizeof buf, "the one-step complementarity problem was not solved to round-off (residual %.3g, tolerance %.3g)",
                         st.residual, st.tolerance);
           return rec.fail(k, t, q.data(), v.data(), buf);
         }
@@ -359,8 +358,8 @@ class MoreauJeanIntegrator {
       note_gaps(d, t);
       const double kin_new = 0.5 * v.dot(terms_.M * v);
       const double pot_new = d.potential_known ? model_.potential(q) : 0.0;
-      const double allowance = 64.0 * std::numeric_limits<double>::epsilon() *
-                               (kinetic + std::abs(potential) + kin_new + std::abs(pot_new));
+      const double allowance =
+          64.0 * std::numeric_limits<double>::epsilon() * (kinetic + std::abs(potential) + kin_new + std::abs(pot_new));
       d.lagrange_dirichlet.step(k, t, kin_new + pot_new, allowance);
       rec.energy_step(kinetic, kin_new, 64.0 * std::numeric_limits<double>::epsilon() * std::max(kin_new, s.energy_initial));
       kinetic = kin_new;
@@ -377,7 +376,6 @@ class MoreauJeanIntegrator {
   }
 
  private:
-
   // Exact values from the rows on vertical pieces (u_r exact): when there are n of them with independent
   // velocity maps they fix V^{k+1} = G_V^{-1} (u_V - b_V) (0.0 exactly for a system at rest); otherwise a
   // row whose velocity map involves one coordinate fixes that coordinate.
@@ -484,8 +482,7 @@ class MoreauJeanIntegrator {
       dq_ += rhs_;
       model_.constraints(qn, gap_, H_);
       // Linear gaps land on 0 up to the round-off of h(q) itself.
-      const double allowance = 64.0 * std::numeric_limits<double>::epsilon() *
-                               (1.0 + qn.cwiseAbs().maxCoeff() * H_.cwiseAbs().maxCoeff());
+      const double allowance = 64.0 * std::numeric_limits<double>::epsilon() * (1.0 + qn.cwiseAbs().maxCoeff() * H_.cwiseAbs().maxCoeff());
       if (gap_.minCoeff() >= -allowance) break;
       if (it == 19) return false;
     }

@@ -9,13 +9,13 @@
 namespace moreau {
 
 struct Sample {
-  std::int64_t step;       // k
-  double t;                // t_k
-  double h;                // the step that led to this state, t_k - t_{k-1} (step 0: the nominal h)
-  int n;                   // degrees of freedom
-  const double* q;         // Q^k, n values
-  const double* v;         // V^k, n values
-  double kinetic_energy;   // E_k = 1/2 <M(Q^k) V^k, V^k>
+  std::int64_t step;      // k
+  double t;               // t_k
+  double h;               // the step that led to this state, t_k - t_{k-1} (step 0: the nominal h)
+  int n;                  // degrees of freedom
+  const double* q;        // Q^k, n values
+  const double* v;        // V^k, n values
+  double kinetic_energy;  // E_k = 1/2 <M(Q^k) V^k, V^k>
 };
 
 class RunObserver {

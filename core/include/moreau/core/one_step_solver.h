@@ -33,9 +33,9 @@
 namespace moreau {
 
 struct OneStepStats {
-  int iterations = 0;        // linear (or Newton) solves of pattern equations, or fixed-point sweeps
-  double residual = 0.0;     // dist(-(P y + x), d phi(y)) of the returned y
-  double tolerance = 0.0;    // the round-off bound the residual was accepted against
+  int iterations = 0;      // linear (or Newton) solves of pattern equations, or fixed-point sweeps
+  double residual = 0.0;   // dist(-(P y + x), d phi(y)) of the returned y
+  double tolerance = 0.0;  // the round-off bound the residual was accepted against
   bool used_fallback = false;
 };
 
@@ -146,9 +146,12 @@ class OneStepSolver {
     double sum = 0.0;
     for (int i = 0; i < size(); ++i) {
       double d;
-      if (y(i) > 0.0) d = w_(i) - a_(i);
-      else if (y(i) < 0.0) d = w_(i) + a_(i);
-      else d = std::max(0.0, std::abs(w_(i)) - a_(i));
+      if (y(i) > 0.0)
+        d = w_(i) - a_(i);
+      else if (y(i) < 0.0)
+        d = w_(i) + a_(i);
+      else
+        d = std::max(0.0, std::abs(w_(i)) - a_(i));
       sum += d * d;
     }
     return std::sqrt(sum);
@@ -168,10 +171,8 @@ class OneStepSolver {
   }
 
   // The accepted residual: a few ulps of the size of the terms of (6.5).
-  bool accept(const Mat<N>& P, const Vec<N>& x, const Vec<N>& y, double scale_px, double gain_scale,
-              OneStepStats& stats) {
-    const double scale =
-        x.cwiseAbs().maxCoeff() + scale_px * (y.size() ? y.cwiseAbs().maxCoeff() : 0.0) + gain_scale;
+  bool accept(const Mat<N>& P, const Vec<N>& x, const Vec<N>& y, double scale_px, double gain_scale, OneStepStats& stats) {
+    const double scale = x.cwiseAbs().maxCoeff() + scale_px * (y.size() ? y.cwiseAbs().maxCoeff() : 0.0) + gain_scale;
     stats.tolerance = 256.0 * std::numeric_limits<double>::epsilon() * std::max(scale, 1e-300);
     stats.residual = residual(P, x, y);
     return std::isfinite(stats.residual) && stats.residual <= stats.tolerance && y.allFinite();
@@ -283,8 +284,7 @@ class OneStepSolver {
 
   // Whether y (from pattern s) satisfies (6.5): free components keep their sign, pinned ones have a
   // multiplier within their gain.
-  bool consistent(const Mat<N>& P, const Vec<N>& x, const Vec<N>& y, const Pattern& s, double scale_px,
-                  double gain_scale) {
+  bool consistent(const Mat<N>& P, const Vec<N>& x, const Vec<N>& y, const Pattern& s, double scale_px, double gain_scale) {
     w_.noalias() = -(P * y);
     w_ -= x;
     const double ny = y.norm();
@@ -292,8 +292,8 @@ class OneStepSolver {
       if (ny == 0.0) return false;
       w_ -= (an_ / ny) * y;
     }
-    const double tol = 64.0 * std::numeric_limits<double>::epsilon() *
-                       (x.cwiseAbs().maxCoeff() + scale_px * y.cwiseAbs().maxCoeff() + gain_scale);
+    const double tol =
+        64.0 * std::numeric_limits<double>::epsilon() * (x.cwiseAbs().maxCoeff() + scale_px * y.cwiseAbs().maxCoeff() + gain_scale);
     for (int i = 0; i < size(); ++i) {
       if (!(a_(i) > 0.0)) continue;
       if (s(i) != 0) {
@@ -326,8 +326,7 @@ class OneStepSolver {
   }
 
   // Tries every pattern in {-1, 0, 1}^n; the solution's pattern is among them, so this is exact.
-  bool enumerate(const Mat<N>& P, const Vec<N>& x, Vec<N>& y, double scale_px, double gain_scale,
-                 OneStepStats& stats) {
+  bool enumerate(const Mat<N>& P, const Vec<N>& x, Vec<N>& y, double scale_px, double gain_scale, OneStepStats& stats) {
     const int n = size();
     long total = 1;
     for (int i = 0; i < n; ++i) total *= 3;
@@ -356,13 +355,14 @@ class OneStepSolver {
     if (an_ > 0.0) {
       const double nz = z.norm();
       const double t = gamma * an_;
-      if (nz <= t) z.setZero();
-      else z *= (1.0 - t / nz);
+      if (nz <= t)
+        z.setZero();
+      else
+        z *= (1.0 - t / nz);
     }
   }
 
-  bool forward_backward(const Mat<N>& P, const Vec<N>& x, Vec<N>& y, double scale_px, double gain_scale,
-                        OneStepStats& stats) {
+  bool forward_backward(const Mat<N>& P, const Vec<N>& x, Vec<N>& y, double scale_px, double gain_scale, OneStepStats& stats) {
     const int n = size();
     const Mat<N> Ps = 0.5 * (P + P.transpose());
     Eigen::SelfAdjointEigenSolver<Mat<N>> eig(Ps, Eigen::EigenvaluesOnly);

@@ -33,7 +33,7 @@ namespace moreau {
 enum class Regularization { kTanh, kSaturation };
 
 struct RegularizedSettings {
-  double h = 1e-3;        // output interval and error tolerance
+  double h = 1e-3;  // output interval and error tolerance
   double t0 = 0.0;
   double t_end = 1.0;
   double epsilon = 1e-3;  // width of the regularized sign
@@ -79,8 +79,8 @@ class RegularizedIntegrator {
       model_.evaluate(t, q_, v_, terms_);
       const double energy = 0.5 * v_.dot(terms_.M * v_);
       if (samples == 0) summary.energy_initial = energy;
-      if (energy_prev >= 0.0 && energy - energy_prev > 64.0 * std::numeric_limits<double>::epsilon() *
-                                                           std::max(energy_prev, summary.energy_initial)) {
+      if (energy_prev >= 0.0 &&
+          energy - energy_prev > 64.0 * std::numeric_limits<double>::epsilon() * std::max(energy_prev, summary.energy_initial)) {
         ++summary.energy_increases;
         summary.energy_max_increase = std::max(summary.energy_max_increase, energy - energy_prev);
       }
@@ -119,8 +119,7 @@ class RegularizedIntegrator {
       summary.message = std::string("rosenbrock4: ") + e.what();
     }
     // The solver's own steps when it finished (the work a study compares), else the samples reached.
-    summary.steps = summary.status == RunStatus::kCompleted ? static_cast<std::int64_t>(solver_steps)
-                                                            : (samples > 0 ? samples - 1 : 0);
+    summary.steps = summary.status == RunStatus::kCompleted ? static_cast<std::int64_t>(solver_steps) : (samples > 0 ? samples - 1 : 0);
     summary.t_final = last_t;
     summary.q_final.assign(q_.data(), q_.data() + n);
     summary.v_final.assign(v_.data(), v_.data() + n);

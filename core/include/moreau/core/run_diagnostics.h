@@ -49,8 +49,8 @@ struct LureDiagnostics {
   // W = 1/2 x^T P x (Lemma 2), when a storage matrix P is known (given by the scene or found by the
   // positive-realness test); not evaluated otherwise.
   EnergyTrack storage;
-  std::vector<double> y_final;       // y = C x at the last step (the solver's exact value)
-  std::vector<double> y_l_final;     // y_L in d phi(y) at the last step
+  std::vector<double> y_final;    // y = C x at the last step (the solver's exact value)
+  std::vector<double> y_l_final;  // y_L in d phi(y) at the last step
   // Per output component: the first step from which y_i == 0.0 exactly to the end (-1 if none).
   std::vector<std::int64_t> output_rest_step;
   std::vector<double> output_rest_time;
@@ -58,17 +58,17 @@ struct LureDiagnostics {
 
 // ---- Lagrangian systems with unilateral constraints (section 4) ---------------------------------------
 struct ImpactEvent {
-  std::int64_t step = 0;   // k+1: the step whose impulse carried the impact
-  double t = 0.0;          // t_{k+1}
+  std::int64_t step = 0;  // k+1: the step whose impulse carried the impact
+  double t = 0.0;         // t_{k+1}
   int constraint = 0;
-  double pre = 0.0;        // U_k = grad h(Q^k)^T V^k < 0, the approaching normal velocity
-  double post = 0.0;       // U_{k+1} = grad h(Q^k)^T V^{k+1}
-  double impulse = 0.0;    // P_{k+1} >= 0 (the contact percussion over the step)
+  double pre = 0.0;      // U_k = grad h(Q^k)^T V^k < 0, the approaching normal velocity
+  double post = 0.0;     // U_{k+1} = grad h(Q^k)^T V^{k+1}
+  double impulse = 0.0;  // P_{k+1} >= 0 (the contact percussion over the step)
   // The impact's kinetic energy change in the contact space (1/2 U^T S U with S the inverse of
   // grad h^T M^{-1} grad h) against eq. (9), -1/2 (1-e)/(1+e) dv^T M dv for the jump dv = M^{-1} grad h S (U+ - U).
   double kinetic_change = 0.0;
   double eq9_change = 0.0;
-  int simultaneous = 1;    // impacts in the same step
+  int simultaneous = 1;  // impacts in the same step
 };
 
 struct ContactDiagnostics {
@@ -76,9 +76,9 @@ struct ContactDiagnostics {
   std::int64_t impact_count = 0;
   std::vector<ImpactEvent> impacts;  // the first max_recorded_impacts impacts
   bool impacts_truncated = false;
-  double max_eq9_mismatch = 0.0;     // max |kinetic_change - eq9_change| over the recorded impacts
-  std::int64_t active_steps = 0;     // steps with at least one contact in the predicted active set
-  std::int64_t impulse_steps = 0;    // steps with at least one positive impulse
+  double max_eq9_mismatch = 0.0;   // max |kinetic_change - eq9_change| over the recorded impacts
+  std::int64_t active_steps = 0;   // steps with at least one contact in the predicted active set
+  std::int64_t impulse_steps = 0;  // steps with at least one positive impulse
 
   // The first step from which V == 0.0 exactly to the end (the system at rest), if any.
   std::int64_t rest_step = -1;
@@ -96,13 +96,13 @@ struct ContactDiagnostics {
   // Position correction (projection of Q^{k+1} onto h >= 0 after the step, when enabled).
   bool correction_enabled = false;
   std::int64_t corrected_steps = 0;
-  double max_correction = 0.0;        // largest ||delta q||_M
-  double correction_energy = 0.0;     // sum of the potential energy changes it caused
-  double largest_violation = 0.0;     // largest -h_i(Q^{k+1}) it removed
+  double max_correction = 0.0;     // largest ||delta q||_M
+  double correction_energy = 0.0;  // sum of the potential energy changes it caused
+  double largest_violation = 0.0;  // largest -h_i(Q^{k+1}) it removed
 
   // The Lagrange-Dirichlet function W = 1/2 <M(q) v, v> + U(q) of Lemma 3, eq. (12) on the admissible set.
   EnergyTrack lagrange_dirichlet;
-  bool potential_known = false;       // false when the scene gives no potential U (W is then kinetic only)
+  bool potential_known = false;  // false when the scene gives no potential U (W is then kinetic only)
 };
 
 }  // namespace moreau

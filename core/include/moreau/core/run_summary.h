@@ -15,8 +15,8 @@ enum class RunStatus { kCompleted, kFailed, kCancelled };
 const char* to_string(RunStatus status);
 
 struct SolverEffort {
-  int max_iterations = 0;         // most pattern solves (or sweeps) in one step
-  double max_residual = 0.0;      // largest accepted dist(-(P y + x), d phi(y)) over the run
+  int max_iterations = 0;     // most pattern solves (or sweeps) in one step
+  double max_residual = 0.0;  // largest accepted dist(-(P y + x), d phi(y)) over the run
   std::int64_t total_iterations = 0;
   std::int64_t fallback_steps = 0;  // steps that needed the exhaustive or forward-backward fallback
   std::int64_t rest_steps = 0;      // steps solved by the y = 0 closed form (velocity exactly at rest)

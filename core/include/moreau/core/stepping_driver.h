@@ -41,12 +41,11 @@ struct FixedTimeGrid {
   std::int64_t steps = 0;  // N
   double last_h = 0.0;     // h_{N-1}
 
-  FixedTimeGrid(double t0_, double t_end_, double h_)
-      : t0(t0_), t_end(t_end_), h(h_), steps(fixed_step_count(t0_, t_end_, h_)) {
+  FixedTimeGrid(double t0_, double t_end_, double h_) : t0(t0_), t_end(t_end_), h(h_), steps(fixed_step_count(t0_, t_end_, h_)) {
     const double remainder = (t_end - t0) - static_cast<double>(steps - 1) * h;
     last_h = std::abs(remainder - h) <= 1e-9 * h ? h : remainder;
   }
-  double step(std::int64_t k) const { return k + 1 == steps ? last_h : h; }               // h_k
+  double step(std::int64_t k) const { return k + 1 == steps ? last_h : h; }                           // h_k
   double time(std::int64_t k) const { return k == steps ? t_end : t0 + static_cast<double>(k) * h; }  // t_k
 };
 
@@ -68,9 +67,7 @@ class RunRecorder {
     s_.h_max = 0.0;
   }
   // The sample of the initial state (its h is the nominal step).
-  void first_sample(double t, double h_nominal, const double* q, const double* v, double energy) {
-    emit(0, t, h_nominal, q, v, energy);
-  }
+  void first_sample(double t, double h_nominal, const double* q, const double* v, double energy) { emit(0, t, h_nominal, q, v, energy); }
 
   // The one-step solver's effort on this step.
   void solver_step(int iterations, double residual, bool used_fallback) {

@@ -79,7 +79,6 @@ FigureLayout compute_layout(const Figure& figure);
 // original order), so a 100k-point series keeps 2-4 vertices per column and draws the same pixels.
 // Returns the indices kept, increasing. With by_rows as well, a second pass does the same along
 // rows (for curves that are not monotonic in x, e.g. phase portraits).
-std::vector<std::size_t> decimate(std::span<const double> px, std::span<const double> py,
-                                  bool by_rows = false);
+std::vector<std::size_t> decimate(std::span<const double> px, std::span<const double> py, bool by_rows = false);
 
 }  // namespace moreau::render

@@ -35,8 +35,7 @@ inline constexpr std::size_t kMaxNodes = 1'000'000;
 // A parse or limit error. `position` is the 0-based character offset in the text the error is about.
 class ExpressionError : public std::runtime_error {
  public:
-  ExpressionError(const std::string& message, std::size_t position)
-      : std::runtime_error(message), position_(position) {}
+  ExpressionError(const std::string& message, std::size_t position) : std::runtime_error(message), position_(position) {}
   std::size_t position() const { return position_; }
 
  private:
@@ -44,10 +43,30 @@ class ExpressionError : public std::runtime_error {
 };
 
 enum class Op : std::uint8_t {
-  kConst, kVar,
-  kAdd, kSub, kMul, kDiv, kPow, kNeg,
-  kSin, kCos, kTan, kAsin, kAcos, kAtan, kAtan2, kSinh, kCosh, kTanh, kExp, kLog, kSqrt, kAbs,
-  kMin, kMax,
+  kConst,
+  kVar,
+  kAdd,
+  kSub,
+  kMul,
+  kDiv,
+  kPow,
+  kNeg,
+  kSin,
+  kCos,
+  kTan,
+  kAsin,
+  kAcos,
+  kAtan,
+  kAtan2,
+  kSinh,
+  kCosh,
+  kTanh,
+  kExp,
+  kLog,
+  kSqrt,
+  kAbs,
+  kMin,
+  kMax,
   kSign,      // internal: derivative of abs; sign(0) = 0
   kSquare,    // internal: x*x, from x^2
   kSelectLe,  // internal: (a <= b) ? c : d, with the tie/NaN behaviour of std::min; derivative of min/max
@@ -101,8 +120,8 @@ class Graph {
   struct Entry {
     Op op;
     Node a = -1, b = -1;
-    double value = 0.0;  // kConst
-    int slot = -1;       // kVar
+    double value = 0.0;   // kConst
+    int slot = -1;        // kVar
     Node c = -1, d = -1;  // kSelectLe only (declared last so that {op, a, b} initialisation still works)
   };
   const Entry& entry(Node n) const;

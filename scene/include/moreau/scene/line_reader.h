@@ -12,8 +12,7 @@ namespace moreau::scene {
 // Reads the next line of `in` into `line`, without its '\n'. Returns false at the end of the input.
 // Throws std::runtime_error ("<where> is longer than <limit>") once the line exceeds `max_bytes`;
 // `where` names the line in that message (e.g. "'traj.csv' line 3").
-inline bool read_line(std::istream& in, std::string& line, std::size_t max_bytes, const std::string& where,
-                      const std::string& limit) {
+inline bool read_line(std::istream& in, std::string& line, std::size_t max_bytes, const std::string& where, const std::string& limit) {
   line.clear();
   std::streambuf* buf = in.rdbuf();
   if (!buf) return false;

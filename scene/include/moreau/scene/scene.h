@@ -82,8 +82,8 @@ std::optional<std::size_t> json_depth_exceeded(std::string_view text, int max_de
 // alone (the Theorem 4.2 rule) and one for V(q). Inputs of every tape: [t, q_1..q_n, v_1..v_n].
 struct CompiledLagrangian {
   int n = 0;
-  expr::Tape step_tape;    // the non-constant entries of M, C and g = grad V + F
-  expr::Tape mass_tape;    // the non-constant entries of M
+  expr::Tape step_tape;       // the non-constant entries of M, C and g = grad V + F
+  expr::Tape mass_tape;       // the non-constant entries of M
   expr::Tape potential_tape;  // V(q), if the scene gives a potential
   bool has_potential = false;
   bool constant_mass = true;
@@ -109,7 +109,7 @@ struct LagrangianScene {
   Scheme scheme = Scheme::kAbl;
   AblSettings settings;
   std::int64_t output_every = 1;
-  std::string coriolis = "christoffel";  // "christoffel", "explicit" or "none"
+  std::string coriolis = "christoffel";    // "christoffel", "explicit" or "none"
   std::vector<std::string> christoffel_c;  // C(q, v) entries as text (row-major), for reports and tests
   // Exact solution carried by textbook scenes (/exact), as expressions in t; empty when absent.
   std::shared_ptr<const expr::Tape> exact_tape;  // outputs q_1..q_n, v_1..v_n at slot 0 = t
@@ -137,8 +137,8 @@ RunSummary run_scene(const LagrangianScene& scene, RunObserver* observer, Contac
 // ---- Lur'e systems (eq. 4 of Brogliato 2003) ------------------------------------------------------------
 struct LureScene {
   std::string name;
-  int n = 0;  // states
-  int m = 0;  // outputs (= feedback components)
+  int n = 0;                             // states
+  int m = 0;                             // outputs (= feedback components)
   std::vector<std::string> states;       // x names (default x1..xn)
   std::vector<std::string> state_rates;  // <name>_dot: the discrete derivative columns
   Eigen::MatrixXd A, B, C;

@@ -87,9 +87,12 @@ class SceneModel {
       const double value = step_values_[j];
       for (int k = step_begin_[j]; k < step_begin_[j + 1]; ++k) {
         const int idx = step_index_[k];
-        if (idx < nn) M[idx] = value;
-        else if (idx < 2 * nn) C[idx - nn] = value;
-        else g[idx - 2 * nn] = value;
+        if (idx < nn)
+          M[idx] = value;
+        else if (idx < 2 * nn)
+          C[idx - nn] = value;
+        else
+          g[idx - 2 * nn] = value;
       }
     }
   }

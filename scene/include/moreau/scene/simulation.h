@@ -48,7 +48,7 @@ class Simulation {
   const std::string& name() const;
   const std::string& system_type() const;  // "lagrangian" or "lure"
   Scheme scheme() const;
-  int dof() const;                         // coordinates, or states of a Lur'e system
+  int dof() const;  // coordinates, or states of a Lur'e system
   // Column names of a trajectory: positions then velocities.
   const std::vector<std::string>& position_names() const;
   const std::vector<std::string>& velocity_names() const;

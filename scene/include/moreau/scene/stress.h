@@ -16,19 +16,19 @@ namespace moreau::scene {
 
 struct StressCase {
   std::string name;
-  std::string what;       // one line: the extreme this case exercises
+  std::string what;  // one line: the extreme this case exercises
   nlohmann::json scene;
   bool expect_completed = true;
   std::optional<bool> expect_energy_nonincreasing;  // set where Theorem 4.2 (or constant M) promises it
   std::optional<bool> expect_converged;             // set where Theorem 4.3 promises it (or rules it out)
   bool within_theory = true;
-  std::string theory;     // which result applies, or why none does
+  std::string theory;  // which result applies, or why none does
 };
 
 struct StressOutcome {
   const StressCase* c = nullptr;
   RunSummary summary;
-  bool finite = true;     // no NaN or Inf anywhere in the final state or the energy
+  bool finite = true;                 // no NaN or Inf anywhere in the final state or the energy
   std::vector<std::string> failures;  // unmet expectations; empty = pass
   double seconds = 0.0;
 };

@@ -33,11 +33,11 @@
 namespace moreau::scene {
 
 struct StudySettings {
-  std::vector<double> h;                                      // the ladder
+  std::vector<double> h;  // the ladder
   std::vector<StudyScheme> schemes = {StudyScheme::kAbl, StudyScheme::kExplicit, StudyScheme::kRegularized};
-  std::optional<double> reference_h;                          // force a numerical reference at this h
-  double epsilon = 1e-3;                                      // width of the regularized sign
-  std::string regularization = "tanh";                        // or "saturation"
+  std::optional<double> reference_h;    // force a numerical reference at this h
+  double epsilon = 1e-3;                // width of the regularized sign
+  std::string regularization = "tanh";  // or "saturation"
   int eval_points = 1000;
   int repeats = 3;
   double single_run_seconds = 2.0;
@@ -70,7 +70,7 @@ std::int64_t study_planned_steps(const LagrangianScene& scene, const StudySettin
 struct StudyRow {
   StudyScheme scheme = StudyScheme::kAbl;
   double h = 0.0;
-  std::string status;   // completed, failed
+  std::string status;  // completed, failed
   std::string message;
   std::int64_t steps = 0;
   double wall_seconds = 0.0;

@@ -15,8 +15,7 @@ namespace moreau::scene {
 class TrajectoryCsvWriter : public RunObserver {
  public:
   // Opens `path` and writes the header. Throws std::runtime_error if the file cannot be written.
-  TrajectoryCsvWriter(const std::string& path, const std::vector<std::string>& q_names,
-                      const std::vector<std::string>& v_names);
+  TrajectoryCsvWriter(const std::string& path, const std::vector<std::string>& q_names, const std::vector<std::string>& v_names);
   ~TrajectoryCsvWriter() override;
   void on_sample(const Sample& s) override;
   // Flushes and closes; throws if anything failed to be written (a full disk, say).

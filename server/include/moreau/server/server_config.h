@@ -11,12 +11,12 @@ namespace moreau::server {
 
 struct ServerConfig {
   std::string host = "127.0.0.1";
-  int port = 8080;               // 0: any free port (see Server::port())
-  std::string data_dir;          // results and job records; created if missing
-  std::string scenes_dir;        // served by /v1/scenes; empty: default_scenes_dir()
-  int workers = 0;               // integrating threads; 0: one per core
-  int io_threads = 4;            // threads that fsync and rename finished jobs' results
-  int queue = 64;                // queued jobs beyond which POST /v1/jobs answers 429
+  int port = 8080;         // 0: any free port (see Server::port())
+  std::string data_dir;    // results and job records; created if missing
+  std::string scenes_dir;  // served by /v1/scenes; empty: default_scenes_dir()
+  int workers = 0;         // integrating threads; 0: one per core
+  int io_threads = 4;      // threads that fsync and rename finished jobs' results
+  int queue = 64;          // queued jobs beyond which POST /v1/jobs answers 429
   // Connections: each open one is served by its own thread, so a slow or waiting client holds only its
   // own. Beyond either limit a new connection is answered 503 at once and closed.
   int max_connections = 512;            // open connections in all
@@ -26,8 +26,8 @@ struct ServerConfig {
   // Long polls (?wait) and event streams open at once; beyond it they are answered 429 at once, so
   // that waiting clients cannot take every connection slot.
   int max_waiting = 256;
-  std::string lcm_url;           // empty: LCM_DEFAULT_URL, else LCM's default, opened at the first stream
-  std::string token;             // non-empty: every endpoint but /healthz needs "Authorization: Bearer TOKEN"
+  std::string lcm_url;                        // empty: LCM_DEFAULT_URL, else LCM's default, opened at the first stream
+  std::string token;                          // non-empty: every endpoint but /healthz needs "Authorization: Bearer TOKEN"
   bool allow_unauthenticated_remote = false;  // start() refuses a non-loopback host without a token unless set
   // The largest request body, counted after decoding (Content-Encoding) and whatever the framing
   // (Content-Length, chunked, or read to the end): larger gets 413.
@@ -42,13 +42,13 @@ struct ServerConfig {
   // The largest stored trajectory a figure is drawn from (it is read whole, and held as numbers while
   // drawn: about 1.4 times its size); larger gets 422, with the window parameters to use instead.
   std::int64_t max_figure_source_bytes = std::int64_t{256} << 20;
-  std::int64_t max_steps = 100'000'000;   // integration steps per job
-  std::int64_t max_samples = 2'000'000;   // trajectory rows per job
-  int keep_alive_seconds = 5;    // idle keep-alive connections are closed after this
+  std::int64_t max_steps = 100'000'000;  // integration steps per job
+  std::int64_t max_samples = 2'000'000;  // trajectory rows per job
+  int keep_alive_seconds = 5;            // idle keep-alive connections are closed after this
   // Requests served on one connection before it is closed: a busy keep-alive connection then goes back
   // behind the connections waiting for a thread, so that more clients than threads all get served.
   int keep_alive_requests = 100;
-  bool log_requests = false;     // one line per request on stderr
+  bool log_requests = false;  // one line per request on stderr
   // Finished jobs and studies kept, in memory and on disk; beyond it the oldest finished ones are deleted
   // (pruned in batches of a tenth of it). 0: keep all, until an operator deletes them.
   std::int64_t keep_jobs = 0;

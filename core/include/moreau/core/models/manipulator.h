@@ -18,12 +18,12 @@
 namespace moreau::models {
 
 struct ManipulatorParameters {
-  double m1_kg = 1.0;             // cart mass
-  double m2_kg = 1.0;             // link mass
-  double b_m = 0.5;               // distance from the joint to the link's centre of mass
-  double inertia_kg_m2 = 0.1;     // link inertia about its centre of mass
+  double m1_kg = 1.0;          // cart mass
+  double m2_kg = 1.0;          // link mass
+  double b_m = 0.5;            // distance from the joint to the link's centre of mass
+  double inertia_kg_m2 = 0.1;  // link inertia about its centre of mass
   double gravity_m_s2 = 9.81;
-  bool perturbed = false;         // F = (sin t, sin x1)
+  bool perturbed = false;  // F = (sin t, sin x1)
 };
 
 class Manipulator {
