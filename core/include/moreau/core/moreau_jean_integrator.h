@@ -140,7 +140,6 @@ class MoreauJeanIntegrator {
     for (int i = 0; i < nc_; ++i) restitution_[i] = model_.restitution(i);
     terms_.resize(n_);
     Wm_.setZero(n_, n_);
-    Mq_.setZero(n_, n_);
     vf_.setZero(n_);
     vn_.setZero(n_);
     vpos_.setZero(n_);
@@ -156,9 +155,7 @@ class MoreauJeanIntegrator {
       sqlu_ = Eigen::PartialPivLU<Mat<N>>(n_);
     }
     gap_.setZero(nc_);
-    gap_new_.setZero(nc_);
     H_.setZero(nc_, n_);
-    H_new_.setZero(nc_, n_);
     U_.setZero(nc_);
     Un_.setZero(nc_);
     active_.assign(static_cast<std::size_t>(nc_), 0);
@@ -512,12 +509,12 @@ class MoreauJeanIntegrator {
   MonotoneGraph zero_ = MonotoneGraph::zero();
   std::vector<double> restitution_;
   LagrangianTerms<N> terms_;
-  Mat<N> Wm_, Mq_;
+  Mat<N> Wm_;
   Eigen::PartialPivLU<Mat<N>> lu_, mlu_, sqlu_;
   Vec<N> vf_, vn_, vpos_, rhs_, qn_, dq_, rsq_, vsq_;
   Mat<N> Gsq_;
-  Eigen::VectorXd gap_, gap_new_, U_, Un_;
-  RowsN H_, H_new_;
+  Eigen::VectorXd gap_, U_, Un_;
+  RowsN H_;
   std::vector<char> active_;
   RowsN Gv_, Gf_;
   Eigen::VectorXd b_;
