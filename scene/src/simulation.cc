@@ -16,14 +16,28 @@ struct Simulation::Latest {
 namespace {
 const std::string kLagrangian = "lagrangian";
 const std::string kLure = "lure";
+
+// One lambda per system kind, for std::visit.
+template <class... F>
+struct Overloaded : F... {
+  using F::operator()...;
+};
+template <class... F>
+Overloaded(F...) -> Overloaded<F...>;
+
+// Calls f with the compiled scene, whichever kind it is.
+template <class System, class F>
+decltype(auto) on_scene(const System& system, F&& f) {
+  return std::visit([&](const auto& scene) -> decltype(auto) { return f(*scene); }, system);
+}
 }  // namespace
 
 Simulation Simulation::from_json(const nlohmann::json& doc) {
   Simulation sim;
   if (scene::system_type(doc) == "lure") {
-    sim.lure_ = std::make_shared<const LureScene>(load_lure_scene(doc));
+    sim.system_ = std::make_shared<const LureScene>(load_lure_scene(doc));
   } else {
-    sim.lagrangian_ = std::make_shared<const LagrangianScene>(load_scene(doc));
+    sim.system_ = std::make_shared<const LagrangianScene>(load_scene(doc));
   }
   sim.latest_ = std::make_shared<Latest>();
   return sim;
@@ -35,41 +49,77 @@ Simulation Simulation::from_file(const std::string& path, const std::vector<std:
   return from_json(doc);
 }
 
-const std::string& Simulation::name() const { return lure_ ? lure_->name : lagrangian_->name; }
-const std::string& Simulation::system_type() const { return lure_ ? kLure : kLagrangian; }
-Scheme Simulation::scheme() const { return lure_ ? lure_->scheme : lagrangian_->scheme; }
-int Simulation::dof() const { return lure_ ? lure_->n : lagrangian_->n; }
-const std::vector<std::string>& Simulation::position_names() const { return lure_ ? lure_->states : lagrangian_->coordinates; }
-const std::vector<std::string>& Simulation::velocity_names() const { return lure_ ? lure_->state_rates : lagrangian_->velocities; }
-double Simulation::t0() const { return lure_ ? lure_->settings.t0 : lagrangian_->settings.t0; }
-double Simulation::t_end() const { return lure_ ? lure_->settings.t_end : lagrangian_->settings.t_end; }
-double Simulation::h() const { return lure_ ? lure_->settings.h : lagrangian_->settings.h; }
-std::int64_t Simulation::output_every() const { return lure_ ? lure_->settings.output_every : lagrangian_->output_every; }
-std::int64_t Simulation::planned_steps() const {
-  if (lure_) return fixed_step_count(lure_->settings.t0, lure_->settings.t_end, lure_->settings.h);
-  const auto& s = lagrangian_->settings;
-  return fixed_step_count(s.t0, s.t_end, s.h);
+const LagrangianScene* Simulation::lagrangian() const {
+  const auto* p = std::get_if<std::shared_ptr<const LagrangianScene>>(&system_);
+  return p ? p->get() : nullptr;
+}
+const LureScene* Simulation::lure() const {
+  const auto* p = std::get_if<std::shared_ptr<const LureScene>>(&system_);
+  return p ? p->get() : nullptr;
 }
 
-std::int64_t Simulation::max_steps() const { return lure_ ? lure_->settings.max_steps : lagrangian_->settings.max_steps; }
+const std::string& Simulation::name() const {
+  return on_scene(system_, [](const auto& sc) -> const std::string& { return sc.name; });
+}
+const std::string& Simulation::system_type() const { return lure() ? kLure : kLagrangian; }
+Scheme Simulation::scheme() const {
+  return on_scene(system_, [](const auto& sc) { return sc.scheme; });
+}
+int Simulation::dof() const {
+  return on_scene(system_, [](const auto& sc) { return sc.n; });
+}
+const std::vector<std::string>& Simulation::position_names() const {
+  return std::visit(
+      Overloaded{[](const std::shared_ptr<const LagrangianScene>& sc) -> const std::vector<std::string>& { return sc->coordinates; },
+                 [](const std::shared_ptr<const LureScene>& sc) -> const std::vector<std::string>& { return sc->states; }},
+      system_);
+}
+const std::vector<std::string>& Simulation::velocity_names() const {
+  return std::visit(
+      Overloaded{[](const std::shared_ptr<const LagrangianScene>& sc) -> const std::vector<std::string>& { return sc->velocities; },
+                 [](const std::shared_ptr<const LureScene>& sc) -> const std::vector<std::string>& { return sc->state_rates; }},
+      system_);
+}
+double Simulation::t0() const {
+  return on_scene(system_, [](const auto& sc) { return sc.settings.t0; });
+}
+double Simulation::t_end() const {
+  return on_scene(system_, [](const auto& sc) { return sc.settings.t_end; });
+}
+double Simulation::h() const {
+  return on_scene(system_, [](const auto& sc) { return sc.settings.h; });
+}
+std::int64_t Simulation::output_every() const {
+  return std::visit(Overloaded{[](const std::shared_ptr<const LagrangianScene>& sc) { return sc->output_every; },
+                               [](const std::shared_ptr<const LureScene>& sc) { return sc->settings.output_every; }},
+                    system_);
+}
+std::int64_t Simulation::planned_steps() const {
+  return on_scene(system_, [](const auto& sc) { return fixed_step_count(sc.settings.t0, sc.settings.t_end, sc.settings.h); });
+}
+std::int64_t Simulation::max_steps() const {
+  return on_scene(system_, [](const auto& sc) { return sc.settings.max_steps; });
+}
 
 Simulation Simulation::with_limits(const RunLimits& limits) const {
   Simulation out = *this;
   out.latest_ = std::make_shared<Latest>();
-  if (lure_) {
-    auto sc = std::make_shared<LureScene>(*lure_);
-    if (limits.max_steps) sc->settings.max_steps = std::min(sc->settings.max_steps, *limits.max_steps);
-    if (limits.output_every) sc->settings.output_every = *limits.output_every;
-    out.lure_ = std::move(sc);
-  } else {
-    auto sc = std::make_shared<LagrangianScene>(*lagrangian_);
-    if (limits.max_steps) {
-      sc->settings.max_steps = std::min(sc->settings.max_steps, *limits.max_steps);
-      sc->contact_settings.max_steps = sc->settings.max_steps;
-    }
-    if (limits.output_every) sc->output_every = *limits.output_every;
-    out.lagrangian_ = std::move(sc);
-  }
+  std::visit(Overloaded{[&](const std::shared_ptr<const LagrangianScene>& scene) {
+                          auto sc = std::make_shared<LagrangianScene>(*scene);
+                          if (limits.max_steps) {
+                            sc->settings.max_steps = std::min(sc->settings.max_steps, *limits.max_steps);
+                            sc->contact_settings.max_steps = sc->settings.max_steps;
+                          }
+                          if (limits.output_every) sc->output_every = *limits.output_every;
+                          out.system_ = std::shared_ptr<const LagrangianScene>(std::move(sc));
+                        },
+                        [&](const std::shared_ptr<const LureScene>& scene) {
+                          auto sc = std::make_shared<LureScene>(*scene);
+                          if (limits.max_steps) sc->settings.max_steps = std::min(sc->settings.max_steps, *limits.max_steps);
+                          if (limits.output_every) sc->settings.output_every = *limits.output_every;
+                          out.system_ = std::shared_ptr<const LureScene>(std::move(sc));
+                        }},
+             system_);
   return out;
 }
 
@@ -77,15 +127,16 @@ RunSummary Simulation::run(RunObserver* observer, RunDiagnostics* diagnostics) c
   RunDiagnostics local;
   RunDiagnostics& d = diagnostics ? *diagnostics : local;
   d = RunDiagnostics{};
-  if (lure_) {
-    d.lure.emplace();
-    return run_lure_scene(*lure_, observer, &*d.lure);
-  }
-  if (lagrangian_->scheme == Scheme::kMoreauJean) {
-    d.contacts.emplace();
-    return run_scene(*lagrangian_, observer, &*d.contacts);
-  }
-  return run_scene(*lagrangian_, observer);
+  return std::visit(Overloaded{[&](const std::shared_ptr<const LagrangianScene>& sc) {
+                                 if (sc->scheme != Scheme::kMoreauJean) return run_scene(*sc, observer);
+                                 d.contacts.emplace();
+                                 return run_scene(*sc, observer, &*d.contacts);
+                               },
+                               [&](const std::shared_ptr<const LureScene>& sc) {
+                                 d.lure.emplace();
+                                 return run_lure_scene(*sc, observer, &*d.lure);
+                               }},
+                    system_);
 }
 
 RunSummary Simulation::run(RunObserver* observer) const {
@@ -99,12 +150,20 @@ RunSummary Simulation::run(RunObserver* observer) const {
 }
 
 nlohmann::json Simulation::report_json(const RunSummary& summary, const RunDiagnostics& d) const {
-  if (lure_) return scene::report_json(*lure_, summary, d.lure ? &*d.lure : nullptr);
-  return scene::report_json(*lagrangian_, summary, d.contacts ? &*d.contacts : nullptr);
+  return std::visit(
+      Overloaded{[&](const std::shared_ptr<const LagrangianScene>& sc) {
+                   return scene::report_json(*sc, summary, d.contacts ? &*d.contacts : nullptr);
+                 },
+                 [&](const std::shared_ptr<const LureScene>& sc) { return scene::report_json(*sc, summary, d.lure ? &*d.lure : nullptr); }},
+      system_);
 }
 std::string Simulation::report_text(const RunSummary& summary, const RunDiagnostics& d) const {
-  if (lure_) return scene::report_text(*lure_, summary, d.lure ? &*d.lure : nullptr);
-  return scene::report_text(*lagrangian_, summary, d.contacts ? &*d.contacts : nullptr);
+  return std::visit(
+      Overloaded{[&](const std::shared_ptr<const LagrangianScene>& sc) {
+                   return scene::report_text(*sc, summary, d.contacts ? &*d.contacts : nullptr);
+                 },
+                 [&](const std::shared_ptr<const LureScene>& sc) { return scene::report_text(*sc, summary, d.lure ? &*d.lure : nullptr); }},
+      system_);
 }
 
 nlohmann::json Simulation::report_json(const RunSummary& summary) const {

@@ -11,6 +11,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <variant>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -81,14 +82,15 @@ class Simulation {
   std::string report_text(const RunSummary& summary, const RunDiagnostics& diagnostics) const;
 
   // The underlying scene for Lagrangian systems (nullptr for other system types).
-  const LagrangianScene* lagrangian() const { return lagrangian_.get(); }
+  const LagrangianScene* lagrangian() const;
   // The underlying scene for Lur'e systems (nullptr for other system types).
-  const LureScene* lure() const { return lure_.get(); }
+  const LureScene* lure() const;
 
  private:
   struct Latest;
-  std::shared_ptr<const LagrangianScene> lagrangian_;
-  std::shared_ptr<const LureScene> lure_;
+  // The compiled system: exactly one kind, shared by copies (with_limits copies it only to change it).
+  using System = std::variant<std::shared_ptr<const LagrangianScene>, std::shared_ptr<const LureScene>>;
+  System system_;
   std::shared_ptr<Latest> latest_;
 };
 
