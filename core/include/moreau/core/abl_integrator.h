@@ -44,6 +44,7 @@
 #include "moreau/core/observer.h"
 #include "moreau/core/one_step_solver.h"
 #include "moreau/core/run_summary.h"
+#include "moreau/core/step_conditions.h"
 #include "moreau/core/stepping_driver.h"
 #include "moreau/core/types.h"
 
@@ -74,7 +75,7 @@ class AblIntegrator {
  public:
   static constexpr int N = Model::kDof;
 
-  AblIntegrator(Model& model, const AblSettings& settings) : model_(model), settings_(settings) {
+  AblIntegrator(Model& model, const AblSettings& settings) : model_(model), settings_(settings), checker_(model.dof()) {
     const int n = model_.dof();
     const Controller<N>& phi = model_.controller();
     weights_ = phi.weights;
@@ -138,6 +139,9 @@ class AblIntegrator {
         }
       }
 
+      // Assumption 3.1 and Theorem 4.1's (4.2) at (Q^k, V^k), from the terms already evaluated.
+      if (!check_step(rec, q, h_k, k, t)) return rec.fail(k, t, q.data(), v.data(), failure_);
+
       // One step of (0.2): the inclusion (6.5) for V^{k+1}.
       const double inv_h = 1.0 / h_k;
       if (settings_.velocity_update == VelocityUpdate::kImplicit) {
@@ -192,7 +196,6 @@ class AblIntegrator {
   // The summary of a run that ended, and Theorem 4.3's equilibrium inclusion at its final position:
   // -F(t, Q, 0) - grad V(Q) in dPhi(0).
   void finish(RunRecorder& rec, const Vec<N>& q, const Vec<N>& v, double t, std::int64_t k, double energy) {
-    rec.finish(k, t, q.data(), v.data(), energy);
     RunSummary& s = rec.summary();
     model_.evaluate(t, q, zero_, terms_);
     const Vec<N> z = -terms_.g;
@@ -200,6 +203,21 @@ class AblIntegrator {
     s.equilibrium.evaluated = z.allFinite();
     s.equilibrium.residual = phi.distance_to_subdifferential_at_zero(z);
     s.equilibrium.interior = phi.in_interior_of_subdifferential_at_zero(z);
+    rec.finish(k, t, q.data(), v.data(), energy, s.equilibrium.evaluated && s.equilibrium.residual == 0.0);
+  }
+
+  // Records lambda_min(M(Q^k)) and, for the scheme (0.2), r_k of (4.2). False (with failure_ set) when
+  // M(Q^k) is not positive definite: the run stops there, naming t and q.
+  bool check_step(RunRecorder& rec, const Vec<N>& q, double h_k, std::int64_t k, double t) {
+    RunSummary& s = rec.summary();
+    const StepCheck c = checker_.check(terms_.M, terms_.C, h_k);
+    s.mass.record(c.lambda_min_m, k, t);
+    if (!(c.lambda_min_m > 0.0)) {
+      failure_ = not_positive_definite(c.lambda_min_m, q.data(), static_cast<int>(q.size()));
+      return false;
+    }
+    if (settings_.velocity_update == VelocityUpdate::kImplicit) s.theorem41.record_squared(c.ratio_sq_num, c.ratio_sq_den, k, t);
+    return true;
   }
 
   // The explicit peer's velocity update (see VelocityUpdate::kExplicit) into y_.
@@ -294,6 +312,8 @@ class AblIntegrator {
   Vec<N> x_, y_, Mv_, zero_, q_trial_;
   Eigen::SelfAdjointEigenSolver<Mat<N>> eig_;
   Eigen::PartialPivLU<Mat<N>> mass_lu_;
+  StepConditionChecker<N> checker_;
+  std::string failure_;
 };
 
 }  // namespace moreau

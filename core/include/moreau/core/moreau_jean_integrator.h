@@ -65,6 +65,7 @@
 #include "moreau/core/observer.h"
 #include "moreau/core/run_diagnostics.h"
 #include "moreau/core/run_summary.h"
+#include "moreau/core/step_conditions.h"
 #include "moreau/core/stepping_driver.h"
 #include "moreau/core/types.h"
 
@@ -219,6 +220,10 @@ class MoreauJeanIntegrator {
 
     while (k < steps) {
       h = grid.step(k);
+      // Assumption 3.1 at the visited states: M(Q^k) positive definite, else the run stops here.
+      const double lambda_m = checker_.lambda_min(terms_.M);
+      s.mass.record(lambda_m, k, t);
+      if (!(lambda_m > 0.0)) return rec.fail(k, t, q.data(), v.data(), not_positive_definite(lambda_m, q.data(), n_));
 
       // Free velocity: Wm V_free = M V^k - h g.
       Wm_ = terms_.M;
@@ -511,6 +516,7 @@ class MoreauJeanIntegrator {
   LagrangianTerms<N> terms_;
   Mat<N> Wm_;
   Eigen::PartialPivLU<Mat<N>> lu_, mlu_, sqlu_;
+  StepConditionChecker<N> checker_{model_.dof()};
   Vec<N> vf_, vn_, vpos_, rhs_, qn_, dq_, rsq_, vsq_;
   Mat<N> Gsq_;
   Eigen::VectorXd gap_, U_, Un_;

@@ -125,8 +125,13 @@ class RegularizedIntegrator {
     summary.v_final.assign(v_.data(), v_.data() + n);
     summary.energy_nonincreasing = summary.energy_increases == 0;
     if (rest_from >= 0) {
-      summary.converged_step = rest_from;
-      summary.converged_time = rest_time;
+      summary.rest_step = rest_from;
+      summary.rest_time = rest_time;
+      // The same window as RunRecorder::finish (a regularized law never rests, so this is for symmetry).
+      if (samples - 1 - rest_from >= RunSummary::kMinRestSteps) {
+        summary.converged_step = rest_from;
+        summary.converged_time = rest_time;
+      }
     }
     summary.solver.total_iterations = rhs_evaluations_;
     summary.h_min = summary.h_max = s_.h;

@@ -3,11 +3,15 @@
 // client, except the one-line BriefReport.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
+#include <limits>
 #include <optional>
 #include <string>
 #include <utility>
 #include <vector>
+
+#include "moreau/core/verdict.h"
 
 namespace moreau {
 
@@ -30,15 +34,81 @@ struct EquilibriumCheck {
   bool interior = false;
 };
 
+// A per-step condition "ratio <= 1": how many steps were checked, how many failed, the first failure and
+// the largest ratio (with where it was).
+struct StepConditionTrack {
+  std::int64_t checked = 0;
+  std::int64_t violations = 0;
+  std::int64_t first_violation_step = -1;
+  double first_violation_time = 0.0;
+  std::int64_t worst_step = -1;
+  double worst_time = 0.0;
+
+  // A ratio above 1 + kRoundoff fails: the Theorem 4.1 rule sets r_k = 1 up to round-off on purpose.
+  static constexpr double kRoundoff = 64.0 * std::numeric_limits<double>::epsilon();
+
+  // r_k^2 = num / den (den > 0), given as a fraction so that the hot loop needs no division and no square
+  // root for it.
+  void record_squared(double num, double den, std::int64_t k, double t) {
+    ++checked;
+    if (num * worst_den_ > worst_num_ * den) {
+      worst_num_ = num;
+      worst_den_ = den;
+      worst_step = k;
+      worst_time = t;
+    }
+    if (num > den * ((1.0 + kRoundoff) * (1.0 + kRoundoff))) {
+      if (violations == 0) {
+        first_violation_step = k;
+        first_violation_time = t;
+      }
+      ++violations;
+    }
+  }
+  // The largest r_k: an upper bound on every checked ratio, exact when > 1.
+  double worst_ratio() const { return worst_num_ > 0.0 ? std::sqrt(worst_num_ / worst_den_) : 0.0; }
+  Verdict verdict() const { return checked == 0 ? Verdict::kNotChecked : (violations > 0 ? Verdict::kFails : Verdict::kHolds); }
+
+ private:
+  double worst_num_ = 0.0, worst_den_ = 1.0;
+};
+
+// The smallest eigenvalue of M(Q^k) over the run (Assumption 3.1 at the visited states): exact for n <= 2;
+// for larger n a lower bound wherever Gershgorin's bound already proved definiteness.
+struct MassDefinitenessTrack {
+  std::int64_t checked = 0;
+  double lambda_min = std::numeric_limits<double>::infinity();
+  std::int64_t at_step = -1;
+  double at_time = 0.0;
+
+  void record(double lambda, std::int64_t k, double t) {
+    ++checked;
+    if (lambda < lambda_min) {
+      lambda_min = lambda;
+      at_step = k;
+      at_time = t;
+    }
+  }
+  Verdict verdict() const { return checked == 0 ? Verdict::kNotChecked : (lambda_min > 0.0 ? Verdict::kHolds : Verdict::kFails); }
+};
+
 struct RunSummary {
   RunStatus status = RunStatus::kCompleted;
   std::string message;  // why a run failed or was cancelled; empty when completed
 
   std::int64_t steps = 0;
   double t_final = 0.0;
-  // The first step N with V^k == 0.0 exactly for every k >= N up to the last step, if any.
+  // The first step N with V^k == 0.0 exactly for every k >= N up to the last step, if any: at rest at
+  // the end, which by itself proves nothing (V^k can pass through 0.0 at the last step).
+  std::optional<std::int64_t> rest_step;
+  std::optional<double> rest_time;
+  // rest_step, when the rest lasted at least kMinRestSteps steps to the end of the run and the final
+  // state is an equilibrium of the scheme (for (0.2): dist(-F(t, Q, 0) - grad V(Q), dPhi(0)) == 0, see
+  // `equilibrium`): finite-step convergence as observed on this run. Whether Theorem 4.3 guarantees it
+  // is the report's guarantees section, from the theorem's hypotheses.
   std::optional<std::int64_t> converged_step;
   std::optional<double> converged_time;
+  static constexpr std::int64_t kMinRestSteps = 10;
   std::vector<double> q_final, v_final;
 
   // E_k = 1/2 <M(Q^k) V^k, V^k>.
@@ -53,6 +123,10 @@ struct RunSummary {
 
   EquilibriumCheck equilibrium;
   SolverEffort solver;
+
+  // Checked at every step of the schemes with a mass matrix (step_conditions.h).
+  MassDefinitenessTrack mass;      // Assumption 3.1: lambda_min(M(Q^k)) > 0
+  StepConditionTrack theorem41;    // (4.2) of Theorem 4.1, for the scheme (0.2) only
 
   // Wall time by phase, in the order they ran ("parse", "compile", "integrate", "write", ...).
   std::vector<std::pair<std::string, double>> phase_seconds;

@@ -119,9 +119,10 @@ class RunRecorder {
     if (last_emitted_ != k) emit(k, t, h_k, q, v, energy);
   }
 
-  // The summary of a run that ended at step k (completed or cancelled): the final state, energy and
-  // convergence step.
-  void finish(std::int64_t k, double t, const double* q, const double* v, double energy) {
+  // The summary of a run that ended at step k (completed or cancelled): the final state, energy, rest
+  // and convergence steps. Converged means at rest for at least RunSummary::kMinRestSteps steps to the
+  // end and, by the integrator's own test, at an equilibrium of its scheme (rest_is_equilibrium).
+  void finish(std::int64_t k, double t, const double* q, const double* v, double energy, bool rest_is_equilibrium = true) {
     s_.steps = k;
     s_.t_final = t;
     s_.q_final.assign(q, q + n_);
@@ -129,8 +130,12 @@ class RunRecorder {
     s_.energy_final = energy;
     s_.energy_nonincreasing = s_.energy_increases == 0;
     if (rest_from_ >= 0) {
-      s_.converged_step = rest_from_;
-      s_.converged_time = rest_time_;
+      s_.rest_step = rest_from_;
+      s_.rest_time = rest_time_;
+      if (k - rest_from_ >= RunSummary::kMinRestSteps && rest_is_equilibrium) {
+        s_.converged_step = rest_from_;
+        s_.converged_time = rest_time_;
+      }
     }
     if (k == 0) s_.h_min = s_.h_max = 0.0;
   }
