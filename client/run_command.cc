@@ -29,6 +29,7 @@ struct RunOptions {
   std::string progress = "auto";
   std::vector<std::string> figures;
   FigureFlags figure_flags;
+  bool strict = false;
 };
 
 // Series labels with the units the scene gives in /units ({"x1": "m", "t": "s"}): "x1 [m]" for a
@@ -132,7 +133,14 @@ int run(const RunOptions& opt) {
   } else {
     std::cout << sim->report_text(summary, diagnostics);
   }
-  return summary.status == RunStatus::kCompleted ? 0 : 1;
+  if (summary.status != RunStatus::kCompleted) return 1;
+  // A hypothesis the run relies on fails: a warning, or with --strict the exit status 3.
+  const std::string failure = sim->guarantees(summary).relied_on_failure();
+  if (!failure.empty()) {
+    std::cerr << "moreau: " << (opt.strict ? "error" : "warning") << ": " << failure << "\n";
+    if (opt.strict) return 3;
+  }
+  return 0;
 }
 
 }  // namespace
@@ -149,6 +157,8 @@ void register_run_command(CLI::App& app, Actions& actions) {
   cmd->add_option("--figure", opt->figures,
                   "Draw a figure: FILE (state figure) or KIND=FILE, KIND one of state, energy, step, phase; "
                   ".png through OSMesa or .svg");
+  cmd->add_flag("--strict", opt->strict,
+                 "Exit with status 3 when a hypothesis of a theorem the run relies on fails (see the report's guarantees)");
   opt->figure_flags.add_to(cmd);
   actions[cmd] = [opt] { return run(*opt); };
 }

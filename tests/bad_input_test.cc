@@ -406,7 +406,7 @@ std::vector<Case> cases() {
 
   // The request's own fields.
   t.push_back(post("UnknownRequestField", request_body([](json& r) { r["colour"] = "blue"; }), 400, "/colour",
-                   "unknown field (expected scene, overrides, stream)"));
+                   "unknown field (expected scene, overrides, stream, strict)"));
   t.push_back(post("MissingScene", R"({"overrides": []})", 400, "/scene", "missing required field 'scene'"));
   t.push_back(post("SceneIsANumber", R"({"scene": 5})", 400, "/scene", "expected a scene object or the name"));
   t.push_back(post("UnknownShippedScene", R"({"scene": "no-such-scene"})", 400, "/scene", "no shipped scene by that name"));

@@ -47,6 +47,24 @@ TEST(Cli, RunPrintsAReadableReport) {
     EXPECT_NE(r.out.find(part), std::string::npos) << part << "\n" << r.out;
 }
 
+// The example: the manipulator at h = 1 with a large initial velocity breaks (4.2) of Theorem 4.1
+// from its first step (tests/guarantees_test.cc computes r_0 from the paper's closed forms). Without
+// --strict the run completes with a warning; with it, exit status 3. The default scene satisfies (4.2)
+// at every step and passes --strict.
+TEST(Cli, StrictFailsWhenARelieduponHypothesisFails) {
+  const std::string bad = "run " + kScene + " --set integrator.h=1 --set 'initial.v=[10,10]' --set integrator.t_end=20";
+  const Result warn = Moreau(bad);
+  EXPECT_EQ(warn.status, 0) << warn.out;
+  EXPECT_NE(warn.out.find("moreau: warning: Theorem 4.1: (4.2)"), std::string::npos) << warn.out;
+  EXPECT_NE(warn.out.find("fails at"), std::string::npos) << warn.out;
+  const Result strict = Moreau(bad + " --strict");
+  EXPECT_EQ(strict.status, 3) << strict.out;
+  EXPECT_NE(strict.out.find("moreau: error: Theorem 4.1"), std::string::npos) << strict.out;
+  const Result good = Moreau("run " + kScene + " --strict");
+  EXPECT_EQ(good.status, 0) << good.out;
+  EXPECT_EQ(good.out.find("moreau: warning"), std::string::npos) << good.out;
+}
+
 TEST(Cli, JsonReportHasTheDocumentedFields) {
   const Result r = Moreau("run " + kScene + " --json");
   ASSERT_EQ(r.status, 0) << r.out;

@@ -53,6 +53,37 @@ LocalRun run_locally(const json& doc) {
   return out;
 }
 
+// `strict` as `moreau run --strict`: the manipulator at h = 1 with a large initial velocity breaks (4.2)
+// of Theorem 4.1 from its first step (tests/guarantees_test.cc computes r_0 from the paper's closed
+// forms). Without strict the job is done and its report's guarantees say so; with strict it is failed,
+// and the report says why. A strict that is not a boolean is refused with its pointer.
+TEST(ServerApi, StrictJobFailsWhenARelieduponHypothesisFails) {
+  TestServer ts;
+  auto c = ts.client();
+  const json overrides = {"integrator.h=1", "initial.v=[10,10]", "integrator.t_end=20"};
+  auto lax = submit(*c, {{"scene", "manipulator"}, {"overrides", overrides}});
+  ASSERT_EQ(lax->status, 202) << lax->body;
+  const json done = wait_final(*c, json::parse(lax->body)["id"]);
+  ASSERT_EQ(done["state"], "done") << done.dump(2);
+  EXPECT_EQ(done["report"]["guarantees"][0]["result"], "Theorem 4.1");
+  EXPECT_EQ(done["report"]["guarantees"][0]["verdict"], "fails");
+
+  auto strict = submit(*c, {{"scene", "manipulator"}, {"overrides", overrides}, {"strict", true}});
+  ASSERT_EQ(strict->status, 202) << strict->body;
+  const json failed = wait_final(*c, json::parse(strict->body)["id"]);
+  ASSERT_EQ(failed["state"], "failed") << failed.dump(2);
+  EXPECT_THAT(failed["reason"].get<std::string>(), ::testing::HasSubstr("strict: Theorem 4.1: (4.2)"));
+  EXPECT_EQ(failed["report"]["status"], "failed");
+
+  auto ok = submit(*c, {{"scene", "manipulator"}, {"strict", true}});
+  ASSERT_EQ(ok->status, 202) << ok->body;
+  EXPECT_EQ(wait_final(*c, json::parse(ok->body)["id"])["state"], "done");
+
+  auto bad = submit(*c, {{"scene", "manipulator"}, {"strict", "yes"}});
+  ASSERT_EQ(bad->status, 400);
+  EXPECT_EQ(error_of(bad)["pointer"], "/strict");
+}
+
 TEST(ServerApi, JobLifeFromSubmissionToResults) {
   TestServer ts;
   auto c = ts.client();

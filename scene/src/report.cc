@@ -1,5 +1,7 @@
 #include "moreau/scene/report.h"
 
+#include "moreau/scene/guarantees.h"
+
 #include <algorithm>
 #include <cstdio>
 #include <sstream>
@@ -53,6 +55,33 @@ nlohmann::json matrix_json(const Eigen::MatrixXd& M) {
     rows.push_back(row);
   }
   return rows;
+}
+
+// Rest and convergence as the report states them (guarantees.h: ConvergenceFinding).
+nlohmann::json convergence_json(const RunSummary& s, const Guarantees& g) {
+  nlohmann::json j = {{"finding", describe(convergence_finding(s, g, "Theorem 4.3"))},
+                      {"rest_step", s.rest_step ? nlohmann::json(*s.rest_step) : nlohmann::json(nullptr)},
+                      {"rest_time", s.rest_time ? num(*s.rest_time) : nlohmann::json(nullptr)},
+                      {"rest_steps_to_end", s.rest_step ? nlohmann::json(s.steps - *s.rest_step) : nlohmann::json(nullptr)},
+                      {"min_rest_steps", RunSummary::kMinRestSteps}};
+  return j;
+}
+
+// The convergence line of the text report.
+std::string convergence_text(const RunSummary& s, const Guarantees& g, const char* what) {
+  std::ostringstream os;
+  const ConvergenceFinding f = convergence_finding(s, g, "Theorem 4.3");
+  if (f == ConvergenceFinding::kNotAtRest) return std::string(what) + " is not exactly 0 at the last step";
+  const std::int64_t window = s.steps - *s.rest_step;
+  os << describe(f) << ": " << what << " == 0.0 exactly from step " << *s.rest_step << " (t = " << fmt(*s.rest_time) << ") to the end, "
+     << window << " step" << (window == 1 ? "" : "s");
+  if (f == ConvergenceFinding::kAtRestAtEnd) {
+    if (window < RunSummary::kMinRestSteps)
+      os << " (converged needs at least " << RunSummary::kMinRestSteps << " steps at rest to the end)";
+    else
+      os << " (the final position is not an equilibrium of the scheme)";
+  }
+  return os.str();
 }
 
 std::string name_of(const LagrangianScene& scene, int i) {
@@ -167,6 +196,7 @@ std::string contact_text(const LagrangianScene& scene, const RunSummary& s, cons
       os << " (" << w.increases << " rises, largest " << fmt(w.max_increase) << ", first at t = " << fmt(w.first_increase_time) << ")";
     os << "\n";
   }
+  os << guarantees_text(lagrangian_guarantees(scene, s));
   os << "  solver        max " << s.solver.max_iterations << " iterations per step, " << s.solver.total_iterations
      << " in all, max residual " << fmt(s.solver.max_residual) << ", " << s.solver.fallback_steps << " fallback steps\n";
   os << "  wall time     ";
@@ -193,6 +223,8 @@ nlohmann::json report_json(const LagrangianScene& scene, const RunSummary& s, co
   j["t_final"] = num(s.t_final);
   j["converged_step"] = s.converged_step ? nlohmann::json(*s.converged_step) : nlohmann::json(nullptr);
   j["converged_time"] = s.converged_time ? num(*s.converged_time) : nlohmann::json(nullptr);
+  const Guarantees g = lagrangian_guarantees(scene, s);
+  j["convergence"] = convergence_json(s, g);
   j["final"] = {{"q", s.q_final}, {"v", s.v_final}};
   j["energy_nonincreasing"] = s.energy_nonincreasing;
   j["energy"] = {{"initial", num(s.energy_initial)},
@@ -214,6 +246,7 @@ nlohmann::json report_json(const LagrangianScene& scene, const RunSummary& s, co
                  {"rest_steps", s.solver.rest_steps}};
   j["h_min"] = num(s.h_min);
   j["h_max"] = num(s.h_max);
+  j["guarantees"] = guarantees_json(g);
   nlohmann::json phases = nlohmann::json::object();
   for (const auto& [name, seconds] : s.phase_seconds) phases[name] = seconds;
   j["phase_seconds"] = phases;
@@ -235,12 +268,8 @@ std::string report_text(const LagrangianScene& scene, const RunSummary& s, const
   if (!s.message.empty()) os << "  message       " << s.message << "\n";
   os << "  final state   q = " << vec(s.q_final) << "\n";
   os << "                v = " << vec(s.v_final) << "\n";
-  if (s.converged_step) {
-    os << "  convergence   v == 0.0 exactly from step " << *s.converged_step << " (t = " << fmt(*s.converged_time)
-       << ") to the end [Theorem 4.3]\n";
-  } else {
-    os << "  convergence   v is not exactly 0 at the last step\n";
-  }
+  const Guarantees g = lagrangian_guarantees(scene, s);
+  os << "  convergence   " << convergence_text(s, g, "v") << "\n";
   if (s.equilibrium.evaluated) {
     os << "  equilibrium   dist(-F(t,Q,0) - grad V(Q), dPhi(0)) = " << fmt(s.equilibrium.residual)
        << (s.equilibrium.residual == 0.0 ? " (an equilibrium)" : " (not an equilibrium)")
@@ -250,10 +279,9 @@ std::string report_text(const LagrangianScene& scene, const RunSummary& s, const
      << ": E_0 = " << fmt(s.energy_initial) << ", E_N = " << fmt(s.energy_final);
   if (!s.energy_nonincreasing) {
     os << " (" << s.energy_increases << " rises, largest " << fmt(s.energy_max_increase) << ")";
-    os << "\n                Theorem 4.2 promises a non-increasing E_k only with step_rule theorem-4.2 and\n"
-          "                Assumption 4.1 (||F|| <= beta < alpha, ||grad V|| <= (alpha - beta)/2)";
   }
   os << "\n";
+  os << guarantees_text(g);
   os << "  solver        max " << s.solver.max_iterations << " iterations per step, " << s.solver.total_iterations
      << " in all, max residual " << fmt(s.solver.max_residual) << ", " << s.solver.rest_steps << " steps at rest, "
      << s.solver.fallback_steps << " fallback steps\n";

@@ -266,8 +266,9 @@ class Compiler {
       for (int i = 0; i < n_; ++i)
         g_[i] = graph_.binary(Op::kAdd, g_[i],
                               expression(f[i], "/system/force/" + std::to_string(i), kTime | kPosition | kVelocity, "the force"));
+      // Theorem 4.3 needs F independent of t (4.16).
+      for (int i = 0; i < n_; ++i) scene.force_depends_on_time = scene.force_depends_on_time || graph_.depends_on(g_[i], 0);
     }
-    (void)scene;
   }
 
   void controller(const json& system, LagrangianScene& scene) {

@@ -166,6 +166,12 @@ std::string Simulation::report_text(const RunSummary& summary, const RunDiagnost
       system_);
 }
 
+Guarantees Simulation::guarantees(const RunSummary& summary) const {
+  return std::visit(Overloaded{[&](const std::shared_ptr<const LagrangianScene>& sc) { return lagrangian_guarantees(*sc, summary); },
+                               [&](const std::shared_ptr<const LureScene>&) { return Guarantees{}; }},
+                    system_);
+}
+
 nlohmann::json Simulation::report_json(const RunSummary& summary) const {
   if (!latest_) return report_json(summary, RunDiagnostics{});
   std::lock_guard<std::mutex> lock(latest_->mutex);

@@ -165,6 +165,7 @@ json JobManager::record_locked(const Job& job, JobState state, const std::string
   if (job.stream.enabled) {
     r["stream"] = {{"prefix", job.stream.prefix}, {"period", job.stream.period}, {"realtime", job.stream.realtime}};
   }
+  if (job.strict) r["strict"] = true;
   return r;
 }
 
@@ -203,6 +204,7 @@ void JobManager::recover() {
     job->t_end = record.value("t_end", 0.0);
     job->planned_steps = record.value("planned_steps", std::int64_t{0});
     job->reason = record.value("reason", "");
+    job->strict = record.contains("strict") && record["strict"].is_boolean() && record["strict"].get<bool>();
     if (record.contains("progress") && record["progress"].is_object()) {
       const json& p = record["progress"];
       if (p.contains("t") && p["t"].is_number()) job->t_now = p["t"].get<double>();
@@ -615,6 +617,15 @@ void JobManager::run(const std::shared_ptr<Job>& job) {
                       " output samples (--max-samples, --max-result-bytes) at t = " + std::to_string(job->t_now.load()) +
                       ": raise /output/every";
   }
+  // The guarantees: a hypothesis the run relies on that fails is a warning (an event on the stream), or
+  // with `strict` the end of the job (failed, the report says why).
+  if (summary.status == RunStatus::kCompleted) {
+    commit->hypothesis_failure = sim.guarantees(summary).relied_on_failure();
+    if (job->strict && !commit->hypothesis_failure.empty()) {
+      summary.status = RunStatus::kFailed;
+      summary.message = "strict: " + commit->hypothesis_failure;
+    }
+  }
   commit->state = JobState::kDone;
   if (summary.status == RunStatus::kFailed) {
     commit->state = JobState::kFailed;
@@ -740,6 +751,7 @@ void JobManager::commit(Commit& c) {
   // The stream's last events after the state: a subscriber that reacts to "finished" finds the job
   // final over HTTP, with its results stored.
   if (c.stream) {
+    if (!c.hypothesis_failure.empty()) c.stream->push_event("hypothesis_failed", summary.steps, summary.t_final, c.hypothesis_failure);
     if (summary.converged_step) {
       c.stream->push_event("converged", *summary.converged_step, summary.converged_time.value_or(summary.t_final),
                            "v == 0.0 exactly from step " + std::to_string(*summary.converged_step) + " to the end");

@@ -67,6 +67,8 @@ struct Job {
   std::int64_t planned_steps = 0;
   double created = 0;  // Unix time, seconds
   StreamSettings stream;
+  // The request's `strict`: a run whose relied-on hypothesis fails ends failed (else a warning).
+  bool strict = false;
 
   // Set before the job is queued, used by its worker, released when it ends.
   std::optional<scene::Simulation> sim;
@@ -158,6 +160,7 @@ class JobManager {
     RunSummary summary;
     JobState state = JobState::kDone;
     std::string reason;
+    std::string hypothesis_failure;  // a hypothesis the run relies on that fails (guarantees.h), or ""
     double integrate_seconds = 0;
     std::chrono::steady_clock::time_point wall_start;
     ~Commit() {

@@ -770,8 +770,10 @@ std::optional<std::string> Server::Impl::read_body(const Request&, Response& res
 void Server::Impl::post_job(const Request&, Response& res, const std::string& text) {
   const auto t_load = Clock::now();
   answer_bad_requests(res, [&] {
-    const json body = post_body(text, {"scene", "overrides", "stream"}, "{scene, overrides?, stream?}");
+    const json body = post_body(text, {"scene", "overrides", "stream", "strict"}, "{scene, overrides?, stream?, strict?}");
     const json doc = request_scene(body);
+    if (body.contains("strict") && !body["strict"].is_boolean())
+      throw BadRequest{400, "invalid request", "/strict", "expected true or false", "request"};
 
     // Streaming: true, or {"channel": PREFIX, "period": seconds, "realtime": bool}.
     StreamSettings stream;
@@ -870,6 +872,7 @@ void Server::Impl::post_job(const Request&, Response& res, const std::string& te
     job->planned_steps = planned;
     job->record_every = every;
     job->stream = stream;
+    job->strict = body.contains("strict") && body["strict"].get<bool>();
     if (stream.enabled) set_channels(job->stream, job->id);
     job->sim.emplace(sim.with_limits(limits));
     job->load_seconds = std::chrono::duration<double>(Clock::now() - t_load).count();

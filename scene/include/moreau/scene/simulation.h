@@ -19,6 +19,7 @@
 #include "moreau/core/observer.h"
 #include "moreau/core/run_diagnostics.h"
 #include "moreau/core/run_summary.h"
+#include "moreau/scene/guarantees.h"
 #include "moreau/scene/scene.h"
 
 namespace moreau::scene {
@@ -80,6 +81,10 @@ class Simulation {
   std::string report_text(const RunSummary& summary) const;
   nlohmann::json report_json(const RunSummary& summary, const RunDiagnostics& diagnostics) const;
   std::string report_text(const RunSummary& summary, const RunDiagnostics& diagnostics) const;
+
+  // The guarantees section of a run's report (guarantees.h): the hypotheses of each theorem the run
+  // rests on, checked. `moreau run --strict` and a job's `strict` fail on relied_on_failure().
+  Guarantees guarantees(const RunSummary& summary) const;
 
   // The underlying scene for Lagrangian systems (nullptr for other system types).
   const LagrangianScene* lagrangian() const;

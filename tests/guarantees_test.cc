@@ -1,0 +1,137 @@
+// The guarantees section: every verdict compared with an independent computation, on runs where the
+// answer is known. References: the closed forms of the manipulator's M and C in the paper's section 6
+// (models::Manipulator, hand-written, not compiled from the scene), Eigen's eigen and singular value
+// solvers for lambda_min(M) and ||C||_2, the Coulomb oscillator's closed-form equilibrium set
+// |k x| <= a, and M(q) = 1 - q^2, positive definite exactly for |q| < 1.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+
+#include <Eigen/Dense>
+
+#include "moreau/core/models/manipulator.h"
+#include "moreau/scene/guarantees.h"
+#include "moreau/scene/scene.h"
+#include "moreau/scene/simulation.h"
+
+namespace moreau::scene {
+namespace {
+
+std::string ScenePath(const std::string& name) { return std::string(MOREAU_SOURCE_DIR) + "/scenes/" + name; }
+
+const HypothesisCheck& Hypothesis(const Guarantees& g, const std::string& result, const std::string& starts_with) {
+  const Guarantee* x = g.find(result);
+  EXPECT_NE(x, nullptr) << result;
+  for (const HypothesisCheck& h : x->hypotheses)
+    if (h.name.rfind(starts_with, 0) == 0) return h;
+  ADD_FAILURE() << "no hypothesis " << starts_with << " in " << result;
+  static const HypothesisCheck none;
+  return none;
+}
+
+// The example: scenes/coulomb-oscillator.json with h = 0.1 has V == 0.0 at its last step only,
+// far from rest. Reference: the equilibria of m x'' + k x in -a Sign(x') are |k x| <= a, so the
+// equilibrium residual at x is max(0, |k x| - a) (k = 4, a = 1 in the scene).
+TEST(Guarantees, RestAtTheLastStepOnlyIsNotConvergence) {
+  const Simulation sim = Simulation::from_file(ScenePath("coulomb-oscillator.json"), {"integrator.h=0.1"});
+  const RunSummary s = sim.run(nullptr);
+  ASSERT_EQ(s.status, RunStatus::kCompleted) << s.message;
+  ASSERT_TRUE(s.rest_step.has_value());
+  EXPECT_LT(s.steps - *s.rest_step, RunSummary::kMinRestSteps);
+  EXPECT_FALSE(s.converged_step.has_value());
+  const double x = s.q_final[0];
+  EXPECT_NEAR(s.equilibrium.residual, std::max(0.0, std::abs(4.0 * x) - 1.0), 1e-12);
+  EXPECT_GT(s.equilibrium.residual, 1.0);
+  const Guarantees g = sim.guarantees(s);
+  EXPECT_EQ(convergence_finding(s, g, "Theorem 4.3"), ConvergenceFinding::kAtRestAtEnd);
+  const std::string text = sim.report_text(s);
+  EXPECT_EQ(text.find("[Theorem 4.3]"), std::string::npos) << text;
+  EXPECT_NE(text.find("at rest at the end only"), std::string::npos) << text;
+  EXPECT_EQ(sim.report_json(s)["converged_step"], nullptr);
+}
+
+// At its own step the oscillator sticks at x = 0.1139 (|k x| < a: an equilibrium, interior), but
+// Theorem 4.3's hypotheses fail (fixed step rule, no quadratic term: eta = 0), so the report says
+// converged without citing the theorem as a guarantee.
+TEST(Guarantees, ConvergenceWithoutTheTheoremsHypothesesIsNotAttributedToIt) {
+  const Simulation sim = Simulation::from_file(ScenePath("coulomb-oscillator.json"));
+  const RunSummary s = sim.run(nullptr);
+  ASSERT_TRUE(s.converged_step.has_value());
+  EXPECT_GE(s.steps - *s.converged_step, RunSummary::kMinRestSteps);
+  EXPECT_LT(std::abs(4.0 * s.q_final[0]), 1.0);  // inside the equilibrium set, by the closed form
+  EXPECT_EQ(s.equilibrium.residual, 0.0);
+  const Guarantees g = sim.guarantees(s);
+  EXPECT_EQ(Hypothesis(g, "Theorem 4.2", "the step rule").verdict, Verdict::kFails);
+  EXPECT_EQ(Hypothesis(g, "Theorem 4.2", "Assumption 4.1 1)").verdict, Verdict::kFails);  // eta = 0
+  EXPECT_EQ(Hypothesis(g, "Theorem 4.3", "(4.16)").verdict, Verdict::kHolds);
+  EXPECT_EQ(g.find("Theorem 4.3")->verdict(), Verdict::kFails);
+  EXPECT_EQ(convergence_finding(s, g, "Theorem 4.3"), ConvergenceFinding::kConvergedNotGuaranteed);
+  EXPECT_TRUE(g.relied_on_failure().empty()) << g.relied_on_failure();  // (4.2) holds at h = 1e-3
+}
+
+// r_0 = 2 h ||C(Q^0, V^0)||_2 / lambda_min(M(Q^0)) from the paper's closed-form M and C, with Eigen's
+// solvers (not the checker's closed forms).
+double InitialRatio(double h, const Vec<2>& q, const Vec<2>& v) {
+  models::Manipulator model;
+  LagrangianTerms<2> terms;
+  model.evaluate(0.0, q, v, terms);
+  const double lambda = Eigen::SelfAdjointEigenSolver<Mat<2>>(terms.M).eigenvalues()(0);
+  const double c_norm = Eigen::JacobiSVD<Mat<2>>(terms.C).singularValues()(0);
+  return 2.0 * h * c_norm / lambda;
+}
+
+// The example: the manipulator with h = 1 and a large initial velocity, under the fixed rule.
+TEST(Guarantees, FixedStepBeyondTheorem41IsCountedFromItsFirstStep) {
+  const Simulation sim = Simulation::from_file(ScenePath("manipulator.json"), {"integrator.h=1", "initial.v=[10,10]", "integrator.t_end=20"});
+  const RunSummary s = sim.run(nullptr);
+  const double r0 = InitialRatio(1.0, Vec<2>(3.0, -1.0), Vec<2>(10.0, 10.0));
+  ASSERT_GT(r0, 1.0);
+  EXPECT_GT(s.theorem41.violations, 0);
+  EXPECT_EQ(s.theorem41.first_violation_step, 0);
+  EXPECT_EQ(s.theorem41.first_violation_time, 0.0);
+  EXPECT_GE(s.theorem41.worst_ratio(), r0 * (1.0 - 1e-12));
+  const Guarantees g = sim.guarantees(s);
+  EXPECT_EQ(g.find("Theorem 4.1")->verdict(), Verdict::kFails);
+  EXPECT_NE(g.relied_on_failure().find("(4.2)"), std::string::npos) << g.relied_on_failure();
+  EXPECT_EQ(sim.report_json(s)["guarantees"][0]["verdict"], "fails");
+}
+
+// The same start under the Theorem 4.1 rule: every r_k <= 1 (the rule's purpose), and the first ratio is
+// exactly the bound's (h_0 = lambda_min / (2 ||C||_2) makes r_0 = 1).
+TEST(Guarantees, Theorem41RuleKeepsEveryRatioAtMostOne) {
+  const Simulation sim = Simulation::from_file(
+      ScenePath("manipulator.json"), {"integrator.h=1", "initial.v=[10,10]", "integrator.t_end=20", "integrator.step_rule=\"theorem-4.1\""});
+  const RunSummary s = sim.run(nullptr);
+  ASSERT_EQ(s.status, RunStatus::kCompleted) << s.message;
+  EXPECT_EQ(s.theorem41.violations, 0);
+  EXPECT_GT(s.theorem41.checked, 0);
+  EXPECT_LE(s.theorem41.worst_ratio(), 1.0 + StepConditionTrack::kRoundoff);
+  EXPECT_NEAR(s.theorem41.worst_ratio(), 1.0, 1e-12);
+  EXPECT_EQ(sim.guarantees(s).find("Theorem 4.1")->verdict(), Verdict::kHolds);
+}
+
+// M(q) = 1 - q^2 is positive definite exactly for |q| < 1. From q = 0 at v = 1 the run reaches |q| >= 1
+// and must stop there, with t and q in the message, for both schemes.
+TEST(Guarantees, MassMatrixLosingDefinitenessStopsTheRun) {
+  for (const char* scheme : {"abl", "moreau-jean"}) {
+    const nlohmann::json doc = {{"system", {{"type", "lagrangian"}, {"coordinates", {"x"}}, {"mass", {{"1 - x^2"}}}}},
+                                {"initial", {{"q", {0.0}}, {"v", {1.0}}}},
+                                {"integrator", {{"scheme", scheme}, {"h", 1e-3}, {"t_end", 5.0}}}};
+    const Simulation sim = Simulation::from_json(doc);
+    const RunSummary s = sim.run(nullptr);
+    ASSERT_EQ(s.status, RunStatus::kFailed) << scheme;
+    EXPECT_NE(s.message.find("M(q) is not positive definite"), std::string::npos) << s.message;
+    const std::size_t at = s.message.find("q = (");
+    ASSERT_NE(at, std::string::npos) << s.message;
+    const double q = std::stod(s.message.substr(at + 5));
+    EXPECT_GE(std::abs(q), 1.0) << s.message;  // the closed form: 1 - q^2 <= 0
+    EXPECT_EQ(s.mass.verdict(), Verdict::kFails);
+    EXPECT_LE(s.mass.lambda_min, 0.0);
+    EXPECT_NEAR(s.mass.lambda_min, 1.0 - q * q, 1e-12);
+    EXPECT_GT(s.mass.checked, 1);
+  }
+}
+
+}  // namespace
+}  // namespace moreau::scene
