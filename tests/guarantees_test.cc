@@ -111,6 +111,34 @@ TEST(Guarantees, Theorem41RuleKeepsEveryRatioAtMostOne) {
   EXPECT_EQ(sim.guarantees(s).find("Theorem 4.1")->verdict(), Verdict::kHolds);
 }
 
+// Assumption 4.1 2)-3) at the recorded states. Reference: the paper's grad V = (0, m2 g b sin th2) for
+// V = -m2 g b cos th2, so at the start th2 = -1: ||grad V|| = 9.81 * 0.5 * sin(1) > (alpha - 0) / 2 = 0.5
+// (section 6's g = 9.81 breaks the assumption, as the issue says); with g = 0 and no force it holds; the
+// Figure 6.4 perturbation F = (sin t, sin x1) (with g = 0, so that grad V does not fail first) reaches ||F|| >= alpha = 1 (beta = sqrt 2 in the paper).
+TEST(Guarantees, Assumption41AtTheRecordedStates) {
+  const Simulation paper = Simulation::from_file(ScenePath("manipulator.json"));
+  RunSummary s = paper.run(nullptr);
+  EXPECT_TRUE(s.force_bounds.failed);
+  EXPECT_NEAR(s.force_bounds.max_gradient, 9.81 * 0.5 * std::sin(1.0), 1e-12);
+  EXPECT_EQ(s.force_bounds.max_gradient_time, 0.0);
+  EXPECT_EQ(Hypothesis(paper.guarantees(s), "Theorem 4.2", "Assumption 4.1 2)").verdict, Verdict::kFails);
+
+  const Simulation flat = Simulation::from_file(ScenePath("manipulator.json"), {"parameters.g=0"});
+  s = flat.run(nullptr);
+  EXPECT_FALSE(s.force_bounds.failed);
+  EXPECT_GT(s.force_bounds.samples, 1);
+  EXPECT_EQ(s.force_bounds.max_gradient, 0.0);
+  EXPECT_EQ(Hypothesis(flat.guarantees(s), "Theorem 4.2", "Assumption 4.1 2)").verdict, Verdict::kHolds);
+
+  const Simulation fig64 = Simulation::from_file(ScenePath("manipulator-fig6.4.json"), {"parameters.g=0"});
+  s = fig64.run(nullptr);
+  EXPECT_TRUE(s.force_bounds.failed);
+  EXPECT_GE(s.force_bounds.max_force, 1.0);
+  EXPECT_LE(s.force_bounds.max_force, std::sqrt(2.0));
+  const Guarantees g = fig64.guarantees(s);
+  EXPECT_EQ(Hypothesis(g, "Theorem 4.3", "(4.16)").verdict, Verdict::kFails);  // F reads t
+}
+
 // M(q) = 1 - q^2 is positive definite exactly for |q| < 1. From q = 0 at v = 1 the run reaches |q| >= 1
 // and must stop there, with t and q in the message, for both schemes.
 TEST(Guarantees, MassMatrixLosingDefinitenessStopsTheRun) {

@@ -248,6 +248,7 @@ class Compiler {
 
   void forces(const json& system, LagrangianScene& scene) {
     g_.assign(static_cast<std::size_t>(n_), graph_.constant(0.0));
+    force_.assign(static_cast<std::size_t>(n_), graph_.constant(0.0));
     if (system.contains("potential") && system.contains("potential_gradient"))
       throw SceneError("/system/potential_gradient", "give either 'potential' or 'potential_gradient', not both");
     potential_ = -1;
@@ -261,11 +262,13 @@ class Compiler {
         g_[i] =
             expression(pg[i], "/system/potential_gradient/" + std::to_string(i), kPosition, "the potential gradient (depends on q only)");
     }
+    gradient_ = g_;
     if (system.contains("force")) {
       const json& f = array_of(system["force"], "/system/force", static_cast<std::size_t>(n_), "an array");
-      for (int i = 0; i < n_; ++i)
-        g_[i] = graph_.binary(Op::kAdd, g_[i],
-                              expression(f[i], "/system/force/" + std::to_string(i), kTime | kPosition | kVelocity, "the force"));
+      for (int i = 0; i < n_; ++i) {
+        force_[i] = expression(f[i], "/system/force/" + std::to_string(i), kTime | kPosition | kVelocity, "the force");
+        g_[i] = graph_.binary(Op::kAdd, g_[i], force_[i]);
+      }
       // Theorem 4.3 needs F independent of t (4.16).
       for (int i = 0; i < n_; ++i) scene.force_depends_on_time = scene.force_depends_on_time || graph_.depends_on(g_[i], 0);
     }
@@ -687,6 +690,10 @@ class Compiler {
     for (int i = 0; i < n_; ++i)
       for (int j = 0; j < n_; ++j) place(C_[i * n_ + j], {nn + i + j * n_}, false);
     for (int i = 0; i < n_; ++i) place(g_[i], {2 * nn + i}, false);
+    // grad V and F apart, the same nodes that g = grad V + F adds.
+    std::vector<Node> split = gradient_;
+    split.insert(split.end(), force_.begin(), force_.end());
+    c->split_force_tape = expr::Tape::compile(graph_, split, 1 + 2 * n_);
     c->step_tape = expr::Tape::compile(graph_, step_outputs, 1 + 2 * n_);
     c->mass_tape = expr::Tape::compile(graph_, mass_outputs, 1 + 2 * n_);
     if (potential_ >= 0) {
@@ -711,6 +718,7 @@ class Compiler {
   std::map<std::string, int> coord_slot_;
   std::vector<std::string> coord_names_, vel_names_;
   std::vector<Node> M_, C_, g_;
+  std::vector<Node> gradient_, force_;  // grad V and F alone (constant 0 when absent)
   Node potential_ = -1;
   bool constant_mass_ = true;
   std::vector<Node> gaps_, gap_gradients_;  // h_i(q) and dh_i/dq_j (row-major)

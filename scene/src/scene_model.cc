@@ -3,6 +3,10 @@
 // outputs): fixed-size Eigen code for n <= 4, dynamic beyond.
 #include "moreau/scene/scene_model.h"
 
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
 namespace moreau::scene {
 namespace {
 
@@ -29,6 +33,59 @@ RunSummary run_lure(const LureScene& scene, RunObserver* observer, LureDiagnosti
   return integrator.run(x0, observer, diagnostics);
 }
 
+// Assumption 4.1 2)-3) at every recorded state: evaluates grad V and F apart (the compiled step only
+// has their sum) and passes each sample on.
+class ForceBoundSampler final : public RunObserver {
+ public:
+  ForceBoundSampler(const LagrangianScene& scene, RunObserver* next)
+      : tape_(scene.compiled->split_force_tape),
+        next_(next),
+        n_(scene.n),
+        alpha_(scene.controller.alpha()),
+        slots_(1 + 2 * scene.n),
+        out_(2 * scene.n),
+        scratch_(tape_.scratch_size()) {}
+  // Every kStride-th recorded state: one tape evaluation costs about as much as a step of the relay, and
+  // states kStride steps apart are close; a failure found at any of them is a failure of the assumption.
+  static constexpr std::int64_t kStride = 16;
+  void on_sample(const Sample& s) override {
+    if (!track.failed && seen_++ % kStride == 0) evaluate(s);
+    if (next_) next_->on_sample(s);
+  }
+  bool keep_going(std::int64_t k, double t) override { return !next_ || next_->keep_going(k, t); }
+  ForceBoundTrack track;
+
+ private:
+  void evaluate(const Sample& s) {
+    slots_[0] = s.t;
+    std::copy(s.q, s.q + n_, slots_.begin() + 1);
+    std::copy(s.v, s.v + n_, slots_.begin() + 1 + n_);
+    tape_.eval(slots_.data(), out_.data(), scratch_.data());
+    double g2 = 0.0, f2 = 0.0;
+    for (int i = 0; i < n_; ++i) {
+      g2 += out_[i] * out_[i];
+      f2 += out_[n_ + i] * out_[n_ + i];
+    }
+    ++track.samples;
+    if (f2 > track.max_force * track.max_force) {
+      track.max_force = std::sqrt(f2);
+      track.max_force_time = s.t;
+    }
+    if (g2 > track.max_gradient * track.max_gradient) {
+      track.max_gradient = std::sqrt(g2);
+      track.max_gradient_time = s.t;
+    }
+    track.failed = track.max_force >= alpha_ || track.max_gradient > 0.5 * (alpha_ - track.max_force);
+  }
+
+  const expr::Tape& tape_;
+  RunObserver* next_;
+  int n_;
+  double alpha_;
+  std::int64_t seen_ = 0;
+  std::vector<double> slots_, out_, scratch_;
+};
+
 template <int N>
 RunSummary run_fixed(const LagrangianScene& scene, RunObserver* observer) {
   SceneModel<N> model(scene);
@@ -45,11 +102,14 @@ RunSummary run_fixed(const LagrangianScene& scene, RunObserver* observer) {
 RunSummary run_scene(const LagrangianScene& scene, RunObserver* observer) { return run_scene(scene, observer, nullptr); }
 
 RunSummary run_scene(const LagrangianScene& scene, RunObserver* observer, ContactDiagnostics* contacts) {
-  return dispatch_dof(scene.n, [&](auto dof) {
-    constexpr int N = decltype(dof)::value;
-    if (scene.scheme == Scheme::kMoreauJean) return run_moreau_jean<N>(scene, observer, contacts);
-    return run_fixed<N>(scene, observer);
-  });
+  if (scene.scheme == Scheme::kMoreauJean) {
+    return dispatch_dof(scene.n, [&](auto dof) { return run_moreau_jean<decltype(dof)::value>(scene, observer, contacts); });
+  }
+  // Assumption 4.1 concerns the scheme (0.2) only.
+  ForceBoundSampler sampler(scene, observer);
+  RunSummary s = dispatch_dof(scene.n, [&](auto dof) { return run_fixed<decltype(dof)::value>(scene, &sampler); });
+  s.force_bounds = sampler.track;
+  return s;
 }
 
 RunSummary run_lure_scene(const LureScene& scene, RunObserver* observer, LureDiagnostics* diagnostics) {

@@ -92,6 +92,21 @@ struct MassDefinitenessTrack {
   Verdict verdict() const { return checked == 0 ? Verdict::kNotChecked : (lambda_min > 0.0 ? Verdict::kHolds : Verdict::kFails); }
 };
 
+// Assumption 4.1 2)-3) of Adly, Brogliato and Le (2016) at the states a run recorded: the largest
+// ||F(t_k, Q^k, V^k)|| and ||grad V(Q^k)|| seen, with where. Filled by the layer that can evaluate F and
+// grad V apart (the scene's compiled expressions); samples == 0 when nobody did.
+struct ForceBoundTrack {
+  std::int64_t samples = 0;
+  // Set at the first recorded state where the maxima so far already break the assumption (max ||F|| >=
+  // alpha, or max ||grad V|| > (alpha - max ||F||) / 2): a definite failure, since any beta is at least
+  // max ||F||. Sampling stops there; the maxima are those up to that state.
+  bool failed = false;
+  double max_force = 0.0;  // over the samples; a lower bound of the assumption's sup ||F||
+  double max_force_time = 0.0;
+  double max_gradient = 0.0;  // likewise for ||grad V||
+  double max_gradient_time = 0.0;
+};
+
 struct RunSummary {
   RunStatus status = RunStatus::kCompleted;
   std::string message;  // why a run failed or was cancelled; empty when completed
@@ -127,6 +142,7 @@ struct RunSummary {
   // Checked at every step of the schemes with a mass matrix (step_conditions.h).
   MassDefinitenessTrack mass;      // Assumption 3.1: lambda_min(M(Q^k)) > 0
   StepConditionTrack theorem41;    // (4.2) of Theorem 4.1, for the scheme (0.2) only
+  ForceBoundTrack force_bounds;    // Assumption 4.1 2)-3), at the recorded states
 
   // Wall time by phase, in the order they ran ("parse", "compile", "integrate", "write", ...).
   std::vector<std::pair<std::string, double>> phase_seconds;

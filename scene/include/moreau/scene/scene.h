@@ -85,6 +85,8 @@ struct CompiledLagrangian {
   expr::Tape step_tape;       // the non-constant entries of M, C and g = grad V + F
   expr::Tape mass_tape;       // the non-constant entries of M
   expr::Tape potential_tape;  // V(q), if the scene gives a potential
+  // grad V(q) (n outputs) then F(t, q, v) (n outputs), apart: Assumption 4.1 2)-3) at the recorded states.
+  expr::Tape split_force_tape;
   bool has_potential = false;
   bool constant_mass = true;
   // Constant parts, as flat arrays: M (n*n, column-major), C (n*n), g (n).
