@@ -167,6 +167,74 @@ Guarantees lagrangian_guarantees(const LagrangianScene& scene, const RunSummary&
   return g;
 }
 
+namespace {
+
+// Assumption a) of Brogliato (2003), first half: G(s) strictly positive real, from the scene's P (the KYP
+// lemma's sufficiency: P = P^T > 0, PA + A^T P < 0, B^T P = C imply SPR) or from the exact test.
+HypothesisCheck spr_check(const LureScene& sc) {
+  HypothesisCheck h{"a) G(s) = C (sI - A)^{-1} B strictly positive real", Verdict::kNotChecked, ""};
+  if (sc.P) {
+    const StorageMatrixCheck& c = sc.p_check;
+    h.verdict = c.verdict();
+    h.detail = "by the scene's P (KYP lemma): P = P^T " + std::string(to_string(c.symmetric_verdict())) + ", P > 0 " +
+               to_string(c.positive_definite_verdict()) + " (lambda_min " + fmt(c.min_eigenvalue) + "), PA + A^T P < 0 " +
+               to_string(c.dissipative_verdict()) + " (lambda_max " + fmt(c.max_eigenvalue_pa) + "), B^T P = C " +
+               to_string(c.output_verdict()) + " (relative residual " + fmt(c.output_residual) + ")";
+    return h;
+  }
+  const PositiveRealnessTest& t = sc.spr;
+  h.verdict = t.spr;
+  if (t.spr == Verdict::kFails) {
+    h.detail = t.witness;
+  } else {
+    h.detail = "A Hurwitz " + std::string(to_string(t.hurwitz)) + " (max Re lambda " + fmt(t.spectral_abscissa) +
+               "); G(jw) + G(jw)^H > 0 for all w " + to_string(t.frequency) + " (smallest (1 + (w/wc)^2) lambda_min found " +
+               fmt(t.min_frequency_eigenvalue) + " at w = " + fmt(t.argmin_omega) + ", round-off " + fmt(t.frequency_tolerance) +
+               "); CB = (CB)^T > 0 " + to_string(t.cb) + "; -(CAB + (CAB)^T) > 0 " + to_string(t.high_frequency) + "; certificate P " +
+               (t.storage_found() ? "found and checked" : "not found");
+  }
+  return h;
+}
+
+HypothesisCheck minimality_check(const LureScene& sc) {
+  const MinimalityCheck& m = sc.minimality;
+  return {"a) (A, B, C) minimal (controllable and observable)", m.verdict(),
+          "PBH: controllable " + std::string(to_string(m.controllable)) + " (margin " + fmt(m.controllability_margin) +
+              "), observable " + to_string(m.observable) + " (margin " + fmt(m.observability_margin) + ")"};
+}
+
+}  // namespace
+
+Guarantees lure_guarantees(const LureScene& sc) {
+  std::string y0;
+  {
+    const Eigen::VectorXd x0 = Eigen::Map<const Eigen::VectorXd>(sc.x0.data(), sc.n);
+    const Eigen::VectorXd y = sc.C * x0;
+    for (int i = 0; i < y.size(); ++i) y0 += (i ? ", " : "") + fmt(y(i));
+  }
+  const std::vector<HypothesisCheck> lemma1_hypotheses{
+      spr_check(sc), minimality_check(sc),
+      {"b) phi convex, proper, lower semicontinuous (d phi maximal monotone)", Verdict::kHolds,
+       "each feedback component is a piecewise-linear complete non-decreasing graph, checked when the scene was read: the "
+       "subdifferential of a convex lsc function of one variable"},
+      {"C x(0) in dom d phi", Verdict::kHolds, "y0 = C x0 = (" + y0 + "), checked when the scene was read (scenes that break it are refused)"}};
+  // The run does not use these conclusions: each step's generalized equation is solved and its residual
+  // reported (the solver section). They are what the report's stability statements rest on.
+  Guarantee lemma1{"Lemma 1", "(4) has a unique absolutely continuous solution on [0, +inf)", false, lemma1_hypotheses};
+  Guarantee lemma2{"Lemma 2", "x = 0 is the unique equilibrium and is exponentially stable; W = 1/2 x^T P x non-increasing", false,
+                   lemma1_hypotheses};
+  bool origin = true;
+  std::string off;
+  for (std::size_t i = 0; i < sc.feedback.size(); ++i)
+    if (!sc.feedback[i].contains_origin()) {
+      origin = false;
+      off += (off.empty() ? "" : ", ") + std::to_string(i);
+    }
+  lemma2.hypotheses.push_back({"(0, 0) on the graph of d phi", origin ? Verdict::kHolds : Verdict::kFails,
+                               origin ? "every feedback component's graph contains (0, 0)" : "not on the graph of /system/feedback/" + off});
+  return Guarantees{{lemma1, lemma2}};
+}
+
 nlohmann::json guarantees_json(const Guarantees& g) {
   nlohmann::json out = nlohmann::json::array();
   for (const Guarantee& x : g.items) {

@@ -299,35 +299,57 @@ bool graphs_contain_origin(const LureScene& sc) {
   return true;
 }
 
+nlohmann::json verdict_json(Verdict v) { return to_string(v); }
+
+// Lemmas 1-2, assumption a): each condition with its verdict and the numbers it was decided on.
 nlohmann::json stability_json(const LureScene& sc) {
   nlohmann::json j;
   j["graphs_contain_origin"] = graphs_contain_origin(sc);  // Lemma 2 assumes (0, 0) on the graph of d phi
+  const MinimalityCheck& mc = sc.minimality;
+  j["minimal"] = {{"verdict", verdict_json(mc.verdict())},
+                  {"controllable", verdict_json(mc.controllable)},
+                  {"controllability_margin", num(mc.controllability_margin)},
+                  {"observable", verdict_json(mc.observable)},
+                  {"observability_margin", num(mc.observability_margin)},
+                  {"test", "Popov-Belevitch-Hautus: min over the eigenvalues l of A of sigma_min([A - l I, B]) and of [A - l I; C]"}};
   if (sc.P) {
     const StorageMatrixCheck& c = sc.p_check;
     j["P"] = "given";
-    j["P_symmetric"] = {{"holds", c.symmetric}, {"asymmetry", num(c.asymmetry)}};
-    j["P_positive_definite"] = {{"holds", c.positive_definite}, {"min_eigenvalue", num(c.min_eigenvalue)}};
-    j["PA_plus_AtP_negative_definite"] = {{"holds", c.dissipative}, {"max_eigenvalue", num(c.max_eigenvalue_pa)}};
-    j["BtP_equals_C"] = {{"holds", c.output_matches}, {"relative_residual", num(c.output_residual)}};
-    j["lemma_hypotheses_hold"] = c.all();
+    j["P_symmetric"] = {{"verdict", verdict_json(c.symmetric_verdict())}, {"asymmetry", num(c.asymmetry)}};
+    j["P_positive_definite"] = {{"verdict", verdict_json(c.positive_definite_verdict())}, {"min_eigenvalue", num(c.min_eigenvalue)}};
+    j["PA_plus_AtP_negative_definite"] = {{"verdict", verdict_json(c.dissipative_verdict())}, {"max_eigenvalue", num(c.max_eigenvalue_pa)}};
+    j["BtP_equals_C"] = {{"verdict", verdict_json(c.output_verdict())}, {"relative_residual", num(c.output_residual)}};
+    j["strictly_positive_real"] = verdict_json(c.verdict());  // by the KYP lemma's sufficiency
+    j["lemma_hypotheses"] = verdict_json(all_of(c.verdict(), mc.verdict()));
     return j;
   }
   const PositiveRealnessTest& t = sc.spr;
   j["P"] = "not given";
-  j["strictly_positive_real"] = t.spr;
+  j["strictly_positive_real"] = verdict_json(t.spr);
+  if (!t.witness.empty()) j["witness"] = t.witness;
   j["test"] = t.method;
-  j["A_hurwitz"] = {{"holds", t.hurwitz}, {"spectral_abscissa", num(t.spectral_abscissa)}};
-  j["frequency_condition"] = {{"holds", t.frequency},
-                              {"min_eigenvalue", num(t.min_frequency_eigenvalue)},
-                              {"at_omega", num(t.argmin_omega)},
-                              {"evaluations", t.frequencies}};
-  j["CB_symmetric_positive_definite"] = {{"holds", t.cb_symmetric_positive}, {"min_eigenvalue", num(t.cb_min_eigenvalue)}};
-  j["high_frequency_condition"] = {{"holds", t.high_frequency}, {"min_eigenvalue", num(t.high_frequency_min_eigenvalue)}};
-  j["minimal"] = {{"controllable", t.controllable}, {"observable", t.observable}};
-  nlohmann::json cert = {{"attempted", t.storage_attempted}, {"found", t.storage_found}, {"method", t.storage_method}};
-  if (t.storage_found) cert["P"] = matrix_json(t.P);
+  j["A_hurwitz"] = {{"verdict", verdict_json(t.hurwitz)}, {"spectral_abscissa", num(t.spectral_abscissa)}, {"tolerance", num(t.hurwitz_tolerance)}};
+  nlohmann::json freq = {{"verdict", verdict_json(t.frequency)},
+                         {"min_scaled_eigenvalue", num(t.min_frequency_eigenvalue)},
+                         {"at_omega", num(t.argmin_omega)},
+                         {"tolerance", num(t.frequency_tolerance)},
+                         {"wc", num(t.wc)},
+                         {"crossing_candidates", t.crossing_candidates},
+                         {"evaluations", t.frequencies}};
+  if (t.witness_omega >= 0.0) freq["witness"] = {{"omega", num(t.witness_omega)}, {"scaled_eigenvalue", num(t.witness_value)}};
+  j["frequency_condition"] = freq;
+  j["CB_symmetric_positive_definite"] = {
+      {"verdict", verdict_json(t.cb)}, {"min_eigenvalue", num(t.cb_min_eigenvalue)}, {"asymmetry", num(t.cb_asymmetry)}};
+  j["high_frequency_condition"] = {{"verdict", verdict_json(t.high_frequency)}, {"min_eigenvalue", num(t.high_frequency_min_eigenvalue)}};
+  nlohmann::json cert = {{"verdict", verdict_json(t.certificate)}, {"method", t.storage_method}};
+  if (t.storage_found()) {
+    cert["P"] = matrix_json(t.P);
+    cert["min_eigenvalue_P"] = num(t.storage_check.min_eigenvalue);
+    cert["max_eigenvalue_PA_plus_AtP"] = num(t.storage_check.max_eigenvalue_pa);
+    cert["BtP_minus_C_relative_residual"] = num(t.storage_check.output_residual);
+  }
   j["certificate"] = cert;
-  j["lemma_hypotheses_hold"] = t.spr && t.storage_found && t.controllable && t.observable;
+  j["lemma_hypotheses"] = verdict_json(all_of(t.spr, mc.verdict()));
   return j;
 }
 
@@ -361,6 +383,7 @@ nlohmann::json report_json(const LureScene& sc, const RunSummary& s, const LureD
   }
   j["final"] = fin;
   j["absolute_stability"] = stability_json(sc);
+  j["guarantees"] = guarantees_json(lure_guarantees(sc));
   nlohmann::json w = d ? energy_json(d->storage) : nlohmann::json(nullptr);
   if (w.is_object()) {
     w["P_source"] = sc.storage_source;
@@ -407,20 +430,22 @@ std::string report_text(const LureScene& sc, const RunSummary& s, const LureDiag
   }
   if (sc.P) {
     const StorageMatrixCheck& c = sc.p_check;
-    os << "  Lemmas 1-2    P given: P = P^T " << (c.symmetric ? "holds" : "FAILS") << "; P > 0 "
-       << (c.positive_definite ? "holds" : "FAILS") << " (lambda_min " << fmt(c.min_eigenvalue) << "); PA + A^T P < 0 "
-       << (c.dissipative ? "holds" : "FAILS") << " (lambda_max " << fmt(c.max_eigenvalue_pa) << "); B^T P = C "
-       << (c.output_matches ? "holds" : "FAILS") << " (residual " << fmt(c.output_residual) << ")\n";
+    os << "  Lemmas 1-2    P given: P = P^T " << to_string(c.symmetric_verdict()) << "; P > 0 " << to_string(c.positive_definite_verdict())
+       << " (lambda_min " << fmt(c.min_eigenvalue) << "); PA + A^T P < 0 " << to_string(c.dissipative_verdict()) << " (lambda_max "
+       << fmt(c.max_eigenvalue_pa) << "); B^T P = C " << to_string(c.output_verdict()) << " (residual " << fmt(c.output_residual) << ")\n";
   } else {
     const PositiveRealnessTest& t = sc.spr;
-    os << "  Lemmas 1-2    P not given; (A, B, C) strictly positive real: " << (t.spr ? "yes" : "no") << "\n";
-    os << "                A Hurwitz " << (t.hurwitz ? "yes" : "no") << " (max Re lambda " << fmt(t.spectral_abscissa)
-       << "); min (1 + (w/wc)^2) lambda(G(jw) + G(jw)^H) = " << fmt(t.min_frequency_eigenvalue) << " at w = " << fmt(t.argmin_omega)
-       << "; CB = (CB)^T > 0 " << (t.cb_symmetric_positive ? "yes" : "no") << "; -(CAB + (CAB)^T) > 0 " << (t.high_frequency ? "yes" : "no")
-       << "; minimal " << (t.controllable && t.observable ? "yes" : "no") << "\n";
+    os << "  Lemmas 1-2    P not given; (A, B, C) strictly positive real: " << to_string(t.spr)
+       << (t.witness.empty() ? "" : " (" + t.witness + ")") << "\n";
+    os << "                A Hurwitz " << to_string(t.hurwitz) << " (max Re lambda " << fmt(t.spectral_abscissa)
+       << "); G(jw) + G(jw)^H > 0 " << to_string(t.frequency) << " (smallest (1 + (w/wc)^2) lambda_min " << fmt(t.min_frequency_eigenvalue)
+       << " at w = " << fmt(t.argmin_omega) << "); CB = (CB)^T > 0 " << to_string(t.cb) << "; -(CAB + (CAB)^T) > 0 "
+       << to_string(t.high_frequency) << "\n";
     os << "                how: " << t.method << "\n";
-    os << "                certificate: " << t.storage_method << "\n";
+    os << "                certificate: " << to_string(t.certificate) << ": " << t.storage_method << "\n";
   }
+  os << "                minimal (PBH): " << to_string(sc.minimality.verdict()) << " (controllability margin "
+     << fmt(sc.minimality.controllability_margin) << ", observability margin " << fmt(sc.minimality.observability_margin) << ")\n";
   if (!graphs_contain_origin(sc))
     os << "                (0, 0) is not on every feedback graph: Lemma 2 (x = 0 exponentially stable, W non-increasing) "
           "does not apply\n";
@@ -434,6 +459,7 @@ std::string report_text(const LureScene& sc, const RunSummary& s, const LureDiag
   } else {
     os << "  storage       no storage matrix P: W not evaluated\n";
   }
+  os << guarantees_text(lure_guarantees(sc));
   os << "  solver        max " << s.solver.max_iterations << " iterations per step, " << s.solver.total_iterations
      << " in all, max residual " << fmt(s.solver.max_residual) << ", " << s.solver.fallback_steps << " fallback steps\n";
   os << "  wall time     ";

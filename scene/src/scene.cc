@@ -863,14 +863,15 @@ LureScene Compiler::compile_lure() {
                                          ", outside the domain of /system/feedback/" + std::to_string(i) +
                                          " (Lemma 1 needs C x(0) in dom d phi)");
   }
-  // Lemmas 1-2: the given P, or a strict positive realness test.
+  // Lemmas 1-2: the given P, or a strict positive realness test; minimality either way.
+  scene.minimality = check_minimality(scene.A, scene.B, scene.C);
   if (scene.P) {
     scene.p_check = check_storage_matrix(scene.A, scene.B, scene.C, *scene.P);
     scene.storage = scene.P;
     scene.storage_source = "scene";
   } else {
     scene.spr = test_strict_positive_realness(scene.A, scene.B, scene.C);
-    if (scene.spr.storage_found) {
+    if (scene.spr.storage_found()) {
       scene.storage = scene.spr.P;
       scene.storage_source = "found";
     }

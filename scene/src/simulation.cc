@@ -168,7 +168,7 @@ std::string Simulation::report_text(const RunSummary& summary, const RunDiagnost
 
 Guarantees Simulation::guarantees(const RunSummary& summary) const {
   return std::visit(Overloaded{[&](const std::shared_ptr<const LagrangianScene>& sc) { return lagrangian_guarantees(*sc, summary); },
-                               [&](const std::shared_ptr<const LureScene>&) { return Guarantees{}; }},
+                               [&](const std::shared_ptr<const LureScene>& sc) { return lure_guarantees(*sc); }},
                     system_);
 }
 

@@ -9,7 +9,7 @@
 //   Theorem 4.2  E_k non-increasing, Q^k convergent, V^k -> 0: the Theorem 4.2 step rule, Assumption 4.1;
 //   Theorem 4.3  finite-step convergence: Theorem 4.2's hypotheses, F independent of t (4.16), and
 //                -F(Q*, 0) - grad V(Q*) in int dPhi(0) at the final position.
-// Brogliato (2003) for Lur'e systems (Lemmas 1-2) and for unilateral constraints (Lemma 3).
+// Brogliato (2003) for Lur'e systems: Lemma 1 (existence, uniqueness) and Lemma 2 (stability).
 #pragma once
 
 #include <string>
@@ -57,6 +57,9 @@ enum class ConvergenceFinding {
 const char* describe(ConvergenceFinding f);
 
 Guarantees lagrangian_guarantees(const LagrangianScene& scene, const RunSummary& s);
+// Lemmas 1 and 2 of Brogliato (2003): assumption a) (SPR, exactly decided or from the scene's P; minimal),
+// b) (by construction of the feedback graphs), C x(0) in dom d phi, and for Lemma 2 (0, 0) on the graph.
+Guarantees lure_guarantees(const LureScene& scene);
 ConvergenceFinding convergence_finding(const RunSummary& s, const Guarantees& g, const char* theorem);
 
 nlohmann::json guarantees_json(const Guarantees& g);

@@ -151,9 +151,11 @@ struct LureScene {
   std::vector<double> x0;
   Scheme scheme = Scheme::kImplicitEuler;
   LureSettings settings;
-  // Lemmas 1-2: the check of the given P, or the strict positive realness test without one.
+  // Lemmas 1-2, assumption a): the check of the given P, or the strict positive realness test without
+  // one; minimality (PBH) in either case.
   StorageMatrixCheck p_check;
   PositiveRealnessTest spr;
+  MinimalityCheck minimality;
   // The storage matrix of W = 1/2 x^T P x: the scene's P, or the certificate the SPR test found.
   std::optional<Eigen::MatrixXd> storage;
   std::string storage_source;  // "scene", "found" or "" (none)
