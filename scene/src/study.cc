@@ -393,7 +393,10 @@ StudyResult run_study(const LagrangianScene& scene, const StudySettings& st) {
       result.rows.push_back(row);
       if (st.on_row) st.on_row(result.rows.size(), rows_total);
     }
-    result.orders.push_back({scheme, slope(hs, eq), slope(hs, ev)});
+    StudyResult::Order order = order_theory(scene, scheme);
+    order.q_max = slope(hs, eq);
+    order.v_max = slope(hs, ev);
+    result.orders.push_back(order);
   }
   result.wall_seconds = seconds_since(start);
   return result;
@@ -524,9 +527,34 @@ nlohmann::json StudyResult::to_json() const {
                          {"chatter_amplitude", num(r.chatter_amplitude)}});
   }
   j["orders"] = nlohmann::json::array();
-  for (const auto& o : orders) j["orders"].push_back({{"scheme", scheme_name(o.scheme)}, {"q_max", num(o.q_max)}, {"v_max", num(o.v_max)}});
+  for (const auto& o : orders)
+    j["orders"].push_back({{"scheme", scheme_name(o.scheme)},
+                           {"q_max", num(o.q_max)},
+                           {"v_max", num(o.v_max)},
+                           {"theory", o.theory},
+                           {"theory_order", o.theory_order ? num(*o.theory_order) : nlohmann::json(nullptr)},
+                           {"theory_note", o.theory_note}});
   j["wall_seconds"] = wall_seconds;
   return j;
+}
+
+StudyResult::Order order_theory(const LagrangianScene& scene, StudyScheme scheme) {
+  StudyResult::Order o;
+  o.scheme = scheme;
+  if (scheme != StudyScheme::kAbl) {
+    o.theory_note = std::string("no theorem of the papers covers the ") + scheme_name(scheme) + " scheme: only the measured order";
+    return o;
+  }
+  if (scene.compiled && scene.compiled->constant_mass) {
+    o.theory = "Remark 5.1";
+    o.theory_order = 1.0;
+    o.theory_note = "M is constant (no entry depends on q): order 1 (the paper states it and refers to its [9] for the proof)";
+    return o;
+  }
+  o.theory_note =
+      "M depends on q: Theorem 5.2 (order 1/2) needs Assumption 5.2 (local hypo-monotonicity of M^{-1}(q) dPhi), which is "
+      "not checked (the paper says it fails for its own section 6 robot), so no theorem applies; only the measured order";
+  return o;
 }
 
 StudyResult StudyResult::from_json(const nlohmann::json& j) {
@@ -559,7 +587,16 @@ StudyResult StudyResult::from_json(const nlohmann::json& j) {
       row.chatter_amplitude = number(x.at("chatter_amplitude"));
       r.rows.push_back(row);
     }
-    for (const auto& x : j["orders"]) r.orders.push_back({scheme_in(x.at("scheme")), number(x.at("q_max")), number(x.at("v_max"))});
+    for (const auto& x : j["orders"]) {
+      StudyResult::Order o;
+      o.scheme = scheme_in(x.at("scheme"));
+      o.q_max = number(x.at("q_max"));
+      o.v_max = number(x.at("v_max"));
+      o.theory = x.value("theory", "none");
+      o.theory_order = optional(x.value("theory_order", nlohmann::json()));
+      o.theory_note = x.value("theory_note", "");
+      r.orders.push_back(o);
+    }
     r.wall_seconds = number(j.at("wall_seconds"));
     return r;
   } catch (const nlohmann::json::exception& e) {
@@ -617,9 +654,11 @@ std::string StudyResult::to_text() const {
     os << line;
   }
   for (const auto& o : orders) {
-    std::snprintf(line, sizeof line, "  order of %-11s q: %s   v: %s\n", scheme_name(o.scheme), fixed3(o.q_max).c_str(),
+    std::snprintf(line, sizeof line, "  order of %-11s q: %s   v: %s   (measured)\n", scheme_name(o.scheme), fixed3(o.q_max).c_str(),
                   fixed3(o.v_max).c_str());
     os << line;
+    os << "              theory: " << (o.theory_order ? o.theory + ", order " + fixed3(*o.theory_order) : o.theory) << "; " << o.theory_note
+       << "\n";
   }
   std::snprintf(line, sizeof line, "  study wall time %.2f s\n", wall_seconds);
   os << line;

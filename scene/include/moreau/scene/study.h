@@ -90,6 +90,11 @@ struct StudyResult {
   struct Order {
     StudyScheme scheme = StudyScheme::kAbl;
     double q_max = 0.0, v_max = 0.0;  // fitted slopes (NaN with fewer than two usable points)
+    // What the papers say about this scheme's order on this scene (order_theory()): the result that
+    // applies and the order it promises, or "none" with why. The measured slopes above are what was seen.
+    std::string theory = "none";
+    std::optional<double> theory_order;
+    std::string theory_note;
   };
   std::vector<Order> orders;
   double wall_seconds = 0.0;
@@ -101,6 +106,11 @@ struct StudyResult {
   // std::invalid_argument on a document of another shape.
   static StudyResult from_json(const nlohmann::json& j);
 };
+
+// The order the papers promise for `scheme` on `scene`: for the scheme (0.2) with a constant M, Remark 5.1
+// (order 1); with M depending on q, Theorem 5.2 (order 1/2) only under Assumption 5.2, which is not
+// checked, so "none" (the paper says it fails for its own section 6 robot); for the other schemes, none.
+StudyResult::Order order_theory(const LagrangianScene& scene, StudyScheme scheme);
 
 // Parses a ladder "1e-1:1e-5:9" (log-spaced, both ends included) or a list "1e-2,5e-3,1e-3".
 std::vector<double> parse_ladder(const std::string& text);
