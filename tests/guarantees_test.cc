@@ -163,3 +163,57 @@ TEST(Guarantees, MassMatrixLosingDefinitenessStopsTheRun) {
 
 }  // namespace
 }  // namespace moreau::scene
+
+namespace moreau::scene {
+namespace {
+
+// Energy and the scene's exact values, against closed forms. For m x'' + k x = 0 (the Coulomb oscillator
+// with a = 0), one step of (0.2) is V' = V - h (k/m) Q, Q' = Q + h V, which multiplies
+// E = 1/2 m V^2 + 1/2 k Q^2 by exactly 1 + h^2 k/m: E_N = E_0 (1 + h^2 k/m)^N, a rise the continuous
+// system (F = 0, no dissipation) cannot have; the report must say so.
+TEST(Report, MechanicalEnergyOfAnUndampedSpringGrowsByTheClosedFormFactor) {
+  const Simulation sim =
+      Simulation::from_file(ScenePath("coulomb-oscillator.json"), {"parameters.a=0", "integrator.h=0.01", "integrator.t_end=2"});
+  const RunSummary s = sim.run(nullptr);
+  ASSERT_EQ(s.status, RunStatus::kCompleted) << s.message;
+  const nlohmann::json rep = sim.report_json(s);
+  const nlohmann::json& e = rep["mechanical_energy"];
+  const double m = 1.0, k = 4.0, p0 = 2.1, h = 0.01;
+  const double e0 = 0.5 * k * p0 * p0;
+  ASSERT_TRUE(e["evaluated"].get<bool>());
+  EXPECT_NEAR(e["initial"].get<double>(), e0, 1e-12);
+  EXPECT_NEAR(e["final"].get<double>(), e0 * std::pow(1.0 + h * h * k / m, static_cast<double>(s.steps)), 1e-9 * e0);
+  EXPECT_TRUE(e["rose"].get<bool>());
+  EXPECT_TRUE(e.contains("warning"));
+  EXPECT_NE(sim.report_text(s).find("ROSE although F = 0"), std::string::npos);
+  EXPECT_NE(rep["update"].get<std::string>().find("position explicit Q^{k+1} = Q^k + h V^k"), std::string::npos);
+}
+
+// The Coulomb oscillator declares its rest (x = 0.1 at t = 2 pi): the report gives the run's distance
+// from them, recomputed here from the summary; its mechanical energy at rest is 1/2 k x_N^2.
+TEST(Report, ComparesTheRunWithTheScenesExactValues) {
+  const Simulation sim = Simulation::from_file(ScenePath("coulomb-oscillator.json"));
+  const RunSummary s = sim.run(nullptr);
+  const nlohmann::json rep = sim.report_json(s);
+  ASSERT_TRUE(rep.contains("exact"));
+  const nlohmann::json& ex = rep["exact"];
+  EXPECT_EQ(ex["rest_q"]["max_error"].get<double>(), std::abs(s.q_final[0] - 0.1));
+  EXPECT_NEAR(ex["rest_q"]["relative_error"].get<double>(), std::abs(s.q_final[0] - 0.1) / 0.1, 1e-15);
+  EXPECT_GT(ex["rest_q"]["max_error"].get<double>(), 0.01);  // the O(h) drift of the explicit position update
+  ASSERT_TRUE(s.rest_time.has_value());
+  EXPECT_NEAR(ex["rest_time"]["declared"].get<double>(), 2.0 * M_PI, 1e-12);
+  EXPECT_EQ(ex["rest_time"]["error"].get<double>(), std::abs(*s.rest_time - 2.0 * M_PI));
+  EXPECT_NEAR(rep["mechanical_energy"]["final"].get<double>(), 2.0 * s.q_final[0] * s.q_final[0], 1e-14);
+  EXPECT_FALSE(rep["mechanical_energy"]["rose"].get<bool>());
+  const std::string text = sim.report_text(s);
+  EXPECT_NE(text.find("  exact         declared rest q = (0.1); the run ends at"), std::string::npos) << text;
+  // A scene that declares nothing gets no comparison.
+  const Simulation manip = Simulation::from_file(ScenePath("manipulator.json"));
+  EXPECT_FALSE(manip.report_json(manip.run(nullptr)).contains("exact"));
+  // The contact scheme is named for what it is.
+  const Simulation ball = Simulation::from_file(ScenePath("bouncing-ball-e0.5.json"));
+  EXPECT_NE(ball.report_json(ball.run(nullptr))["update"].get<std::string>().find("symplectic Euler"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace moreau::scene

@@ -57,6 +57,141 @@ nlohmann::json matrix_json(const Eigen::MatrixXd& M) {
   return rows;
 }
 
+// Which update the run used, named for what it is (a conservative part gains or keeps energy by it).
+std::string update_description(const LagrangianScene& scene) {
+  if (scene.scheme == Scheme::kMoreauJean)
+    return "Moreau-Jean as implemented: impulses and dPhi implicit at V^{k+1}, smooth forces explicit at (Q^k, V^k), position "
+           "Q^{k+1} = Q^k + h V^{k+1} (" +
+           scene.position_update +
+           "): a symplectic Euler for the smooth part, not the theta-method with implicit smooth forces";
+  if (scene.settings.velocity_update == VelocityUpdate::kImplicit)
+    return "(0.2): velocity implicit (V^{k+1} in the inclusion), position explicit Q^{k+1} = Q^k + h V^k: a conservative part "
+           "(a spring) gains energy at O(h)";
+  return "explicit peer of (0.2): velocity and position explicit, with the single-valued sign";
+}
+
+// The scene's declared exact values (/exact) against the run, whenever a scene declares them: the rest
+// state, the rest time, and the exact solution at the final time. Errors are absolute, relative to the
+// declared value's size, and (for times) in steps.
+struct ExactComparison {
+  nlohmann::json json;  // null when the scene declares nothing
+  std::vector<std::string> lines;
+};
+
+ExactComparison compare_with_exact(const char* var, const std::vector<double>& declared_rest, std::optional<double> declared_rest_time,
+                                   const expr::Tape* tape, int tape_slots, const std::vector<double>& final_state,
+                                   const std::optional<double>& run_rest_time, double t_final, double h) {
+  ExactComparison c;
+  if (declared_rest.empty() && !declared_rest_time && !tape) return c;
+  c.json = nlohmann::json::object();
+  auto max_diff = [](const std::vector<double>& a, const std::vector<double>& b) {
+    double e = 0.0, size = 0.0;
+    for (std::size_t i = 0; i < std::min(a.size(), b.size()); ++i) {
+      e = std::max(e, std::abs(a[i] - b[i]));
+      size = std::max(size, std::abs(b[i]));
+    }
+    return std::pair<double, double>{e, size};
+  };
+  auto percent = [](double e, double size) {
+    char buf[48] = "";
+    if (size > 0.0) std::snprintf(buf, sizeof buf, " (%.3g%% of its size)", 100.0 * e / size);
+    return std::string(buf);
+  };
+  if (!declared_rest.empty()) {
+    const auto [e, size] = max_diff(final_state, declared_rest);
+    c.json["rest_" + std::string(var)] = {{"declared", declared_rest}, {"final", final_state}, {"max_error", num(e)},
+                                          {"relative_error", size > 0.0 ? num(e / size) : nlohmann::json(nullptr)}};
+    c.lines.push_back(std::string("declared rest ") + var + " = " + vec(declared_rest) + "; the run ends at " + vec(final_state) +
+                      ": off by " + fmt(e) + percent(e, size));
+  }
+  if (declared_rest_time) {
+    nlohmann::json j = {{"declared", num(*declared_rest_time)}};
+    if (run_rest_time) {
+      const double e = std::abs(*run_rest_time - *declared_rest_time);
+      j["run"] = num(*run_rest_time);
+      j["error"] = num(e);
+      j["error_steps"] = num(e / h);
+      c.lines.push_back("declared rest time " + fmt(*declared_rest_time) + "; the run rests from t = " + fmt(*run_rest_time) + ": off by " +
+                        fmt(e) + " (" + fmt(e / h) + " steps)");
+    } else {
+      j["run"] = nullptr;
+      c.lines.push_back("declared rest time " + fmt(*declared_rest_time) + "; the run is not at rest at its end");
+    }
+    c.json["rest_time"] = j;
+  }
+  if (tape) {
+    std::vector<double> slots(static_cast<std::size_t>(tape_slots), 0.0), out(tape->num_outputs()), scratch(tape->scratch_size());
+    slots[0] = t_final;
+    tape->eval(slots.data(), out.data(), scratch.data());
+    out.resize(std::min(out.size(), final_state.size()));
+    const auto [e, size] = max_diff(final_state, out);
+    c.json["at_t_final"] = {{"t", num(t_final)}, {"exact", out}, {"max_error", num(e)}};
+    c.lines.push_back(std::string("exact solution at t = ") + fmt(t_final) + ": " + var + " = " + vec(out) + "; off by " + fmt(e) +
+                      percent(e, size));
+  }
+  return c;
+}
+
+void exact_text(std::ostream& os, const ExactComparison& c) {
+  for (std::size_t i = 0; i < c.lines.size(); ++i) os << (i == 0 ? "  exact         " : "                ") << c.lines[i] << "\n";
+}
+
+ExactComparison lagrangian_exact(const LagrangianScene& scene, const RunSummary& s, const std::optional<double>& rest_time) {
+  return compare_with_exact("q", scene.exact_rest_q, scene.exact_rest_time, scene.exact_tape.get(), 1 + 2 * scene.n, s.q_final, rest_time,
+                            s.t_final, scene.settings.h);
+}
+
+ExactComparison lure_exact(const LureScene& sc, const RunSummary& s) {
+  return compare_with_exact("x", sc.exact_rest_x, sc.exact_rest_time, sc.exact_tape.get(), 1, s.q_final, s.converged_time, s.t_final,
+                            sc.settings.h);
+}
+
+// Total mechanical energy E = 1/2 <M v, v> + V(q) at the start and at the end, when the scene gives V.
+// With F = 0 (no /system/force) and a convex Phi minimal at 0, the continuous system cannot gain it
+// (dE/dt = -<xi, v> <= 0, xi in dPhi(v)): a rise is the scheme's doing (its explicit position update).
+struct MechanicalEnergy {
+  bool known = false;
+  double initial = 0.0, final = 0.0;
+  bool cannot_rise = false;
+};
+
+MechanicalEnergy mechanical_energy(const LagrangianScene& scene, const RunSummary& s, double kinetic_initial, double kinetic_final) {
+  MechanicalEnergy e;
+  if (!scene.compiled || !scene.compiled->has_potential) return e;
+  const expr::Tape& V = scene.compiled->potential_tape;
+  std::vector<double> slots(static_cast<std::size_t>(1 + 2 * scene.n), 0.0), out(1), scratch(V.scratch_size());
+  auto potential = [&](double t, const std::vector<double>& q) {
+    slots[0] = t;
+    for (int i = 0; i < scene.n && i < static_cast<int>(q.size()); ++i) slots[1 + i] = q[i];
+    V.eval(slots.data(), out.data(), scratch.data());
+    return out[0];
+  };
+  e.known = true;
+  e.initial = kinetic_initial + potential(scene.settings.t0, scene.q0);
+  e.final = kinetic_final + potential(s.t_final, s.q_final);
+  e.cannot_rise = !scene.has_force;
+  return e;
+}
+
+nlohmann::json mechanical_json(const MechanicalEnergy& e) {
+  if (!e.known) return {{"kind", "1/2 <M v, v> + V(q)"}, {"evaluated", false}, {"why", "the scene gives no potential"}};
+  const bool rose = e.final > e.initial + 1e-12 * std::max(1.0, std::abs(e.initial));
+  nlohmann::json j = {{"kind", "1/2 <M v, v> + V(q)"}, {"evaluated", true}, {"initial", num(e.initial)}, {"final", num(e.final)}, {"rose", rose}};
+  if (rose && e.cannot_rise) j["warning"] = "rose although F = 0 and dPhi dissipates: the scheme's explicit position update gains energy at O(h)";
+  return j;
+}
+
+void mechanical_text(std::ostream& os, const MechanicalEnergy& e) {
+  if (!e.known) {
+    os << "                E = 1/2 <M v, v> + V(q): not evaluated (the scene gives no potential)\n";
+    return;
+  }
+  const bool rose = e.final > e.initial + 1e-12 * std::max(1.0, std::abs(e.initial));
+  os << "                E = 1/2 <M v, v> + V(q): E(t0) = " << fmt(e.initial) << ", E(t_N) = " << fmt(e.final);
+  if (rose && e.cannot_rise) os << ": ROSE although F = 0 and dPhi dissipates (the explicit position update gains energy at O(h))";
+  os << "\n";
+}
+
 // Rest and convergence as the report states them (guarantees.h: ConvergenceFinding).
 nlohmann::json convergence_json(const RunSummary& s, const Guarantees& g) {
   nlohmann::json j = {{"finding", describe(convergence_finding(s, g, "Theorem 4.3"))},
@@ -196,6 +331,8 @@ std::string contact_text(const LagrangianScene& scene, const RunSummary& s, cons
       os << " (" << w.increases << " rises, largest " << fmt(w.max_increase) << ", first at t = " << fmt(w.first_increase_time) << ")";
     os << "\n";
   }
+  os << "  update        " << update_description(scene) << "\n";
+  exact_text(os, lagrangian_exact(scene, s, c && c->rest_step >= 0 ? std::optional<double>(c->rest_time) : std::nullopt));
   os << guarantees_text(lagrangian_guarantees(scene, s));
   os << "  solver        max " << s.solver.max_iterations << " iterations per step, " << s.solver.total_iterations
      << " in all, max residual " << fmt(s.solver.max_residual) << ", " << s.solver.fallback_steps << " fallback steps\n";
@@ -231,6 +368,17 @@ nlohmann::json report_json(const LagrangianScene& scene, const RunSummary& s, co
                  {"final", num(s.energy_final)},
                  {"max_increase", num(s.energy_max_increase)},
                  {"increases", s.energy_increases}};
+  j["mechanical_energy"] = mechanical_json(mechanical_energy(scene, s, s.energy_initial, s.energy_final));
+  j["update"] = update_description(scene);
+  {
+    std::optional<double> rest = s.rest_time;
+    if (scene.scheme == Scheme::kMoreauJean) {
+      rest.reset();
+      if (contacts && contacts->rest_step >= 0) rest = contacts->rest_time;
+    }
+    const ExactComparison ex = lagrangian_exact(scene, s, rest);
+    if (!ex.json.is_null()) j["exact"] = ex.json;
+  }
   if (scene.scheme == Scheme::kMoreauJean) {
     j["system"] = "lagrangian";
     // E_k here is the kinetic energy, which falls and rises with the potential; Lemma 3's W is below.
@@ -281,6 +429,9 @@ std::string report_text(const LagrangianScene& scene, const RunSummary& s, const
     os << " (" << s.energy_increases << " rises, largest " << fmt(s.energy_max_increase) << ")";
   }
   os << "\n";
+  mechanical_text(os, mechanical_energy(scene, s, s.energy_initial, s.energy_final));
+  os << "  update        " << update_description(scene) << "\n";
+  exact_text(os, lagrangian_exact(scene, s, s.rest_time));
   os << guarantees_text(g);
   os << "  solver        max " << s.solver.max_iterations << " iterations per step, " << s.solver.total_iterations
      << " in all, max residual " << fmt(s.solver.max_residual) << ", " << s.solver.rest_steps << " steps at rest, "
@@ -382,6 +533,10 @@ nlohmann::json report_json(const LureScene& sc, const RunSummary& s, const LureD
     j["outputs_at_rest"] = rest;
   }
   j["final"] = fin;
+  {
+    const ExactComparison ex = lure_exact(sc, s);
+    if (!ex.json.is_null()) j["exact"] = ex.json;
+  }
   j["absolute_stability"] = stability_json(sc);
   j["guarantees"] = guarantees_json(lure_guarantees(sc));
   nlohmann::json w = d ? energy_json(d->storage) : nlohmann::json(nullptr);
@@ -428,6 +583,7 @@ std::string report_text(const LureScene& sc, const RunSummary& s, const LureDiag
     }
     if (!any) os << "  rest          neither x nor any output is exactly 0 at the last step\n";
   }
+  exact_text(os, lure_exact(sc, s));
   if (sc.P) {
     const StorageMatrixCheck& c = sc.p_check;
     os << "  Lemmas 1-2    P given: P = P^T " << to_string(c.symmetric_verdict()) << "; P > 0 " << to_string(c.positive_definite_verdict())

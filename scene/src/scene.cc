@@ -263,6 +263,7 @@ class Compiler {
             expression(pg[i], "/system/potential_gradient/" + std::to_string(i), kPosition, "the potential gradient (depends on q only)");
     }
     gradient_ = g_;
+    scene.has_force = system.contains("force");
     if (system.contains("force")) {
       const json& f = array_of(system["force"], "/system/force", static_cast<std::size_t>(n_), "an array");
       for (int i = 0; i < n_; ++i) {

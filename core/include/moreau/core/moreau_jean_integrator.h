@@ -4,7 +4,10 @@
 //   M(q) dv + (C(q, v) v + grad U(q) + F(t, q, v)) dt + dPhi(v) dt  in  grad h(q) dP,
 //   0 <= h(q) perp P >= 0,   Newton's law U(t+) = -e U(t-) on impacts (U = grad h(q)^T v),        (8)
 //
-// i.e. Moreau's second-order sweeping process (10) discretised as in Jean and Moreau's method (theta = 1):
+// i.e. Moreau's second-order sweeping process (10) discretised in the style of Jean and Moreau's method: the
+// impulses and dPhi implicit at V^{k+1} (theta = 1), the smooth forces explicit at (Q^k, V^k) and the position
+// from V^{k+1}, so that for the smooth part it is a symplectic Euler, not the theta-method with implicit
+// smooth forces (reports name it so):
 //
 //   M(Q^k) (V^{k+1} - V^k) + h C(Q^k, V^k) V^{k+1} + h g(t_k, Q^k, V^k) + h dPhi(V^{k+1})  in  H^T P^{k+1}
 //   for i in I_k:  0 <= U_i^{k+1} + e_i min(U_i^k, 0)  perp  P_i^{k+1} >= 0;   P_i^{k+1} = 0 otherwise,
