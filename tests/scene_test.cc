@@ -108,6 +108,20 @@ TEST(Scene, ChristoffelSatisfiesSkewSymmetryProperty) {
     model.mass(q - d * v, Mm);
     const Mat<3> dMdt = (Mp - Mm) / (2 * d);
     EXPECT_LT((dMdt - terms.C - terms.C.transpose()).norm(), 1e-8) << "trial " << trial;
+    // C itself (not only C + C^T) against the Christoffel symbols of the first kind built here from central
+    // differences of M: C_ij = sum_k 1/2 (dM_ij/dq_k + dM_ik/dq_j - dM_jk/dq_i) v_k.
+    Mat<3> dM[3];
+    for (int k = 0; k < 3; ++k) {
+      const Vec<3> e = Vec<3>::Unit(k);
+      model.mass(q + d * e, Mp);
+      model.mass(q - d * e, Mm);
+      dM[k] = (Mp - Mm) / (2 * d);
+    }
+    Mat<3> C_fd = Mat<3>::Zero();
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j)
+        for (int k = 0; k < 3; ++k) C_fd(i, j) += 0.5 * (dM[k](i, j) + dM[j](i, k) - dM[i](j, k)) * v(k);
+    EXPECT_LT((C_fd - terms.C).norm(), 1e-8) << "trial " << trial << "\n" << C_fd << "\n vs \n" << terms.C;
   }
 }
 
@@ -165,29 +179,54 @@ TEST(Scene, CoulombOscillatorRestsWhereTheClosedFormSaysAtOrderOne) {
   EXPECT_LT(e4, 2e-3);
 }
 
-// Theorem 5.2: order at least 1/2 for non-constant M. Measured on the manipulator against a run with
-// h = 1e-5, at t = 1 (before the controller brings it to rest).
-TEST(Scene, ManipulatorOrderIsAtLeastOneHalf) {
-  auto final_state = [](double h) {
-    json doc = Scene("manipulator.json");
-    apply_override(doc, "integrator.h=" + std::to_string(h));
-    apply_override(doc, "integrator.t_end=1");
-    const RunSummary s = run_scene(load_scene(doc), nullptr);
-    return std::vector<double>{s.q_final[0], s.q_final[1], s.v_final[0], s.v_final[1]};
+// The manipulator's order against an independent reference. No theorem promises an order here (Theorem
+// 5.2 needs Assumption 5.2, which the paper says fails for this robot). On [0, 0.6] neither velocity
+// reaches zero (th2' first sticks at 0.0 near t = 0.75, x1' near t = 1.13), so (0.1) is the smooth ODE
+// M(q) v' = -C(q, v) v - grad V(q) - v - sign(v0) there, integrated here by classical RK4 at h = 1e-4 on
+// the paper's closed-form M, C and grad V (models::Manipulator, written by hand, not compiled from the
+// scene). The scheme (0.2) is first order on such a stretch (an Euler method): the measured order between
+// consecutive h of 1e-2, 1e-3, 1e-4 must be 1 within 0.1, and its error at h = 1e-4 below 1e-3.
+TEST(Scene, ManipulatorIsFirstOrderOnItsSmoothStretchAgainstRK4) {
+  const models::Manipulator model;
+  const Vec<2> sign_v0(-1.0, 1.0);  // v0 = (-1, 1)
+  auto rhs = [&](double t, const Eigen::Vector4d& x) {
+    LagrangianTerms<2> terms;
+    terms.resize(2);
+    const Vec<2> q = x.head<2>(), v = x.tail<2>();
+    model.evaluate(t, q, v, terms);
+    Eigen::Vector4d dx;
+    dx.head<2>() = v;
+    dx.tail<2>() = terms.M.lu().solve(-terms.C * v - terms.g - v - sign_v0);
+    return dx;
   };
-  const auto ref = final_state(1e-5);
+  Eigen::Vector4d x(3.0, -1.0, -1.0, 1.0);
+  const double H = 1e-4;
+  for (int k = 0; k < 6000; ++k) {
+    const double t = k * H;
+    const Eigen::Vector4d k1 = rhs(t, x), k2 = rhs(t + H / 2, x + H / 2 * k1), k3 = rhs(t + H / 2, x + H / 2 * k2),
+                          k4 = rhs(t + H, x + H * k3);
+    x += H / 6 * (k1 + 2 * k2 + 2 * k3 + k4);
+  }
+  ASSERT_NE(x(2), 0.0);
+  ASSERT_EQ(x(2) < 0, true);  // still moving in the initial direction at t = 0.6: the ODE applied throughout
+  ASSERT_EQ(x(3) > 0, true);
   std::vector<double> hs = {1e-2, 1e-3, 1e-4}, errs;
   for (double h : hs) {
-    const auto x = final_state(h);
+    json doc = Scene("manipulator.json");
+    doc["integrator"]["h"] = h;
+    doc["integrator"]["t_end"] = 0.6;
+    const RunSummary s = run_scene(load_scene(doc), nullptr);
+    ASSERT_EQ(s.status, RunStatus::kCompleted);
+    ASSERT_NE(s.v_final[1], 0.0);
     double e = 0;
-    for (int i = 0; i < 4; ++i) e = std::max(e, std::abs(x[i] - ref[i]));
+    for (int i = 0; i < 2; ++i) e = std::max({e, std::abs(s.q_final[i] - x(i)), std::abs(s.v_final[i] - x(2 + i))});
     errs.push_back(e);
   }
   for (std::size_t i = 1; i < hs.size(); ++i) {
     const double order = std::log(errs[i - 1] / errs[i]) / std::log(hs[i - 1] / hs[i]);
-    EXPECT_GE(order, 0.5) << "between h = " << hs[i - 1] << " and " << hs[i];
-    RecordProperty("order_" + std::to_string(i), std::to_string(order));
+    EXPECT_NEAR(order, 1.0, 0.1) << "between h = " << hs[i - 1] << " and " << hs[i] << " (errors " << errs[i - 1] << ", " << errs[i] << ")";
   }
+  EXPECT_LT(errs.back(), 1e-3);
 }
 
 TEST(Scene, OverridesSetAnyField) {

@@ -4,6 +4,9 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <cstdint>
+
 namespace moreau::scene {
 
 // Test names and failure messages show the case's name, not its bytes.
@@ -25,6 +28,48 @@ INSTANTIATE_TEST_SUITE_P(Suite, Stress, ::testing::ValuesIn(stress_cases()), [](
     if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
   return name;
 });
+
+// The one-coordinate cases (m x'' + c x' + a Sign(x') = f) against their discrete closed form, computed
+// here without the library's solver: a step of (0.2) is the scalar inclusion
+// (m/h + c) V' - p in -a Sign(V') with p = m V/h + f, whose solution is V' = 0 when |p| <= a and
+// V' = (p - a sign p) / (m/h + c) otherwise; then Q' = Q + h V. The run must take the same steps, come to
+// rest at the same step (within one, for a |p| within round-off of a) and end at the same state.
+TEST(Stress, OneCoordinateCasesFollowTheirDiscreteClosedForm) {
+  int checked = 0;
+  for (const auto& c : stress_cases()) {
+    const nlohmann::json& sc = c.scene;
+    if (sc["system"]["coordinates"].size() != 1 || !sc["parameters"].contains("f")) continue;
+    const double m = sc["parameters"]["m"], cc = sc["parameters"]["c"], a = sc["parameters"]["a"], f = sc["parameters"]["f"];
+    const double h = sc["integrator"]["h"], t_end = sc["integrator"]["t_end"];
+    if (t_end / h > 2e7) continue;  // the 1e8-step case: its expectations are checked by Suite/Stress
+    const StressOutcome o = run_stress_case(c);
+    ASSERT_EQ(o.summary.status, RunStatus::kCompleted) << c.name;
+    double q = sc["initial"]["q"][0], v = sc["initial"]["v"][0], t = 0.0;
+    std::int64_t k = 0, rest_from = -1;
+    for (; k < o.summary.steps; ++k) {
+      const double hk = std::min(h, t_end - t);
+      const double p = m * v / hk + f;
+      const double v_next = std::abs(p) <= a ? 0.0 : (p - a * (p > 0 ? 1.0 : -1.0)) / (m / hk + cc);
+      q += hk * v;
+      v = v_next;
+      t = (k + 1 == o.summary.steps) ? t_end : t + hk;
+      if (v == 0.0 && rest_from < 0) rest_from = k + 1;
+      if (v != 0.0) rest_from = -1;
+    }
+    EXPECT_NEAR(o.summary.t_final, t_end, 1e-9 * t_end) << c.name;
+    EXPECT_NEAR(o.summary.q_final[0], q, 1e-9 * (1.0 + std::abs(q))) << c.name;
+    EXPECT_NEAR(o.summary.v_final[0], v, 1e-9 * (1.0 + std::abs(v))) << c.name;
+    EXPECT_EQ(o.summary.v_final[0] == 0.0, v == 0.0) << c.name;
+    if (rest_from >= 0) {
+      ASSERT_TRUE(o.summary.rest_step.has_value()) << c.name;
+      EXPECT_LE(std::abs(*o.summary.rest_step - rest_from), 1) << c.name;
+    } else {
+      EXPECT_FALSE(o.summary.rest_step.has_value()) << c.name;
+    }
+    ++checked;
+  }
+  EXPECT_GE(checked, 4);  // tiny mass, huge mass, tiny step, the two perturbations
+}
 
 TEST(Stress, TheTheorem41RuleShrinksTheStep) {
   for (const auto& c : stress_cases()) {
