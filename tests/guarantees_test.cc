@@ -217,3 +217,41 @@ TEST(Report, ComparesTheRunWithTheScenesExactValues) {
 
 }  // namespace
 }  // namespace moreau::scene
+
+namespace moreau::scene {
+namespace {
+
+// Lemma 3 of the second paper on the bouncing ball: U = m g y on {y >= 0} has its strict minimum at the
+// vertex y = 0, where grad U = m g = lambda grad h with lambda = m g > 0 (closed form) and the one active
+// gradient spans R^1. The hypotheses that make the system (8) are checked literally.
+TEST(Guarantees, Lemma3AtTheBallsRestPosition) {
+  const Simulation sim = Simulation::from_file(ScenePath("bouncing-ball-e0.5.json"));
+  const RunSummary s = sim.run(nullptr);
+  ASSERT_TRUE(s.rest_step.has_value());
+  const Guarantees g = sim.guarantees(s);
+  const Guarantee* l3 = g.find("Lemma 3");
+  ASSERT_NE(l3, nullptr);
+  EXPECT_FALSE(l3->relied_on);
+  EXPECT_EQ(l3->verdict(), Verdict::kHolds);
+  const HypothesisCheck& strict = Hypothesis(g, "Lemma 3", "psi_Phi + U has a strict minimum");
+  EXPECT_EQ(strict.verdict, Verdict::kHolds) << strict.detail;
+  EXPECT_NE(strict.detail.find("lambda = (9.81)"), std::string::npos) << strict.detail;  // m g
+  EXPECT_EQ(g.relied_on_failure(), "");
+
+  // Not at rest at the end: nothing to check the minimum at.
+  const Simulation early = Simulation::from_file(ScenePath("bouncing-ball-e0.5.json"), {"integrator.t_end=0.5"});
+  const RunSummary se = early.run(nullptr);
+  EXPECT_EQ(Hypothesis(early.guarantees(se), "Lemma 3", "psi_Phi + U").verdict, Verdict::kNotChecked);
+  // An external force or a controller takes the system out of (8).
+  const Simulation forced = Simulation::from_file(ScenePath("bouncing-ball-e0.5.json"), {"system.force=[\"0.5\"]"});
+  const RunSummary sf = forced.run(nullptr);
+  EXPECT_EQ(Hypothesis(forced.guarantees(sf), "Lemma 3", "(8): no external force").verdict, Verdict::kFails);
+  EXPECT_EQ(forced.guarantees(sf).find("Lemma 3")->verdict(), Verdict::kFails);
+  // Example 1 (eq. 17) has a viscous controller and two coordinates with one active constraint.
+  const Simulation ex1 = Simulation::from_file(ScenePath("example1-eq17.json"));
+  const RunSummary s1 = ex1.run(nullptr);
+  EXPECT_EQ(Hypothesis(ex1.guarantees(s1), "Lemma 3", "(8): no set-valued controller").verdict, Verdict::kFails);
+}
+
+}  // namespace
+}  // namespace moreau::scene

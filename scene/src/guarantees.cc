@@ -1,7 +1,10 @@
 #include "moreau/scene/guarantees.h"
 
+#include <cmath>
 #include <cstdio>
 #include <sstream>
+
+#include <Eigen/Dense>
 
 namespace moreau::scene {
 namespace {
@@ -152,6 +155,87 @@ ConvergenceFinding convergence_finding(const RunSummary& s, const Guarantees& g,
   return t && t->verdict() == Verdict::kHolds ? ConvergenceFinding::kConvergedTheorem : ConvergenceFinding::kConvergedNotGuaranteed;
 }
 
+namespace {
+
+// Lemma 3 of Brogliato (2003) for a scene with unilateral constraints: the system is (8) (F = C q' +
+// grad U, one restitution e), Phi = {h >= 0} regular (Remark 4), and psi_Phi + U has a strict minimum at
+// q0, checked at the run's rest position q* by a sufficient first-order condition: the active gradients
+// grad h_i(q*) span R^n and grad U(q*) = sum lambda_i grad h_i(q*) with every lambda_i > 0. Then every
+// feasible direction d != 0 has <grad U, d> > 0 (it cannot be orthogonal to all active gradients), so q*
+// is a strict local minimum. Not relied on: the run does not use the conclusion (Lyapunov stability).
+Guarantee lemma3(const LagrangianScene& scene, const RunSummary& s) {
+  Guarantee g{"Lemma 3", "(q*, 0) is a Lyapunov stable equilibrium, with W = 1/2 <M v, v> + U(q) its Lyapunov function", false, {}};
+  const int n = scene.n, m = static_cast<int>(scene.constraint_names.size());
+  g.hypotheses.push_back({"(8): no external force F(t, q, v) beyond C q' + grad U", scene.has_force ? Verdict::kFails : Verdict::kHolds,
+                          scene.has_force ? "the scene gives /system/force" : "no /system/force"});
+  const bool controlled = scene.controller.has_quadratic() || scene.controller.has_nonsmooth();
+  g.hypotheses.push_back({"(8): no set-valued controller dPhi (the lemma is stated without one)", controlled ? Verdict::kFails : Verdict::kHolds,
+                          controlled ? "the scene has a controller" : "no controller"});
+  bool same_e = true;
+  for (double e : scene.restitution) same_e = same_e && e == scene.restitution.front();
+  g.hypotheses.push_back({"(8): one restitution coefficient e for every constraint", same_e ? Verdict::kHolds : Verdict::kFails,
+                          same_e ? "e = " + fmt(scene.restitution.front()) : "the constraints have different e"});
+  g.hypotheses.push_back({"Phi = {h(q) >= 0} regular (Remark 4)", m == 1 ? Verdict::kHolds : Verdict::kNotChecked,
+                          m == 1 ? "a single constraint" : std::to_string(m) + " constraints: convexity at the corners of Phi is not analysed"});
+  HypothesisCheck strict{"psi_Phi + U has a strict minimum at q0 = the rest position q*", Verdict::kNotChecked, ""};
+  const CompiledLagrangian* c = scene.compiled.get();
+  if (!s.rest_step) {
+    strict.detail = "the run is not at rest at its end: no rest position to check";
+  } else if (!c || !c->has_potential) {
+    strict.detail = "the scene gives no potential U";
+  } else {
+    std::vector<double> slots(static_cast<std::size_t>(1 + 2 * n), 0.0);
+    slots[0] = s.t_final;
+    for (int i = 0; i < n; ++i) slots[1 + i] = s.q_final[i];
+    std::vector<double> split(c->split_force_tape.num_outputs()), scratch(c->split_force_tape.scratch_size());
+    c->split_force_tape.eval(slots.data(), split.data(), scratch.data());
+    std::vector<double> cons(c->constraint_tape.num_outputs()), scratch2(c->constraint_tape.scratch_size());
+    c->constraint_tape.eval(slots.data(), cons.data(), scratch2.data());
+    const Eigen::VectorXd grad_u = Eigen::Map<const Eigen::VectorXd>(split.data(), n);
+    const double scale = 1.0 + grad_u.norm();
+    // A velocity-level scheme rests with a gap of up to about one step's fall, h^2 |M^{-1} grad U|: a
+    // constraint within ten times that is active.
+    const double hh = scene.contact_settings.h > 0.0 ? scene.contact_settings.h : scene.settings.h;
+    const double gap_tol = 10.0 * hh * hh * grad_u.norm() / std::max(s.mass.lambda_min, 1e-300) + 1e-12;
+    std::vector<int> active;
+    for (int i = 0; i < m; ++i)
+      if (cons[i] <= gap_tol) active.push_back(i);
+    Eigen::MatrixXd Ht(n, static_cast<int>(active.size()));
+    for (std::size_t a = 0; a < active.size(); ++a)
+      for (int j = 0; j < n; ++j) Ht(j, static_cast<int>(a)) = cons[m + active[a] * n + j];
+    if (active.empty()) {
+      strict.verdict = grad_u.norm() == 0.0 ? Verdict::kNotChecked : Verdict::kFails;
+      strict.detail = "no constraint active at q*" + std::string(grad_u.norm() == 0.0 ? ": grad U = 0, second-order information needed"
+                                                                                   : ": grad U(q*) != 0, q* is not a minimum of U");
+    } else {
+      Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(Ht);
+      qr.setThreshold(1e-10);
+      const Eigen::VectorXd lambda = qr.solve(grad_u);
+      const double residual = (Ht * lambda - grad_u).norm();
+      std::string ls;
+      for (int a = 0; a < lambda.size(); ++a) ls += (a ? ", " : "") + fmt(lambda(a));
+      if (residual > 1e-9 * scale || lambda.minCoeff() < -1e-9 * scale) {
+        strict.verdict = Verdict::kFails;
+        strict.detail = "grad U(q*) is not a non-negative combination of the active constraint gradients (residual " + fmt(residual) +
+                        ", multipliers " + ls + "): a feasible direction decreases U, q* is not a minimum";
+      } else if (qr.rank() < n || lambda.minCoeff() <= 1e-9 * scale) {
+        strict.detail = "grad U(q*) = sum lambda_i grad h_i(q*) with lambda = (" + ls + "), but the active gradients do not span R^" +
+                        std::to_string(n) + " or a multiplier is 0: a strict minimum needs second-order information, not checked";
+      } else {
+        strict.verdict = Verdict::kHolds;
+        strict.detail = "at q* = the rest position (gaps below " + fmt(gap_tol) + " count as active), " + std::to_string(active.size()) +
+                        " active constraint(s) spanning R^" +
+                        std::to_string(n) + ", grad U(q*) = sum lambda_i grad h_i(q*) with lambda = (" + ls +
+                        ") > 0: every feasible direction increases U (a sufficient condition)";
+      }
+    }
+  }
+  g.hypotheses.push_back(strict);
+  return g;
+}
+
+}  // namespace
+
 Guarantees lagrangian_guarantees(const LagrangianScene& scene, const RunSummary& s) {
   Guarantees g;
   if (scene.scheme == Scheme::kAbl && scene.settings.velocity_update == VelocityUpdate::kImplicit) {
@@ -163,6 +247,7 @@ Guarantees lagrangian_guarantees(const LagrangianScene& scene, const RunSummary&
     // Le do not apply; what still holds of the model is checked.
     Guarantee m{"Assumption 3.1", "the kinetic energy 1/2 <M v, v> is a norm of v (a mass matrix)", true, {mass_check(s)}};
     g.items.push_back(m);
+    if (!scene.constraint_names.empty()) g.items.push_back(lemma3(scene, s));
   }
   return g;
 }

@@ -9,7 +9,8 @@
 //   Theorem 4.2  E_k non-increasing, Q^k convergent, V^k -> 0: the Theorem 4.2 step rule, Assumption 4.1;
 //   Theorem 4.3  finite-step convergence: Theorem 4.2's hypotheses, F independent of t (4.16), and
 //                -F(Q*, 0) - grad V(Q*) in int dPhi(0) at the final position.
-// Brogliato (2003) for Lur'e systems: Lemma 1 (existence, uniqueness) and Lemma 2 (stability).
+// Brogliato (2003) for Lur'e systems: Lemma 1 (existence, uniqueness) and Lemma 2 (stability); for
+// unilateral constraints with impacts, Lemma 3 (Lyapunov stability of the rest position).
 #pragma once
 
 #include <string>
