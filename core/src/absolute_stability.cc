@@ -143,6 +143,7 @@ Verdict banded(double value, double fails_below, double holds_above) {
 
 // |Im lambda| of every finite generalized eigenvalue of the Rosenbrock pencil of the Popov function
 // Phi(s) = G(s) + G(-s)^T (see the header), with 0: the only frequencies where det Phi(jw) can vanish.
+// Empty when QZ did not converge (then nothing may be concluded from the candidates).
 std::vector<double> crossing_candidates(const Eigen::MatrixXd& A, const Eigen::MatrixXd& B, const Eigen::MatrixXd& C) {
   const int n = static_cast<int>(A.rows()), m = static_cast<int>(B.cols());
   const int d = 2 * n + m;
@@ -155,6 +156,7 @@ std::vector<double> crossing_candidates(const Eigen::MatrixXd& A, const Eigen::M
   M.block(2 * n, n, m, n) = B.transpose();
   N.topLeftCorner(2 * n, 2 * n).setIdentity();
   Eigen::GeneralizedEigenSolver<Eigen::MatrixXd> ges(M, N, false);
+  if (ges.info() != Eigen::Success) return {};
   std::vector<double> w{0.0};
   const double big = 1e12 * std::max({1.0, max_abs(A), max_abs(B), max_abs(C)});
   for (int k = 0; k < d; ++k) {
@@ -253,6 +255,8 @@ PositiveRealnessTest test_strict_positive_realness(const Eigen::MatrixXd& A, con
   // or right of the axis and SPR already fails).
   if (r.hurwitz == Verdict::kHolds) {
     r.crossing_candidates = crossing_candidates(A, B, C);
+    const bool qz_converged = !r.crossing_candidates.empty();
+    if (!qz_converged) r.crossing_candidates = {0.0};  // a failure found below still stands; "holds" cannot
     std::vector<double> points;
     const std::vector<double>& c = r.crossing_candidates;
     for (std::size_t i = 0; i < c.size(); ++i) {
@@ -307,7 +311,9 @@ PositiveRealnessTest test_strict_positive_realness(const Eigen::MatrixXd& A, con
     r.min_frequency_eigenvalue = fmin;
     r.argmin_omega = wmin;
     r.frequency_tolerance = tmin;
-    r.frequency = r.witness_omega >= 0.0 ? Verdict::kFails : undetermined ? Verdict::kUndetermined : Verdict::kHolds;
+    r.frequency = r.witness_omega >= 0.0                ? Verdict::kFails
+                  : undetermined || !qz_converged ? Verdict::kUndetermined
+                                                  : Verdict::kHolds;
   } else {
     r.frequency = Verdict::kNotChecked;
   }
