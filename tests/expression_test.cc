@@ -91,6 +91,23 @@ TEST_F(ExprTest, PrecedenceAndAssociativity) {
   EXPECT_EQ(eval("sin (0)"), 0.0);
 }
 
+// Assumption 3.3 is concluded from the operations alone: C-infinity on all of R^k or not. Each case says why
+// (a pole, a branch point, a kink, a domain edge).
+TEST_F(ExprTest, SmoothEverywhereIsDecidedByTheOperations) {
+  for (const char* smooth : {"sin(x)*y^2 + cos(z)", "exp(-x^2)*atan(y)", "tanh(x) - sinh(y)*cosh(z)", "x^3 - 2*x", "-x", "0.5*x*y", "3"})
+    EXPECT_TRUE(g_.smooth_everywhere(parse(smooth))) << smooth;
+  for (const char* not_smooth : {"x/y",         // pole at y = 0
+                                 "1/(1 + x^2)",  // smooth, but a division is not analysed
+                                 "sqrt(x)",      // not Lipschitz at 0
+                                 "log(x)", "tan(x)", "asin(x)", "acos(x)", "atan2(x, y)",
+                                 "x^0.5", "x^(-1)", "x^y",  // non-integer, negative or variable exponents
+                                 "abs(x)", "min(x, y)", "max(x, 0)"})
+    EXPECT_FALSE(g_.smooth_everywhere(parse(not_smooth))) << not_smooth;
+  // Derivatives keep what they are built of: d/dx abs(x) = sign(x) is not smooth; d/dx sin(x)^2 is.
+  EXPECT_FALSE(g_.smooth_everywhere(g_.derivative(parse("abs(x)"), 0)));
+  EXPECT_TRUE(g_.smooth_everywhere(g_.derivative(parse("sin(x)^2"), 0)));
+}
+
 TEST_F(ExprTest, Numbers) {
   EXPECT_EQ(eval("1"), 1.0);
   EXPECT_EQ(eval("1.5"), 1.5);

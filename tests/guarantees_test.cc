@@ -255,3 +255,31 @@ TEST(Guarantees, Lemma3AtTheBallsRestPosition) {
 
 }  // namespace
 }  // namespace moreau::scene
+
+namespace moreau::scene {
+namespace {
+
+// The manipulator with g = 0.9 under the Theorem 4.2 rule: ||grad V|| = b m2 g |sin th2| <= 0.45 <= 1/2 for
+// every q (closed form), F = 0, eta = 1/2, alpha = 1, and its expressions (cos, sin, products) are smooth
+// on all of R^n, so Assumption 3.3 holds: every hypothesis of Theorems 4.2 and 4.3 holds, and the finite-step
+// rest is attributed to Theorem 4.3. With an abs in the potential, Assumption 3.3 is no longer concluded.
+TEST(Guarantees, SmoothManipulatorUnderTheTheorem42RuleConvergesByTheorem43) {
+  const Simulation sim =
+      Simulation::from_file(ScenePath("manipulator.json"), {"integrator.step_rule=theorem-4.2", "parameters.g=0.9"});
+  const RunSummary s = sim.run(nullptr);
+  ASSERT_TRUE(s.converged_step.has_value());
+  const Guarantees g = sim.guarantees(s);
+  EXPECT_EQ(Hypothesis(g, "Theorem 4.2", "Assumption 3.3").verdict, Verdict::kHolds);
+  EXPECT_EQ(g.find("Theorem 4.2")->verdict(), Verdict::kHolds);
+  EXPECT_EQ(g.find("Theorem 4.3")->verdict(), Verdict::kHolds);
+  EXPECT_EQ(convergence_finding(s, g, "Theorem 4.3"), ConvergenceFinding::kConvergedTheorem);
+
+  const Simulation kinked = Simulation::from_file(
+      ScenePath("manipulator.json"),
+      {"integrator.step_rule=theorem-4.2", "parameters.g=0.9", "system.potential=-b*m2*g*cos(th2) + 0.01*abs(x1)"});
+  const RunSummary sk = kinked.run(nullptr);
+  EXPECT_EQ(Hypothesis(kinked.guarantees(sk), "Theorem 4.2", "Assumption 3.3").verdict, Verdict::kNotChecked);
+}
+
+}  // namespace
+}  // namespace moreau::scene

@@ -612,6 +612,36 @@ bool Graph::depends_on(Node f, int slot) const {
   return false;
 }
 
+bool Graph::smooth_everywhere(Node f) const {
+  check_node(f);
+  std::vector<char> seen(nodes_.size(), 0);
+  std::vector<Node> stack{f};
+  seen[static_cast<std::size_t>(f)] = 1;
+  while (!stack.empty()) {
+    const Entry& e = nodes_[static_cast<std::size_t>(stack.back())];
+    stack.pop_back();
+    switch (e.op) {
+      case Op::kConst: case Op::kVar: case Op::kAdd: case Op::kSub: case Op::kMul: case Op::kNeg: case Op::kSin:
+      case Op::kCos: case Op::kAtan: case Op::kSinh: case Op::kCosh: case Op::kTanh: case Op::kExp: case Op::kSquare:
+        break;
+      case Op::kPow: {
+        const Entry& exponent = nodes_[static_cast<std::size_t>(e.b)];
+        if (exponent.op != Op::kConst || !(exponent.value >= 0.0) || exponent.value != std::floor(exponent.value)) return false;
+        break;
+      }
+      default:
+        return false;
+    }
+    for (Node child : {e.a, e.b, e.c, e.d}) {
+      if (child >= 0 && !seen[static_cast<std::size_t>(child)]) {
+        seen[static_cast<std::size_t>(child)] = 1;
+        stack.push_back(child);
+      }
+    }
+  }
+  return true;
+}
+
 // Every builder folds operators whose operands are all constant, so a node without any variable below it
 // is always a kConst node.
 bool Graph::is_constant(Node f) const { return entry(f).op == Op::kConst; }

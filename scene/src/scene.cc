@@ -273,6 +273,10 @@ class Compiler {
       // Theorem 4.3 needs F independent of t (4.16).
       for (int i = 0; i < n_; ++i) scene.force_depends_on_time = scene.force_depends_on_time || graph_.depends_on(g_[i], 0);
     }
+    // Assumption 3.3 from the expressions alone. A given potential_gradient is not known to be a gradient
+    // (curl-free), so V's existence is not concluded then.
+    scene.forces_smooth_everywhere = !system.contains("potential_gradient");
+    for (int i = 0; i < n_; ++i) scene.forces_smooth_everywhere = scene.forces_smooth_everywhere && graph_.smooth_everywhere(g_[i]);
   }
 
   void controller(const json& system, LagrangianScene& scene) {

@@ -110,6 +110,11 @@ class Graph {
   Node derivative(Node f, int slot);
 
   bool depends_on(Node f, int slot) const;
+  // True when f is built only from operations that are C-infinity on all of R^k (constants, variables,
+  // +, -, *, negation, non-negative integer powers, sin, cos, atan, sinh, cosh, tanh, exp): then f is
+  // locally Lipschitz everywhere. False for /, log, sqrt, tan, asin, acos, atan2, other powers, abs, min,
+  // max (smooth on a domain only, or not smooth): nothing is concluded then.
+  bool smooth_everywhere(Node f) const;
   bool is_constant(Node f) const;
   double constant_value(Node f) const;  // precondition: is_constant(f)
   std::string to_string(Node f) const;  // fully parenthesised, for messages and tests

@@ -115,6 +115,9 @@ struct LagrangianScene {
   std::vector<std::string> christoffel_c;  // C(q, v) entries as text (row-major), for reports and tests
   bool force_depends_on_time = false;      // F(t, q, v) reads t (Theorem 4.3 assumes it does not, (4.16))
   bool has_force = false;                  // /system/force given (F is taken as non-zero then)
+  // grad V and F use only operations smooth on all of R^k (expr::Graph::smooth_everywhere): Assumption 3.3
+  // (F locally Lipschitz uniformly in t on the run's interval, grad V locally Lipschitz) then holds.
+  bool forces_smooth_everywhere = false;
   // Exact solution carried by textbook scenes (/exact), as expressions in t; empty when absent.
   std::shared_ptr<const expr::Tape> exact_tape;  // outputs q_1..q_n, v_1..v_n at slot 0 = t
   std::optional<double> exact_rest_time;
