@@ -339,6 +339,7 @@ StudyResult run_study(const LagrangianScene& scene, const StudySettings& st) {
       // Chattering is measured once the run has had five of its own steps past the reference's
       // convergence time: a first-order scheme arrives O(h) late.
       GridSampler sampler(grid, n, chatter_from + 5.0 * h, st.cancel);
+      if (st.on_row_start) st.on_row_start(scheme, h);
       const RunSummary s = run_scheme(scene, scheme, h, st, &sampler);
       row.status = to_string(s.status);
       row.message = s.message;

@@ -46,6 +46,9 @@ struct StudySettings {
   const std::atomic<bool>* cancel = nullptr;
   // Called after each row of the table, with the rows done and the rows planned.
   std::function<void(std::size_t done, std::size_t total)> on_row;
+  // Called when a row's first run is about to start (after the cancellation check between rows), so that
+  // a caller can act while that run integrates.
+  std::function<void(StudyScheme scheme, double h)> on_row_start;
 };
 
 // Thrown by run_study when StudySettings::cancel became true.
