@@ -161,11 +161,6 @@ TEST(Guarantees, MassMatrixLosingDefinitenessStopsTheRun) {
   }
 }
 
-}  // namespace
-}  // namespace moreau::scene
-
-namespace moreau::scene {
-namespace {
 
 // Energy and the scene's exact values, against closed forms. For m x'' + k x = 0 (the Coulomb oscillator
 // with a = 0), one step of (0.2) is V' = V - h (k/m) Q, Q' = Q + h V, which multiplies
@@ -215,11 +210,6 @@ TEST(Report, ComparesTheRunWithTheScenesExactValues) {
   EXPECT_NE(ball.report_json(ball.run(nullptr))["update"].get<std::string>().find("symplectic Euler"), std::string::npos);
 }
 
-}  // namespace
-}  // namespace moreau::scene
-
-namespace moreau::scene {
-namespace {
 
 // Lemma 3 of the second paper on the bouncing ball: U = m g y on {y >= 0} has its strict minimum at the
 // vertex y = 0, where grad U = m g = lambda grad h with lambda = m g > 0 (closed form) and the one active
@@ -253,11 +243,6 @@ TEST(Guarantees, Lemma3AtTheBallsRestPosition) {
   EXPECT_EQ(Hypothesis(ex1.guarantees(s1), "Lemma 3", "(8): no set-valued controller").verdict, Verdict::kFails);
 }
 
-}  // namespace
-}  // namespace moreau::scene
-
-namespace moreau::scene {
-namespace {
 
 // The manipulator with g = 0.9 under the Theorem 4.2 rule: ||grad V|| = b m2 g |sin th2| <= 0.45 <= 1/2 for
 // every q (closed form), F = 0, eta = 1/2, alpha = 1, and its expressions (cos, sin, products) are smooth

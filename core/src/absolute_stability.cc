@@ -180,10 +180,6 @@ std::string format(const char* fmt, double a, double b = 0.0, double c = 0.0) {
 
 }  // namespace
 
-double scaled_popov_eigenvalue(const Eigen::MatrixXd& A, const Eigen::MatrixXd& B, const Eigen::MatrixXd& C, double w, double wc) {
-  return popov_value(A, B, C, w, wc).value;
-}
-
 StorageMatrixCheck check_storage_matrix(const Eigen::MatrixXd& A, const Eigen::MatrixXd& B, const Eigen::MatrixXd& C,
                                         const Eigen::MatrixXd& P) {
   StorageMatrixCheck c;

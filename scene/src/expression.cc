@@ -593,7 +593,7 @@ void post_order(const Graph& graph, Node root, std::vector<char>& done, Visit&& 
 
 }  // namespace
 
-bool Graph::depends_on(Node f, int slot) const {
+bool Graph::any_reachable(Node f, const std::function<bool(const Entry&)>& found) const {
   check_node(f);
   std::vector<char> seen(nodes_.size(), 0);
   std::vector<Node> stack{f};
@@ -601,7 +601,7 @@ bool Graph::depends_on(Node f, int slot) const {
   while (!stack.empty()) {
     const Entry& e = nodes_[static_cast<std::size_t>(stack.back())];
     stack.pop_back();
-    if (e.op == Op::kVar && e.slot == slot) return true;
+    if (found(e)) return true;
     for (Node child : {e.a, e.b, e.c, e.d}) {
       if (child >= 0 && !seen[static_cast<std::size_t>(child)]) {
         seen[static_cast<std::size_t>(child)] = 1;
@@ -612,34 +612,25 @@ bool Graph::depends_on(Node f, int slot) const {
   return false;
 }
 
+bool Graph::depends_on(Node f, int slot) const {
+  return any_reachable(f, [slot](const Entry& e) { return e.op == Op::kVar && e.slot == slot; });
+}
+
 bool Graph::smooth_everywhere(Node f) const {
-  check_node(f);
-  std::vector<char> seen(nodes_.size(), 0);
-  std::vector<Node> stack{f};
-  seen[static_cast<std::size_t>(f)] = 1;
-  while (!stack.empty()) {
-    const Entry& e = nodes_[static_cast<std::size_t>(stack.back())];
-    stack.pop_back();
+  // True unless some reachable operation is smooth only on a domain, or not smooth.
+  return !any_reachable(f, [this](const Entry& e) {
     switch (e.op) {
       case Op::kConst: case Op::kVar: case Op::kAdd: case Op::kSub: case Op::kMul: case Op::kNeg: case Op::kSin:
       case Op::kCos: case Op::kAtan: case Op::kSinh: case Op::kCosh: case Op::kTanh: case Op::kExp: case Op::kSquare:
-        break;
-      case Op::kPow: {
+        return false;
+      case Op::kPow: {  // smooth for a constant non-negative integer exponent only
         const Entry& exponent = nodes_[static_cast<std::size_t>(e.b)];
-        if (exponent.op != Op::kConst || !(exponent.value >= 0.0) || exponent.value != std::floor(exponent.value)) return false;
-        break;
+        return exponent.op != Op::kConst || !(exponent.value >= 0.0) || exponent.value != std::floor(exponent.value);
       }
       default:
-        return false;
+        return true;
     }
-    for (Node child : {e.a, e.b, e.c, e.d}) {
-      if (child >= 0 && !seen[static_cast<std::size_t>(child)]) {
-        seen[static_cast<std::size_t>(child)] = 1;
-        stack.push_back(child);
-      }
-    }
-  }
-  return true;
+  });
 }
 
 // Every builder folds operators whose operands are all constant, so a node without any variable below it

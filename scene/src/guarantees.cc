@@ -204,8 +204,8 @@ Guarantee lemma3(const LagrangianScene& scene, const RunSummary& s) {
     const double scale = 1.0 + grad_u.norm();
     // A velocity-level scheme rests with a gap of up to about one step's fall, h^2 |M^{-1} grad U|: a
     // constraint within ten times that is active.
-    const double hh = scene.contact_settings.h > 0.0 ? scene.contact_settings.h : scene.settings.h;
-    const double gap_tol = 10.0 * hh * hh * grad_u.norm() / std::max(s.mass.lambda_min, 1e-300) + 1e-12;
+    const double h = scene.settings.h;
+    const double gap_tol = 10.0 * h * h * grad_u.norm() / std::max(s.mass.lambda_min, 1e-300) + 1e-12;
     std::vector<int> active;
     for (int i = 0; i < m; ++i)
       if (cons[i] <= gap_tol) active.push_back(i);

@@ -136,8 +136,14 @@ void exact_text(std::ostream& os, const ExactComparison& c) {
   for (std::size_t i = 0; i < c.lines.size(); ++i) os << (i == 0 ? "  exact         " : "                ") << c.lines[i] << "\n";
 }
 
-ExactComparison lagrangian_exact(const LagrangianScene& scene, const RunSummary& s, const std::optional<double>& rest_time) {
-  return compare_with_exact("q", scene.exact_rest_q, scene.exact_rest_time, scene.exact_tape.get(), 1 + 2 * scene.n, s.q_final, rest_time,
+// The run's rest time: the summary's for (0.2); for moreau-jean the contact diagnostics' (V == 0.0 to the end).
+ExactComparison lagrangian_exact(const LagrangianScene& scene, const RunSummary& s, const ContactDiagnostics* contacts) {
+  std::optional<double> rest = s.rest_time;
+  if (scene.scheme == Scheme::kMoreauJean) {
+    rest.reset();
+    if (contacts && contacts->rest_step >= 0) rest = contacts->rest_time;
+  }
+  return compare_with_exact("q", scene.exact_rest_q, scene.exact_rest_time, scene.exact_tape.get(), 1 + 2 * scene.n, s.q_final, rest,
                             s.t_final, scene.settings.h);
 }
 
@@ -152,7 +158,8 @@ ExactComparison lure_exact(const LureScene& sc, const RunSummary& s) {
 struct MechanicalEnergy {
   bool known = false;
   double initial = 0.0, final = 0.0;
-  bool cannot_rise = false;
+  bool rose = false;         // beyond round-off
+  bool cannot_rise = false;  // F = 0: a rise is the scheme's doing
 };
 
 MechanicalEnergy mechanical_energy(const LagrangianScene& scene, const RunSummary& s, double kinetic_initial, double kinetic_final) {
@@ -169,15 +176,15 @@ MechanicalEnergy mechanical_energy(const LagrangianScene& scene, const RunSummar
   e.known = true;
   e.initial = kinetic_initial + potential(scene.settings.t0, scene.q0);
   e.final = kinetic_final + potential(s.t_final, s.q_final);
+  e.rose = e.final > e.initial + 1e-12 * std::max(1.0, std::abs(e.initial));
   e.cannot_rise = !scene.has_force;
   return e;
 }
 
 nlohmann::json mechanical_json(const MechanicalEnergy& e) {
   if (!e.known) return {{"kind", "1/2 <M v, v> + V(q)"}, {"evaluated", false}, {"why", "the scene gives no potential"}};
-  const bool rose = e.final > e.initial + 1e-12 * std::max(1.0, std::abs(e.initial));
-  nlohmann::json j = {{"kind", "1/2 <M v, v> + V(q)"}, {"evaluated", true}, {"initial", num(e.initial)}, {"final", num(e.final)}, {"rose", rose}};
-  if (rose && e.cannot_rise) j["warning"] = "rose although F = 0 and dPhi dissipates: the scheme's explicit position update gains energy at O(h)";
+  nlohmann::json j = {{"kind", "1/2 <M v, v> + V(q)"}, {"evaluated", true}, {"initial", num(e.initial)}, {"final", num(e.final)}, {"rose", e.rose}};
+  if (e.rose && e.cannot_rise) j["warning"] = "rose although F = 0 and dPhi dissipates: the scheme's explicit position update gains energy at O(h)";
   return j;
 }
 
@@ -186,9 +193,8 @@ void mechanical_text(std::ostream& os, const MechanicalEnergy& e) {
     os << "                E = 1/2 <M v, v> + V(q): not evaluated (the scene gives no potential)\n";
     return;
   }
-  const bool rose = e.final > e.initial + 1e-12 * std::max(1.0, std::abs(e.initial));
   os << "                E = 1/2 <M v, v> + V(q): E(t0) = " << fmt(e.initial) << ", E(t_N) = " << fmt(e.final);
-  if (rose && e.cannot_rise) os << ": ROSE although F = 0 and dPhi dissipates (the explicit position update gains energy at O(h))";
+  if (e.rose && e.cannot_rise) os << ": ROSE although F = 0 and dPhi dissipates (the explicit position update gains energy at O(h))";
   os << "\n";
 }
 
@@ -332,7 +338,7 @@ std::string contact_text(const LagrangianScene& scene, const RunSummary& s, cons
     os << "\n";
   }
   os << "  update        " << update_description(scene) << "\n";
-  exact_text(os, lagrangian_exact(scene, s, c && c->rest_step >= 0 ? std::optional<double>(c->rest_time) : std::nullopt));
+  exact_text(os, lagrangian_exact(scene, s, c));
   os << guarantees_text(lagrangian_guarantees(scene, s));
   os << "  solver        max " << s.solver.max_iterations << " iterations per step, " << s.solver.total_iterations
      << " in all, max residual " << fmt(s.solver.max_residual) << ", " << s.solver.fallback_steps << " fallback steps\n";
@@ -370,15 +376,7 @@ nlohmann::json report_json(const LagrangianScene& scene, const RunSummary& s, co
                  {"increases", s.energy_increases}};
   j["mechanical_energy"] = mechanical_json(mechanical_energy(scene, s, s.energy_initial, s.energy_final));
   j["update"] = update_description(scene);
-  {
-    std::optional<double> rest = s.rest_time;
-    if (scene.scheme == Scheme::kMoreauJean) {
-      rest.reset();
-      if (contacts && contacts->rest_step >= 0) rest = contacts->rest_time;
-    }
-    const ExactComparison ex = lagrangian_exact(scene, s, rest);
-    if (!ex.json.is_null()) j["exact"] = ex.json;
-  }
+  if (const ExactComparison ex = lagrangian_exact(scene, s, contacts); !ex.json.is_null()) j["exact"] = ex.json;
   if (scene.scheme == Scheme::kMoreauJean) {
     j["system"] = "lagrangian";
     // E_k here is the kinetic energy, which falls and rises with the potential; Lemma 3's W is below.
@@ -431,7 +429,7 @@ std::string report_text(const LagrangianScene& scene, const RunSummary& s, const
   os << "\n";
   mechanical_text(os, mechanical_energy(scene, s, s.energy_initial, s.energy_final));
   os << "  update        " << update_description(scene) << "\n";
-  exact_text(os, lagrangian_exact(scene, s, s.rest_time));
+  exact_text(os, lagrangian_exact(scene, s, contacts));
   os << guarantees_text(g);
   os << "  solver        max " << s.solver.max_iterations << " iterations per step, " << s.solver.total_iterations
      << " in all, max residual " << fmt(s.solver.max_residual) << ", " << s.solver.rest_steps << " steps at rest, "
@@ -450,37 +448,35 @@ bool graphs_contain_origin(const LureScene& sc) {
   return true;
 }
 
-nlohmann::json verdict_json(Verdict v) { return to_string(v); }
-
 // Lemmas 1-2, assumption a): each condition with its verdict and the numbers it was decided on.
-nlohmann::json stability_json(const LureScene& sc) {
+nlohmann::json stability_json(const LureScene& sc, const Guarantees& g) {
   nlohmann::json j;
   j["graphs_contain_origin"] = graphs_contain_origin(sc);  // Lemma 2 assumes (0, 0) on the graph of d phi
   const MinimalityCheck& mc = sc.minimality;
-  j["minimal"] = {{"verdict", verdict_json(mc.verdict())},
-                  {"controllable", verdict_json(mc.controllable)},
+  j["minimal"] = {{"verdict", to_string(mc.verdict())},
+                  {"controllable", to_string(mc.controllable)},
                   {"controllability_margin", num(mc.controllability_margin)},
-                  {"observable", verdict_json(mc.observable)},
+                  {"observable", to_string(mc.observable)},
                   {"observability_margin", num(mc.observability_margin)},
                   {"test", "Popov-Belevitch-Hautus: min over the eigenvalues l of A of sigma_min([A - l I, B]) and of [A - l I; C]"}};
   if (sc.P) {
     const StorageMatrixCheck& c = sc.p_check;
     j["P"] = "given";
-    j["P_symmetric"] = {{"verdict", verdict_json(c.symmetric_verdict())}, {"asymmetry", num(c.asymmetry)}};
-    j["P_positive_definite"] = {{"verdict", verdict_json(c.positive_definite_verdict())}, {"min_eigenvalue", num(c.min_eigenvalue)}};
-    j["PA_plus_AtP_negative_definite"] = {{"verdict", verdict_json(c.dissipative_verdict())}, {"max_eigenvalue", num(c.max_eigenvalue_pa)}};
-    j["BtP_equals_C"] = {{"verdict", verdict_json(c.output_verdict())}, {"relative_residual", num(c.output_residual)}};
-    j["strictly_positive_real"] = verdict_json(c.verdict());  // by the KYP lemma's sufficiency
-    j["lemma_hypotheses"] = verdict_json(all_of(c.verdict(), mc.verdict()));
+    j["P_symmetric"] = {{"verdict", to_string(c.symmetric_verdict())}, {"asymmetry", num(c.asymmetry)}};
+    j["P_positive_definite"] = {{"verdict", to_string(c.positive_definite_verdict())}, {"min_eigenvalue", num(c.min_eigenvalue)}};
+    j["PA_plus_AtP_negative_definite"] = {{"verdict", to_string(c.dissipative_verdict())}, {"max_eigenvalue", num(c.max_eigenvalue_pa)}};
+    j["BtP_equals_C"] = {{"verdict", to_string(c.output_verdict())}, {"relative_residual", num(c.output_residual)}};
+    j["strictly_positive_real"] = to_string(c.verdict());  // by the KYP lemma's sufficiency
+    j["lemma_hypotheses"] = to_string(g.find("Lemma 1")->verdict());
     return j;
   }
   const PositiveRealnessTest& t = sc.spr;
   j["P"] = "not given";
-  j["strictly_positive_real"] = verdict_json(t.spr);
+  j["strictly_positive_real"] = to_string(t.spr);
   if (!t.witness.empty()) j["witness"] = t.witness;
   j["test"] = t.method;
-  j["A_hurwitz"] = {{"verdict", verdict_json(t.hurwitz)}, {"spectral_abscissa", num(t.spectral_abscissa)}, {"tolerance", num(t.hurwitz_tolerance)}};
-  nlohmann::json freq = {{"verdict", verdict_json(t.frequency)},
+  j["A_hurwitz"] = {{"verdict", to_string(t.hurwitz)}, {"spectral_abscissa", num(t.spectral_abscissa)}, {"tolerance", num(t.hurwitz_tolerance)}};
+  nlohmann::json freq = {{"verdict", to_string(t.frequency)},
                          {"min_scaled_eigenvalue", num(t.min_frequency_eigenvalue)},
                          {"at_omega", num(t.argmin_omega)},
                          {"tolerance", num(t.frequency_tolerance)},
@@ -490,9 +486,9 @@ nlohmann::json stability_json(const LureScene& sc) {
   if (t.witness_omega >= 0.0) freq["witness"] = {{"omega", num(t.witness_omega)}, {"scaled_eigenvalue", num(t.witness_value)}};
   j["frequency_condition"] = freq;
   j["CB_symmetric_positive_definite"] = {
-      {"verdict", verdict_json(t.cb)}, {"min_eigenvalue", num(t.cb_min_eigenvalue)}, {"asymmetry", num(t.cb_asymmetry)}};
-  j["high_frequency_condition"] = {{"verdict", verdict_json(t.high_frequency)}, {"min_eigenvalue", num(t.high_frequency_min_eigenvalue)}};
-  nlohmann::json cert = {{"verdict", verdict_json(t.certificate)}, {"method", t.storage_method}};
+      {"verdict", to_string(t.cb)}, {"min_eigenvalue", num(t.cb_min_eigenvalue)}, {"asymmetry", num(t.cb_asymmetry)}};
+  j["high_frequency_condition"] = {{"verdict", to_string(t.high_frequency)}, {"min_eigenvalue", num(t.high_frequency_min_eigenvalue)}};
+  nlohmann::json cert = {{"verdict", to_string(t.certificate)}, {"method", t.storage_method}};
   if (t.storage_found()) {
     cert["P"] = matrix_json(t.P);
     cert["min_eigenvalue_P"] = num(t.storage_check.min_eigenvalue);
@@ -500,7 +496,7 @@ nlohmann::json stability_json(const LureScene& sc) {
     cert["BtP_minus_C_relative_residual"] = num(t.storage_check.output_residual);
   }
   j["certificate"] = cert;
-  j["lemma_hypotheses"] = verdict_json(all_of(t.spr, mc.verdict()));
+  j["lemma_hypotheses"] = to_string(g.find("Lemma 1")->verdict());
   return j;
 }
 
@@ -533,12 +529,10 @@ nlohmann::json report_json(const LureScene& sc, const RunSummary& s, const LureD
     j["outputs_at_rest"] = rest;
   }
   j["final"] = fin;
-  {
-    const ExactComparison ex = lure_exact(sc, s);
-    if (!ex.json.is_null()) j["exact"] = ex.json;
-  }
-  j["absolute_stability"] = stability_json(sc);
-  j["guarantees"] = guarantees_json(lure_guarantees(sc));
+  if (const ExactComparison ex = lure_exact(sc, s); !ex.json.is_null()) j["exact"] = ex.json;
+  const Guarantees g = lure_guarantees(sc);
+  j["absolute_stability"] = stability_json(sc, g);
+  j["guarantees"] = guarantees_json(g);
   nlohmann::json w = d ? energy_json(d->storage) : nlohmann::json(nullptr);
   if (w.is_object()) {
     w["P_source"] = sc.storage_source;

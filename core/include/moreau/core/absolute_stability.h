@@ -115,7 +115,4 @@ MinimalityCheck check_minimality(const Eigen::MatrixXd& A, const Eigen::MatrixXd
 
 PositiveRealnessTest test_strict_positive_realness(const Eigen::MatrixXd& A, const Eigen::MatrixXd& B, const Eigen::MatrixXd& C);
 
-// (1 + (w/wc)^2) lambda_min(G(jw) + G(jw)^H): exposed for tests that cross-check the decision.
-double scaled_popov_eigenvalue(const Eigen::MatrixXd& A, const Eigen::MatrixXd& B, const Eigen::MatrixXd& C, double w, double wc);
-
 }  // namespace moreau

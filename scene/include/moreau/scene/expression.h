@@ -137,6 +137,8 @@ class Graph {
   // (a <= b) ? c : d, simplified; only the derivative of min/max creates it.
   Node select_le(Node a, Node b, Node c, Node d);
   void check_node(Node n) const;
+  // Whether some node reachable from f (f included) satisfies `found`: one traversal for every such query.
+  bool any_reachable(Node f, const std::function<bool(const Entry&)>& found) const;
 
   std::vector<Entry> nodes_;
   struct Impl;  // hash index for hash-consing, defined in expression.cc
