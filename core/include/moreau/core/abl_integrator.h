@@ -90,6 +90,8 @@ class AblIntegrator {
     Mv_.setZero(n);
     zero_.setZero(n);
     q_trial_.setZero(n);
+    q_.setZero(n);
+    v_.setZero(n);
     if constexpr (N == Eigen::Dynamic) mass_lu_ = Eigen::PartialPivLU<Mat<N>>(n);
   }
 
@@ -97,123 +99,98 @@ class AblIntegrator {
   // converged, non-finite state, step rule impossible) ends the run with RunStatus::kFailed and the last
   // good state, which is all the observer has seen.
   RunSummary run(const Vec<N>& q0, const Vec<N>& v0, RunObserver* observer = nullptr) {
-    const int n = model_.dof();
-    RunRecorder rec(observer, settings_.output_every, n);
-    RunSummary& s = rec.summary();
-    Vec<N> q = q0, v = v0;
-    double t = settings_.t0;
-    std::int64_t k = 0;
-
-    model_.evaluate(t, q, v, terms_);
-    Mv_.noalias() = terms_.M * v;
-    double energy = 0.5 * v.dot(Mv_);
-    rec.start(t, energy, (v.array() == 0.0).all());
-    // Allowance for round-off in E_k itself: a few ulps of the run's energy scale.
-    const auto energy_tol = [&](double e) { return 64.0 * std::numeric_limits<double>::epsilon() * std::max(e, s.energy_initial); };
-    if (!terms_.M.allFinite() || !terms_.C.allFinite() || !terms_.g.allFinite()) {
-      return rec.fail(k, t, q.data(), v.data(), "model terms are not finite at the initial state");
-    }
-    rec.first_sample(t, settings_.h, q.data(), v.data(), energy);
-
-    const bool fixed = settings_.step_rule == StepRule::kFixed;
-    const FixedTimeGrid grid(settings_.t0, settings_.t_end, settings_.h);
-    if (fixed && grid.steps > settings_.max_steps) return rec.fail(k, t, q.data(), v.data(), "the step count exceeds max_steps");
-    double h_prev = settings_.h;
-    double h_k = settings_.h;
-
-    while (true) {
-      if (fixed) {
-        if (k >= grid.steps) break;
-        h_k = grid.step(k);
-      } else {
-        if (t >= settings_.t_end) break;
-        if (k >= settings_.max_steps) return rec.fail(k, t, q.data(), v.data(), "max_steps reached before t_end");
-        std::string why;
-        if (!adaptive_step(q, v, h_prev, h_k, why)) return rec.fail(k, t, q.data(), v.data(), why);
-        // Land on t_end: shorten the last step, or stretch it by at most 1e-9 relative rather than
-        // leave a sliver of round-off (t accumulates the h_k).
-        const double remaining = settings_.t_end - t;
-        if (h_k * (1.0 + 1e-9) >= remaining) h_k = remaining;
-        if (!(h_k > 0.0) || h_k < 1e-15 * std::max(1.0, std::abs(settings_.t_end))) {
-          return rec.fail(k, t, q.data(), v.data(), "the step size collapsed below 1e-15 t_end");
-        }
-      }
-
-      // Assumption 3.1 and Theorem 4.1's (4.2) at (Q^k, V^k), from the terms already evaluated.
-      if (!check_step(rec, q, h_k, k, t)) return rec.fail(k, t, q.data(), v.data(), failure_);
-
-      // One step of (0.2): the inclusion (6.5) for V^{k+1}.
-      const double inv_h = 1.0 / h_k;
-      if (settings_.velocity_update == VelocityUpdate::kImplicit) {
-        P_.noalias() = inv_h * terms_.M;
-        P_ += terms_.C;
-        P_.diagonal() += weights_;
-        x_ = terms_.g - inv_h * Mv_;
-      }
-      OneStepStats st;
-      if (settings_.velocity_update == VelocityUpdate::kExplicit) {
-        explicit_velocity(v, h_k);
-        st.iterations = 1;  // one linear solve with M
-      } else if (!solver_.solve(P_, x_, y_, st)) {
-        return rec.fail(k, t, q.data(), v.data(),
-                        "the one-step inclusion (6.5) was not solved to round-off (residual " + std::to_string(st.residual) +
-                            ", tolerance " + std::to_string(st.tolerance) + ")");
-      }
-      rec.solver_step(st.iterations, st.residual, st.used_fallback);
-      s.solver.rest_steps += (st.iterations == 0);  // the y = 0 closed form of Lemma 6.1
-
-      q += h_k * v;  // Q^{k+1} = Q^k + h_k V^k: explicit in position
-      v = y_;
-      ++k;
-      t = fixed ? grid.time(k) : t + h_k;
-      h_prev = h_k;
-      rec.step_taken(h_k);
-      if (!q.allFinite() || !v.allFinite()) {
-        return rec.fail(k, t, q.data(), v.data(), "the state became non-finite");
-      }
-      rec.rest((v.array() == 0.0).all(), k, t);
-
-      model_.evaluate(t, q, v, terms_);
-      if (!terms_.M.allFinite() || !terms_.C.allFinite() || !terms_.g.allFinite()) {
-        return rec.fail(k, t, q.data(), v.data(), "model terms are not finite (an expression left its domain)");
-      }
-      Mv_.noalias() = terms_.M * v;
-      const double e_new = 0.5 * v.dot(Mv_);
-      rec.energy_step(energy, e_new, energy_tol(energy));
-      energy = e_new;
-
-      if (!rec.after_step(k, t, h_k, q.data(), v.data(), energy)) {
-        finish(rec, q, v, t, k, energy);
-        return rec.cancelled(k);
-      }
-    }
-    rec.last_sample(k, t, h_k, q.data(), v.data(), energy);
-    finish(rec, q, v, t, k, energy);
-    return rec.close();
+    q_ = q0;
+    v_ = v0;
+    const SteppingPlan plan{settings_.t0,        settings_.t_end,       settings_.h, settings_.step_rule == StepRule::kFixed,
+                            settings_.max_steps, settings_.output_every};
+    return SteppingDriver::run(*this, plan, observer);
   }
 
  private:
+  friend struct SteppingDriver;
+  static constexpr bool kAdaptiveSteps = true;
+  void on_failure() {}
+
+  // The scheme's part of the stepping loop (stepping_driver.h).
+  int dof() const { return model_.dof(); }
+  const double* q() const { return q_.data(); }
+  const double* v() const { return v_.data(); }
+  double energy() const { return energy_; }
+  bool at_rest() const { return (v_.array() == 0.0).all(); }
+  // Round-off in E_k itself: a few ulps of the run's energy scale.
+  double energy_allowance(double e_old, double e_initial) const {
+    return 64.0 * std::numeric_limits<double>::epsilon() * std::max(e_old, e_initial);
+  }
+
+  bool begin(double t0, StepFailure& f) { return evaluate(0, t0, f, "model terms are not finite at the initial state"); }
+
+  // M, C, g at (t_k, Q^k, V^k), and E_k = 1/2 <M V^k, V^k>.
+  bool evaluate(std::int64_t k, double t, StepFailure& f, const char* why) {
+    model_.evaluate(t, q_, v_, terms_);
+    if (!terms_.M.allFinite() || !terms_.C.allFinite() || !terms_.g.allFinite()) return f.at(k, t, q_.data(), v_.data(), why);
+    Mv_.noalias() = terms_.M * v_;
+    energy_ = 0.5 * v_.dot(Mv_);
+    return true;
+  }
+
+  // One step of (0.2): the inclusion (6.5) for V^{k+1}, then Q^{k+1} = Q^k + h_k V^k.
+  bool step(std::int64_t k, double t, double h_k, double /*t_next*/, RunRecorder& rec, StepFailure& f) {
+    // Assumption 3.1 and Theorem 4.1's (4.2) at (Q^k, V^k), from the terms already evaluated.
+    if (!check_step(rec, h_k, k, t)) return f.at(k, t, q_.data(), v_.data(), failure_);
+    RunSummary& s = rec.summary();
+    const double inv_h = 1.0 / h_k;
+    if (settings_.velocity_update == VelocityUpdate::kImplicit) {
+      P_.noalias() = inv_h * terms_.M;
+      P_ += terms_.C;
+      P_.diagonal() += weights_;
+      x_ = terms_.g - inv_h * Mv_;
+    }
+    OneStepStats st;
+    if (settings_.velocity_update == VelocityUpdate::kExplicit) {
+      explicit_velocity(v_, h_k);
+      st.iterations = 1;  // one linear solve with M
+    } else if (!solver_.solve(P_, x_, y_, st)) {
+      return f.at(k, t, q_.data(), v_.data(),
+                  "the one-step inclusion (6.5) was not solved to round-off (residual " + std::to_string(st.residual) + ", tolerance " +
+                      std::to_string(st.tolerance) + ")");
+    }
+    rec.solver_step(st.iterations, st.residual, st.used_fallback);
+    s.solver.rest_steps += (st.iterations == 0);  // the y = 0 closed form of Lemma 6.1
+
+    q_ += h_k * v_;  // Q^{k+1} = Q^k + h_k V^k: explicit in position
+    v_ = y_;
+    return true;
+  }
+
+  bool arrive(std::int64_t k, double t, StepFailure& f) {
+    if (!q_.allFinite() || !v_.allFinite()) return f.at(k, t, q_.data(), v_.data(), "the state became non-finite");
+    return evaluate(k, t, f, "model terms are not finite (an expression left its domain)");
+  }
+
+  // h_k of Theorems 4.1 and 4.2 (the driver lands it on t_end).
+  bool propose_step(double /*t*/, double h_prev, double& h_k, std::string& why) { return adaptive_step(q_, v_, h_prev, h_k, why); }
+
   // The summary of a run that ended, and Theorem 4.3's equilibrium inclusion at its final position:
   // -F(t, Q, 0) - grad V(Q) in dPhi(0).
-  void finish(RunRecorder& rec, const Vec<N>& q, const Vec<N>& v, double t, std::int64_t k, double energy) {
+  void finish(RunRecorder& rec, std::int64_t k, double t) {
     RunSummary& s = rec.summary();
-    model_.evaluate(t, q, zero_, terms_);
+    model_.evaluate(t, q_, zero_, terms_);
     const Vec<N> z = -terms_.g;
     const Controller<N>& phi = model_.controller();
     s.equilibrium.evaluated = z.allFinite();
     s.equilibrium.residual = phi.distance_to_subdifferential_at_zero(z);
     s.equilibrium.interior = phi.in_interior_of_subdifferential_at_zero(z);
-    rec.finish(k, t, q.data(), v.data(), energy, s.equilibrium.evaluated && s.equilibrium.residual == 0.0);
+    rec.finish(k, t, q_.data(), v_.data(), energy_, s.equilibrium.evaluated && s.equilibrium.residual == 0.0);
   }
 
   // Records lambda_min(M(Q^k)) and, for the scheme (0.2), r_k of (4.2). False (with failure_ set) when
   // M(Q^k) is not positive definite: the run stops there, naming t and q.
-  bool check_step(RunRecorder& rec, const Vec<N>& q, double h_k, std::int64_t k, double t) {
+  bool check_step(RunRecorder& rec, double h_k, std::int64_t k, double t) {
     RunSummary& s = rec.summary();
     const StepCheck c = checker_.check(terms_.M, terms_.C, h_k);
     s.mass.record(c.lambda_min_m, k, t);
     if (!(c.lambda_min_m > 0.0)) {
-      failure_ = not_positive_definite(c.lambda_min_m, q.data(), static_cast<int>(q.size()));
+      failure_ = not_positive_definite(c.lambda_min_m, q_.data(), static_cast<int>(q_.size()));
       return false;
     }
     if (settings_.velocity_update == VelocityUpdate::kImplicit) s.theorem41.record_squared(c.ratio_sq_num, c.ratio_sq_den, k, t);
@@ -309,6 +286,8 @@ class AblIntegrator {
   OneStepSolver<N> solver_;
   LagrangianTerms<N> terms_;
   Mat<N> P_, Mtrial_, eps_;
+  Vec<N> q_, v_;         // the state (Q^k, V^k)
+  double energy_ = 0.0;  // E_k = 1/2 <M(Q^k) V^k, V^k>
   Vec<N> x_, y_, Mv_, zero_, q_trial_;
   Eigen::SelfAdjointEigenSolver<Mat<N>> eig_;
   Eigen::PartialPivLU<Mat<N>> mass_lu_;

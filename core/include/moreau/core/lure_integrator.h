@@ -80,6 +80,7 @@ class LureIntegrator {
     for (std::size_t i = 0; i < graphs_.size(); ++i) graph_ptrs_[i] = &graphs_[i];
     solver_.configure(m_);
     xf_.setZero(n_);
+    x_.setZero(n_);
     xn_.setZero(n_);
     v_.setZero(n_);
     q_.setZero(m_);
@@ -112,85 +113,99 @@ class LureIntegrator {
   }
 
   RunSummary run(const Vec<N>& x0, RunObserver* observer = nullptr, LureDiagnostics* diag = nullptr) {
-    RunRecorder rec(observer, settings_.output_every, n_);
     LureDiagnostics local;
-    LureDiagnostics& d = diag ? *diag : local;
-    d = LureDiagnostics{};
-    d.output_rest_step.assign(static_cast<std::size_t>(m_), -1);
-    d.output_rest_time.assign(static_cast<std::size_t>(m_), 0.0);
-
-    Vec<N> x = x0;
-    double t = settings_.t0;
-    std::int64_t k = 0;
-    const FixedTimeGrid grid(settings_.t0, settings_.t_end, settings_.h);
-    const std::int64_t steps = grid.steps;
-    if (steps > settings_.max_steps) return fail(rec, d, x, t, k, "the step count exceeds max_steps");
-    prepare(settings_.h, main_);
-    prepare(grid.last_h, last_);
-
-    // Row 0: y_0 = C x_0, w_0 the least-norm element of d phi(y_0).
-    u_.noalias() = C_ * x;
-    for (int i = 0; i < m_; ++i) w_(i) = graphs_[i].least_norm_value(u_(i));
-    if (!w_.allFinite()) return fail(rec, d, x, t, k, "C x0 is outside the domain of d phi (Lemma 1 needs C x(0) in dom d phi)");
-    v_.noalias() = A_ * x - B_ * w_;
-    double energy = storage(x);
-    rec.start(t, energy, (x.array() == 0.0).all());
-    if (P_) d.storage.start(energy);
-    std::vector<std::int64_t>& rest = d.output_rest_step;
-    for (int i = 0; i < m_; ++i)
-      if (u_(i) == 0.0) rest[i] = 0;
-    rec.first_sample(t, settings_.h, x.data(), v_.data(), energy);
-    double h_k = settings_.h;
-
-    while (k < steps) {
-      const bool last = (k + 1 == steps);
-      const StepMatrices& sm = last ? last_ : main_;
-      h_k = sm.h;
-      xf_.noalias() = sm.Phi * x;
-      q_.noalias() = C_ * xf_;
-      GraphSolveStats st;
-      if (!solver_.solve(sm.D, q_, graph_ptrs_.data(), u_, w_, st)) {
-        char buf[160];
-        std::snprintf(buf, sizeof buf, "the one-step generalized equation was not solved to round-off (residual %.3g, tolerance %.3g)",
-                      st.residual, st.tolerance);
-        return fail(rec, d, x, t, k, buf);
-      }
-      rec.solver_step(st.iterations, st.residual, st.used_fallback);
-
-      xn_.noalias() = xf_ - sm.G * w_;
-      polish(xn_);
-      v_ = (xn_ - x) / h_k;
-      x = xn_;
-      ++k;
-      t = grid.time(k);
-      rec.step_taken(h_k);
-      if (!x.allFinite()) return fail(rec, d, x, t, k, "the state became non-finite");
-
-      for (int i = 0; i < m_; ++i) {
-        if (u_(i) != 0.0) {
-          rest[i] = -1;
-        } else if (rest[i] < 0) {
-          rest[i] = k;
-          d.output_rest_time[i] = t;
-        }
-      }
-      rec.rest((x.array() == 0.0).all(), k, t);
-      const double e_new = storage(x);
-      if (P_) d.storage.step(k, t, e_new, storage_allowance(x, energy));
-      rec.energy_step(energy, e_new, storage_allowance(x, energy));
-      energy = e_new;
-
-      if (!rec.after_step(k, t, h_k, x.data(), v_.data(), energy)) {
-        finish(rec, d, x, t, k, energy);
-        return rec.cancelled(k);
-      }
-    }
-    rec.last_sample(k, t, h_k, x.data(), v_.data(), energy);
-    finish(rec, d, x, t, k, energy);
-    return rec.close();
+    d_ = diag ? diag : &local;
+    x_ = x0;
+    last_step_ = FixedTimeGrid(settings_.t0, settings_.t_end, settings_.h).steps - 1;
+    RunSummary summary = SteppingDriver::run(*this, SteppingPlan::fixed_grid(settings_), observer);
+    d_ = nullptr;  // the diagnostics may be the local above
+    return summary;
   }
 
  private:
+  friend struct SteppingDriver;
+  static constexpr bool kAdaptiveSteps = false;
+
+  // The scheme's part of the stepping loop (stepping_driver.h): the observer sees x and its discrete
+  // derivative; the energy is W_k.
+  int dof() const { return n_; }
+  const double* q() const { return x_.data(); }
+  const double* v() const { return v_.data(); }
+  double energy() const { return energy_; }
+  bool at_rest() const { return (x_.array() == 0.0).all(); }
+  double energy_allowance(double e_old, double /*e_initial*/) const { return storage_allowance(x_, e_old); }
+
+  // Row 0: y_0 = C x_0, w_0 the least-norm element of d phi(y_0).
+  bool begin(double t, StepFailure& f) {
+    LureDiagnostics& d = *d_;
+    d = LureDiagnostics{};
+    d.output_rest_step.assign(static_cast<std::size_t>(m_), -1);
+    d.output_rest_time.assign(static_cast<std::size_t>(m_), 0.0);
+    prepare(settings_.h, main_);
+    prepare(FixedTimeGrid(settings_.t0, settings_.t_end, settings_.h).last_h, last_);
+    u_.noalias() = C_ * x_;
+    for (int i = 0; i < m_; ++i) w_(i) = graphs_[i].least_norm_value(u_(i));
+    if (!w_.allFinite()) return f.at(0, t, x_.data(), nullptr, "C x0 is outside the domain of d phi (Lemma 1 needs C x(0) in dom d phi)");
+    v_.noalias() = A_ * x_ - B_ * w_;
+    energy_ = storage(x_);
+    if (P_) d.storage.start(energy_);
+    for (int i = 0; i < m_; ++i)
+      if (u_(i) == 0.0) d.output_rest_step[i] = 0;
+    return true;
+  }
+
+  // One step of (4): the generalized equation for y_{k+1}, w_{k+1}, then x_{k+1}.
+  bool step(std::int64_t k, double t, double /*h_k*/, double /*t_next*/, RunRecorder& rec, StepFailure& f) {
+    const StepMatrices& sm = k == last_step_ ? last_ : main_;
+    xf_.noalias() = sm.Phi * x_;
+    q_.noalias() = C_ * xf_;
+    GraphSolveStats st;
+    if (!solver_.solve(sm.D, q_, graph_ptrs_.data(), u_, w_, st)) {
+      char buf[160];
+      std::snprintf(buf, sizeof buf, "the one-step generalized equation was not solved to round-off (residual %.3g, tolerance %.3g)",
+                    st.residual, st.tolerance);
+      return f.at(k, t, x_.data(), nullptr, buf);
+    }
+    rec.solver_step(st.iterations, st.residual, st.used_fallback);
+    xn_.noalias() = xf_ - sm.G * w_;
+    polish(xn_);
+    v_ = (xn_ - x_) / sm.h;
+    x_ = xn_;
+    return true;
+  }
+
+  bool arrive(std::int64_t k, double t, StepFailure& f) {
+    LureDiagnostics& d = *d_;
+    if (!x_.allFinite()) return f.at(k, t, x_.data(), nullptr, "the state became non-finite");
+    for (int i = 0; i < m_; ++i) {
+      if (u_(i) != 0.0) {
+        d.output_rest_step[i] = -1;
+      } else if (d.output_rest_step[i] < 0) {
+        d.output_rest_step[i] = k;
+        d.output_rest_time[i] = t;
+      }
+    }
+    const double e_new = storage(x_);
+    if (P_) d.storage.step(k, t, e_new, storage_allowance(x_, energy_));
+    energy_ = e_new;
+    return true;
+  }
+
+  void finish(RunRecorder& rec, std::int64_t k, double t) {
+    LureDiagnostics& d = *d_;
+    rec.finish(k, t, x_.data(), v_.data(), energy_);
+    d.y_final.assign(u_.data(), u_.data() + u_.size());
+    d.y_l_final.assign(w_.data(), w_.data() + w_.size());
+    for (int i = 0; i < m_; ++i)
+      if (d.output_rest_step[i] < 0) d.output_rest_time[i] = 0.0;
+  }
+
+  // A failed run also reports the last outputs.
+  void on_failure() {
+    d_->y_final.assign(u_.data(), u_.data() + u_.size());
+    d_->y_l_final.assign(w_.data(), w_.data() + w_.size());
+  }
+
   struct StepMatrices {
     double h = 0.0;
     Mat<N> Phi;  // Wt (I + h (1 - theta) A)
@@ -231,21 +246,6 @@ class LureIntegrator {
     return 64.0 * std::numeric_limits<double>::epsilon() * std::max(pn * x.squaredNorm(), std::abs(w_old));
   }
 
-  void finish(RunRecorder& rec, LureDiagnostics& d, const Vec<N>& x, double t, std::int64_t k, double energy) {
-    rec.finish(k, t, x.data(), v_.data(), energy);
-    d.y_final.assign(u_.data(), u_.data() + u_.size());
-    d.y_l_final.assign(w_.data(), w_.data() + w_.size());
-    for (int i = 0; i < m_; ++i)
-      if (d.output_rest_step[i] < 0) d.output_rest_time[i] = 0.0;
-  }
-
-  // A failed run: the recorder's summary (the state x, no velocity) and the last outputs.
-  RunSummary fail(RunRecorder& rec, LureDiagnostics& d, const Vec<N>& x, double t, std::int64_t k, const std::string& why) {
-    d.y_final.assign(u_.data(), u_.data() + u_.size());
-    d.y_l_final.assign(w_.data(), w_.data() + w_.size());
-    return rec.fail(k, t, x.data(), nullptr, why);
-  }
-
   Mat<N> A_;
   MatB B_;
   MatC C_;
@@ -256,6 +256,10 @@ class LureIntegrator {
   int n_ = 0, m_ = 0;
   StepMatrices main_, last_;
   GraphInclusionSolver<Mo> solver_;
+  Vec<N> x_;                      // the state x_k
+  double energy_ = 0.0;           // W_k
+  std::int64_t last_step_ = 0;    // the index of the grid's last step, which takes its own h
+  LureDiagnostics* d_ = nullptr;  // where the running run records
   Vec<N> xf_, xn_, v_, cx_;
   Vec<Mo> q_, u_, w_;
   std::vector<int> unit_col_;

@@ -149,6 +149,8 @@ class MoreauJeanIntegrator {
     vpos_.setZero(n_);
     rhs_.setZero(n_);
     qn_.setZero(n_);
+    q_.setZero(n_);
+    v_.setZero(n_);
     dq_.setZero(n_);
     Gsq_.setZero(n_, n_);
     rsq_.setZero(n_);
@@ -189,10 +191,33 @@ class MoreauJeanIntegrator {
   }
 
   RunSummary run(const Vec<N>& q0, const Vec<N>& v0, RunObserver* observer = nullptr, ContactDiagnostics* diag = nullptr) {
-    RunRecorder rec(observer, settings_.output_every, n_);
-    RunSummary& s = rec.summary();
     ContactDiagnostics local;
-    ContactDiagnostics& d = diag ? *diag : local;
+    d_ = diag ? diag : &local;
+    q_ = q0;
+    v_ = v0;
+    RunSummary summary = SteppingDriver::run(*this, SteppingPlan::fixed_grid(settings_), observer);
+    d_ = nullptr;  // the diagnostics may be the local above
+    return summary;
+  }
+
+ private:
+  friend struct SteppingDriver;
+  static constexpr bool kAdaptiveSteps = false;
+  void on_failure() {}
+
+  // The scheme's part of the stepping loop (stepping_driver.h). Its energy is the kinetic energy; the
+  // Lagrange-Dirichlet function of Lemma 3 is tracked in the contact diagnostics.
+  int dof() const { return n_; }
+  const double* q() const { return q_.data(); }
+  const double* v() const { return v_.data(); }
+  double energy() const { return kinetic_; }
+  bool at_rest() const { return (v_.array() == 0.0).all(); }
+  double energy_allowance(double /*e_old*/, double e_initial) const {
+    return 64.0 * std::numeric_limits<double>::epsilon() * std::max(kinetic_, e_initial);
+  }
+
+  bool begin(double t, StepFailure& f) {
+    ContactDiagnostics& d = *d_;
     d = ContactDiagnostics{};
     d.constraints = nc_;
     d.impacts.reserve(static_cast<std::size_t>(std::max(0, settings_.max_recorded_impacts)));
@@ -200,187 +225,183 @@ class MoreauJeanIntegrator {
     d.settle_time.assign(static_cast<std::size_t>(nc_), 0.0);
     d.correction_enabled = settings_.correct_positions;
     d.potential_known = model_.has_potential();
+    if (norm_gain_ > 0.0) return f.at(0, t, q_.data(), v_.data(), "the norm controller term is not supported by the moreau-jean scheme");
 
-    Vec<N> q = q0, v = v0;
-    double t = settings_.t0;
-    std::int64_t k = 0;
-    if (norm_gain_ > 0.0) return rec.fail(k, t, q.data(), v.data(), "the norm controller term is not supported by the moreau-jean scheme");
-    const FixedTimeGrid grid(settings_.t0, settings_.t_end, settings_.h);
-    const std::int64_t steps = grid.steps;
-    if (steps > settings_.max_steps) return rec.fail(k, t, q.data(), v.data(), "the step count exceeds max_steps");
-
-    model_.evaluate(t, q, v, terms_);
+    model_.evaluate(t, q_, v_, terms_);
     if (!terms_.M.allFinite() || !terms_.C.allFinite() || !terms_.g.allFinite())
-      return rec.fail(k, t, q.data(), v.data(), "model terms are not finite at the initial state");
-    if (nc_ > 0) model_.constraints(q, gap_, H_);
+      return f.at(0, t, q_.data(), v_.data(), "model terms are not finite at the initial state");
+    if (nc_ > 0) model_.constraints(q_, gap_, H_);
     note_gaps(d, t);
-    double kinetic = 0.5 * v.dot(terms_.M * v);
-    double potential = d.potential_known ? model_.potential(q) : 0.0;
-    rec.start(t, kinetic, (v.array() == 0.0).all());
-    d.lagrange_dirichlet.start(kinetic + potential);
-    rec.first_sample(t, settings_.h, q.data(), v.data(), kinetic);
-    double h = settings_.h;
-
-    while (k < steps) {
-      h = grid.step(k);
-      // Assumption 3.1 at the visited states: M(Q^k) positive definite, else the run stops here.
-      const double lambda_m = checker_.lambda_min(terms_.M);
-      s.mass.record(lambda_m, k, t);
-      if (!(lambda_m > 0.0)) return rec.fail(k, t, q.data(), v.data(), not_positive_definite(lambda_m, q.data(), n_));
-
-      // Free velocity: Wm V_free = M V^k - h g.
-      Wm_ = terms_.M;
-      Wm_.noalias() += h * terms_.C;
-      Wm_.diagonal() += h * weights_;
-      lu_.compute(Wm_);
-      rhs_.noalias() = terms_.M * v;
-      rhs_ -= h * terms_.g;
-      vf_.noalias() = lu_.solve(rhs_);
-
-      // Predicted active set and the rows of (GE).
-      bool any_active = false;
-      if (nc_ > 0) {
-        for (int i = 0; i < nc_; ++i) U_(i) = H_.row(i).dot(v);
-        for (int i = 0; i < nc_; ++i) {
-          const double predicted = gap_(i) + h * H_.row(i).dot(vf_);
-          active_[i] = predicted <= 0.0;
-          any_active = any_active || active_[i];
-        }
-      }
-      d.active_steps += any_active;
-      if (m_ > 0 && (na_ > 0 || any_active)) {
-        for (int r = 0; r < na_; ++r) {
-          Gv_.row(r).setZero();
-          Gv_(r, ctrl_dof_[r]) = 1.0;
-          Gf_.row(r).setZero();
-          Gf_(r, ctrl_dof_[r]) = h;
-          b_(r) = 0.0;
-        }
-        for (int i = 0; i < nc_; ++i) {
-          const int r = na_ + i;
-          Gv_.row(r) = H_.row(i);
-          Gf_.row(r) = H_.row(i);
-          b_(r) = active_[i] ? restitution_[i] * std::min(U_(i), 0.0) : 0.0;
-          ptrs_[r] = active_[i] ? &corner_ : &zero_;
-        }
-        // Small dense pieces, column by column with fixed-size N: no dynamic-size GEMM per step.
-        for (int r = 0; r < m_; ++r) {
-          rhs_ = Gf_.row(r).transpose();
-          Y_.col(r).noalias() = lu_.solve(rhs_);
-        }
-        for (int i = 0; i < m_; ++i) {
-          for (int j = 0; j < m_; ++j) D_(i, j) = Gv_.row(i).dot(Y_.col(j));
-          qv_(i) = Gv_.row(i).dot(vf_) + b_(i);
-        }
-        GraphSolveStats st;
-        if (!solver_.solve(D_, qv_, ptrs_.data(), u_, w_, st)) {
-          char buf[200];
-          std::snprintf(buf, sizeof buf, "the one-step complementarity problem was not solved to round-off (residual %.3g, tolerance %.3g)",
-                        st.residual, st.tolerance);
-          return rec.fail(k, t, q.data(), v.data(), buf);
-        }
-        rec.solver_step(st.iterations, st.residual, st.used_fallback);
-        vn_ = vf_;
-        for (int j = 0; j < m_; ++j)
-          if (w_(j) != 0.0) vn_ -= w_(j) * Y_.col(j);
-        polish(vn_);
-      } else {
-        vn_ = vf_;
-        w_.setZero();
-        s.solver.total_iterations += 1;
-        s.solver.max_iterations = std::max(s.solver.max_iterations, 1);
-      }
-
-      // Impulses, impacts, position velocity.
-      vpos_ = vn_;
-      bool any_impulse = false;
-      int rebounds = 0;
-      if (nc_ > 0) {
-        for (int i = 0; i < nc_; ++i) Un_(i) = H_.row(i).dot(vn_);
-        int impacts_now = 0;
-        const double vmax = v.cwiseAbs().maxCoeff();
-        for (int i = 0; i < nc_; ++i) {
-          impacting_[i] = 0;
-          const double P = -w_(na_ + i);
-          if (!(P > 0.0)) continue;
-          any_impulse = true;
-          // An impact: the contact was approaching by more than the round-off of U = grad h^T V.
-          const double approach = 64.0 * std::numeric_limits<double>::epsilon() * H_.row(i).cwiseAbs().sum() * vmax;
-          if (!(U_(i) < -approach)) continue;
-          impacting_[i] = 1;
-          ++impacts_now;
-          if (restitution_[i] > 0.0) rows_[rebounds++] = i;  // U+ = -e U- != 0: the rebounding contacts
-        }
-        if (impacts_now > 0 || (rebounds > 0 && settings_.position_update == PositionUpdate::kMdi)) mlu_.compute(terms_.M);
-        if (impacts_now > 0) record_impacts(d, k + 1, grid.time(k + 1), impacts_now);
-        if (rebounds > 0 && settings_.position_update == PositionUpdate::kMdi) {
-          // V_pos = V^{k+1} - M^{-1} H_R^T (H_R M^{-1} H_R^T)^{-1} U_R^{k+1}.
-          for (int a = 0; a < rebounds; ++a) {
-            rhs_ = H_.row(rows_[a]).transpose();
-            Z_.col(a).noalias() = mlu_.solve(rhs_);
-          }
-          for (int a = 0; a < rebounds; ++a) {
-            for (int b = 0; b < rebounds; ++b) S_(a, b) = H_.row(rows_[a]).dot(Z_.col(b));
-            s_(a) = Un_(rows_[a]);
-          }
-          if (!detail::solve_small_in_place(S_, s_, rebounds))
-            return rec.fail(k, t, q.data(), v.data(), "the gradients of the rebounding contacts are dependent");
-          for (int a = 0; a < rebounds; ++a) vpos_ -= s_(a) * Z_.col(a);
-        }
-      }
-      d.impulse_steps += any_impulse;
-
-      qn_ = q + h * vpos_;
-      ++k;
-      t = grid.time(k);
-      rec.step_taken(h);
-      if (!qn_.allFinite() || !vn_.allFinite()) return rec.fail(k, t, q.data(), v.data(), "the state became non-finite");
-
-      if (nc_ > 0) {
-        model_.constraints(qn_, gap_, H_);
-        if (settings_.correct_positions && gap_.minCoeff() < 0.0) {
-          if (!correct(d, qn_)) return rec.fail(k, t, q.data(), v.data(), "the position correction did not converge");
-        }
-      }
-      q = qn_;
-      v = vn_;
-
-      // Settled contacts and rest.
-      for (int i = 0; i < nc_; ++i) {
-        const bool closed = -w_(na_ + i) > 0.0 && Un_(i) == 0.0;
-        if (!closed) {
-          d.settle_step[i] = -1;
-        } else if (d.settle_step[i] < 0) {
-          d.settle_step[i] = k;
-          d.settle_time[i] = t;
-        }
-      }
-      rec.rest((v.array() == 0.0).all(), k, t);
-
-      model_.evaluate(t, q, v, terms_);
-      if (!terms_.M.allFinite() || !terms_.C.allFinite() || !terms_.g.allFinite())
-        return rec.fail(k, t, q.data(), v.data(), "model terms are not finite (an expression left its domain)");
-      note_gaps(d, t);
-      const double kin_new = 0.5 * v.dot(terms_.M * v);
-      const double pot_new = d.potential_known ? model_.potential(q) : 0.0;
-      const double allowance =
-          64.0 * std::numeric_limits<double>::epsilon() * (kinetic + std::abs(potential) + kin_new + std::abs(pot_new));
-      d.lagrange_dirichlet.step(k, t, kin_new + pot_new, allowance);
-      rec.energy_step(kinetic, kin_new, 64.0 * std::numeric_limits<double>::epsilon() * std::max(kin_new, s.energy_initial));
-      kinetic = kin_new;
-      potential = pot_new;
-
-      if (!rec.after_step(k, t, h, q.data(), v.data(), kinetic)) {
-        finish(rec, d, q, v, t, k, kinetic);
-        return rec.cancelled(k);
-      }
-    }
-    rec.last_sample(k, t, h, q.data(), v.data(), kinetic);
-    finish(rec, d, q, v, t, k, kinetic);
-    return rec.close();
+    kinetic_ = 0.5 * v_.dot(terms_.M * v_);
+    potential_ = d.potential_known ? model_.potential(q_) : 0.0;
+    d.lagrange_dirichlet.start(kinetic_ + potential_);
+    return true;
   }
 
- private:
+  // One step of (8): the free velocity, the one-step generalized equation, impacts and Q^{k+1}.
+  bool step(std::int64_t k, double t, double h, double t_next, RunRecorder& rec, StepFailure& f) {
+    RunSummary& s = rec.summary();
+    ContactDiagnostics& d = *d_;
+    const Vec<N>& q = q_;
+    const Vec<N>& v = v_;
+    // Assumption 3.1 at the visited states: M(Q^k) positive definite, else the run stops here.
+    const double lambda_m = checker_.lambda_min(terms_.M);
+    s.mass.record(lambda_m, k, t);
+    if (!(lambda_m > 0.0)) return f.at(k, t, q.data(), v.data(), not_positive_definite(lambda_m, q.data(), n_));
+
+    // Free velocity: Wm V_free = M V^k - h g.
+    Wm_ = terms_.M;
+    Wm_.noalias() += h * terms_.C;
+    Wm_.diagonal() += h * weights_;
+    lu_.compute(Wm_);
+    rhs_.noalias() = terms_.M * v;
+    rhs_ -= h * terms_.g;
+    vf_.noalias() = lu_.solve(rhs_);
+
+    // Predicted active set and the rows of (GE).
+    bool any_active = false;
+    if (nc_ > 0) {
+      for (int i = 0; i < nc_; ++i) U_(i) = H_.row(i).dot(v);
+      for (int i = 0; i < nc_; ++i) {
+        const double predicted = gap_(i) + h * H_.row(i).dot(vf_);
+        active_[i] = predicted <= 0.0;
+        any_active = any_active || active_[i];
+      }
+    }
+    d.active_steps += any_active;
+    if (m_ > 0 && (na_ > 0 || any_active)) {
+      for (int r = 0; r < na_; ++r) {
+        Gv_.row(r).setZero();
+        Gv_(r, ctrl_dof_[r]) = 1.0;
+        Gf_.row(r).setZero();
+        Gf_(r, ctrl_dof_[r]) = h;
+        b_(r) = 0.0;
+      }
+      for (int i = 0; i < nc_; ++i) {
+        const int r = na_ + i;
+        Gv_.row(r) = H_.row(i);
+        Gf_.row(r) = H_.row(i);
+        b_(r) = active_[i] ? restitution_[i] * std::min(U_(i), 0.0) : 0.0;
+        ptrs_[r] = active_[i] ? &corner_ : &zero_;
+      }
+      // Small dense pieces, column by column with fixed-size N: no dynamic-size GEMM per step.
+      for (int r = 0; r < m_; ++r) {
+        rhs_ = Gf_.row(r).transpose();
+        Y_.col(r).noalias() = lu_.solve(rhs_);
+      }
+      for (int i = 0; i < m_; ++i) {
+        for (int j = 0; j < m_; ++j) D_(i, j) = Gv_.row(i).dot(Y_.col(j));
+        qv_(i) = Gv_.row(i).dot(vf_) + b_(i);
+      }
+      GraphSolveStats st;
+      if (!solver_.solve(D_, qv_, ptrs_.data(), u_, w_, st)) {
+        char buf[200];
+        std::snprintf(buf, sizeof buf, "the one-step complementarity problem was not solved to round-off (residual %.3g, tolerance %.3g)",
+                      st.residual, st.tolerance);
+        return f.at(k, t, q.data(), v.data(), buf);
+      }
+      rec.solver_step(st.iterations, st.residual, st.used_fallback);
+      vn_ = vf_;
+      for (int j = 0; j < m_; ++j)
+        if (w_(j) != 0.0) vn_ -= w_(j) * Y_.col(j);
+      polish(vn_);
+    } else {
+      vn_ = vf_;
+      w_.setZero();
+      s.solver.total_iterations += 1;
+      s.solver.max_iterations = std::max(s.solver.max_iterations, 1);
+    }
+
+    // Impulses, impacts, position velocity.
+    vpos_ = vn_;
+    bool any_impulse = false;
+    int rebounds = 0;
+    if (nc_ > 0) {
+      for (int i = 0; i < nc_; ++i) Un_(i) = H_.row(i).dot(vn_);
+      int impacts_now = 0;
+      const double vmax = v.cwiseAbs().maxCoeff();
+      for (int i = 0; i < nc_; ++i) {
+        impacting_[i] = 0;
+        const double P = -w_(na_ + i);
+        if (!(P > 0.0)) continue;
+        any_impulse = true;
+        // An impact: the contact was approaching by more than the round-off of U = grad h^T V.
+        const double approach = 64.0 * std::numeric_limits<double>::epsilon() * H_.row(i).cwiseAbs().sum() * vmax;
+        if (!(U_(i) < -approach)) continue;
+        impacting_[i] = 1;
+        ++impacts_now;
+        if (restitution_[i] > 0.0) rows_[rebounds++] = i;  // U+ = -e U- != 0: the rebounding contacts
+      }
+      if (impacts_now > 0 || (rebounds > 0 && settings_.position_update == PositionUpdate::kMdi)) mlu_.compute(terms_.M);
+      if (impacts_now > 0) record_impacts(d, k + 1, t_next, impacts_now);
+      if (rebounds > 0 && settings_.position_update == PositionUpdate::kMdi) {
+        // V_pos = V^{k+1} - M^{-1} H_R^T (H_R M^{-1} H_R^T)^{-1} U_R^{k+1}.
+        for (int a = 0; a < rebounds; ++a) {
+          rhs_ = H_.row(rows_[a]).transpose();
+          Z_.col(a).noalias() = mlu_.solve(rhs_);
+        }
+        for (int a = 0; a < rebounds; ++a) {
+          for (int b = 0; b < rebounds; ++b) S_(a, b) = H_.row(rows_[a]).dot(Z_.col(b));
+          s_(a) = Un_(rows_[a]);
+        }
+        if (!detail::solve_small_in_place(S_, s_, rebounds))
+          return f.at(k, t, q.data(), v.data(), "the gradients of the rebounding contacts are dependent");
+        for (int a = 0; a < rebounds; ++a) vpos_ -= s_(a) * Z_.col(a);
+      }
+    }
+    d.impulse_steps += any_impulse;
+
+    qn_ = q + h * vpos_;
+    return true;
+  }
+
+  // Q^{k+1}, V^{k+1} become the state: finiteness, the gaps (and the optional position correction), the
+  // settled contacts, and the terms and energies at the new state.
+  bool arrive(std::int64_t k, double t, StepFailure& f) {
+    ContactDiagnostics& d = *d_;
+    if (!qn_.allFinite() || !vn_.allFinite()) return f.at(k, t, q_.data(), v_.data(), "the state became non-finite");
+    if (nc_ > 0) {
+      model_.constraints(qn_, gap_, H_);
+      if (settings_.correct_positions && gap_.minCoeff() < 0.0) {
+        if (!correct(d, qn_)) return f.at(k, t, q_.data(), v_.data(), "the position correction did not converge");
+      }
+    }
+    q_ = qn_;
+    v_ = vn_;
+
+    for (int i = 0; i < nc_; ++i) {
+      const bool closed = -w_(na_ + i) > 0.0 && Un_(i) == 0.0;
+      if (!closed) {
+        d.settle_step[i] = -1;
+      } else if (d.settle_step[i] < 0) {
+        d.settle_step[i] = k;
+        d.settle_time[i] = t;
+      }
+    }
+
+    model_.evaluate(t, q_, v_, terms_);
+    if (!terms_.M.allFinite() || !terms_.C.allFinite() || !terms_.g.allFinite())
+      return f.at(k, t, q_.data(), v_.data(), "model terms are not finite (an expression left its domain)");
+    note_gaps(d, t);
+    const double kin_new = 0.5 * v_.dot(terms_.M * v_);
+    const double pot_new = d.potential_known ? model_.potential(q_) : 0.0;
+    const double allowance =
+        64.0 * std::numeric_limits<double>::epsilon() * (kinetic_ + std::abs(potential_) + kin_new + std::abs(pot_new));
+    d.lagrange_dirichlet.step(k, t, kin_new + pot_new, allowance);
+    kinetic_ = kin_new;
+    potential_ = pot_new;
+    return true;
+  }
+
+  void finish(RunRecorder& rec, std::int64_t k, double t) {
+    ContactDiagnostics& d = *d_;
+    rec.finish(k, t, q_.data(), v_.data(), kinetic_);
+    if (rec.rest_from() >= 0) {
+      d.rest_step = rec.rest_from();
+      d.rest_time = rec.rest_time();
+    }
+  }
+
   // Exact values from the rows on vertical pieces (u_r exact): when there are n of them with independent
   // velocity maps they fix V^{k+1} = G_V^{-1} (u_V - b_V) (0.0 exactly for a system at rest); otherwise a
   // row whose velocity map involves one coordinate fixes that coordinate.
@@ -498,14 +519,6 @@ class MoreauJeanIntegrator {
     return true;
   }
 
-  void finish(RunRecorder& rec, ContactDiagnostics& d, const Vec<N>& q, const Vec<N>& v, double t, std::int64_t k, double kinetic) {
-    rec.finish(k, t, q.data(), v.data(), kinetic);
-    if (rec.rest_from() >= 0) {
-      d.rest_step = rec.rest_from();
-      d.rest_time = rec.rest_time();
-    }
-  }
-
   Model& model_;
   MoreauJeanSettings settings_;
   int n_ = 0, nc_ = 0, na_ = 0, m_ = 0;
@@ -520,6 +533,9 @@ class MoreauJeanIntegrator {
   Mat<N> Wm_;
   Eigen::PartialPivLU<Mat<N>> lu_, mlu_, sqlu_;
   StepConditionChecker<N> checker_{model_.dof()};
+  Vec<N> q_, v_;                            // the state (Q^k, V^k)
+  double kinetic_ = 0.0, potential_ = 0.0;  // 1/2 <M V^k, V^k> and U(Q^k)
+  ContactDiagnostics* d_ = nullptr;         // where the running run records
   Vec<N> vf_, vn_, vpos_, rhs_, qn_, dq_, rsq_, vsq_;
   Mat<N> Gsq_;
   Eigen::VectorXd gap_, U_, Un_;

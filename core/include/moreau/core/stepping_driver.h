@@ -1,11 +1,12 @@
-// What every time-stepping run does around its step, written once for all the schemes: the fixed time
-// grid (FixedTimeGrid) and the run's bookkeeping (RunRecorder): samples handed to the observer every
-// output_every steps and at the first and last state, cancellation every RunObserver::kControlInterval
-// steps, the range of step sizes, the solver's effort, the energy's rises above round-off, the step
-// from which the state rests, failure and cancellation messages, and the wall time of the phase. An
-// integrator (abl_integrator.h, moreau_jean_integrator.h, lure_integrator.h, regularized_integrator.h)
-// supplies its one-step update and calls the recorder at the same points of its loop; the calls are
-// inline and never virtual, and nothing here allocates per step.
+// The loop every time-stepping scheme runs, written once: SteppingDriver owns the time rule (the fixed
+// grid FixedTimeGrid, or a scheme's adaptive rule such as Theorems 4.1 and 4.2 of Adly, Brogliato and
+// Le (2016), landed on t_end) and the run's bookkeeping (RunRecorder): samples handed to the observer
+// every output_every steps and at the first and last state, cancellation every
+// RunObserver::kControlInterval steps, the range of step sizes, the solver's effort, the energy's rises
+// above round-off, the step from which the state rests, failure and cancellation messages, and the wall
+// time of the phase. A scheme (abl_integrator.h, moreau_jean_integrator.h, lure_integrator.h) supplies
+// only its state and its step; the regularized peer (regularized_integrator.h) takes the grid. A check
+// added here applies to every scheme. Everything is a template: no virtual call and no allocation per step.
 #pragma once
 
 #include <algorithm>
@@ -15,6 +16,7 @@
 #include <cstdio>
 #include <limits>
 #include <string>
+#include <utility>
 
 #include "moreau/core/observer.h"
 #include "moreau/core/run_summary.h"
@@ -188,6 +190,131 @@ class RunRecorder {
   std::int64_t rest_from_ = -1;
   double rest_time_ = 0.0;
   std::int64_t last_emitted_ = 0;
+};
+
+// Where a failed step leaves the run: the step and time to report, the last state the observer may see as
+// good (pointers into the scheme; v may be nullptr: not reported) and why.
+struct StepFailure {
+  std::int64_t k = 0;
+  double t = 0.0;
+  const double* q = nullptr;
+  const double* v = nullptr;
+  std::string why;
+
+  // Fills the failure and returns false, so that a scheme's step can end with `return f.at(...)`.
+  bool at(std::int64_t k_, double t_, const double* q_, const double* v_, std::string why_) {
+    k = k_;
+    t = t_;
+    q = q_;
+    v = v_;
+    why = std::move(why_);
+    return false;
+  }
+};
+
+// The time rule and the recording of a run.
+struct SteppingPlan {
+  double t0 = 0.0;     // seconds
+  double t_end = 1.0;  // seconds
+  double h = 1e-3;     // the fixed step, or the adaptive rule's upper bound; the first sample's h
+  bool fixed = true;   // false: the scheme proposes each h_k (propose_step)
+  std::int64_t max_steps = 2'000'000'000;
+  std::int64_t output_every = 1;
+
+  // The fixed grid of a scheme's settings (any struct with t0, t_end, h, max_steps, output_every).
+  template <class Settings>
+  static SteppingPlan fixed_grid(const Settings& s) {
+    return SteppingPlan{s.t0, s.t_end, s.h, true, s.max_steps, s.output_every};
+  }
+};
+
+// Runs a scheme from its initial state (set by the scheme before the call) to t_end. The scheme's part
+// (private members, with `friend struct SteppingDriver;`):
+//
+//   int dof() const;
+//   const double* q() const;  const double* v() const;    // the state the observer sees
+//   double energy() const;  bool at_rest() const;           // E_k (or W_k) and V == 0.0 (x == 0.0)
+//   bool begin(double t0, StepFailure& f);                  // checks and evaluation at the initial state
+//   bool step(std::int64_t k, double t_k, double h_k, double t_next, RunRecorder& rec, StepFailure& f);
+//       // the one-step problem and the update to step k+1 (may record the solver's effort)
+//   bool arrive(std::int64_t k, double t, StepFailure& f);  // checks and evaluation at the new state k
+//   double energy_allowance(double e_old, double e_initial) const;  // round-off of E_{k+1} - E_k
+//   void finish(RunRecorder& rec, std::int64_t k, double t);        // the summary of an ended run
+//   void on_failure();                                      // what else a failed run records
+//   static constexpr bool kAdaptiveSteps;                   // whether the scheme has an adaptive rule:
+//   bool propose_step(double t, double h_prev, double& h_k, std::string& why);  // then h_k from the state
+//
+// Failures from begin() and the step count come before the first sample; a failing step ends the run
+// with the state its StepFailure names.
+struct SteppingDriver {
+  template <class Scheme>
+  static RunSummary run(Scheme& scheme, const SteppingPlan& plan, RunObserver* observer) {
+    RunRecorder rec(observer, plan.output_every, scheme.dof());
+    StepFailure f;
+    if (!scheme.begin(plan.t0, f)) return failed(scheme, rec, f);
+    const FixedTimeGrid grid(plan.t0, plan.t_end, plan.h);
+    if (plan.fixed && grid.steps > plan.max_steps) {
+      f.at(0, plan.t0, scheme.q(), scheme.v(), "the step count exceeds max_steps");
+      return failed(scheme, rec, f);
+    }
+
+    std::int64_t k = 0;
+    double t = plan.t0;
+    double energy = scheme.energy();
+    rec.start(t, energy, scheme.at_rest());
+    rec.first_sample(t, plan.h, scheme.q(), scheme.v(), energy);
+    double h_k = plan.h, h_prev = plan.h;
+    while (true) {
+      if (plan.fixed) {
+        if (k >= grid.steps) break;
+        h_k = grid.step(k);
+      } else if constexpr (Scheme::kAdaptiveSteps) {
+        if (t >= plan.t_end) break;
+        std::string why;
+        if (k >= plan.max_steps)
+          why = "max_steps reached before t_end";
+        else if (scheme.propose_step(t, h_prev, h_k, why)) {
+          // Land on t_end: shorten the last step, or stretch it by at most 1e-9 relative rather than
+          // leave a sliver of round-off (t accumulates the h_k).
+          const double remaining = plan.t_end - t;
+          if (h_k * (1.0 + 1e-9) >= remaining) h_k = remaining;
+          if (!(h_k > 0.0) || h_k < 1e-15 * std::max(1.0, std::abs(plan.t_end))) why = "the step size collapsed below 1e-15 t_end";
+        }
+        if (!why.empty()) {
+          f.at(k, t, scheme.q(), scheme.v(), std::move(why));
+          return failed(scheme, rec, f);
+        }
+      } else {
+        f.at(k, t, scheme.q(), scheme.v(), "this scheme has no adaptive step rule");
+        return failed(scheme, rec, f);
+      }
+      const double t_next = plan.fixed ? grid.time(k + 1) : t + h_k;
+      if (!scheme.step(k, t, h_k, t_next, rec, f)) return failed(scheme, rec, f);
+      ++k;
+      t = t_next;
+      h_prev = h_k;
+      rec.step_taken(h_k);
+      if (!scheme.arrive(k, t, f)) return failed(scheme, rec, f);
+      rec.rest(scheme.at_rest(), k, t);
+      const double e_new = scheme.energy();
+      rec.energy_step(energy, e_new, scheme.energy_allowance(energy, rec.summary().energy_initial));
+      energy = e_new;
+      if (!rec.after_step(k, t, h_k, scheme.q(), scheme.v(), energy)) {
+        scheme.finish(rec, k, t);
+        return rec.cancelled(k);
+      }
+    }
+    rec.last_sample(k, t, h_k, scheme.q(), scheme.v(), energy);
+    scheme.finish(rec, k, t);
+    return rec.close();
+  }
+
+ private:
+  template <class Scheme>
+  static RunSummary failed(Scheme& scheme, RunRecorder& rec, const StepFailure& f) {
+    scheme.on_failure();
+    return rec.fail(f.k, f.t, f.q, f.v, f.why);
+  }
 };
 
 }  // namespace moreau
