@@ -6,7 +6,7 @@
 #include <stdexcept>
 
 #include "moreau/render/render.h"
-#include "moreau/render/trajectory_series.h"
+#include "moreau/scene/figures.h"
 
 namespace moreau::cli {
 
@@ -104,7 +104,7 @@ void write_figure(const std::string& kind, const render::TimeSeriesData& input, 
 render::TimeSeriesData read_trajectory_csv(const std::string& path) {
   std::ifstream in(path);
   if (!in) throw std::runtime_error("cannot open '" + path + "'");
-  return render::time_series(scene::read_trajectory_csv(in, "'" + path + "'"));
+  return scene::time_series(scene::read_trajectory_csv(in, "'" + path + "'"));
 }
 
 }  // namespace moreau::cli

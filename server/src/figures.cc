@@ -11,8 +11,7 @@
 #ifdef MOREAU_SERVER_HAVE_RENDER
 #include "moreau/render/figures.h"
 #include "moreau/render/render.h"
-#include "moreau/render/study_figures.h"
-#include "moreau/render/trajectory_series.h"
+#include "moreau/scene/figures.h"
 #endif
 
 namespace moreau::server {
@@ -33,7 +32,7 @@ std::vector<std::uint8_t> figure_png(std::string_view kind, std::string_view csv
     }
   } buffer(csv);
   std::istream in(&buffer);
-  render::TimeSeriesData data = render::time_series(scene::read_trajectory_csv(in, "the stored trajectory"));
+  render::TimeSeriesData data = scene::time_series(scene::read_trajectory_csv(in, "the stored trajectory"));
   data.converged_time = converged_time;
   render::FigureOptions opt;
   opt.width_px = width;
@@ -60,7 +59,7 @@ std::vector<std::uint8_t> study_figure_png(std::string_view kind, const std::str
   render::FigureOptions opt;
   opt.width_px = width;
   opt.height_px = height;
-  return render::render_png_bytes(render::study_figure(std::string(kind), result, opt));
+  return render::render_png_bytes(scene::study_figure(std::string(kind), result, opt));
 }
 
 #else
