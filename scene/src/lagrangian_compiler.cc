@@ -1,19 +1,14 @@
-// Scene validation and compilation: the Lagrangian and Lur'e compilers. See docs/scene-format.md for
-// the format this implements; reading JSON text, files and overrides is json_input.cc, the checks
-// shared by both json_checks.cc.
+// The Lagrangian compiler: a scene of system type "lagrangian" (M(q) q'' + C(q, q') q' + grad V(q) + F in
+// -dPhi(q'), with optional unilateral constraints) -> a LagrangianScene with its compiled tapes. See
+// docs/scene-format.md; the parts shared with the Lur'e compiler are scene_reader.h.
 #include "moreau/scene/scene.h"
-
-#include "graph_reader.h"
-#include "json_checks.h"
 
 #include <algorithm>
 #include <cmath>
-#include <filesystem>
-#include <fstream>
-#include <functional>
 #include <map>
 #include <set>
-#include <sstream>
+
+#include "scene_reader.h"
 
 namespace moreau::scene {
 
@@ -25,131 +20,12 @@ using expr::Graph;
 using expr::Node;
 using expr::Op;
 
-bool is_identifier(const std::string& s) {
-  if (s.empty() || s.size() > 64) return false;
-  if (!(std::isalpha(static_cast<unsigned char>(s[0])) || s[0] == '_')) return false;
-  for (char c : s)
-    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_')) return false;
-  return true;
-}
-
-const std::set<std::string>& function_names() {
-  static const std::set<std::string> names = {"sin",  "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh",
-                                              "tanh", "exp", "log", "sqrt", "abs",  "min",  "max",   "pow"};
-  return names;
-}
-
-// What an expression may depend on.
-enum Depends : unsigned { kParamsOnly = 0, kTime = 1, kPosition = 2, kVelocity = 4 };
-
-class Compiler {
+class LagrangianCompiler : SceneReader {
  public:
-  explicit Compiler(const json& doc) : doc_(doc) {}
-
+  explicit LagrangianCompiler(const json& doc) : SceneReader(doc) {}
   LagrangianScene compile();
-  LureScene compile_lure();
 
  private:
-  // ---- parameters -------------------------------------------------------------------------------
-  void declare_parameters() {
-    if (!doc_.contains("parameters")) return;
-    const json& p = doc_["parameters"];
-    require_object(p, "/parameters");
-    for (auto it = p.begin(); it != p.end(); ++it) {
-      const std::string ptr = "/parameters/" + json_pointer_token(it.key());
-      if (!is_identifier(it.key())) throw SceneError(ptr, "'" + it.key() + "' is not a valid name");
-      if (function_names().count(it.key()) || it.key() == "t")
-        throw SceneError(ptr, "'" + it.key() + "' is reserved (a function name or the time t)");
-      params_[it.key()] = &it.value();
-    }
-  }
-
-  // Every parameter must evaluate to a finite constant, whether or not anything uses it: a typo or a
-  // division by zero in an unused parameter is still an error. Called once the coordinates are known,
-  // so that a parameter naming one is told it cannot.
-  void check_all_parameters() {
-    for (const auto& entry : params_) parameter(entry.first);
-  }
-
-  Node parameter(const std::string& name) {
-    if (auto it = param_nodes_.find(name); it != param_nodes_.end()) return it->second;
-    if (resolving_.count(name)) throw SceneError("/parameters/" + json_pointer_token(name), "parameter '" + name + "' depends on itself");
-    resolving_.insert(name);
-    const Node node = constant_node(*params_.at(name), "/parameters/" + json_pointer_token(name));
-    resolving_.erase(name);
-    param_nodes_[name] = node;
-    return node;
-  }
-
-  // ---- expressions -------------------------------------------------------------------------------
-  Node expression(const json& j, const std::string& ptr, unsigned allowed, const std::string& what) {
-    if (j.is_number()) {
-      const double value = j.get<double>();
-      if (!std::isfinite(value)) throw SceneError(ptr, "not a finite number");
-      return graph_.constant(value);
-    }
-    if (!j.is_string()) throw SceneError(ptr, "expected a number or an expression string, got " + type_name(j));
-    const std::string text = j.get<std::string>();
-    std::string disallowed;
-    auto resolve = [&](std::string_view name_view) -> std::optional<Node> {
-      const std::string name(name_view);
-      if (name == "t") {
-        if (allowed & kTime) return graph_.variable(0);
-        disallowed = name;
-        return std::nullopt;
-      }
-      if (auto it = coord_slot_.find(name); it != coord_slot_.end()) {
-        const bool is_velocity = it->second > n_;
-        if ((is_velocity && (allowed & kVelocity)) || (!is_velocity && (allowed & kPosition))) return graph_.variable(it->second);
-        disallowed = name;
-        return std::nullopt;
-      }
-      if (params_.count(name)) return parameter(name);
-      return std::nullopt;
-    };
-    try {
-      return graph_.parse(text, resolve);
-    } catch (const SceneError&) {
-      throw;
-    } catch (const expr::ExpressionError& e) {
-      if (!disallowed.empty()) {
-        throw SceneError(ptr, "'" + disallowed + "' cannot appear in " + what + " (in '" + text + "')");
-      }
-      throw SceneError(ptr,
-                       std::string(e.what()) + " at character " + std::to_string(e.position()) + " of '" + utf8_prefix(text, 200) + "'");
-    }
-  }
-
-  Node constant_node(const json& j, const std::string& ptr) {
-    const Node node = expression(j, ptr, kParamsOnly, "a constant (parameters only)");
-    if (!graph_.is_constant(node)) throw SceneError(ptr, "must be constant");
-    if (!std::isfinite(graph_.constant_value(node))) throw SceneError(ptr, "evaluates to a non-finite value");
-    return node;
-  }
-
-  double constant(const json& j, const std::string& ptr) { return graph_.constant_value(constant_node(j, ptr)); }
-
-  double positive(const json& j, const std::string& ptr) {
-    const double v = constant(j, ptr);
-    if (!(v > 0.0)) throw SceneError(ptr, "must be > 0, got " + format(v));
-    return v;
-  }
-
-  const json& array_of(const json& j, const std::string& ptr, std::size_t size, const std::string& what) {
-    if (!j.is_array()) throw SceneError(ptr, "expected " + what + ", got " + type_name(j));
-    if (j.size() != size)
-      throw SceneError(ptr, "expected " + std::to_string(size) + " entries (one per coordinate), got " + std::to_string(j.size()));
-    return j;
-  }
-
-  std::vector<double> constant_vector(const json& j, const std::string& ptr) {
-    array_of(j, ptr, static_cast<std::size_t>(n_), "an array of " + std::to_string(n_) + " numbers");
-    std::vector<double> out;
-    for (int i = 0; i < n_; ++i) out.push_back(constant(j[i], ptr + "/" + std::to_string(i)));
-    return out;
-  }
-
-  // ---- parts ----------------------------------------------------------------------------------
   void coordinates(const json& system) {
     if (!system.contains("mass")) throw SceneError("/system", "missing required field 'mass'");
     const json& mass = system["mass"];
@@ -245,7 +121,6 @@ class Compiler {
 
   // The symmetric mass entry used everywhere: the upper triangle (the lower one is checked equal).
   Node sym(int i, int j) const { return i <= j ? M_[i * n_ + j] : M_[j * n_ + i]; }
-
   void forces(const json& system, LagrangianScene& scene) {
     g_.assign(static_cast<std::size_t>(n_), graph_.constant(0.0));
     force_.assign(static_cast<std::size_t>(n_), graph_.constant(0.0));
@@ -410,12 +285,7 @@ class Compiler {
       }
     }
     AblSettings& s = scene.settings;
-    if (!in.contains("h")) throw SceneError("/integrator", "missing required field 'h'");
-    if (!in.contains("t_end")) throw SceneError("/integrator", "missing required field 't_end'");
-    s.h = positive(in["h"], "/integrator/h");
-    s.t0 = in.contains("t0") ? constant(in["t0"], "/integrator/t0") : 0.0;
-    s.t_end = constant(in["t_end"], "/integrator/t_end");
-    if (!(s.t_end > s.t0)) throw SceneError("/integrator/t_end", "must be > t0 (" + format(s.t0) + "), got " + format(s.t_end));
+    read_interval(in, s.h, s.t0, s.t_end);
     if (in.contains("step_rule")) {
       const json& r = in["step_rule"];
       const std::string rule = r.is_string() ? r.get<std::string>() : "";
@@ -432,13 +302,7 @@ class Compiler {
     }
     if (in.contains("k1")) s.k1 = positive(in["k1"], "/integrator/k1");
     if (in.contains("k3")) s.k3 = positive(in["k3"], "/integrator/k3");
-    s.max_steps = kMaxStepsLimit;
-    if (in.contains("max_steps")) {
-      const double m = positive(in["max_steps"], "/integrator/max_steps");
-      if (m != std::floor(m) || m > static_cast<double>(kMaxStepsLimit))
-        throw SceneError("/integrator/max_steps", "must be a whole number <= " + std::to_string(kMaxStepsLimit));
-      s.max_steps = static_cast<std::int64_t>(m);
-    }
+    s.max_steps = read_max_steps(in);
     check_step_count(s.t0, s.t_end, s.h, s.max_steps, s.step_rule == StepRule::kFixed);
     if (s.step_rule == StepRule::kTheorem42 && scene.controller.eta() <= 0.0 && !constant_mass_) {
       throw SceneError("/integrator/step_rule",
@@ -451,40 +315,6 @@ class Compiler {
     c.max_steps = s.max_steps;
     c.position_update = scene.position_update == "standard" ? PositionUpdate::kStandard : PositionUpdate::kMdi;
     c.correct_positions = scene.position_correction == "projection";
-  }
-
-  // A run takes at least one step and at most max_steps. Everything is computed in double before any
-  // conversion to an integer: a double at or beyond 2^63 (t_end = 1e300, h = 1e-300) converts to int64
-  // with undefined behaviour. For the adaptive rules h is the largest step, so (t_end - t0) / h is a lower
-  // bound of their step count: beyond max_steps they could only fail at max_steps.
-  void check_step_count(double t0, double t_end, double h, std::int64_t max_steps, bool fixed) {
-    const double span = t_end - t0;
-    if (!std::isfinite(span))
-      throw SceneError("/integrator/t_end", "t_end - t0 overflows a double (t0 = " + format(t0) + ", t_end = " + format(t_end) + ")");
-    const double ratio = span / h;  // > 0: h > 0 and t_end > t0 are checked; +inf when h is tiny
-    // Within round-off of one step, the run takes one step of h (fixed_step_count); beyond it, none of
-    // size h fits and a fixed run would take none at all once h exceeds the interval 1e9 times.
-    if (ratio < 1.0 - 1e-9)
-      throw SceneError("/integrator/h", "h = " + format(h) + " is longer than the interval [" + format(t0) + ", " + format(t_end) +
-                                            "]: the run would not take a single step of h");
-    const double steps = ratio > 9e18 ? ratio : static_cast<double>(fixed_step_count(t0, t_end, h));
-    if (steps > static_cast<double>(max_steps)) {
-      throw SceneError("/integrator/h", "h = " + format(h) + " over [" + format(t0) + ", " + format(t_end) + "] needs " +
-                                            (fixed ? "" : "at least ") + format(steps) + " steps, more than the limit of " +
-                                            std::to_string(max_steps));
-    }
-  }
-
-  void output(LagrangianScene& scene) {
-    if (!doc_.contains("output")) return;
-    const json& o = doc_["output"];
-    require_object(o, "/output");
-    check_fields(o, "/output", {"every"});
-    if (o.contains("every")) {
-      const double e = positive(o["every"], "/output/every");
-      if (e != std::floor(e) || e > 1e15) throw SceneError("/output/every", "must be a whole number >= 1");
-      scene.output_every = static_cast<std::int64_t>(e);
-    }
   }
 
   void initial(LagrangianScene& scene) {
@@ -515,64 +345,6 @@ class Compiler {
     }
     if (ex.contains("rest_time")) scene.exact_rest_time = constant(ex["rest_time"], "/exact/rest_time");
     if (ex.contains("rest_q")) scene.exact_rest_q = constant_vector(ex["rest_q"], "/exact/rest_q");
-  }
-
-  // ---- Lur'e systems ------------------------------------------------------------------------------
-  Eigen::MatrixXd constant_matrix(const json& j, const std::string& ptr, int rows, int cols, const std::string& what) {
-    if (!j.is_array() || j.empty() || !j[0].is_array())
-      throw SceneError(ptr, "expected " + what + " as an array of rows, got " + type_name(j));
-    if (rows >= 0 && j.size() != static_cast<std::size_t>(rows))
-      throw SceneError(ptr, "expected " + std::to_string(rows) + " rows (" + what + "), got " + std::to_string(j.size()));
-    const int r = static_cast<int>(j.size());
-    if (r > kMaxDof) throw SceneError(ptr, "more than " + std::to_string(kMaxDof) + " rows");
-    const int c = cols >= 0 ? cols : static_cast<int>(j[0].size());
-    if (c == 0 || c > kMaxDof) throw SceneError(ptr + "/0", "expected between 1 and " + std::to_string(kMaxDof) + " columns");
-    Eigen::MatrixXd M(r, c);
-    for (int i = 0; i < r; ++i) {
-      const std::string row = ptr + "/" + std::to_string(i);
-      if (!j[i].is_array()) throw SceneError(row, "expected a row (an array of numbers), got " + type_name(j[i]));
-      if (j[i].size() != static_cast<std::size_t>(c))
-        throw SceneError(row, "expected " + std::to_string(c) + " entries (" + what + "), got " + std::to_string(j[i].size()));
-      for (int k = 0; k < c; ++k) M(i, k) = constant(j[i][k], row + "/" + std::to_string(k));
-    }
-    return M;
-  }
-
-  void lure_integrator(LureScene& scene) {
-    if (!doc_.contains("integrator")) throw SceneError("/integrator", "missing required field 'integrator' (h and t_end)");
-    const json& in = doc_["integrator"];
-    require_object(in, "/integrator");
-    check_fields(in, "/integrator", {"scheme", "h", "t_end", "t0", "theta", "step_rule", "max_steps"});
-    if (in.contains("scheme")) {
-      if (!in["scheme"].is_string()) throw SceneError("/integrator/scheme", "expected a string");
-      const std::string sch = in["scheme"].get<std::string>();
-      const std::optional<Scheme> named = scheme_from_name(sch);
-      if (named && *named != Scheme::kImplicitEuler)
-        throw SceneError("/integrator/scheme", "the " + sch + " scheme is for lagrangian systems; a lure system takes implicit-euler");
-      if (!named) throw SceneError("/integrator/scheme", "unknown scheme '" + sch + "' (expected: implicit-euler)");
-    }
-    LureSettings& s = scene.settings;
-    if (!in.contains("h")) throw SceneError("/integrator", "missing required field 'h'");
-    if (!in.contains("t_end")) throw SceneError("/integrator", "missing required field 't_end'");
-    s.h = positive(in["h"], "/integrator/h");
-    s.t0 = in.contains("t0") ? constant(in["t0"], "/integrator/t0") : 0.0;
-    s.t_end = constant(in["t_end"], "/integrator/t_end");
-    if (!(s.t_end > s.t0)) throw SceneError("/integrator/t_end", "must be > t0 (" + format(s.t0) + "), got " + format(s.t_end));
-    if (in.contains("theta")) {
-      s.theta = constant(in["theta"], "/integrator/theta");
-      if (!(s.theta >= 0.5 && s.theta <= 1.0))
-        throw SceneError("/integrator/theta", "must be in [1/2, 1] (the theta-method is unstable below 1/2), got " + format(s.theta));
-    }
-    if (in.contains("step_rule") && in["step_rule"] != "fixed")
-      throw SceneError("/integrator/step_rule", "the implicit-euler scheme uses a fixed step (\"fixed\"), got " + brief(in["step_rule"]));
-    s.max_steps = kMaxStepsLimit;
-    if (in.contains("max_steps")) {
-      const double m = positive(in["max_steps"], "/integrator/max_steps");
-      if (m != std::floor(m) || m > static_cast<double>(kMaxStepsLimit))
-        throw SceneError("/integrator/max_steps", "must be a whole number <= " + std::to_string(kMaxStepsLimit));
-      s.max_steps = static_cast<std::int64_t>(m);
-    }
-    check_step_count(s.t0, s.t_end, s.h, s.max_steps, /*fixed=*/true);
   }
 
   // Evaluates M, C, g at the initial state: finite, symmetric, positive definite.
@@ -714,13 +486,6 @@ class Compiler {
     return c;
   }
 
-  const json& doc_;
-  Graph graph_;
-  int n_ = 0;
-  std::map<std::string, const json*> params_;
-  std::map<std::string, Node> param_nodes_;
-  std::set<std::string> resolving_;
-  std::map<std::string, int> coord_slot_;
   std::vector<std::string> coord_names_, vel_names_;
   std::vector<Node> M_, C_, g_;
   std::vector<Node> gradient_, force_;  // grad V and F alone (constant 0 when absent)
@@ -729,14 +494,9 @@ class Compiler {
   std::vector<Node> gaps_, gap_gradients_;  // h_i(q) and dh_i/dq_j (row-major)
 };
 
-LagrangianScene Compiler::compile() {
-  require_object(doc_, "");
-  check_fields(doc_, "", {"name", "description", "parameters", "system", "initial", "integrator", "output", "exact", "units"});
+LagrangianScene LagrangianCompiler::compile() {
   LagrangianScene scene;
-  if (doc_.contains("name")) {
-    if (!doc_["name"].is_string()) throw SceneError("/name", "expected a string, got " + type_name(doc_["name"]));
-    scene.name = doc_["name"].get<std::string>();
-  }
+  scene.name = read_top_level();
   declare_parameters();
   if (!doc_.contains("system")) throw SceneError("/system", "missing required field 'system'");
   const json& system = doc_["system"];
@@ -762,166 +522,18 @@ LagrangianScene Compiler::compile() {
   constraints(system, scene);
   initial(scene);
   integrator(scene);
-  output(scene);
+  if (const auto every = output_every()) scene.output_every = *every;
   exact(scene);
   check_at_initial_state(scene);
   scene.compiled = build();
   return scene;
 }
 
-LureScene Compiler::compile_lure() {
-  require_object(doc_, "");
-  check_fields(doc_, "", {"name", "description", "parameters", "system", "initial", "integrator", "output", "exact", "units"});
-  LureScene scene;
-  if (doc_.contains("name")) {
-    if (!doc_["name"].is_string()) throw SceneError("/name", "expected a string, got " + type_name(doc_["name"]));
-    scene.name = doc_["name"].get<std::string>();
-  }
-  declare_parameters();
-  if (!doc_.contains("system")) throw SceneError("/system", "missing required field 'system'");
-  const json& system = doc_["system"];
-  require_object(system, "/system");
-  if (!system.contains("type") || system["type"] != "lure") throw SceneError("/system/type", "expected \"lure\"");
-  check_fields(system, "/system", {"type", "states", "A", "B", "C", "feedback", "P"});
-  check_all_parameters();
-  for (const char* f : {"A", "B", "C", "feedback"})
-    if (!system.contains(f))
-      throw SceneError("/system", std::string("missing required field '") + f + "' (x' = A x - B y_L, y = C x, y_L in d phi(y))");
-  scene.A = constant_matrix(system["A"], "/system/A", -1, -1, "the n x n matrix A");
-  const int n = static_cast<int>(scene.A.rows());
-  if (scene.A.cols() != n)
-    throw SceneError("/system/A/0", "A must be square: " + std::to_string(n) + " rows but " + std::to_string(scene.A.cols()) + " columns");
-  scene.B = constant_matrix(system["B"], "/system/B", n, -1, "B has one row per state");
-  const int m = static_cast<int>(scene.B.cols());
-  if (m > kMaxConstraints) throw SceneError("/system/B", "more than " + std::to_string(kMaxConstraints) + " feedback components");
-  scene.C = constant_matrix(system["C"], "/system/C", m, n, "C is m x n: one row per column of B, one column per state");
-  scene.n = n;
-  scene.m = m;
-  n_ = n;
-  const json& fb = system["feedback"];
-  if (!fb.is_array()) throw SceneError("/system/feedback", "expected an array with one graph per output, got " + type_name(fb));
-  if (fb.size() != static_cast<std::size_t>(m))
-    throw SceneError("/system/feedback",
-                     "expected " + std::to_string(m) + " graphs (one per output y = C x), got " + std::to_string(fb.size()));
-  for (int i = 0; i < m; ++i) {
-    std::string type;
-    scene.feedback.push_back(read_feedback_graph(fb[i], "/system/feedback/" + std::to_string(i), type,
-                                                 [this](const json& j, const std::string& p) { return constant(j, p); }));
-    scene.feedback_types.push_back(type);
-  }
-  std::set<std::string> seen;
-  for (int i = 0; i < n; ++i) {
-    std::string name = "x" + std::to_string(i + 1);
-    if (system.contains("states")) {
-      const json& st = system["states"];
-      if (!st.is_array() || st.size() != static_cast<std::size_t>(n))
-        throw SceneError("/system/states", "expected " + std::to_string(n) + " names (one per state)");
-      const std::string ptr = "/system/states/" + std::to_string(i);
-      if (!st[i].is_string() || !is_identifier(st[i].get<std::string>()))
-        throw SceneError(ptr, "expected a name (letters, digits, _), got " + brief(st[i]));
-      name = st[i].get<std::string>();
-    }
-    if (!seen.insert(name).second) throw SceneError("/system/states/" + std::to_string(i), "duplicate name '" + name + "'");
-    scene.states.push_back(name);
-    scene.state_rates.push_back(name + "_dot");
-  }
-  if (system.contains("P")) scene.P = constant_matrix(system["P"], "/system/P", n, n, "P is n x n");
-
-  if (!doc_.contains("initial")) throw SceneError("/initial", "missing required field 'initial' (x)");
-  const json& ini = doc_["initial"];
-  require_object(ini, "/initial");
-  check_fields(ini, "/initial", {"x"});
-  if (!ini.contains("x")) throw SceneError("/initial", "missing required field 'x'");
-  scene.x0 = constant_vector(ini["x"], "/initial/x");
-  lure_integrator(scene);
-  if (doc_.contains("output")) {
-    const json& o = doc_["output"];
-    require_object(o, "/output");
-    check_fields(o, "/output", {"every"});
-    if (o.contains("every")) {
-      const double e = positive(o["every"], "/output/every");
-      if (e != std::floor(e) || e > 1e15) throw SceneError("/output/every", "must be a whole number >= 1");
-      scene.settings.output_every = static_cast<std::int64_t>(e);
-    }
-  }
-  if (doc_.contains("exact")) {
-    const json& ex = doc_["exact"];
-    require_object(ex, "/exact");
-    check_fields(ex, "/exact", {"x", "rest_time", "rest_x", "note"});
-    if (ex.contains("x")) {
-      std::vector<Node> outs;
-      const json& arr = array_of(ex["x"], "/exact/x", static_cast<std::size_t>(n), "an array of expressions in t");
-      for (int i = 0; i < n; ++i)
-        outs.push_back(expression(arr[i], "/exact/x/" + std::to_string(i), kTime, "an exact solution (a function of t)"));
-      scene.exact_tape = std::make_shared<expr::Tape>(expr::Tape::compile(graph_, outs, 1));
-    }
-    if (ex.contains("rest_time")) scene.exact_rest_time = constant(ex["rest_time"], "/exact/rest_time");
-    if (ex.contains("rest_x")) scene.exact_rest_x = constant_vector(ex["rest_x"], "/exact/rest_x");
-  }
-
-  // Lemma 1 needs C x(0) in dom d phi.
-  const Eigen::VectorXd x0 = Eigen::Map<const Eigen::VectorXd>(scene.x0.data(), n);
-  const Eigen::VectorXd y0 = scene.C * x0;
-  for (int i = 0; i < m; ++i) {
-    if (!scene.feedback[i].in_domain(y0(i)))
-      throw SceneError("/initial/x", "y0 = C x0 has component " + std::to_string(i) + " = " + format(y0(i)) +
-                                         ", outside the domain of /system/feedback/" + std::to_string(i) +
-                                         " (Lemma 1 needs C x(0) in dom d phi)");
-  }
-  // Lemmas 1-2: the given P, or a strict positive realness test; minimality either way.
-  scene.minimality = check_minimality(scene.A, scene.B, scene.C);
-  if (scene.P) {
-    scene.p_check = check_storage_matrix(scene.A, scene.B, scene.C, *scene.P);
-    scene.storage = scene.P;
-    scene.storage_source = "scene";
-  } else {
-    scene.spr = test_strict_positive_realness(scene.A, scene.B, scene.C);
-    if (scene.spr.storage_found()) {
-      scene.storage = scene.spr.P;
-      scene.storage_source = "found";
-    }
-  }
-  // The report follows W = 1/2 x^T P x (P = I without a storage matrix): finite where the run starts.
-  const Eigen::MatrixXd P = scene.storage ? *scene.storage : Eigen::MatrixXd::Identity(n, n);
-  const double w0 = 0.5 * x0.dot(P * x0);
-  if (!std::isfinite(w0))
-    throw SceneError("/initial/x", "the storage function W = 1/2 x0^T P x0 is not finite at the initial state (" + format(w0) + ")");
-  return scene;
-}
-
 }  // namespace
 
 LagrangianScene load_scene(const nlohmann::json& doc) {
-  Compiler compiler(doc);
-  try {
-    return compiler.compile();
-  } catch (const SceneError&) {
-    throw;
-  } catch (const expr::ExpressionError& e) {
-    throw SceneError("/", std::string("expression limit: ") + e.what());
-  } catch (const nlohmann::json::exception& e) {
-    throw SceneError("/", std::string("malformed scene: ") + e.what());
-  }
-}
-
-std::string system_type(const nlohmann::json& doc) {
-  if (doc.is_object() && doc.contains("system") && doc["system"].is_object() && doc["system"].contains("type") &&
-      doc["system"]["type"].is_string())
-    return doc["system"]["type"].get<std::string>();
-  return "lagrangian";
-}
-
-LureScene load_lure_scene(const nlohmann::json& doc) {
-  Compiler compiler(doc);
-  try {
-    return compiler.compile_lure();
-  } catch (const SceneError&) {
-    throw;
-  } catch (const expr::ExpressionError& e) {
-    throw SceneError("/", std::string("expression limit: ") + e.what());
-  } catch (const nlohmann::json::exception& e) {
-    throw SceneError("/", std::string("malformed scene: ") + e.what());
-  }
+  LagrangianCompiler compiler(doc);
+  return compile_scene([&] { return compiler.compile(); });
 }
 
 }  // namespace moreau::scene
