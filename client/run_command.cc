@@ -115,8 +115,8 @@ int run(const RunOptions& opt) {
   if (recorder) {
     const auto t_fig = Clock::now();
     if (summary.converged_time) recorder->data().converged_time = *summary.converged_time;
-    if (diagnostics.contacts)  // impacts are marked on the time axis
-      for (const auto& impact : diagnostics.contacts->impacts) recorder->data().impact_times.push_back(impact.t);
+    if (const ContactDiagnostics* contacts = diagnostics.contacts())  // impacts are marked on the time axis
+      for (const auto& impact : contacts->impacts) recorder->data().impact_times.push_back(impact.t);
     for (const auto& spec : opt.figures) {
       const auto [kind, path] = parse_figure_spec(spec);
       try {

@@ -376,8 +376,8 @@ TEST(Impact, SimulationReportsImpactsRestGapAndLemma3) {
   // Explicit diagnostics for callers that run one Simulation from several threads.
   RunDiagnostics d;
   const RunSummary s2 = sim.run(nullptr, &d);
-  ASSERT_TRUE(d.contacts.has_value());
-  EXPECT_EQ(d.contacts->impact_count, rep["contacts"]["impact_count"].get<std::int64_t>());
+  ASSERT_NE(d.contacts(), nullptr);
+  EXPECT_EQ(d.contacts()->impact_count, rep["contacts"]["impact_count"].get<std::int64_t>());
   EXPECT_EQ(sim.report_json(s2, d)["contacts"]["impact_count"], rep["contacts"]["impact_count"]);
 }
 

@@ -129,12 +129,10 @@ RunSummary Simulation::run(RunObserver* observer, RunDiagnostics* diagnostics) c
   d = RunDiagnostics{};
   return std::visit(Overloaded{[&](const std::shared_ptr<const LagrangianScene>& sc) {
                                  if (sc->scheme != Scheme::kMoreauJean) return run_scene(*sc, observer);
-                                 d.contacts.emplace();
-                                 return run_scene(*sc, observer, &*d.contacts);
+                                 return run_scene(*sc, observer, &d.of.emplace<ContactDiagnostics>());
                                },
                                [&](const std::shared_ptr<const LureScene>& sc) {
-                                 d.lure.emplace();
-                                 return run_lure_scene(*sc, observer, &*d.lure);
+                                 return run_lure_scene(*sc, observer, &d.of.emplace<LureDiagnostics>());
                                }},
                     system_);
 }
@@ -152,17 +150,17 @@ RunSummary Simulation::run(RunObserver* observer) const {
 nlohmann::json Simulation::report_json(const RunSummary& summary, const RunDiagnostics& d) const {
   return std::visit(
       Overloaded{[&](const std::shared_ptr<const LagrangianScene>& sc) {
-                   return scene::report_json(*sc, summary, d.contacts ? &*d.contacts : nullptr);
+                   return scene::report_json(*sc, summary, d.contacts());
                  },
-                 [&](const std::shared_ptr<const LureScene>& sc) { return scene::report_json(*sc, summary, d.lure ? &*d.lure : nullptr); }},
+                 [&](const std::shared_ptr<const LureScene>& sc) { return scene::report_json(*sc, summary, d.lure()); }},
       system_);
 }
 std::string Simulation::report_text(const RunSummary& summary, const RunDiagnostics& d) const {
   return std::visit(
       Overloaded{[&](const std::shared_ptr<const LagrangianScene>& sc) {
-                   return scene::report_text(*sc, summary, d.contacts ? &*d.contacts : nullptr);
+                   return scene::report_text(*sc, summary, d.contacts());
                  },
-                 [&](const std::shared_ptr<const LureScene>& sc) { return scene::report_text(*sc, summary, d.lure ? &*d.lure : nullptr); }},
+                 [&](const std::shared_ptr<const LureScene>& sc) { return scene::report_text(*sc, summary, d.lure()); }},
       system_);
 }
 

@@ -24,10 +24,13 @@
 
 namespace moreau::scene {
 
-// What a run reports beyond RunSummary, by system type.
+// What a run reports beyond RunSummary, by system type: contacts (a lagrangian scene on moreau-jean),
+// a Lur'e system's outputs and storage function, or nothing more (a lagrangian scene on abl).
 struct RunDiagnostics {
-  std::optional<ContactDiagnostics> contacts;  // a lagrangian scene on moreau-jean
-  std::optional<LureDiagnostics> lure;         // a lure scene
+  std::variant<std::monostate, ContactDiagnostics, LureDiagnostics> of;
+
+  const ContactDiagnostics* contacts() const { return std::get_if<ContactDiagnostics>(&of); }
+  const LureDiagnostics* lure() const { return std::get_if<LureDiagnostics>(&of); }
 };
 
 // Limits a caller (a server, a campaign) puts on a run, applied to a compiled Simulation: nothing is
