@@ -16,7 +16,7 @@
 #include <time.h>
 
 #include "job_observer.h"
-#include "jobs.h"
+#include "job.h"
 #include "lcm_stream.h"
 #include "server_fixture.h"
 

@@ -8,7 +8,7 @@
 #include <functional>
 #include <vector>
 
-#include "jobs.h"
+#include "job.h"
 #include "lcm_stream.h"
 #include "moreau/core/observer.h"
 #include "moreau/scene/trajectory_csv.h"

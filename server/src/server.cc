@@ -1,4 +1,4 @@
-// The HTTP layer: routes, authentication, validation and limits, over the JobManager.
+// The HTTP layer: routes, authentication, validation and limits, over the JobRunner.
 #include "moreau/server/server.h"
 
 #include <algorithm>
@@ -20,7 +20,7 @@
 #include <nlohmann/json.hpp>
 
 #include "figures.h"
-#include "jobs.h"
+#include "job_runner.h"
 #include "lcm_stream.h"
 #include "moreau/scene/scene.h"
 #include "moreau/scene/simulation.h"
@@ -355,20 +355,20 @@ class Server::Impl {
   // the queue is full, 503 while stopping, 507 if its records cannot be written (a full disk, say).
   void queue_and_answer(const std::shared_ptr<Job>& job, const json& scene_doc, const json* study_doc, Response& res) {
     int retry_after = 1;
-    JobManager::Submit outcome;
+    JobRunner::Submit outcome;
     try {
       outcome = jobs_.submit(job, scene_doc, &retry_after, study_doc);
     } catch (const std::exception& e) {
       return send_error(res, 507, "cannot store the job", "", e.what());
     }
     switch (outcome) {
-      case JobManager::Submit::kQueued: break;
-      case JobManager::Submit::kQueueFull:
+      case JobRunner::Submit::kQueued: break;
+      case JobRunner::Submit::kQueueFull:
         res.set_header("Retry-After", std::to_string(retry_after));
         return send_error(
             res, 429, "queue full", "",
             "the server holds " + std::to_string(cfg_.queue) + " queued jobs at most; retry in " + std::to_string(retry_after) + " s");
-      case JobManager::Submit::kStopping: return send_error(res, 503, "server stopping");
+      case JobRunner::Submit::kStopping: return send_error(res, 503, "server stopping");
     }
     const json j = job_json(*job, nullptr);
     res.set_header("Location", j["url"].get<std::string>());
@@ -465,7 +465,7 @@ class Server::Impl {
 
   ServerConfig cfg_;
   LcmHub hub_;
-  JobManager jobs_;
+  JobRunner jobs_;
   GuardedHttpServer http_;
   Budget waiting_{cfg_.max_waiting};      // long polls and event streams open now
   Budget drawing_{cfg_.figures_at_once};  // figures being drawn now
@@ -985,7 +985,7 @@ void Server::Impl::delete_job(const Request& req, Response& res, JobKind kind) {
   auto job = job_for(req, res, kind);
   if (!job) return;
   const auto outcome = jobs_.cancel(job);
-  if (outcome == JobManager::Cancel::kAlreadyFinished) {
+  if (outcome == JobRunner::Cancel::kAlreadyFinished) {
     const char* what = kind == JobKind::kStudy ? "study" : "job";
     return send_error(res, 409, std::string(what) + " already finished", "",
                       std::string("the ") + what + " is " + to_string(state_of(*job)));

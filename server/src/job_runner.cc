@@ -1,4 +1,4 @@
-#include "jobs.h"
+#include "job_runner.h"
 
 #include <algorithm>
 #include <cmath>
@@ -17,284 +17,31 @@ using Clock = std::chrono::steady_clock;
 
 namespace {
 
-constexpr std::size_t kMaxEventsKept = 512;  // per job, for late subscribers; older progress is dropped
-
-const char* kReasonRestartedRunning = "server restarted while the job was running";
-const char* kReasonRestartedQueued = "server restarted before the job ran";
 const char* kReasonStoppedRunning = "server stopped while the job was running";
 const char* kReasonStoppedQueued = "server stopped before the job ran";
 
-std::optional<JobState> parse_state(const std::string& s) {
-  if (s == "queued") return JobState::kQueued;
-  if (s == "running") return JobState::kRunning;
-  if (s == "cancelling") return JobState::kCancelling;
-  if (s == "done") return JobState::kDone;
-  if (s == "failed") return JobState::kFailed;
-  if (s == "cancelled") return JobState::kCancelled;
-  return std::nullopt;
-}
-
 double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
-
-json finite_or_null(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
 
 }  // namespace
 
-double unix_now() { return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count(); }
+JobRunner::JobRunner(const ServerConfig& config, LcmHub& hub) : config_(config), hub_(hub), store_(config) {}
 
-std::int64_t max_trajectory_row_bytes(const scene::Simulation& sim) {
-  const auto columns = static_cast<std::int64_t>(sim.position_names().size() + sim.velocity_names().size() + 3);
-  return columns * 25;
-}
+JobRunner::~JobRunner() { stop(); }
 
-std::int64_t max_trajectory_rows(const ServerConfig& config, const scene::Simulation& sim) {
-  return std::min(config.max_samples, std::max<std::int64_t>(3, config.max_result_bytes / max_trajectory_row_bytes(sim)));
-}
-
-const char* to_string(JobState s) {
-  switch (s) {
-    case JobState::kQueued: return "queued";
-    case JobState::kRunning: return "running";
-    case JobState::kCancelling: return "cancelling";
-    case JobState::kDone: return "done";
-    case JobState::kFailed: return "failed";
-    case JobState::kCancelled: return "cancelled";
-  }
-  return "?";
-}
-
-bool is_final(JobState s) { return s == JobState::kDone || s == JobState::kFailed || s == JobState::kCancelled; }
-
-json job_json(const Job& job, const json* report) {
-  std::unique_lock lock(job.mu);
-  const bool study = job.kind == JobKind::kStudy;
-  json j;
-  j["id"] = job.id;
-  j["kind"] = study ? "study" : "run";
-  j["url"] = (study ? "/v1/studies/" : "/v1/jobs/") + job.id;
-  j["scene"] = job.scene_name;
-  j["state"] = to_string(job.state);
-  if (!job.reason.empty()) j["reason"] = job.reason;
-  j["created"] = job.created;
-  j["started"] = job.started > 0 ? json(job.started) : json(nullptr);
-  j["finished"] = job.finished > 0 ? json(job.finished) : json(nullptr);
-  const std::string url = j["url"];
-  json links = {{"events", url + "/events"}};
-  if (study) {
-    const std::int64_t done = job.state == JobState::kDone ? job.rows_total : job.rows_done.load();
-    j["progress"] = {{"rows", done},
-                     {"rows_total", job.rows_total},
-                     {"fraction", job.rows_total > 0 ? static_cast<double>(done) / static_cast<double>(job.rows_total) : 0.0}};
-    if (job.has_report) {
-      links["table"] = url + "/table";
-      links["csv"] = url + "/table?format=csv";
-      links["work_figure"] = url + "/figure?kind=work";
-      links["order_figure"] = url + "/figure?kind=order";
-    }
-  } else {
-    double t = job.t_now.load();
-    std::int64_t step = job.step_now.load();
-    if (job.state == JobState::kQueued) t = job.t0;
-    if (job.state == JobState::kDone) t = job.t_end;
-    if (report && report->contains("t_final") && (*report)["t_final"].is_number()) t = (*report)["t_final"].get<double>();
-    if (report && report->contains("steps") && (*report)["steps"].is_number()) step = (*report)["steps"].get<std::int64_t>();
-    const double span = job.t_end - job.t0;
-    j["progress"] = {{"t", finite_or_null(t)},
-                     {"t0", job.t0},
-                     {"t_end", job.t_end},
-                     {"step", step},
-                     {"planned_steps", job.planned_steps},
-                     {"fraction", span > 0 ? finite_or_null(std::clamp((t - job.t0) / span, 0.0, 1.0)) : json(0.0)}};
-    if (job.has_report) links["report"] = url + "/report";
-    if (job.has_trajectory) {
-      links["trajectory"] = url + "/trajectory";
-      links["figure"] = url + "/figure?kind=state";
-    }
-  }
-  j["links"] = links;
-  if (job.stream.enabled) {
-    j["stream"] = {{"state_channel", job.stream.state_channel},
-                   {"event_channel", job.stream.event_channel},
-                   {"period", job.stream.period},
-                   {"realtime", job.stream.realtime}};
-  }
-  lock.unlock();
-  if (report) j[study ? "result" : "report"] = *report;
-  return j;
-}
-
-// ---- JobManager ----
-
-JobManager::JobManager(const ServerConfig& config, LcmHub& hub)
-    : config_(config), hub_(hub), jobs_dir_(fs::path(config.data_dir) / "jobs") {
-  if (config.data_dir.empty()) throw std::runtime_error("no data directory given (--data DIR)");
-  std::error_code ec;
-  fs::create_directories(jobs_dir_, ec);
-  if (ec || !fs::is_directory(jobs_dir_)) {
-    throw std::runtime_error("cannot use data directory '" + config.data_dir + "': " + (ec ? ec.message() : "not a directory"));
-  }
-}
-
-JobManager::~JobManager() { stop(); }
-
-std::shared_ptr<Job> JobManager::make_job() const {
-  auto job = std::make_shared<Job>();
-  job->id = new_job_id();
-  job->dir = jobs_dir_ / job->id;
-  job->created = unix_now();
-  return job;
-}
-
-json JobManager::record_locked(const Job& job, JobState state, const std::string& reason, double started, double finished) {
-  json r = {{"id", job.id},
-            {"kind", job.kind == JobKind::kStudy ? "study" : "run"},
-            {"scene", job.scene_name},
-            {"state", to_string(state)},
-            {"created", job.created},
-            {"started", started},
-            {"finished", finished},
-            {"t0", job.t0},
-            {"t_end", job.t_end},
-            {"planned_steps", job.planned_steps}};
-  if (job.kind == JobKind::kStudy) r["rows_total"] = job.rows_total;
-  if (!reason.empty()) r["reason"] = reason;
-  // Where a run got to, so that a restarted server shows the progress it had.
-  if (is_final(state)) {
-    r["progress"] = {{"t", finite_or_null(job.t_now.load())}, {"step", job.step_now.load()}, {"rows", job.rows_done.load()}};
-  }
-  if (job.stream.enabled) {
-    r["stream"] = {{"prefix", job.stream.prefix}, {"period", job.stream.period}, {"realtime", job.stream.realtime}};
-  }
-  if (job.strict) r["strict"] = true;
-  return r;
-}
-
-void JobManager::write_record(const json& record, const Job& job, Durability durability) const {
-  write_file_atomic(job.dir / "job.json", record.dump(2) + "\n", durability);
-}
-
-void JobManager::recover() {
-  std::error_code ec;
-  std::vector<std::shared_ptr<Job>> found;
-  for (const auto& entry : fs::directory_iterator(jobs_dir_, ec)) {
-    const std::string name = entry.path().filename().string();
-    if (!entry.is_directory() || !is_job_id(name)) continue;
-    auto job = std::make_shared<Job>();
-    job->id = name;
-    job->dir = entry.path();
-    // Leftovers of writes interrupted by a crash.
-    for (const auto& f : fs::directory_iterator(job->dir, ec)) {
-      if (f.path().extension() == ".tmp") fs::remove(f.path(), ec);
-    }
-    json record;
-    if (auto text = read_file(job->dir / "job.json")) {
-      record = json::parse(*text, nullptr, false);
-    }
-    if (!record.is_object()) {
-      std::cerr << "moreau-server: skipping " << job->dir << ": no readable job.json\n";
-      continue;
-    }
-    job->kind = record.value("kind", "run") == "study" ? JobKind::kStudy : JobKind::kRun;
-    job->rows_total = record.value("rows_total", std::int64_t{0});
-    job->scene_name = record.value("scene", "");
-    job->created = record.value("created", 0.0);
-    job->started = record.value("started", 0.0);
-    job->finished = record.value("finished", 0.0);
-    job->t0 = record.value("t0", 0.0);
-    job->t_end = record.value("t_end", 0.0);
-    job->planned_steps = record.value("planned_steps", std::int64_t{0});
-    job->reason = record.value("reason", "");
-    job->strict = record.contains("strict") && record["strict"].is_boolean() && record["strict"].get<bool>();
-    if (record.contains("progress") && record["progress"].is_object()) {
-      const json& p = record["progress"];
-      if (p.contains("t") && p["t"].is_number()) job->t_now = p["t"].get<double>();
-      if (p.contains("step") && p["step"].is_number_integer()) job->step_now = p["step"].get<std::int64_t>();
-      if (p.contains("rows") && p["rows"].is_number_integer()) job->rows_done = p["rows"].get<std::int64_t>();
-    } else {
-      job->t_now = job->t0;
-    }
-    if (record.contains("stream") && record["stream"].is_object()) {
-      job->stream.enabled = true;
-      job->stream.prefix = record["stream"].value("prefix", "MOREAU");
-      job->stream.period = record["stream"].value("period", 1.0 / 64);
-      job->stream.realtime = record["stream"].value("realtime", false);
-      set_channels(job->stream, job->id);
-    }
-    const bool study = job->kind == JobKind::kStudy;
-    job->has_report = fs::exists(job->dir / (study ? "result.json" : "report.json"), ec);
-    job->has_trajectory = fs::exists(job->dir / (study ? "table.csv" : "trajectory.csv"), ec);
-    const std::optional<JobState> recorded = parse_state(record.value("state", ""));
-    bool rewrite = false;
-    if (recorded && is_final(*recorded)) {
-      job->state = *recorded;
-    } else if (job->has_report && study) {
-      // The study's result was committed (only completed studies write one), the record not updated.
-      job->state = JobState::kDone;
-      rewrite = true;
-    } else if (job->has_report) {
-      // The run ended and its report was committed, but the record was not updated.
-      json report = json::parse(read_file(job->dir / "report.json").value_or(""), nullptr, false);
-      const std::string status = report.is_object() ? report.value("status", "") : "";
-      job->state = status == "completed" ? JobState::kDone : status == "cancelled" ? JobState::kCancelled : JobState::kFailed;
-      if (job->state != JobState::kDone && job->reason.empty() && report.is_object()) job->reason = report.value("message", "");
-      if (report.is_object() && report.contains("t_final") && report["t_final"].is_number()) job->t_now = report["t_final"].get<double>();
-      if (report.is_object() && report.contains("steps") && report["steps"].is_number_integer())
-        job->step_now = report["steps"].get<std::int64_t>();
-      rewrite = true;
-    } else if (recorded == JobState::kCancelling) {
-      // Asked to stop, and the server went down before the run had: it was cancelled all the same.
-      job->state = JobState::kCancelled;
-      job->reason = "cancelled by request (the server restarted before the run had stopped)";
-      rewrite = true;
-    } else {
-      job->state = JobState::kFailed;
-      job->reason = recorded == JobState::kQueued ? kReasonRestartedQueued : kReasonRestartedRunning;
-      rewrite = true;
-    }
-    if (job->finished == 0 && rewrite) job->finished = unix_now();
-    if (job->state == JobState::kDone) {
-      job->t_now = job->t_end;
-      job->step_now = std::max(job->step_now.load(), job->planned_steps);
-      job->rows_done = job->rows_total;
-    }
-    if (rewrite) {
-      try {
-        std::lock_guard lock(job->mu);
-        write_record(record_locked(*job, job->state, job->reason, job->started, job->finished), *job, Durability::kRename);
-      } catch (const std::exception& e) {
-        std::cerr << "moreau-server: job " << job->id << ": " << e.what() << "\n";
-      }
-    }
-    found.push_back(std::move(job));
-  }
-  std::sort(found.begin(), found.end(),
-            [](const auto& a, const auto& b) { return a->created != b->created ? a->created < b->created : a->id < b->id; });
-  {
-    std::lock_guard lock(mu_);
-    for (auto& job : found) {
-      push_event(*job, "state", {{"id", job->id}, {"state", to_string(job->state)}});
-      jobs_.emplace(job->id, job);
-      order_.push_back(job);
-      ++finished_;  // every recovered job is final
-    }
-  }
-  prune();
-}
-
-void JobManager::start() {
+void JobRunner::start() {
   const int n = config_.workers > 0 ? config_.workers : std::max(1u, std::thread::hardware_concurrency());
   for (int i = 0; i < n; ++i) workers_.emplace_back([this] { worker_loop(); });
   for (int i = 0; i < std::max(1, config_.io_threads); ++i) committers_.emplace_back([this] { committer_loop(); });
 }
 
-void JobManager::stop() {
+void JobRunner::stop() {
   if (stopping_.exchange(true)) return;
   std::deque<std::shared_ptr<Job>> queued;
   std::vector<std::shared_ptr<Job>> all;
   {
     std::lock_guard lock(mu_);
     queued.swap(queue_);
-    all = order_;
+    all = store_.list();
   }
   queue_cv_.notify_all();
   for (auto& job : queued) {
@@ -326,7 +73,7 @@ void JobManager::stop() {
   for (auto& job : all) wake(*job);
 }
 
-JobManager::Submit JobManager::submit(const std::shared_ptr<Job>& job, const json& scene_doc, int* retry_after, const json* study_doc) {
+JobRunner::Submit JobRunner::submit(const std::shared_ptr<Job>& job, const json& scene_doc, int* retry_after, const json* study_doc) {
   {
     std::lock_guard lock(mu_);
     if (stopping_) return Submit::kStopping;
@@ -339,31 +86,14 @@ JobManager::Submit JobManager::submit(const std::shared_ptr<Job>& job, const jso
       return Submit::kQueueFull;
     }
   }
-  // Accepted means stored: the scene and the record are on disk (fsync'ed, and the directory too)
-  // before the 202. A write that fails (a full disk, say) refuses the job (507) and leaves nothing.
-  try {
-    fs::create_directories(job->dir);
-    write_file_atomic(job->dir / "scene.json", scene_doc.dump(2) + "\n", Durability::kFsync);
-    if (study_doc) write_file_atomic(job->dir / "study.json", study_doc->dump(2) + "\n", Durability::kFsync);
-    json record;
-    {
-      std::lock_guard lock(job->mu);
-      record = record_locked(*job, job->state, job->reason, job->started, job->finished);
-    }
-    write_record(record, *job, Durability::kFsync);
-    fsync_path(job->dir);
-  } catch (...) {
-    std::error_code ec;
-    fs::remove_all(job->dir, ec);
-    throw;
-  }
+  // Accepted means stored: the scene and the record are on disk before the 202 (507 when they cannot be).
+  store_.write_new(*job, scene_doc, study_doc);
   push_event(*job, "state", {{"id", job->id}, {"state", "queued"}});
   {
     std::lock_guard lock(mu_);
     if (stopping_) return Submit::kStopping;
     // The queue may have filled up while the records were written: accept anyway, it is one more.
-    jobs_.emplace(job->id, job);
-    order_.push_back(job);
+    store_.add(job);
     queue_.push_back(job);
   }
   {
@@ -374,31 +104,7 @@ JobManager::Submit JobManager::submit(const std::shared_ptr<Job>& job, const jso
   return Submit::kQueued;
 }
 
-std::shared_ptr<Job> JobManager::find(const std::string& id) const {
-  std::lock_guard lock(mu_);
-  auto it = jobs_.find(id);
-  return it == jobs_.end() ? nullptr : it->second;
-}
-
-std::vector<std::shared_ptr<Job>> JobManager::list() const {
-  std::lock_guard lock(mu_);
-  return order_;
-}
-
-void JobManager::push_event(Job& job, const std::string& name, const json& data) {
-  {
-    std::lock_guard lock(job.mu);
-    job.events.push_back(SseEvent{job.next_event_id++, name, data.dump()});
-    if (job.events.size() > kMaxEventsKept) {
-      // Drop the oldest progress event (state changes are kept).
-      auto it = std::find_if(job.events.begin(), job.events.end(), [](const SseEvent& e) { return e.name == "progress"; });
-      job.events.erase(it != job.events.end() ? it : job.events.begin());
-    }
-  }
-  job.cv.notify_all();
-}
-
-bool JobManager::set_state(Job& job, JobState state, const std::string& reason) {
+bool JobRunner::set_state(Job& job, JobState state, const std::string& reason) {
   json data = {{"id", job.id}, {"state", to_string(state)}};
   if (!reason.empty()) data["reason"] = reason;
   std::lock_guard change(job.state_change_mu);
@@ -413,20 +119,20 @@ bool JobManager::set_state(Job& job, JobState state, const std::string& reason) 
     became_final = is_final(state) && !is_final(job.state);
     started = state == JobState::kRunning ? unix_now() : job.started;
     finished = is_final(state) ? unix_now() : job.finished;
-    record = record_locked(job, state, reason, started, finished);
+    record = job_record(job, state, reason, started, finished);
   }
   // 1. The record. A final state that cannot be recorded is still published (the results are committed
   // and a restart derives the state from them), but said on stderr.
   try {
-    write_record(record, job, is_final(state) ? Durability::kFsync : Durability::kRename);
+    store_.write_record(record, job, is_final(state) ? Durability::kFsync : Durability::kRename);
   } catch (const std::exception& e) {
     std::cerr << "moreau-server: job " << job.id << ": " << e.what() << "\n";
   }
   // 2. The store as a final state leaves it: older finished jobs beyond --keep-jobs are deleted now,
   // before anyone can see this job final (this job is not yet final for prune(), so it stays).
   if (became_final) {
-    ++finished_;
-    prune();
+    store_.count_final();
+    if (!stopping_) store_.prune();
   }
   // 3. Published: the state and its event change together, so a stream that sees a final state has its
   // event, and a waiter woken by it sees steps 1 and 2 done.
@@ -442,48 +148,7 @@ bool JobManager::set_state(Job& job, JobState state, const std::string& reason) 
   return true;
 }
 
-void JobManager::prune() {
-  const std::int64_t keep = config_.keep_jobs;
-  const std::int64_t batch = std::max<std::int64_t>(1, keep / 10);  // prune a tenth at a time
-  if (keep <= 0 || finished_.load() < keep + batch || stopping_) return;
-  std::vector<std::shared_ptr<Job>> doomed;
-  {
-    std::lock_guard lock(mu_);
-    std::int64_t excess = finished_.load() - keep;
-    std::vector<std::shared_ptr<Job>> kept;
-    kept.reserve(order_.size());
-    for (auto& job : order_) {  // oldest first
-      bool final = false;
-      {
-        std::lock_guard jl(job->mu);
-        final = is_final(job->state);
-      }
-      if (excess > 0 && final) {
-        // A reader holding the files now is let finish; the job is pruned at a later pass.
-        std::unique_lock files(job->files_mu, std::try_to_lock);
-        if (files.owns_lock()) {
-          job->deleted = true;
-          jobs_.erase(job->id);
-          doomed.push_back(job);
-          --excess;
-          continue;
-        }
-        kept.push_back(job);
-      } else {
-        kept.push_back(job);
-      }
-    }
-    order_.swap(kept);
-    finished_ -= static_cast<std::int64_t>(doomed.size());
-  }
-  for (const auto& job : doomed) {
-    std::error_code ec;
-    fs::remove_all(job->dir, ec);
-    if (ec) std::cerr << "moreau-server: cannot delete old job " << job->id << ": " << ec.message() << "\n";
-  }
-}
-
-JobManager::Cancel JobManager::cancel(const std::shared_ptr<Job>& job) {
+JobRunner::Cancel JobRunner::cancel(const std::shared_ptr<Job>& job) {
   bool was_queued = false;
   {
     std::lock_guard lock(mu_);
@@ -515,12 +180,12 @@ JobManager::Cancel JobManager::cancel(const std::shared_ptr<Job>& job) {
   return job->state == JobState::kCancelled ? Cancel::kCancelled : Cancel::kAlreadyFinished;
 }
 
-void JobManager::wait_final(Job& job, std::chrono::milliseconds timeout) const {
+void JobRunner::wait_final(Job& job, std::chrono::milliseconds timeout) const {
   std::unique_lock lock(job.mu);
   job.cv.wait_for(lock, timeout, [&] { return is_final(job.state) || stopping_.load(); });
 }
 
-std::vector<SseEvent> JobManager::events_after(Job& job, std::uint64_t after, std::chrono::milliseconds timeout, bool& done) const {
+std::vector<SseEvent> JobRunner::events_after(Job& job, std::uint64_t after, std::chrono::milliseconds timeout, bool& done) const {
   std::unique_lock lock(job.mu);
   auto has_new = [&] { return !job.events.empty() && job.events.back().id > after; };
   job.cv.wait_for(lock, timeout, [&] { return has_new() || is_final(job.state) || stopping_.load(); });
@@ -531,7 +196,7 @@ std::vector<SseEvent> JobManager::events_after(Job& job, std::uint64_t after, st
   return out;
 }
 
-void JobManager::worker_loop() {
+void JobRunner::worker_loop() {
   while (true) {
     std::shared_ptr<Job> job;
     {
@@ -555,7 +220,7 @@ void JobManager::worker_loop() {
   }
 }
 
-void JobManager::run(const std::shared_ptr<Job>& job) {
+void JobRunner::run(const std::shared_ptr<Job>& job) {
   const auto wall_start = Clock::now();
   if (job->cancel) {
     job->sim.reset();
@@ -653,7 +318,7 @@ void JobManager::run(const std::shared_ptr<Job>& job) {
   enqueue_commit(std::move(commit));
 }
 
-void JobManager::enqueue_commit(std::unique_ptr<Commit> commit) {
+void JobRunner::enqueue_commit(std::unique_ptr<Commit> commit) {
   {
     std::lock_guard lock(commit_mu_);
     commits_.push_back(std::move(commit));
@@ -661,7 +326,7 @@ void JobManager::enqueue_commit(std::unique_ptr<Commit> commit) {
   commit_cv_.notify_one();
 }
 
-void JobManager::run_study(const std::shared_ptr<Job>& job, std::unique_ptr<Commit> commit) {
+void JobRunner::run_study(const std::shared_ptr<Job>& job, std::unique_ptr<Commit> commit) {
   scene::StudySettings st = job->study;
   st.cancel = &job->cancel;
   st.on_row = [this, &job](std::size_t done, std::size_t total) {
@@ -696,7 +361,7 @@ void JobManager::run_study(const std::shared_ptr<Job>& job, std::unique_ptr<Comm
   enqueue_commit(std::move(commit));
 }
 
-void JobManager::fail_to_store(Job& job, const std::string& what) {
+void JobRunner::fail_to_store(Job& job, const std::string& what) {
   // A full or failing disk: the partial results would go on holding the space, and are of no use.
   std::error_code ec;
   for (const char* name : {"trajectory.csv.tmp", "report.json.tmp", "table.csv.tmp", "result.json.tmp"}) fs::remove(job.dir / name, ec);
@@ -705,7 +370,7 @@ void JobManager::fail_to_store(Job& job, const std::string& what) {
   set_state(job, JobState::kFailed, "cannot store the results: " + what);
 }
 
-void JobManager::committer_loop() {
+void JobRunner::committer_loop() {
   while (true) {
     std::unique_ptr<Commit> c;
     {
@@ -724,7 +389,7 @@ void JobManager::committer_loop() {
   }
 }
 
-void JobManager::commit(Commit& c) {
+void JobRunner::commit(Commit& c) {
   Job& job = *c.job;
   const RunSummary& summary = c.summary;
   // The trajectory (or table) first, then the report (or result), which commits the job: each fsync'ed
@@ -762,7 +427,7 @@ void JobManager::commit(Commit& c) {
   }
 }
 
-void JobManager::count_finished(std::int64_t steps, double integrate_seconds, double wall_seconds) {
+void JobRunner::count_finished(std::int64_t steps, double integrate_seconds, double wall_seconds) {
   std::lock_guard lock(stats_mu_);
   steps_total_ += steps;
   integrate_total_ += integrate_seconds;
@@ -772,20 +437,20 @@ void JobManager::count_finished(std::int64_t steps, double integrate_seconds, do
   while (!recent_steps_.empty() && now - recent_steps_.front().first > std::chrono::seconds(10)) recent_steps_.pop_front();
 }
 
-bool JobManager::idle() const {
+bool JobRunner::idle() const {
   std::lock_guard lock(mu_);
   return queue_.empty() && busy_.load() == 0;
 }
 
-Metrics JobManager::metrics() const {
+Metrics JobRunner::metrics() const {
   Metrics m;
   for (const char* s : {"queued", "running", "cancelling", "done", "failed", "cancelled"}) m.jobs_by_state[s] = 0;
+  for (const auto& job : store_.list()) {
+    std::lock_guard jl(job->mu);
+    ++m.jobs_by_state[to_string(job->state)];
+  }
   {
     std::lock_guard lock(mu_);
-    for (const auto& job : order_) {
-      std::lock_guard jl(job->mu);
-      ++m.jobs_by_state[to_string(job->state)];
-    }
     m.queue_length = static_cast<std::int64_t>(queue_.size());
     m.workers = static_cast<std::int64_t>(workers_.size());
   }

@@ -1,0 +1,145 @@
+#include "job.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace moreau::server {
+using json = nlohmann::json;
+
+namespace {
+constexpr std::size_t kMaxEventsKept = 512;  // per job, for late subscribers; older progress is dropped
+
+json finite_or_null(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
+}  // namespace
+
+std::optional<JobState> parse_state(const std::string& s) {
+  if (s == "queued") return JobState::kQueued;
+  if (s == "running") return JobState::kRunning;
+  if (s == "cancelling") return JobState::kCancelling;
+  if (s == "done") return JobState::kDone;
+  if (s == "failed") return JobState::kFailed;
+  if (s == "cancelled") return JobState::kCancelled;
+  return std::nullopt;
+}
+
+double unix_now() { return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count(); }
+
+std::int64_t max_trajectory_row_bytes(const scene::Simulation& sim) {
+  const auto columns = static_cast<std::int64_t>(sim.position_names().size() + sim.velocity_names().size() + 3);
+  return columns * 25;
+}
+
+std::int64_t max_trajectory_rows(const ServerConfig& config, const scene::Simulation& sim) {
+  return std::min(config.max_samples, std::max<std::int64_t>(3, config.max_result_bytes / max_trajectory_row_bytes(sim)));
+}
+
+const char* to_string(JobState s) {
+  switch (s) {
+    case JobState::kQueued: return "queued";
+    case JobState::kRunning: return "running";
+    case JobState::kCancelling: return "cancelling";
+    case JobState::kDone: return "done";
+    case JobState::kFailed: return "failed";
+    case JobState::kCancelled: return "cancelled";
+  }
+  return "?";
+}
+
+bool is_final(JobState s) { return s == JobState::kDone || s == JobState::kFailed || s == JobState::kCancelled; }
+
+json job_json(const Job& job, const json* report) {
+  std::unique_lock lock(job.mu);
+  const bool study = job.kind == JobKind::kStudy;
+  json j;
+  j["id"] = job.id;
+  j["kind"] = study ? "study" : "run";
+  j["url"] = (study ? "/v1/studies/" : "/v1/jobs/") + job.id;
+  j["scene"] = job.scene_name;
+  j["state"] = to_string(job.state);
+  if (!job.reason.empty()) j["reason"] = job.reason;
+  j["created"] = job.created;
+  j["started"] = job.started > 0 ? json(job.started) : json(nullptr);
+  j["finished"] = job.finished > 0 ? json(job.finished) : json(nullptr);
+  const std::string url = j["url"];
+  json links = {{"events", url + "/events"}};
+  if (study) {
+    const std::int64_t done = job.state == JobState::kDone ? job.rows_total : job.rows_done.load();
+    j["progress"] = {{"rows", done},
+                     {"rows_total", job.rows_total},
+                     {"fraction", job.rows_total > 0 ? static_cast<double>(done) / static_cast<double>(job.rows_total) : 0.0}};
+    if (job.has_report) {
+      links["table"] = url + "/table";
+      links["csv"] = url + "/table?format=csv";
+      links["work_figure"] = url + "/figure?kind=work";
+      links["order_figure"] = url + "/figure?kind=order";
+    }
+  } else {
+    double t = job.t_now.load();
+    std::int64_t step = job.step_now.load();
+    if (job.state == JobState::kQueued) t = job.t0;
+    if (job.state == JobState::kDone) t = job.t_end;
+    if (report && report->contains("t_final") && (*report)["t_final"].is_number()) t = (*report)["t_final"].get<double>();
+    if (report && report->contains("steps") && (*report)["steps"].is_number()) step = (*report)["steps"].get<std::int64_t>();
+    const double span = job.t_end - job.t0;
+    j["progress"] = {{"t", finite_or_null(t)},
+                     {"t0", job.t0},
+                     {"t_end", job.t_end},
+                     {"step", step},
+                     {"planned_steps", job.planned_steps},
+                     {"fraction", span > 0 ? finite_or_null(std::clamp((t - job.t0) / span, 0.0, 1.0)) : json(0.0)}};
+    if (job.has_report) links["report"] = url + "/report";
+    if (job.has_trajectory) {
+      links["trajectory"] = url + "/trajectory";
+      links["figure"] = url + "/figure?kind=state";
+    }
+  }
+  j["links"] = links;
+  if (job.stream.enabled) {
+    j["stream"] = {{"state_channel", job.stream.state_channel},
+                   {"event_channel", job.stream.event_channel},
+                   {"period", job.stream.period},
+                   {"realtime", job.stream.realtime}};
+  }
+  lock.unlock();
+  if (report) j[study ? "result" : "report"] = *report;
+  return j;
+}
+
+json job_record(const Job& job, JobState state, const std::string& reason, double started, double finished) {
+  json r = {{"id", job.id},
+            {"kind", job.kind == JobKind::kStudy ? "study" : "run"},
+            {"scene", job.scene_name},
+            {"state", to_string(state)},
+            {"created", job.created},
+            {"started", started},
+            {"finished", finished},
+            {"t0", job.t0},
+            {"t_end", job.t_end},
+            {"planned_steps", job.planned_steps}};
+  if (job.kind == JobKind::kStudy) r["rows_total"] = job.rows_total;
+  if (!reason.empty()) r["reason"] = reason;
+  // Where a run got to, so that a restarted server shows the progress it had.
+  if (is_final(state)) {
+    r["progress"] = {{"t", finite_or_null(job.t_now.load())}, {"step", job.step_now.load()}, {"rows", job.rows_done.load()}};
+  }
+  if (job.stream.enabled) {
+    r["stream"] = {{"prefix", job.stream.prefix}, {"period", job.stream.period}, {"realtime", job.stream.realtime}};
+  }
+  if (job.strict) r["strict"] = true;
+  return r;
+}
+
+void push_event(Job& job, const std::string& name, const json& data) {
+  {
+    std::lock_guard lock(job.mu);
+    job.events.push_back(SseEvent{job.next_event_id++, name, data.dump()});
+    if (job.events.size() > kMaxEventsKept) {
+      // Drop the oldest progress event (state changes are kept).
+      auto it = std::find_if(job.events.begin(), job.events.end(), [](const SseEvent& e) { return e.name == "progress"; });
+      job.events.erase(it != job.events.end() ? it : job.events.begin());
+    }
+  }
+  job.cv.notify_all();
+}
+
+}  // namespace moreau::server

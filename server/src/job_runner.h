@@ -1,0 +1,138 @@
+// The job runner: the bounded queue, the worker pool and the I/O threads, and every change of a job's
+// state, over the job store (job_store.h).
+//
+// trajectory.csv and report.json are written to temporary files when the run ends; an I/O thread then
+// fsyncs and renames them (report.json last: it commits the job) and only then marks the job final, so
+// "done" means stored. job.json is replaced (atomically) at each state change.
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <shared_mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "job.h"
+#include "job_store.h"
+#include "lcm_stream.h"
+#include "moreau/server/server_config.h"
+#include "storage.h"
+
+namespace moreau::server {
+
+struct Metrics {
+  std::map<std::string, std::int64_t> jobs_by_state;
+  std::int64_t queue_length = 0, queue_capacity = 0, workers = 0, workers_busy = 0;
+  std::int64_t submitted = 0, rejected_queue_full = 0;
+  std::int64_t steps_total = 0;
+  double integrate_seconds_total = 0;
+  double steps_per_second = 0;  // over the last 10 s
+  std::uint64_t lcm_published = 0, lcm_dropped = 0;
+};
+
+class JobRunner {
+ public:
+  JobRunner(const ServerConfig& config, LcmHub& hub);
+  ~JobRunner();
+
+  // The jobs a previous server left (JobStore::recover).
+  void recover() { store_.recover(); }
+  void start();
+  // Fails the queued jobs, stops the running ones (failed: the server stopped) and joins the workers.
+  void stop();
+  bool stopping() const { return stopping_.load(); }
+  // No job queued or running.
+  bool idle() const;
+
+  std::shared_ptr<Job> make_job() const { return store_.make_job(); }
+
+  enum class Submit { kQueued, kQueueFull, kStopping };
+  // Writes the job's records (scene.json, job.json; study.json for a study) and queues it. On kQueueFull, *retry_after is a
+  // suggested wait in seconds.
+  Submit submit(const std::shared_ptr<Job>& job, const nlohmann::json& scene_doc, int* retry_after,
+                const nlohmann::json* study_doc = nullptr);
+
+  std::shared_ptr<Job> find(const std::string& id) const { return store_.find(id); }
+  std::vector<std::shared_ptr<Job>> list() const { return store_.list(); }
+
+  enum class Cancel { kCancelled, kCancelling, kAlreadyFinished };
+  // Cancels a queued job at once (kCancelled); asks a running one to stop (kCancelling: its state is
+  // cancelling until the run has stopped and been stored, then cancelled).
+  Cancel cancel(const std::shared_ptr<Job>& job);
+  // Waits until the job is in a final state or `timeout` passed (or the server stops).
+  void wait_final(Job& job, std::chrono::milliseconds timeout) const;
+  // Events with an id above `after`, waiting up to `timeout` if there is none yet. `done` is set
+  // when the job is final and every event has been returned.
+  std::vector<SseEvent> events_after(Job& job, std::uint64_t after, std::chrono::milliseconds timeout, bool& done) const;
+
+  Metrics metrics() const;
+
+ private:
+  // What a finished run leaves for an I/O thread: its results in temporary files, to be made durable,
+  // renamed into place and announced.
+  struct Commit {
+    std::shared_ptr<Job> job;
+    std::shared_ptr<JobStream> stream;
+    std::vector<const char*> files;  // renamed from NAME.tmp in this order; the last one commits the job
+    RunSummary summary;
+    JobState state = JobState::kDone;
+    std::string reason;
+    std::string hypothesis_failure;  // a hypothesis the run relies on that fails (guarantees.h), or ""
+    double integrate_seconds = 0;
+    std::chrono::steady_clock::time_point wall_start;
+    ~Commit() {
+      if (stream) stream->close();
+    }
+  };
+
+  void worker_loop();
+  void run(const std::shared_ptr<Job>& job);
+  void run_study(const std::shared_ptr<Job>& job, std::unique_ptr<Commit> commit);
+  void enqueue_commit(std::unique_ptr<Commit> commit);
+  void committer_loop();
+  void commit(Commit& c);
+  // The run's results could not be written: removes its temporary files and fails the job, saying so.
+  void fail_to_store(Job& job, const std::string& what);
+  // Changes the state (and reason): records it in job.json, then (for a final state) prunes, and only
+  // then publishes it to readers and event streams, so that whoever sees the new state sees the store
+  // as it is after it.
+  // A final state is never left: returns false (and changes nothing) if the job is already final.
+  bool set_state(Job& job, JobState state, const std::string& reason);
+  void count_finished(std::int64_t steps, double integrate_seconds, double wall_seconds);
+
+  const ServerConfig& config_;
+  LcmHub& hub_;
+  JobStore store_;
+
+  mutable std::mutex mu_;  // the queue; taken before the store's lock, never after it
+  std::condition_variable queue_cv_;
+  std::deque<std::shared_ptr<Job>> queue_;
+  std::vector<std::thread> workers_;
+  std::atomic<bool> stopping_{false};
+
+  std::mutex commit_mu_;
+  std::condition_variable commit_cv_;
+  std::deque<std::unique_ptr<Commit>> commits_;
+  bool commit_stop_ = false;
+  std::vector<std::thread> committers_;
+  std::atomic<std::int64_t> busy_{0};
+
+  mutable std::mutex stats_mu_;
+  std::int64_t submitted_ = 0, rejected_ = 0, steps_total_ = 0;
+  double integrate_total_ = 0;
+  double avg_job_seconds_ = 0.01;
+  std::deque<std::pair<std::chrono::steady_clock::time_point, std::int64_t>> recent_steps_;
+};
+
+}  // namespace moreau::server
