@@ -121,7 +121,7 @@ class OneStepSolver {
     for (int it = 0; it < max_newton; ++it) {
       ++stats.iterations;
       if (solve_pattern(P, x, pattern_, y) && consistent(P, x, y, pattern_, scale_px, gain_scale)) {
-        return accept(P, x, y, scale_px, gain_scale, stats);
+        return accept(P, x, y, scale_px, gain_scale, stats, /*w_is_current=*/true);
       }
       if (!update_pattern(P, x, y)) break;  // no change: a fixed point that is not a solution
     }
@@ -139,10 +139,18 @@ class OneStepSolver {
     w_.noalias() = -(P * y);
     w_ -= x;
     const double ny = y.norm();
+    if (ny != 0.0 && an_ > 0.0) w_ -= (an_ / ny) * y;
+    return residual_of_w(y, ny);
+  }
+
+  const Pattern& pattern() const { return pattern_; }
+
+ private:
+  // The residual from w_ = -(P y + x) - a_norm y / ||y|| (the last term only when y != 0), ny = ||y||.
+  double residual_of_w(const Vec<N>& y, double ny) const {
     if (ny == 0.0) {
       return std::max(0.0, (w_ - w_.cwiseMax(-a_).cwiseMin(a_)).norm() - an_);
     }
-    if (an_ > 0.0) w_ -= (an_ / ny) * y;
     double sum = 0.0;
     for (int i = 0; i < size(); ++i) {
       double d;
@@ -157,9 +165,6 @@ class OneStepSolver {
     return std::sqrt(sum);
   }
 
-  const Pattern& pattern() const { return pattern_; }
-
- private:
   static bool all_zero(const Pattern& s) { return (s.array() == 0).all(); }
 
   static bool is_diagonal(const Mat<N>& P) {
@@ -170,11 +175,13 @@ class OneStepSolver {
     return true;
   }
 
-  // The accepted residual: a few ulps of the size of the terms of (6.5).
-  bool accept(const Mat<N>& P, const Vec<N>& x, const Vec<N>& y, double scale_px, double gain_scale, OneStepStats& stats) {
+  // The accepted residual: a few ulps of the size of the terms of (6.5). w_is_current: consistent() has
+  // just computed w_ and ny_ for this y, the same quantities residual() computes first.
+  bool accept(const Mat<N>& P, const Vec<N>& x, const Vec<N>& y, double scale_px, double gain_scale, OneStepStats& stats,
+              bool w_is_current = false) {
     const double scale = x.cwiseAbs().maxCoeff() + scale_px * (y.size() ? y.cwiseAbs().maxCoeff() : 0.0) + gain_scale;
     stats.tolerance = 256.0 * std::numeric_limits<double>::epsilon() * std::max(scale, 1e-300);
-    stats.residual = residual(P, x, y);
+    stats.residual = w_is_current ? residual_of_w(y, ny_) : residual(P, x, y);
     return std::isfinite(stats.residual) && stats.residual <= stats.tolerance && y.allFinite();
   }
 
@@ -287,7 +294,7 @@ class OneStepSolver {
   bool consistent(const Mat<N>& P, const Vec<N>& x, const Vec<N>& y, const Pattern& s, double scale_px, double gain_scale) {
     w_.noalias() = -(P * y);
     w_ -= x;
-    const double ny = y.norm();
+    const double ny = ny_ = y.norm();
     if (an_ > 0.0) {
       if (ny == 0.0) return false;
       w_ -= (an_ / ny) * y;
@@ -398,6 +405,7 @@ class OneStepSolver {
   Pattern pattern_, trial_, pinned_;
   Mat<N> A_, J_;
   Vec<N> b_, w_, r_, dy_, best_;
+  double ny_ = 0.0;  // ||y|| of the y consistent() checked last
   Eigen::PartialPivLU<Mat<N>> lu_;
 };
 

@@ -108,8 +108,10 @@ class RunRecorder {
 
   // The end of step k: its sample if k is a multiple of output_every, and every kControlInterval steps
   // the observer's chance to cancel. False: the run is cancelled (finish it, then call cancelled()).
+  // (Steps arrive in order 1, 2, ...: a countdown replaces k % output_every, an integer division per step.)
   bool after_step(std::int64_t k, double t, double h_k, const double* q, const double* v, double energy) {
-    if (k % every_ == 0) {
+    if (--until_sample_ == 0) {
+      until_sample_ = every_;
       emit(k, t, h_k, q, v, energy);
       last_emitted_ = k;
     }
@@ -185,6 +187,7 @@ class RunRecorder {
   const std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
   RunObserver* observer_;
   std::int64_t every_;
+  std::int64_t until_sample_ = every_;  // steps until the next multiple of every_
   int n_;
   RunSummary s_;
   std::int64_t rest_from_ = -1;
