@@ -179,8 +179,11 @@ class MoreauJeanIntegrator {
     // Impact steps and position correction.
     Z_.setZero(n_, nc_);
     S_.setZero(nc_, nc_);
+    Sd_.setZero(nc_, nc_);
+    pref_.setZero(nc_);
     s_.setZero(nc_);
     rows_.assign(static_cast<std::size_t>(nc_), 0);
+    impact_rows_.assign(static_cast<std::size_t>(nc_), 0);
     impacting_.assign(static_cast<std::size_t>(nc_), 0);
     corr_ptrs_.assign(static_cast<std::size_t>(nc_), &corner_);
     corr_solver_.configure(nc_);
@@ -456,20 +459,32 @@ class MoreauJeanIntegrator {
   }
 
   // The impacts of this step: contacts with a positive impulse that were approaching (U^k < 0 beyond
-  // round-off). The energy change is measured in the contact space of each contact (its effective mass).
+  // round-off). Measured: the step's kinetic energy change in the metric of M(Q^k),
+  // 1/2 <M V^{k+1}, V^{k+1}> - 1/2 <M V^k, V^k> (the same for contacts impacting together). Reference:
+  // Moreau's impact law alone (no smooth forces, no controller) from V^k at Q^k for all the impacting
+  // contacts together, V+ = V^k + M^{-1} H_I^T P, 0 <= U+_i + e_i U-_i perp P_i >= 0, solved by
+  // enumerating the active sets of its LCP in the Delassus matrix H_I M^{-1} H_I^T (independent of the
+  // step's solver); its energy change is eq. (9), -1/2 (1-e)/(1+e) |V+ - V^k|_M^2 for a common e, in the
+  // form 1/2 sum_i (1 - e_i) P_i U-_i that holds for any e_i. The two differ by what the step adds over h
+  // (smooth forces, controller, the other contacts): exactly 0 for a ball, O(h) in general.
   void record_impacts(ContactDiagnostics& d, std::int64_t step, double t, int simultaneous) {
+    double eq9 = 0.0;
+    const bool evaluated = solve_impact_law(simultaneous, eq9);
+    rhs_.noalias() = terms_.M * vn_;
+    double measured = 0.5 * vn_.dot(rhs_);
+    rhs_.noalias() = terms_.M * v_;
+    measured -= 0.5 * v_.dot(rhs_);
+    int a = 0;
     for (int i = 0; i < nc_; ++i) {
       if (!impacting_[i]) continue;
       const double P = -w_(na_ + i);
       ++d.impact_count;
+      const double reference_impulse = evaluated ? pref_(a) : 0.0;
+      ++a;
       if (static_cast<int>(d.impacts.size()) >= settings_.max_recorded_impacts) {
         d.impacts_truncated = true;
         continue;
       }
-      rhs_ = H_.row(i).transpose();
-      dq_.noalias() = mlu_.solve(rhs_);
-      const double sinv = H_.row(i).dot(dq_);  // grad h^T M^{-1} grad h
-      const double e = restitution_[i];
       ImpactEvent ev;
       ev.step = step;
       ev.t = t;
@@ -477,13 +492,60 @@ class MoreauJeanIntegrator {
       ev.pre = U_(i);
       ev.post = Un_(i);
       ev.impulse = P;
-      ev.kinetic_change = 0.5 * (Un_(i) * Un_(i) - U_(i) * U_(i)) / sinv;
-      const double jump = Un_(i) - U_(i);
-      ev.eq9_change = -0.5 * (1.0 - e) / (1.0 + e) * jump * jump / sinv;
+      ev.kinetic_change = measured;
+      ev.reference_evaluated = evaluated;
+      ev.reference_impulse = reference_impulse;
+      ev.eq9_change = evaluated ? eq9 : 0.0;
       ev.simultaneous = simultaneous;
-      d.max_eq9_mismatch = std::max(d.max_eq9_mismatch, std::abs(ev.kinetic_change - ev.eq9_change));
+      if (evaluated) d.max_eq9_mismatch = std::max(d.max_eq9_mismatch, std::abs(measured - eq9));
       d.impacts.push_back(ev);
     }
+  }
+
+  // Moreau's impact law for the impacting contacts (see record_impacts) into pref_ (in contact order),
+  // and its energy change 1/2 sum_i (1 - e_i) P_i U-_i. False when there are more than
+  // kMaxEnumeratedImpacts of them or no active set satisfies the LCP within round-off (degenerate H).
+  bool solve_impact_law(int r, double& energy_change) {
+    if (r > kMaxEnumeratedImpacts) return false;
+    int a = 0;
+    for (int i = 0; i < nc_; ++i)
+      if (impacting_[i]) impact_rows_[a++] = i;
+    for (int a1 = 0; a1 < r; ++a1) {
+      rhs_ = H_.row(impact_rows_[a1]).transpose();
+      Z_.col(a1).noalias() = mlu_.solve(rhs_);
+    }
+    double scale = 0.0;
+    for (int a1 = 0; a1 < r; ++a1) {
+      for (int b1 = 0; b1 < r; ++b1) Sd_(a1, b1) = H_.row(impact_rows_[a1]).dot(Z_.col(b1));  // Delassus
+      scale = std::max(scale, std::abs(U_(impact_rows_[a1])));
+    }
+    const double tol = 1e-10 * scale;
+    for (int set = 1; set < (1 << r); ++set) {
+      // Active contacts: U+_i = -e_i U-_i, i.e. (S P)_i = -(1 + e_i) U-_i; the others P_i = 0.
+      int m = 0;
+      for (int a1 = 0; a1 < r; ++a1) {
+        if (!(set & (1 << a1))) continue;
+        int mm = 0;
+        for (int b1 = 0; b1 < r; ++b1)
+          if (set & (1 << b1)) S_(m, mm++) = Sd_(a1, b1);
+        s_(m++) = -(1.0 + restitution_[impact_rows_[a1]]) * U_(impact_rows_[a1]);
+      }
+      if (!detail::solve_small_in_place(S_, s_, m)) continue;
+      bool ok = true;
+      int k1 = 0;
+      for (int a1 = 0; a1 < r; ++a1) pref_(a1) = (set & (1 << a1)) ? s_(k1++) : 0.0;
+      for (int a1 = 0; a1 < r && ok; ++a1) {
+        if (pref_(a1) < -tol) ok = false;
+        double u_plus = U_(impact_rows_[a1]);
+        for (int b1 = 0; b1 < r; ++b1) u_plus += Sd_(a1, b1) * pref_(b1);
+        if (u_plus + restitution_[impact_rows_[a1]] * U_(impact_rows_[a1]) < -tol) ok = false;
+      }
+      if (!ok) continue;
+      energy_change = 0.0;
+      for (int a1 = 0; a1 < r; ++a1) energy_change += 0.5 * (1.0 - restitution_[impact_rows_[a1]]) * pref_(a1) * U_(impact_rows_[a1]);
+      return true;
+    }
+    return false;
   }
 
   // Projects qn_ onto {h >= 0} in the metric of M(Q^k): Newton steps on the linearised constraints,
@@ -549,9 +611,11 @@ class MoreauJeanIntegrator {
   std::vector<const MonotoneGraph*> ptrs_;
   GraphInclusionSolver<Eigen::Dynamic> solver_;
   ColsN Z_;
-  Eigen::MatrixXd S_;
-  Eigen::VectorXd s_;
-  std::vector<int> rows_;
+  Eigen::MatrixXd S_, Sd_;
+  Eigen::VectorXd s_, pref_;
+  static constexpr int kMaxEnumeratedImpacts = 10;  // 2^10 active sets at most
+  std::vector<int> rows_;         // the rebounding contacts of an impact step
+  std::vector<int> impact_rows_;  // the impacting contacts (Moreau's impact law)
   std::vector<char> impacting_;
   std::vector<const MonotoneGraph*> corr_ptrs_;
   GraphInclusionSolver<Eigen::Dynamic> corr_solver_;

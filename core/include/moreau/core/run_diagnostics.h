@@ -64,10 +64,14 @@ struct ImpactEvent {
   double pre = 0.0;      // U_k = grad h(Q^k)^T V^k < 0, the approaching normal velocity
   double post = 0.0;     // U_{k+1} = grad h(Q^k)^T V^{k+1}
   double impulse = 0.0;  // P_{k+1} >= 0 (the contact percussion over the step)
-  // The impact's kinetic energy change in the contact space (1/2 U^T S U with S the inverse of
-  // grad h^T M^{-1} grad h) against eq. (9), -1/2 (1-e)/(1+e) dv^T M dv for the jump dv = M^{-1} grad h S (U+ - U).
+  // The step's kinetic energy change 1/2 <M V^{k+1}, V^{k+1}> - 1/2 <M V^k, V^k> (M = M(Q^k)), against
+  // eq. (9): the change Moreau's impact law alone gives from V^k for all the contacts impacting in this
+  // step, 1/2 sum_i (1 - e_i) P_i U-_i (= -1/2 (1-e)/(1+e) |V+ - V-|_M^2 for a common e), with P its
+  // impulses (reference_impulse: this contact's). Both are per step, the same for simultaneous impacts.
   double kinetic_change = 0.0;
   double eq9_change = 0.0;
+  double reference_impulse = 0.0;
+  bool reference_evaluated = false;  // false: more than 10 simultaneous impacts, or a degenerate LCP
   int simultaneous = 1;  // impacts in the same step
 };
 
@@ -76,7 +80,7 @@ struct ContactDiagnostics {
   std::int64_t impact_count = 0;
   std::vector<ImpactEvent> impacts;  // the first max_recorded_impacts impacts
   bool impacts_truncated = false;
-  double max_eq9_mismatch = 0.0;   // max |kinetic_change - eq9_change| over the recorded impacts
+  double max_eq9_mismatch = 0.0;   // max |kinetic_change - eq9_change| over the impacts with a reference
   std::int64_t active_steps = 0;   // steps with at least one contact in the predicted active set
   std::int64_t impulse_steps = 0;  // steps with at least one positive impulse
 
