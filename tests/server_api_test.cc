@@ -307,7 +307,10 @@ TEST(ServerApi, BadRequestsGetClearErrors) {
   EXPECT_EQ(c->Get("/v1/jobs?state=bogus")->status, 400);
 }
 
-TEST(ServerApi, CancellingARunningJobTakesMilliseconds) {
+// Promptness is stated in steps, not milliseconds (no timed assertion): the flag is set before DELETE
+// answers, and the run checks it every RunObserver::kControlInterval = 256 steps, where it also publishes
+// its step; so the run ends at most 256 steps after the step a GET shows once DELETE has answered.
+TEST(ServerApi, CancellingARunningJobStopsAtItsNextCheck) {
   ServerConfig cfg;
   cfg.max_steps = 2'000'000'000;
   cfg.max_samples = 1'000'000;
@@ -324,14 +327,14 @@ TEST(ServerApi, CancellingARunningJobTakesMilliseconds) {
 
   // DELETE answers at once: 202, cancelling; the run stops at its next check (every 256 steps) and
   // the job is then cancelled, with what it computed stored.
-  const auto t0 = Clock::now();
   auto d = c->Delete("/v1/jobs/" + id);
   ASSERT_EQ(d->status, 202) << d->body;
   EXPECT_EQ(json::parse(d->body)["state"], "cancelling");
+  const std::int64_t seen = json::parse(c->Get("/v1/jobs/" + id)->body)["progress"]["step"].get<std::int64_t>();
   const json job = wait_final(*c, id);
-  const double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-  EXPECT_LT(ms, 200.0) << "from DELETE to cancelled took " << ms << " ms";
   EXPECT_EQ(job["state"], "cancelled");
+  EXPECT_LE(job["report"]["steps"].get<std::int64_t>(), seen + moreau::RunObserver::kControlInterval)
+      << "the run went on past its next cancellation check";
   EXPECT_THAT(job["reason"].get<std::string>(), ::testing::HasSubstr("cancelled"));
   EXPECT_EQ(job["report"]["status"], "cancelled");
   EXPECT_LT(job["report"]["t_final"].get<double>(), 1e6);
