@@ -224,8 +224,12 @@ class OneStepSolver {
       y.setZero(n);
       return an_ == 0.0;  // with a norm term y = 0 was already ruled out
     }
-    lu_.compute(A_);
-    y.noalias() = lu_.solve(b_);
+    if constexpr (N == 2) {
+      solve2(y);
+    } else {
+      lu_.compute(A_);
+      y.noalias() = lu_.solve(b_);
+    }
     pin_zeros(s, y);
     if (an_ == 0.0) return y.allFinite();
 
@@ -267,6 +271,23 @@ class OneStepSolver {
       if (step * dy_.norm() <= 4.0 * std::numeric_limits<double>::epsilon() * y.norm()) break;
     }
     return y.allFinite() && y.norm() > 0.0;
+  }
+
+  // y = A_^{-1} b_ for n = 2: Eigen's PartialPivLU (partial pivoting, the first row on a tie, l = a10 / a00,
+  // u11 = a11 - l a01, then the unit-lower and upper substitutions) operation for operation, so the result
+  // is bit-identical, without its loops and calls: the step's hottest path (the paper's manipulator).
+  void solve2(Vec<N>& y) const {
+    double a00 = A_(0, 0), a01 = A_(0, 1), a10 = A_(1, 0), a11 = A_(1, 1), b0 = b_(0), b1 = b_(1);
+    if (std::abs(a10) > std::abs(a00)) {
+      std::swap(a00, a10);
+      std::swap(a01, a11);
+      std::swap(b0, b1);
+    }
+    const double l = a00 != 0.0 ? a10 / a00 : a10;
+    const double u11 = a11 - l * a01;
+    const double y1 = (b1 - l * b0) / u11;
+    y(1) = y1;
+    y(0) = (b0 - a01 * y1) / a00;
   }
 
   // r_ = A y - b + a_norm y / ||y|| on the free components (0 on the pinned ones); returns ||r_||.
