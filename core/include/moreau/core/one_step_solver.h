@@ -85,8 +85,9 @@ class OneStepSolver {
     // y = 0 solves (6.5) iff -x lies in d phi(0) = A [-1,1]^n + a_norm B.
     {
       w_ = -x;
-      const double to_box = (w_ - w_.cwiseMax(-a_).cwiseMin(a_)).norm();
-      if (to_box <= an_) {
+      // (Without a norm term only whether the distance is 0 matters: no square root.)
+      const double to_box2 = (w_ - w_.cwiseMax(-a_).cwiseMin(a_)).squaredNorm();
+      if (an_ == 0.0 ? to_box2 == 0.0 : std::sqrt(to_box2) <= an_) {
         y.setZero(n);
         pattern_.setZero(n);
         stats.iterations = 0;
@@ -138,17 +139,17 @@ class OneStepSolver {
   double residual(const Mat<N>& P, const Vec<N>& x, const Vec<N>& y) {
     w_.noalias() = -(P * y);
     w_ -= x;
-    const double ny = y.norm();
-    if (ny != 0.0 && an_ > 0.0) w_ -= (an_ / ny) * y;
-    return residual_of_w(y, ny);
+    const bool y_zero = y.squaredNorm() == 0.0;  // ||y|| == 0, without its square root
+    if (!y_zero && an_ > 0.0) w_ -= (an_ / y.norm()) * y;
+    return residual_of_w(y, y_zero);
   }
 
   const Pattern& pattern() const { return pattern_; }
 
  private:
-  // The residual from w_ = -(P y + x) - a_norm y / ||y|| (the last term only when y != 0), ny = ||y||.
-  double residual_of_w(const Vec<N>& y, double ny) const {
-    if (ny == 0.0) {
+  // The residual from w_ = -(P y + x) - a_norm y / ||y|| (the last term only when y != 0).
+  double residual_of_w(const Vec<N>& y, bool y_zero) const {
+    if (y_zero) {
       return std::max(0.0, (w_ - w_.cwiseMax(-a_).cwiseMin(a_)).norm() - an_);
     }
     double sum = 0.0;
@@ -176,12 +177,12 @@ class OneStepSolver {
   }
 
   // The accepted residual: a few ulps of the size of the terms of (6.5). w_is_current: consistent() has
-  // just computed w_ and ny_ for this y, the same quantities residual() computes first.
+  // just computed w_ and y_zero_ for this y, the same quantities residual() computes first.
   bool accept(const Mat<N>& P, const Vec<N>& x, const Vec<N>& y, double scale_px, double gain_scale, OneStepStats& stats,
               bool w_is_current = false) {
     const double scale = x.cwiseAbs().maxCoeff() + scale_px * (y.size() ? y.cwiseAbs().maxCoeff() : 0.0) + gain_scale;
     stats.tolerance = 256.0 * std::numeric_limits<double>::epsilon() * std::max(scale, 1e-300);
-    stats.residual = w_is_current ? residual_of_w(y, ny_) : residual(P, x, y);
+    stats.residual = w_is_current ? residual_of_w(y, y_zero_) : residual(P, x, y);
     return std::isfinite(stats.residual) && stats.residual <= stats.tolerance && y.allFinite();
   }
 
@@ -315,10 +316,10 @@ class OneStepSolver {
   bool consistent(const Mat<N>& P, const Vec<N>& x, const Vec<N>& y, const Pattern& s, double scale_px, double gain_scale) {
     w_.noalias() = -(P * y);
     w_ -= x;
-    const double ny = ny_ = y.norm();
+    y_zero_ = y.squaredNorm() == 0.0;  // ||y|| == 0, without its square root
     if (an_ > 0.0) {
-      if (ny == 0.0) return false;
-      w_ -= (an_ / ny) * y;
+      if (y_zero_) return false;
+      w_ -= (an_ / y.norm()) * y;
     }
     const double tol =
         64.0 * std::numeric_limits<double>::epsilon() * (x.cwiseAbs().maxCoeff() + scale_px * y.cwiseAbs().maxCoeff() + gain_scale);
@@ -426,7 +427,7 @@ class OneStepSolver {
   Pattern pattern_, trial_, pinned_;
   Mat<N> A_, J_;
   Vec<N> b_, w_, r_, dy_, best_;
-  double ny_ = 0.0;  // ||y|| of the y consistent() checked last
+  bool y_zero_ = false;  // whether the y consistent() checked last is 0
   Eigen::PartialPivLU<Mat<N>> lu_;
 };
 
