@@ -985,16 +985,18 @@ void Server::Impl::delete_job(const Request& req, Response& res, JobKind kind) {
   auto job = job_for(req, res, kind);
   if (!job) return;
   const auto outcome = jobs_.cancel(job);
-  if (outcome == JobRunner::Cancel::kAlreadyFinished) {
+  // The status is read off the same snapshot as the body: a run can stop between the cancel and the
+  // snapshot, and a 202 must never carry a final state. A run that ended done or failed before it saw
+  // the request (its last steps raced the DELETE) was not cancelled: the job is finished (409).
+  const json body = job_json(*job, nullptr);
+  const std::string state = body.value("state", "");
+  if (outcome == JobRunner::Cancel::kAlreadyFinished || state == "done" || state == "failed") {
     const char* what = kind == JobKind::kStudy ? "study" : "job";
-    return send_error(res, 409, std::string(what) + " already finished", "",
-                      std::string("the ") + what + " is " + to_string(state_of(*job)));
+    return send_error(res, 409, std::string(what) + " already finished", "", std::string("the ") + what + " is " + state);
   }
   // 200: cancelled (it was queued, or its run has already stopped); 202: cancelling, and cancelled once
-  // its run stops. The status is read off the same snapshot as the body: a run can stop between the
-  // cancel and the snapshot, and a 202 must never carry a final state.
-  const json body = job_json(*job, nullptr);
-  send_json(res, body.value("state", "") == "cancelling" ? 202 : 200, body);
+  // its run stops.
+  send_json(res, state == "cancelling" ? 202 : 200, body);
 }
 
 void Server::Impl::job_events(const Request& req, Response& res, JobKind kind) {
