@@ -3,11 +3,18 @@
 #include <ft2build.h>
 #include FT_FREETYPE_H
 
+#ifdef MOREAU_RENDER_FREETYPE_AT_FIRST_USE
+#include <dlfcn.h>
+#endif
+
 #include <cmath>
 #include <cstdlib>
 #include <map>
 #include <mutex>
+#include <stdexcept>
+#include <string>
 #include <tuple>
+#include <type_traits>
 #include <unordered_map>
 
 #include "moreau/render/figure.h"
@@ -17,6 +24,46 @@
 #endif
 
 namespace moreau::render::detail {
+namespace {
+
+// The FreeType functions this file calls. moreau_render (MOREAU_RENDER_FREETYPE_AT_FIRST_USE) opens
+// libfreetype when the first text is laid out, so that a process that draws nothing never maps it nor
+// what it needs (libpng, zlib, brotli): they cost a command line run about a millisecond of start-up.
+// The raster module links it as usual.
+struct FreeTypeApi {
+  decltype(&FT_Init_FreeType) init_freetype = nullptr;
+  decltype(&FT_New_Face) new_face = nullptr;
+  decltype(&FT_Set_Pixel_Sizes) set_pixel_sizes = nullptr;
+  decltype(&FT_Get_Kerning) get_kerning = nullptr;
+  decltype(&FT_Get_Char_Index) get_char_index = nullptr;
+  decltype(&FT_Load_Glyph) load_glyph = nullptr;
+};
+
+#ifdef MOREAU_RENDER_FREETYPE_AT_FIRST_USE
+FreeTypeApi open_freetype() {
+  constexpr const char* kLibrary = "libfreetype.so.6";
+  void* handle = ::dlopen(kLibrary, RTLD_NOW | RTLD_LOCAL);
+  if (!handle) throw std::runtime_error(std::string("cannot load FreeType (") + kLibrary + "): " + ::dlerror());
+  FreeTypeApi api;
+  const auto bind = [&](auto& fn, const char* name) {
+    fn = reinterpret_cast<std::remove_reference_t<decltype(fn)>>(::dlsym(handle, name));
+    if (!fn) throw std::runtime_error(std::string(kLibrary) + " has no " + name);
+  };
+  bind(api.init_freetype, "FT_Init_FreeType");
+  bind(api.new_face, "FT_New_Face");
+  bind(api.set_pixel_sizes, "FT_Set_Pixel_Sizes");
+  bind(api.get_kerning, "FT_Get_Kerning");
+  bind(api.get_char_index, "FT_Get_Char_Index");
+  bind(api.load_glyph, "FT_Load_Glyph");
+  return api;
+}
+#else
+FreeTypeApi open_freetype() {
+  return {&FT_Init_FreeType, &FT_New_Face, &FT_Set_Pixel_Sizes, &FT_Get_Kerning, &FT_Get_Char_Index, &FT_Load_Glyph};
+}
+#endif
+
+}  // namespace
 
 std::u32string decode_utf8(std::string_view s) {
   std::u32string out;
@@ -118,13 +165,13 @@ class FontCache {
     FT_UInt index = 0;
   };
 
-  FontCache() {
-    if (FT_Init_FreeType(&library_)) throw std::runtime_error("FreeType initialisation failed");
+  FontCache() : ft_(open_freetype()) {
+    if (ft_.init_freetype(&library_)) throw std::runtime_error("FreeType initialisation failed");
     const char* env = std::getenv("MOREAU_FONT_DIR");
     const std::string dir = env && *env ? env : MOREAU_RENDER_FONT_DIR;
     const std::string files[2] = {dir + "/DejaVuSans.ttf", dir + "/DejaVuSans-Bold.ttf"};
     for (int b = 0; b < 2; ++b) {
-      if (FT_New_Face(library_, files[b].c_str(), 0, &faces_[b])) {
+      if (ft_.new_face(library_, files[b].c_str(), 0, &faces_[b])) {
         if (b == 1) {  // no bold face: use the regular one
           faces_[1] = faces_[0];
           continue;
@@ -139,7 +186,7 @@ class FontCache {
   FT_Face face_for(bool bold, int px) {
     const int slot = (bold && faces_[1] != faces_[0]) ? 1 : 0;
     if (current_px_[slot] != px) {
-      FT_Set_Pixel_Sizes(faces_[slot], 0, static_cast<FT_UInt>(px));
+      ft_.set_pixel_sizes(faces_[slot], 0, static_cast<FT_UInt>(px));
       current_px_[slot] = px;
     }
     return faces_[slot];
@@ -150,7 +197,7 @@ class FontCache {
     auto it = kerning_.find(key);
     if (it != kerning_.end()) return it->second;
     FT_Vector delta{0, 0};
-    FT_Get_Kerning(face, a, b, FT_KERNING_DEFAULT, &delta);
+    ft_.get_kerning(face, a, b, FT_KERNING_DEFAULT, &delta);
     kerning_.emplace(key, delta.x);
     return delta.x;
   }
@@ -163,8 +210,8 @@ class FontCache {
     if (it != glyphs_.end()) return it->second;
     FT_Face face = face_for(bold, px);
     Entry e;
-    e.index = FT_Get_Char_Index(face, cp);
-    if (FT_Load_Glyph(face, e.index, FT_LOAD_RENDER | FT_LOAD_TARGET_NORMAL) == 0) {
+    e.index = ft_.get_char_index(face, cp);
+    if (ft_.load_glyph(face, e.index, FT_LOAD_RENDER | FT_LOAD_TARGET_NORMAL) == 0) {
       const FT_GlyphSlot g = face->glyph;
       e.glyph.advance = static_cast<int>(g->advance.x);
       e.glyph.width = static_cast<int>(g->bitmap.width);
@@ -181,6 +228,7 @@ class FontCache {
   }
 
   std::mutex mutex_;
+  const FreeTypeApi ft_;
   FT_Library library_ = nullptr;
   FT_Face faces_[2] = {nullptr, nullptr};
   int current_px_[2] = {0, 0};

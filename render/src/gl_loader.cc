@@ -1,5 +1,6 @@
-// Loads the OpenGL backend (libmoreau_render_gl.so: OSMesa, and with it LLVM, some 60 MB) at the first
-// PNG, so that a process that draws nothing, or only SVG, never maps it. Where the module is looked for,
+// Loads the raster module (libmoreau_render_gl.so: the OSMesa backend, and with it LLVM, some 60 MB, and
+// the PNG codec over libpng) at the first PNG, so that a process that draws nothing, or only SVG, never
+// maps it. Where the module is looked for,
 // in order: $MOREAU_RENDER_GL (a path); next to the executable; ../lib/moreau/ from the executable (an
 // installed tree: bin/ and lib/moreau/); the build tree it was built in.
 #include <dlfcn.h>
@@ -17,7 +18,14 @@
 namespace moreau::render::detail {
 namespace {
 
-using RasterizeFn = void (*)(const Scene*, Image*);
+// The module's entry points (gl_backend.cc, png.cc). Each returns 0, or 1 with the reason in its last
+// argument: no exception crosses between the module and its loader, which may each carry a C++ runtime
+// of their own (moreau links libstdc++ statically; the module and OSMesa's LLVM use the shared one).
+struct RasterModule {
+  int (*rasterize)(const Scene*, Image*, std::string*) = nullptr;
+  int (*encode_png)(const Image*, const PngOptions*, std::vector<std::uint8_t>*, std::string*) = nullptr;
+  int (*decode_png)(const std::uint8_t*, std::size_t, Image*, std::string*) = nullptr;
+};
 constexpr const char* kModule = "libmoreau_render_gl.so";
 
 std::vector<std::string> candidates() {
@@ -35,7 +43,7 @@ std::vector<std::string> candidates() {
   return out;
 }
 
-RasterizeFn load() {
+RasterModule load() {
   std::string tried;
   for (const std::string& path : candidates()) {
     if (::access(path.c_str(), R_OK) != 0) {
@@ -48,27 +56,54 @@ RasterizeFn load() {
       tried += "\n  " + path + ": " + ::dlerror();
       continue;
     }
-    if (auto fn = reinterpret_cast<RasterizeFn>(::dlsym(handle, "moreau_render_gl_rasterize"))) return fn;
-    tried += "\n  " + path + ": no moreau_render_gl_rasterize";
+    RasterModule m;
+    m.rasterize = reinterpret_cast<decltype(m.rasterize)>(::dlsym(handle, "moreau_render_gl_rasterize"));
+    m.encode_png = reinterpret_cast<decltype(m.encode_png)>(::dlsym(handle, "moreau_render_gl_encode_png"));
+    m.decode_png = reinterpret_cast<decltype(m.decode_png)>(::dlsym(handle, "moreau_render_gl_decode_png"));
+    if (m.rasterize && m.encode_png && m.decode_png) return m;
+    tried += "\n  " + path + ": not the module of this build (an entry point is missing)";
     ::dlclose(handle);
   }
-  throw std::runtime_error(std::string("PNG figures need the OpenGL module ") + kModule +
+  throw std::runtime_error(std::string("PNG figures need the raster module ") + kModule +
                            " (SVG figures do not); it was not found or could not be loaded:" + tried);
+}
+
+// Loaded once; a failure is not remembered, so that the next figure tries again and says why.
+const RasterModule& raster_module() {
+  static std::mutex mu;
+  static RasterModule m;
+  std::lock_guard lock(mu);
+  if (!m.rasterize) m = load();
+  return m;
 }
 
 }  // namespace
 
 Image rasterize(const Scene& scene) {
-  // Loaded once; a failure is not remembered, so that the next figure tries again and says why.
-  static std::mutex mu;
-  static RasterizeFn fn = nullptr;
-  {
-    std::lock_guard lock(mu);
-    if (!fn) fn = load();
-  }
   Image image;
-  fn(&scene, &image);
+  std::string error;
+  if (raster_module().rasterize(&scene, &image, &error) != 0) throw std::runtime_error(error);
   return image;
 }
 
 }  // namespace moreau::render::detail
+
+namespace moreau::render {
+
+std::vector<std::uint8_t> encode_png(const Image& image, const PngOptions& options) {
+  if (image.width <= 0 || image.height <= 0 || image.rgba.size() != static_cast<std::size_t>(image.width) * image.height * 4)
+    throw std::invalid_argument("encode_png: image size does not match its pixel data");
+  std::vector<std::uint8_t> out;
+  std::string error;
+  if (detail::raster_module().encode_png(&image, &options, &out, &error) != 0) throw std::runtime_error(error);
+  return out;
+}
+
+Image decode_png(std::span<const std::uint8_t> png) {
+  Image image;
+  std::string error;
+  if (detail::raster_module().decode_png(png.data(), png.size(), &image, &error) != 0) throw std::runtime_error(error);
+  return image;
+}
+
+}  // namespace moreau::render

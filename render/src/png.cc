@@ -1,4 +1,6 @@
-// PNG encoding and decoding with libpng, in memory.
+// PNG encoding and decoding with libpng, in memory. Built into the raster module (libmoreau_render_gl.so),
+// so that only a process that writes or reads a PNG loads libpng; render.h's encode_png and decode_png
+// reach these through gl_loader.cc.
 #include <png.h>
 
 #include <algorithm>
@@ -32,11 +34,8 @@ void read_bytes(png_structp png, png_bytep out, png_size_t n) {
   r->pos += n;
 }
 
-}  // namespace
-
-std::vector<std::uint8_t> encode_png(const Image& image, const PngOptions& options) {
-  if (image.width <= 0 || image.height <= 0 || image.rgba.size() != static_cast<std::size_t>(image.width) * image.height * 4)
-    throw std::invalid_argument("encode_png: image size does not match its pixel data");
+// The image's size was checked by encode_png (gl_loader.cc).
+std::vector<std::uint8_t> encode_png_with_libpng(const Image& image, const PngOptions& options) {
   std::vector<std::uint8_t> out;
   out.reserve(static_cast<std::size_t>(image.width) * image.height / 8);
   png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, nullptr, on_error, on_warning);
@@ -66,7 +65,7 @@ std::vector<std::uint8_t> encode_png(const Image& image, const PngOptions& optio
   return out;
 }
 
-Image decode_png(std::span<const std::uint8_t> data) {
+Image decode_png_with_libpng(std::span<const std::uint8_t> data) {
   if (data.size() < 8 || png_sig_cmp(data.data(), 0, 8) != 0) throw std::runtime_error("decode_png: not a PNG");
   png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, nullptr, on_error, on_warning);
   if (!png) throw std::runtime_error("libpng: cannot create read struct");
@@ -104,4 +103,36 @@ Image decode_png(std::span<const std::uint8_t> data) {
   return image;
 }
 
+}  // namespace
 }  // namespace moreau::render
+
+// Entry points of the raster module (gl_loader.cc); as moreau_render_gl_rasterize, no exception leaves
+// them: a failure comes back as a message.
+extern "C" __attribute__((visibility("default"))) int moreau_render_gl_encode_png(const moreau::render::Image* image,
+                                                                                 const moreau::render::PngOptions* options,
+                                                                                 std::vector<std::uint8_t>* out,
+                                                                                 std::string* error) {
+  try {
+    *out = moreau::render::encode_png_with_libpng(*image, *options);
+    return 0;
+  } catch (const std::exception& e) {
+    *error = e.what();
+  } catch (...) {
+    *error = "libpng: unknown failure";
+  }
+  return 1;
+}
+
+extern "C" __attribute__((visibility("default"))) int moreau_render_gl_decode_png(const std::uint8_t* data, std::size_t size,
+                                                                                 moreau::render::Image* image,
+                                                                                 std::string* error) {
+  try {
+    *image = moreau::render::decode_png_with_libpng(std::span<const std::uint8_t>(data, size));
+    return 0;
+  } catch (const std::exception& e) {
+    *error = e.what();
+  } catch (...) {
+    *error = "libpng: unknown failure";
+  }
+  return 1;
+}
