@@ -11,6 +11,8 @@ namespace moreau::cli {
 
 // What a subcommand does, by subcommand. An action returns the exit code: 0 success, 1 the run or
 // request failed, 2 bad input.
+inline constexpr const char* kVersion = "moreau 0.1.0";
+
 using Actions = std::map<const CLI::App*, std::function<int()>>;
 
 void register_run_command(CLI::App& app, Actions& actions);
@@ -20,7 +22,12 @@ void register_stress_command(CLI::App& app, Actions& actions);
 void register_sweep_command(CLI::App& app, Actions& actions);
 // moreau submit, status, result, figure, cancel, jobs, scenes (remote_commands.cc); moreau watch
 // (watch_command.cc).
+// These two are registered by the helper moreau-remote (remote_main.cc, remote_command_list.h).
 void register_remote_commands(CLI::App& app, Actions& actions);
 void register_watch_command(CLI::App& app, Actions& actions);
+
+// Parses the command line and runs the chosen subcommand's action; returns the process exit code.
+// Shared by `moreau` and moreau-remote (app.cc).
+int run_app(CLI::App& app, const Actions& actions, int argc, char** argv);
 
 }  // namespace moreau::cli

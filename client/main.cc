@@ -1,34 +1,90 @@
 // moreau: run scenes locally, draw figures, talk to a Moreau server.
-#include <exception>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
 #include <iostream>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
 
 #include "commands.h"
+#ifdef MOREAU_HAVE_REMOTE_COMMANDS
+#include "remote_command_list.h"
+#endif
+
+namespace {
+
+#ifdef MOREAU_HAVE_REMOTE_COMMANDS
+// Where moreau-remote is looked for, in order: next to this executable; ../lib/moreau/ from it (an
+// installed tree: bin/ and lib/moreau/); the build tree it was built in.
+std::vector<std::filesystem::path> remote_helper_candidates() {
+  std::vector<std::filesystem::path> out;
+  std::error_code ec;
+  const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", ec);
+  if (!ec) {
+    out.push_back(exe.parent_path() / "moreau-remote");
+    out.push_back(exe.parent_path().parent_path() / "lib" / "moreau" / "moreau-remote");
+  }
+  out.emplace_back(MOREAU_REMOTE_BUILD_PATH);
+  return out;
+}
+
+// Replaces this process with moreau-remote, given the same arguments; returns only if none could run.
+int exec_remote_helper(int argc, char** argv) {
+  std::vector<char*> args(argv, argv + argc);
+  args.push_back(nullptr);
+  std::string tried;
+  for (const std::filesystem::path& path : remote_helper_candidates()) {
+    ::execv(path.c_str(), args.data());
+    tried += "\n  " + path.string() + ": " + std::strerror(errno);
+  }
+  std::cerr << "moreau: the server and LCM commands are in the helper moreau-remote, which could not be run:" << tried << "\n";
+  return 1;
+}
+
+// Each remote command appears in `moreau --help`, and takes its command line as it is when CLI11 chooses
+// it: the helper parses it (its own --help included).
+void register_remote_command_stubs(CLI::App& app, moreau::cli::Actions& actions, int argc, char** argv) {
+  for (const moreau::cli::RemoteCommand& c : moreau::cli::kRemoteCommands) {
+    auto* cmd = app.add_subcommand(std::string(c.name), std::string(c.description));
+    cmd->set_help_flag();
+    cmd->prefix_command();
+    actions[cmd] = [argc, argv] { return exec_remote_helper(argc, argv); };
+  }
+}
+#endif
+
+}  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"Moreau: simulation of nonsmooth dynamical systems (set-valued controllers, friction, impacts)"};
   app.require_subcommand(1);
-  app.set_version_flag("--version", "moreau 0.1.0");
+  app.set_version_flag("--version", moreau::cli::kVersion);
   moreau::cli::Actions actions;
-  moreau::cli::register_run_command(app, actions);
-  moreau::cli::register_plot_command(app, actions);
-  moreau::cli::register_study_command(app, actions);
-  moreau::cli::register_stress_command(app, actions);
-  moreau::cli::register_sweep_command(app, actions);
+  using Register = void (*)(CLI::App&, moreau::cli::Actions&);
+  constexpr std::pair<std::string_view, Register> kLocalCommands[] = {
+      {"run", moreau::cli::register_run_command},       {"plot", moreau::cli::register_plot_command},
+      {"study", moreau::cli::register_study_command},   {"stress", moreau::cli::register_stress_command},
+      {"sweep", moreau::cli::register_sweep_command}};
+  // Only the command named first is registered when there is one: building every command's options is a
+  // visible share of a short run's start-up (README, "Performance"). --help, --version, a mistyped name:
+  // all of them, so that help and errors list every command.
+  const std::string_view first = argc > 1 ? argv[1] : "";
+  for (const auto& [name, add] : kLocalCommands)
+    if (name == first) {
+      add(app, actions);
+      return moreau::cli::run_app(app, actions, argc, argv);
+    }
 #ifdef MOREAU_HAVE_REMOTE_COMMANDS
-  moreau::cli::register_remote_commands(app, actions);
-  moreau::cli::register_watch_command(app, actions);
+  for (const moreau::cli::RemoteCommand& c : moreau::cli::kRemoteCommands)
+    if (c.name == first) return exec_remote_helper(argc, argv);
 #endif
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e);
-  }
-  try {
-    return actions.at(app.get_subcommands().at(0))();
-  } catch (const std::exception& e) {
-    // Subcommands report bad input themselves (exit status 2); anything else that escapes them is a
-    // failure to report, not a reason to abort.
-    std::cerr << "moreau: " << e.what() << "\n";
-    return 1;
-  }
+  for (const auto& [name, add] : kLocalCommands) add(app, actions);
+#ifdef MOREAU_HAVE_REMOTE_COMMANDS
+  register_remote_command_stubs(app, actions, argc, argv);
+#endif
+  return moreau::cli::run_app(app, actions, argc, argv);
 }

@@ -19,6 +19,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.h"
+#include "remote_command_list.h"
 #include "moreau/scene/scene.h"
 
 // After Eigen (through scene.h): httplib.h brings <resolv.h>, whose `_res` macro breaks Eigen.
@@ -397,7 +398,7 @@ int scenes(const ListOptions& o) {
 void register_remote_commands(CLI::App& app, Actions& actions) {
   {
     auto o = std::make_shared<SubmitOptions>();
-    auto* cmd = app.add_subcommand("submit", "Submit a scene to a moreau-server; prints the job id");
+    auto* cmd = app.add_subcommand("submit", std::string(remote_command_description("submit")));
     cmd->add_option("scene", o->scene, "Scene file, or the name of a scene the server ships (moreau scenes)")->required();
     cmd->add_option("--set", o->overrides, "Override a scene field: PATH=VALUE (applied and checked by the server)");
     cmd->add_flag("--wait", o->wait, "Wait for the job to finish and print its report");
@@ -411,7 +412,7 @@ void register_remote_commands(CLI::App& app, Actions& actions) {
   }
   {
     auto o = std::make_shared<IdOptions>();
-    auto* cmd = app.add_subcommand("status", "Show a job's state, progress and report");
+    auto* cmd = app.add_subcommand("status", std::string(remote_command_description("status")));
     cmd->add_option("id", o->id, "Job id")->required();
     cmd->add_flag("--wait", o->wait, "Wait until the job has finished");
     cmd->add_flag("--json", o->remote.json_output, "Print the job as JSON");
@@ -420,7 +421,7 @@ void register_remote_commands(CLI::App& app, Actions& actions) {
   }
   {
     auto o = std::make_shared<ResultOptions>();
-    auto* cmd = app.add_subcommand("result", "Print a finished job's report, or save its trajectory with --out");
+    auto* cmd = app.add_subcommand("result", std::string(remote_command_description("result")));
     cmd->add_option("id", o->id, "Job id")->required();
     cmd->add_option("--out", o->out, "Write the trajectory here (CSV; JSON if the name ends in .json)");
     cmd->add_option("--format", o->format, "Trajectory format: csv or json")->check(CLI::IsMember({"csv", "json"}));
@@ -429,7 +430,7 @@ void register_remote_commands(CLI::App& app, Actions& actions) {
   }
   {
     auto o = std::make_shared<FigureOptions>();
-    auto* cmd = app.add_subcommand("figure", "Save a figure of a finished job (PNG drawn by the server)");
+    auto* cmd = app.add_subcommand("figure", std::string(remote_command_description("figure")));
     cmd->add_option("id", o->id, "Job id")->required();
     cmd->add_option("--kind", o->kind, "state, energy, step or phase")
         ->capture_default_str()
@@ -441,7 +442,7 @@ void register_remote_commands(CLI::App& app, Actions& actions) {
   }
   {
     auto o = std::make_shared<IdOptions>();
-    auto* cmd = app.add_subcommand("cancel", "Cancel a queued or running job");
+    auto* cmd = app.add_subcommand("cancel", std::string(remote_command_description("cancel")));
     cmd->add_option("id", o->id, "Job id")->required();
     cmd->add_flag("--json", o->remote.json_output, "Print the job as JSON");
     o->remote.add_to(cmd);
@@ -449,7 +450,7 @@ void register_remote_commands(CLI::App& app, Actions& actions) {
   }
   {
     auto o = std::make_shared<ListOptions>();
-    auto* cmd = app.add_subcommand("jobs", "List the server's jobs");
+    auto* cmd = app.add_subcommand("jobs", std::string(remote_command_description("jobs")));
     cmd->add_option("--state", o->state, "Only jobs in this state")
         ->check(CLI::IsMember({"queued", "running", "done", "failed", "cancelled"}));
     cmd->add_option("--limit", o->limit, "Only the most recent N");
@@ -459,7 +460,7 @@ void register_remote_commands(CLI::App& app, Actions& actions) {
   }
   {
     auto o = std::make_shared<ListOptions>();
-    auto* cmd = app.add_subcommand("scenes", "List the scenes a server ships");
+    auto* cmd = app.add_subcommand("scenes", std::string(remote_command_description("scenes")));
     cmd->add_flag("--json", o->remote.json_output, "Print the list as JSON");
     o->remote.add_to(cmd);
     actions[cmd] = [o] { return guarded([&] { return scenes(*o); }); };

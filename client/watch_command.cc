@@ -22,6 +22,7 @@
 #include <moreau/state_t.hpp>
 
 #include "commands.h"
+#include "remote_command_list.h"
 #include "moreau/render/figures.h"
 #include "moreau/render/render.h"
 
@@ -297,7 +298,7 @@ class Watcher {
 
 void register_watch_command(CLI::App& app, Actions& actions) {
   auto o = std::make_shared<WatchOptions>();
-  auto* cmd = app.add_subcommand("watch", "Show the live state of streaming jobs (LCM)");
+  auto* cmd = app.add_subcommand("watch", std::string(remote_command_description("watch")));
   cmd->add_option("--lcm-url", o->lcm_url, "LCM URL (default: LCM_DEFAULT_URL, else LCM's default)");
   cmd->add_option("--channel", o->channel, "Channel regex (default MOREAU_(STATE|EVENT)_.*)");
   cmd->add_option("--job", o->job, "Only this job's channels");
