@@ -103,11 +103,15 @@ class LagrangianCompiler : SceneReader {
     scene.coriolis = mode;
     if (mode == "christoffel") {
       // (1.4)-(1.5): C_jk = sum_i C_ijk v_i, C_ijk = 1/2 (dM_jk/dq_i + dM_ji/dq_k - dM_ik/dq_j), exact.
+      // A term whose three entries of M are constant is 0 (the graph folds 0 * v_i and x + 0 to the same
+      // nodes), so it is skipped: a constant M, or a banded one, costs n^2 here instead of n^3 graph nodes.
       auto dM = [&](int a, int b, int i) { return graph_.derivative(sym(a, b), 1 + i); };
+      auto constant_entry = [&](int a, int b) { return graph_.is_constant(sym(a, b)); };
       for (int j = 0; j < n_; ++j) {
         for (int k = 0; k < n_; ++k) {
           Node sum = graph_.constant(0.0);
           for (int i = 0; i < n_; ++i) {
+            if (constant_entry(j, k) && constant_entry(j, i) && constant_entry(i, k)) continue;
             Node cijk = graph_.binary(Op::kSub, graph_.binary(Op::kAdd, dM(j, k, i), dM(j, i, k)), dM(i, k, j));
             cijk = graph_.binary(Op::kMul, graph_.constant(0.5), cijk);
             sum = graph_.binary(Op::kAdd, sum, graph_.binary(Op::kMul, cijk, graph_.variable(1 + n_ + i)));
