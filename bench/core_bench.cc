@@ -89,12 +89,31 @@ void BM_DampedRelayJsonScene_moving(benchmark::State& state) {
   SetPerStep(state, steps);
 }
 
+// n = 64: the friction bar (scenes/friction-bar.json: an elastic bar as 64 finite elements with Coulomb
+// friction at every node; M constant and tridiagonal, so the step uses banded LU), until t = 0.3, before
+// it comes to rest at t = 0.379.
+void FrictionBar64(benchmark::State& state, bool banded) {
+  scene::LagrangianScene sc = LoadScene("friction-bar.json", 0.3);
+  if (!banded) sc.settings.bandwidth = -1;  // the dense LU every scene used before
+  std::int64_t steps = 0;
+  for (auto _ : state) {
+    const RunSummary s = scene::run_scene(sc, nullptr);
+    steps = s.steps;
+    benchmark::DoNotOptimize(s.q_final.data());
+  }
+  SetPerStep(state, steps);
+}
+void BM_FrictionBar64JsonScene_moving(benchmark::State& state) { FrictionBar64(state, true); }
+void BM_FrictionBar64JsonScene_moving_dense(benchmark::State& state) { FrictionBar64(state, false); }
+
 BENCHMARK(BM_ManipulatorJsonScene_moving)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_ManipulatorJsonScene_to_rest)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_ManipulatorCompiled_moving)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_ManipulatorCompiled_to_rest)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_DampedRelayCompiled_moving)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_DampedRelayJsonScene_moving)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_FrictionBar64JsonScene_moving)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_FrictionBar64JsonScene_moving_dense)->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 

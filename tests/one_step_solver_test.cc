@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <random>
 
 namespace moreau {
@@ -132,6 +134,151 @@ void RandomProblems(int n, int count, unsigned seed) {
 TEST(OneStepSolver, RandomNonsymmetric2) { RandomProblems<2>(2, 400, 1); }
 TEST(OneStepSolver, RandomNonsymmetric3) { RandomProblems<3>(3, 300, 2); }
 TEST(OneStepSolver, RandomNonsymmetricDynamic6) { RandomProblems<Eigen::Dynamic>(6, 200, 3); }
+
+// P = S + K with S = G G^T symmetric positive definite and K skew, both zero beyond `band` from the
+// diagonal (G lower triangular with `band` sub-diagonals gives S that band): the structure of
+// M/h + C + W for a chain.
+Eigen::MatrixXd RandomBandedP(int n, int band, std::mt19937& rng) {
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  Eigen::MatrixXd G = Eigen::MatrixXd::Zero(n, n), K = Eigen::MatrixXd::Zero(n, n);
+  for (int i = 0; i < n; ++i)
+    for (int j = std::max(0, i - band); j <= i; ++j) G(i, j) = gauss(rng);
+  for (int i = 0; i < n; ++i)
+    for (int j = i + 1; j <= std::min(n - 1, i + band); ++j) {
+      K(i, j) = 0.8 * gauss(rng);
+      K(j, i) = -K(i, j);
+    }
+  return G * G.transpose() + 0.5 * Eigen::MatrixXd::Identity(n, n) + K;
+}
+
+// dist(-(P y + x), d phi(y)) for phi = sum a_i |y_i| + a_norm ||y||, computed here from its definition.
+double InclusionResidual(const Eigen::MatrixXd& P, const Eigen::VectorXd& x, const Eigen::VectorXd& a, double a_norm,
+                         const Eigen::VectorXd& y) {
+  Eigen::VectorXd w = -(P * y + x);
+  const double ny = y.norm();
+  if (ny == 0.0) {
+    const Eigen::VectorXd clipped = w.cwiseMax(-a).cwiseMin(a);
+    return std::max(0.0, (w - clipped).norm() - a_norm);
+  }
+  if (a_norm > 0.0) w -= (a_norm / ny) * y;
+  double sum = 0.0;
+  for (int i = 0; i < y.size(); ++i) {
+    const double d = y(i) > 0.0 ? w(i) - a(i) : (y(i) < 0.0 ? w(i) + a(i) : std::max(0.0, std::abs(w(i)) - a(i)));
+    sum += d * d;
+  }
+  return std::sqrt(sum);
+}
+
+TEST(OneStepSolver, BandedSolvesAreChosenOnlyForNarrowBandsOfDynamicSize) {
+  OneStepSolver<Eigen::Dynamic> dynamic;
+  dynamic.configure(Eigen::VectorXd::Ones(6), 0.0, 1);
+  EXPECT_EQ(dynamic.banded_width(), 1);  // 6 b <= n
+  dynamic.configure(Eigen::VectorXd::Ones(5), 0.0, 1);
+  EXPECT_EQ(dynamic.banded_width(), -1);  // too wide for n = 5: dense LU is cheaper
+  dynamic.configure(Eigen::VectorXd::Ones(64), 0.0, -1);
+  EXPECT_EQ(dynamic.banded_width(), -1);  // no promise
+  OneStepSolver<3> fixed;
+  fixed.configure(Vec<3>::Ones(), 0.0, 0);
+  EXPECT_EQ(fixed.banded_width(), -1);  // fixed sizes keep their dense (unrolled) path
+}
+
+// Banded solves against the independent brute force (every sign pattern, full-pivot LU on the reduced
+// system): the same y, and the same exact zeros.
+TEST(OneStepSolver, BandedMatchesBruteForceOnTridiagonalProblems) {
+  const int n = 7, band = 1;
+  std::mt19937 rng(11);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  std::uniform_real_distribution<double> unif(0.0, 2.0);
+  Eigen::VectorXd a(n);
+  for (int i = 0; i < n; ++i) a(i) = unif(rng);
+  OneStepSolver<Eigen::Dynamic> solver;
+  solver.configure(a, 0.0, band);
+  ASSERT_EQ(solver.banded_width(), band);
+  int zeros = 0, moving = 0;
+  for (int trial = 0; trial < 60; ++trial) {
+    const Eigen::MatrixXd P = RandomBandedP(n, band, rng);
+    Eigen::VectorXd x(n), y(n);
+    for (int i = 0; i < n; ++i) x(i) = 2.0 * gauss(rng);
+    OneStepStats st;
+    ASSERT_TRUE(solver.solve(P, x, y, st)) << "trial " << trial;
+    EXPECT_FALSE(st.used_fallback) << "trial " << trial;
+    const Eigen::VectorXd ref = BruteForce(P, x, a);
+    for (int i = 0; i < n; ++i) {
+      if (ref(i) == 0.0) {
+        EXPECT_EQ(y(i), 0.0) << "component " << i << " of trial " << trial;
+        ++zeros;
+      } else {
+        EXPECT_NEAR(y(i), ref(i), 1e-12 * (1.0 + std::abs(ref(i)))) << "component " << i << " of trial " << trial;
+        ++moving;
+      }
+    }
+  }
+  EXPECT_GT(zeros, 0);
+  EXPECT_GT(moving, 0);
+}
+
+// At 64 coordinates (too many patterns for the brute force), banded and dense LU on the same problems,
+// with and without the norm term of Remark 4.2: the same answers to round-off, each checked against the
+// inclusion computed here. The diagonal shift is what M/h adds to P in a step; without it some of these
+// random problems make the active-set iteration cycle and the fallback slow, for dense and banded alike.
+TEST(OneStepSolver, BandedAgreesWithDenseAtSixtyFourCoordinates) {
+  const int n = 64;
+  std::mt19937 rng(12);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  std::uniform_real_distribution<double> unif(0.0, 2.0);
+  for (const int band : {1, 2, 5}) {
+    for (const double a_norm : {0.0, 0.7}) {
+      Eigen::VectorXd a(n);
+      for (int i = 0; i < n; ++i) a(i) = unif(rng);
+      OneStepSolver<Eigen::Dynamic> banded, dense;
+      banded.configure(a, a_norm, band);
+      dense.configure(a, a_norm, -1);
+      ASSERT_EQ(banded.banded_width(), band);
+      int zeros = 0;
+      for (int trial = 0; trial < 40; ++trial) {
+        const Eigen::MatrixXd P = RandomBandedP(n, band, rng) + 3.0 * Eigen::MatrixXd::Identity(n, n);
+        Eigen::VectorXd x(n), yb(n), yd(n);
+        for (int i = 0; i < n; ++i) x(i) = 3.0 * gauss(rng);
+        OneStepStats sb, sd;
+        ASSERT_TRUE(banded.solve(P, x, yb, sb)) << "band " << band << " trial " << trial;
+        ASSERT_TRUE(dense.solve(P, x, yd, sd)) << "band " << band << " trial " << trial;
+        EXPECT_FALSE(sb.used_fallback) << "band " << band << " trial " << trial;
+        const double scale = 1.0 + yd.cwiseAbs().maxCoeff();
+        for (int i = 0; i < n; ++i) {
+          EXPECT_EQ(yb(i) == 0.0, yd(i) == 0.0) << "band " << band << " trial " << trial << " component " << i;
+          EXPECT_NEAR(yb(i), yd(i), 1e-11 * scale) << "band " << band << " trial " << trial << " component " << i;
+          zeros += yb(i) == 0.0;
+        }
+        EXPECT_LE(InclusionResidual(P, x, a, a_norm, yb), 1e-10 * (1.0 + x.cwiseAbs().maxCoeff()));
+      }
+      EXPECT_GT(zeros, 0) << "band " << band;
+    }
+  }
+}
+
+// A bandwidth promise that P breaks is never used silently: whatever the solver returns satisfies (6.5)
+// with the whole P, because acceptance always uses the whole P.
+TEST(OneStepSolver, ABrokenBandwidthPromiseIsCaughtByTheResidual) {
+  const int n = 12;
+  std::mt19937 rng(13);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  Eigen::VectorXd a = Eigen::VectorXd::Constant(n, 0.3);
+  OneStepSolver<Eigen::Dynamic> solver;
+  solver.configure(a, 0.0, 1);  // promised 1, given 3
+  int caught = 0;
+  for (int trial = 0; trial < 40; ++trial) {
+    const Eigen::MatrixXd P = RandomBandedP(n, 3, rng);
+    Eigen::VectorXd x(n), y(n);
+    for (int i = 0; i < n; ++i) x(i) = 3.0 * gauss(rng);
+    OneStepStats st;
+    const bool solved = solver.solve(P, x, y, st);
+    if (!solved || st.used_fallback) ++caught;
+    if (solved) {
+      EXPECT_LE(InclusionResidual(P, x, a, 0.0, y), 1e-10 * (1.0 + x.cwiseAbs().maxCoeff())) << "trial " << trial;
+    }
+  }
+  EXPECT_GT(caught, 30) << "the banded solves of a wider P should fail their check";
+}
 
 TEST(OneStepSolver, WarmStartNeedsOneSolve) {
   OneStepSolver<2> solver;

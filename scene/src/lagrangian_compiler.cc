@@ -471,6 +471,16 @@ class LagrangianCompiler : SceneReader {
     for (int i = 0; i < n_; ++i)
       for (int j = 0; j < n_; ++j) place(C_[i * n_ + j], {nn + i + j * n_}, false);
     for (int i = 0; i < n_; ++i) place(g_[i], {2 * nn + i}, false);
+    // The band of M and C: every flat index of [M | C] that a tape writes or that holds a non-zero constant.
+    const auto widen = [&](int flat) {
+      const int ij = flat % nn;  // column-major within M or C
+      c->bandwidth = std::max(c->bandwidth, std::abs(ij % n_ - ij / n_));
+    };
+    for (const auto& targets : c->step_targets)
+      for (int t : targets)
+        if (t < 2 * nn) widen(t);
+    for (int t = 0; t < 2 * nn; ++t)
+      if (c->constant_terms[t] != 0.0) widen(t);
     // grad V and F apart, the same nodes that g = grad V + F adds.
     std::vector<Node> split = gradient_;
     split.insert(split.end(), force_.begin(), force_.end());
@@ -530,6 +540,7 @@ LagrangianScene LagrangianCompiler::compile() {
   exact(scene);
   check_at_initial_state(scene);
   scene.compiled = build();
+  scene.settings.bandwidth = scene.compiled->bandwidth;
   return scene;
 }
 

@@ -395,6 +395,7 @@ nlohmann::json report_json(const LagrangianScene& scene, const RunSummary& s, co
                  {"total_iterations", s.solver.total_iterations},
                  {"fallback_steps", s.solver.fallback_steps},
                  {"rest_steps", s.solver.rest_steps}};
+  if (!s.solver.linear_solver.empty()) j["solver"]["linear_solver"] = s.solver.linear_solver;
   j["h_min"] = num(s.h_min);
   j["h_max"] = num(s.h_max);
   j["guarantees"] = guarantees_json(g);
@@ -438,7 +439,9 @@ std::string report_text(const LagrangianScene& scene, const RunSummary& s, const
   os << guarantees_text(g);
   os << "  solver        max " << s.solver.max_iterations << " iterations per step, " << s.solver.total_iterations
      << " in all, max residual " << fmt(s.solver.max_residual) << ", " << s.solver.rest_steps << " steps at rest, "
-     << s.solver.fallback_steps << " fallback steps\n";
+     << s.solver.fallback_steps << " fallback steps";
+  if (!s.solver.linear_solver.empty()) os << "; " << s.solver.linear_solver;
+  os << "\n";
   os << "  wall time     ";
   for (const auto& [name, seconds] : s.phase_seconds) os << name << " " << fmt(seconds * 1e3) << " ms, ";
   os << "total " << fmt(s.wall_seconds() * 1e3) << " ms\n";

@@ -21,6 +21,12 @@
 //     convergent because y -> P y + x is strongly monotone, whose pattern is then polished exactly.
 // A solution is accepted only when dist(-(P y + x), d phi(y)) is within round-off of the problem's scale;
 // otherwise solve() returns false and the caller must stop: an unsolved step is never used.
+//
+// Linear solves: LU with partial pivoting. Dense (Eigen's PartialPivLU, or its 2x2 case inline), or, for
+// dynamic sizes when the caller states that P is zero beyond a bandwidth b from its diagonal and b is
+// small (6 b <= n), the same elimination confined to the band (LAPACK's dgbtrf scheme: pivots from the b
+// rows below, fill-in up to 2 b above the diagonal), O(n b^2) instead of O(n^3). The acceptance residual
+// is always computed with the whole of P, so a wrong bandwidth cannot pass unseen.
 #pragma once
 
 #include <algorithm>
@@ -46,11 +52,14 @@ class OneStepSolver {
 
   OneStepSolver() = default;
 
-  // gains a_i >= 0 and a_norm >= 0 of phi. Sizes every buffer once: solve() does not allocate.
-  void configure(const Vec<N>& gains, double norm_gain) {
+  // gains a_i >= 0 and a_norm >= 0 of phi; bandwidth: P(i, j) == 0 whenever |i - j| > bandwidth, for
+  // every P this solver will be given (-1: no such promise). Sizes every buffer once: solve() does not
+  // allocate.
+  void configure(const Vec<N>& gains, double norm_gain, int bandwidth = -1) {
     const int n = static_cast<int>(gains.size());
     a_ = gains;
     an_ = norm_gain;
+    bandwidth_ = (N == Eigen::Dynamic && bandwidth >= 0 && 6 * bandwidth <= n) ? bandwidth : -1;
     nonsmooth_ = an_ > 0.0 || (a_.array() > 0.0).any();
     pattern_.setZero(n);
     trial_.setZero(n);
@@ -67,17 +76,32 @@ class OneStepSolver {
 
   int size() const { return static_cast<int>(a_.size()); }
 
+  // The bandwidth the linear solves use, or -1 for dense LU.
+  int banded_width() const { return bandwidth_; }
+
   // Solves (6.5). On success returns true with y the solution; on failure returns false (y then holds
   // the best iterate, for diagnostics only).
   bool solve(const Mat<N>& P, const Vec<N>& x, Vec<N>& y, OneStepStats& stats) {
     const int n = size();
     stats = OneStepStats{};
-    const double scale_px = P.cwiseAbs().rowwise().sum().maxCoeff();  // ||P||_inf
+    double scale_px;  // ||P||_inf
+    if constexpr (N == Eigen::Dynamic) {
+      abs_row_sums(P, dy_);  // dy_ is free until the pattern iteration
+      scale_px = dy_.maxCoeff();
+    } else {
+      scale_px = P.cwiseAbs().rowwise().sum().maxCoeff();
+    }
     const double gain_scale = (n > 0 ? a_.maxCoeff() : 0.0) + an_;
 
     if (!nonsmooth_) {
-      lu_.compute(P);
-      y.noalias() = lu_.solve(-x);
+      if (bandwidth_ >= 0) {
+        A_ = P;
+        b_ = -x;
+        if (!banded_lu_solve(y)) return false;
+      } else {
+        lu_.compute(P);
+        y.noalias() = lu_.solve(-x);
+      }
       stats.iterations = 1;
       return accept(P, x, y, scale_px, gain_scale, stats);
     }
@@ -228,8 +252,12 @@ class OneStepSolver {
     if constexpr (N == 2) {
       solve2(y);
     } else {
-      lu_.compute(A_);
-      y.noalias() = lu_.solve(b_);
+      if (bandwidth_ >= 0) {
+        if (!banded_lu_solve(y)) return false;
+      } else {
+        lu_.compute(A_);
+        y.noalias() = lu_.solve(b_);
+      }
     }
     pin_zeros(s, y);
     if (an_ == 0.0) return y.allFinite();
@@ -289,6 +317,42 @@ class OneStepSolver {
     const double y1 = (b1 - l * b0) / u11;
     y(1) = y1;
     y(0) = (b0 - a01 * y1) / a00;
+  }
+
+  // y = A_^{-1} b_ for A_ zero beyond bandwidth_ from its diagonal: Gaussian elimination with partial
+  // pivoting confined to the band, on copies in J_ and r_ (A_ and b_ stay for the norm term's Newton
+  // iteration). A row swap brings entries up to 2 bandwidth_ right of the diagonal, so the upper factor
+  // is kept that wide. False when a pivot is 0 (A_ singular): the pattern then has no usable solution.
+  bool banded_lu_solve(Vec<N>& y) {
+    const int n = size(), kl = bandwidth_, ku = 2 * bandwidth_;
+    for (int j = 0; j < n; ++j)  // the band and the fill-in rows above it (zeros in A_)
+      for (int i = std::max(0, j - ku); i <= std::min(n - 1, j + kl); ++i) J_(i, j) = A_(i, j);
+    r_ = b_;
+    for (int k = 0; k < n; ++k) {
+      const int last_row = std::min(n - 1, k + kl), last_col = std::min(n - 1, k + ku);
+      int p = k;
+      for (int i = k + 1; i <= last_row; ++i)
+        if (std::abs(J_(i, k)) > std::abs(J_(p, k))) p = i;
+      if (p != k) {
+        for (int j = k; j <= last_col; ++j) std::swap(J_(k, j), J_(p, j));
+        std::swap(r_(k), r_(p));
+      }
+      const double pivot = J_(k, k);
+      if (pivot == 0.0) return false;
+      for (int i = k + 1; i <= last_row; ++i) {
+        const double l = J_(i, k) / pivot;
+        if (l == 0.0) continue;
+        for (int j = k + 1; j <= last_col; ++j) J_(i, j) -= l * J_(k, j);
+        r_(i) -= l * r_(k);
+      }
+    }
+    for (int k = n - 1; k >= 0; --k) {
+      double sum = r_(k);
+      const int last_col = std::min(n - 1, k + ku);
+      for (int j = k + 1; j <= last_col; ++j) sum -= J_(k, j) * y(j);
+      y(k) = sum / J_(k, k);
+    }
+    return true;
   }
 
   // r_ = A y - b + a_norm y / ||y|| on the free components (0 on the pinned ones); returns ||r_||.
@@ -423,6 +487,7 @@ class OneStepSolver {
 
   Vec<N> a_;
   double an_ = 0.0;
+  int bandwidth_ = -1;  // the band of the linear solves, -1 dense
   bool nonsmooth_ = false;
   Pattern pattern_, trial_, pinned_;
   Mat<N> A_, J_;

@@ -24,6 +24,7 @@ struct SolverEffort {
   std::int64_t total_iterations = 0;
   std::int64_t fallback_steps = 0;  // steps that needed the exhaustive or forward-backward fallback
   std::int64_t rest_steps = 0;      // steps solved by the y = 0 closed form (velocity exactly at rest)
+  std::string linear_solver;        // how the step's linear systems were solved (empty: not stated)
 };
 
 struct EquilibriumCheck {

@@ -55,7 +55,10 @@ template <int N>
 class StepConditionChecker {
  public:
   explicit StepConditionChecker(int n) {
-    if constexpr (N == Eigen::Dynamic) CtC_.resize(n, n);
+    if constexpr (N == Eigen::Dynamic) {
+      CtC_.resize(n, n);
+      sums_.resize(n);
+    }
   }
 
   // M's definiteness only (Moreau-Jean, which has no condition (4.2)).
@@ -87,7 +90,7 @@ class StepConditionChecker {
     } else {
       // Bounds first: lambda_min(M) >= Gershgorin's bound, ||C||_2^2 <= ||C||_1 ||C||_inf.
       const double g = gershgorin_lower(M);
-      const double c2_bound = C.cwiseAbs().colwise().sum().maxCoeff() * C.cwiseAbs().rowwise().sum().maxCoeff();
+      const double c2_bound = C.cwiseAbs().colwise().sum().maxCoeff() * max_abs_row_sum(C);
       if (g > 0.0 && h2 * c2_bound <= g * g) {
         c.lambda_min_m = g;
         c.ratio_sq_num = h2 * c2_bound;
@@ -107,10 +110,25 @@ class StepConditionChecker {
     const double m = 0.5 * (a + d), e = 0.5 * (a - d);
     return m - std::sqrt(e * e + b * b);
   }
-  static double gershgorin_lower(const Mat<N>& M) {
+  // Dynamic sizes sum the rows column by column (abs_row_sums, types.h); fixed sizes keep the row sums
+  // they always had, so the recorded bounds of small scenes stay bit for bit the same.
+  double gershgorin_lower(const Mat<N>& M) {
     double g = std::numeric_limits<double>::infinity();
-    for (int i = 0; i < M.rows(); ++i) g = std::min(g, M(i, i) - (M.row(i).cwiseAbs().sum() - std::abs(M(i, i))));
+    if constexpr (N == Eigen::Dynamic) {
+      abs_row_sums(M, sums_);
+      for (int i = 0; i < M.rows(); ++i) g = std::min(g, M(i, i) - (sums_(i) - std::abs(M(i, i))));
+    } else {
+      for (int i = 0; i < M.rows(); ++i) g = std::min(g, M(i, i) - (M.row(i).cwiseAbs().sum() - std::abs(M(i, i))));
+    }
     return g;
+  }
+  double max_abs_row_sum(const Mat<N>& C) {
+    if constexpr (N == Eigen::Dynamic) {
+      abs_row_sums(C, sums_);
+      return sums_.maxCoeff();
+    } else {
+      return C.cwiseAbs().rowwise().sum().maxCoeff();
+    }
   }
   double exact_lambda_min(const Mat<N>& M) {
     eig_.compute(M, Eigen::EigenvaluesOnly);
@@ -118,6 +136,7 @@ class StepConditionChecker {
   }
 
   Mat<N> CtC_;
+  Vec<N> sums_;
   Eigen::SelfAdjointEigenSolver<Mat<N>> eig_;
 };
 

@@ -25,4 +25,13 @@ struct LagrangianTerms {
   }
 };
 
+// sums(i) = sum_j |A(i, j)|, accumulated column by column: contiguous and vectorised for the
+// column-major storage, where a row-by-row sum strides across the whole matrix. Each row is still summed
+// in the order j = 0, 1, ..., n - 1. For dynamic sizes (n > 4), where the cost is n^2 per step.
+template <int N>
+void abs_row_sums(const Mat<N>& A, Vec<N>& sums) {
+  sums.setZero(A.rows());
+  for (Eigen::Index j = 0; j < A.cols(); ++j) sums += A.col(j).cwiseAbs();
+}
+
 }  // namespace moreau

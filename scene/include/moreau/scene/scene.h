@@ -89,6 +89,9 @@ struct CompiledLagrangian {
   expr::Tape split_force_tape;
   bool has_potential = false;
   bool constant_mass = true;
+  // M and C are identically zero beyond this distance from the diagonal (0: diagonal), over all states:
+  // no tape writes there and every constant there is 0. AblSettings::bandwidth takes it.
+  int bandwidth = 0;
   // Constant parts, as flat arrays: M (n*n, column-major), C (n*n), g (n).
   std::vector<double> constant_terms;
   // step_tape output j goes to flat index step_targets[j] of [M | C | g] (several targets for a
