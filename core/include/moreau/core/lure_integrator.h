@@ -113,13 +113,11 @@ class LureIntegrator {
   }
 
   RunSummary run(const Vec<N>& x0, RunObserver* observer = nullptr, LureDiagnostics* diag = nullptr) {
-    LureDiagnostics local;
-    d_ = diag ? diag : &local;
     x_ = x0;
-    last_step_ = FixedTimeGrid(settings_.t0, settings_.t_end, settings_.h).steps - 1;
-    RunSummary summary = SteppingDriver::run(*this, SteppingPlan::fixed_grid(settings_), observer);
-    d_ = nullptr;  // the diagnostics may be the local above
-    return summary;
+    const FixedTimeGrid grid(settings_.t0, settings_.t_end, settings_.h);
+    last_step_ = grid.steps - 1;
+    last_h_ = grid.last_h;
+    return SteppingDriver::run_with_diagnostics(*this, SteppingPlan::fixed_grid(settings_), observer, d_, diag);
   }
 
  private:
@@ -142,7 +140,7 @@ class LureIntegrator {
     d.output_rest_step.assign(static_cast<std::size_t>(m_), -1);
     d.output_rest_time.assign(static_cast<std::size_t>(m_), 0.0);
     prepare(settings_.h, main_);
-    prepare(FixedTimeGrid(settings_.t0, settings_.t_end, settings_.h).last_h, last_);
+    prepare(last_h_, last_);
     u_.noalias() = C_ * x_;
     for (int i = 0; i < m_; ++i) w_(i) = graphs_[i].least_norm_value(u_(i));
     if (!w_.allFinite()) return f.at(0, t, x_.data(), nullptr, "C x0 is outside the domain of d phi (Lemma 1 needs C x(0) in dom d phi)");
@@ -259,6 +257,7 @@ class LureIntegrator {
   Vec<N> x_;                      // the state x_k
   double energy_ = 0.0;           // W_k
   std::int64_t last_step_ = 0;    // the index of the grid's last step, which takes its own h
+  double last_h_ = 0.0;           // that step's h
   LureDiagnostics* d_ = nullptr;  // where the running run records
   Vec<N> xf_, xn_, v_, cx_;
   Vec<Mo> q_, u_, w_;

@@ -194,13 +194,9 @@ class MoreauJeanIntegrator {
   }
 
   RunSummary run(const Vec<N>& q0, const Vec<N>& v0, RunObserver* observer = nullptr, ContactDiagnostics* diag = nullptr) {
-    ContactDiagnostics local;
-    d_ = diag ? diag : &local;
     q_ = q0;
     v_ = v0;
-    RunSummary summary = SteppingDriver::run(*this, SteppingPlan::fixed_grid(settings_), observer);
-    d_ = nullptr;  // the diagnostics may be the local above
-    return summary;
+    return SteppingDriver::run_with_diagnostics(*this, SteppingPlan::fixed_grid(settings_), observer, d_, diag);
   }
 
  private:

@@ -247,16 +247,31 @@ struct SteppingPlan {
 //   static constexpr bool kAdaptiveSteps;                   // whether the scheme has an adaptive rule:
 //   bool propose_step(double t, double h_prev, double& h_k, std::string& why);  // then h_k from the state
 //
+// A scheme without an adaptive rule always runs the fixed grid, whatever plan.fixed says.
+//
 // Failures from begin() and the step count come before the first sample; a failing step ends the run
 // with the state its StepFailure names.
 struct SteppingDriver {
+  // run() for a scheme that writes diagnostics through a pointer member: `slot` points at *diag for the
+  // run, or at a local that is dropped when the caller wants none, and is reset afterwards.
+  template <class Scheme, class Diagnostics>
+  static RunSummary run_with_diagnostics(Scheme& scheme, const SteppingPlan& plan, RunObserver* observer, Diagnostics*& slot,
+                                         Diagnostics* diag) {
+    Diagnostics local;
+    slot = diag ? diag : &local;
+    RunSummary summary = run(scheme, plan, observer);
+    slot = nullptr;  // it may point at the local above
+    return summary;
+  }
+
   template <class Scheme>
   static RunSummary run(Scheme& scheme, const SteppingPlan& plan, RunObserver* observer) {
     RunRecorder rec(observer, plan.output_every, scheme.dof());
     StepFailure f;
     if (!scheme.begin(plan.t0, f)) return failed(scheme, rec, f);
+    const bool fixed = plan.fixed || !Scheme::kAdaptiveSteps;
     const FixedTimeGrid grid(plan.t0, plan.t_end, plan.h);
-    if (plan.fixed && grid.steps > plan.max_steps) {
+    if (fixed && grid.steps > plan.max_steps) {
       f.at(0, plan.t0, scheme.q(), scheme.v(), "the step count exceeds max_steps");
       return failed(scheme, rec, f);
     }
@@ -268,7 +283,7 @@ struct SteppingDriver {
     rec.first_sample(t, plan.h, scheme.q(), scheme.v(), energy);
     double h_k = plan.h, h_prev = plan.h;
     while (true) {
-      if (plan.fixed) {
+      if (fixed) {
         if (k >= grid.steps) break;
         h_k = grid.step(k);
       } else if constexpr (Scheme::kAdaptiveSteps) {
@@ -287,11 +302,8 @@ struct SteppingDriver {
           f.at(k, t, scheme.q(), scheme.v(), std::move(why));
           return failed(scheme, rec, f);
         }
-      } else {
-        f.at(k, t, scheme.q(), scheme.v(), "this scheme has no adaptive step rule");
-        return failed(scheme, rec, f);
       }
-      const double t_next = plan.fixed ? grid.time(k + 1) : t + h_k;
+      const double t_next = fixed ? grid.time(k + 1) : t + h_k;
       if (!scheme.step(k, t, h_k, t_next, rec, f)) return failed(scheme, rec, f);
       ++k;
       t = t_next;
