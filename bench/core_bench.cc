@@ -29,8 +29,8 @@ void SetPerStep(benchmark::State& state, std::int64_t steps_per_run) {
                          benchmark::Counter::kIs1000);
 }
 
-void ManipulatorScene(benchmark::State& state, double t_end) {
-  const scene::LagrangianScene sc = LoadScene("manipulator.json", t_end);
+// Runs a compiled scene once per iteration and reports time per step.
+void RunScene(benchmark::State& state, const scene::LagrangianScene& sc) {
   std::int64_t steps = 0;
   for (auto _ : state) {
     const RunSummary s = scene::run_scene(sc, nullptr);
@@ -38,6 +38,11 @@ void ManipulatorScene(benchmark::State& state, double t_end) {
     benchmark::DoNotOptimize(s.q_final.data());
   }
   SetPerStep(state, steps);
+}
+
+void ManipulatorScene(benchmark::State& state, double t_end) {
+  const scene::LagrangianScene sc = LoadScene("manipulator.json", t_end);
+  RunScene(state, sc);
 }
 void BM_ManipulatorJsonScene_moving(benchmark::State& state) { ManipulatorScene(state, 1.0); }
 void BM_ManipulatorJsonScene_to_rest(benchmark::State& state) { ManipulatorScene(state, 10.0); }
@@ -80,13 +85,7 @@ void BM_DampedRelayJsonScene_moving(benchmark::State& state) {
   doc["integrator"]["t_end"] = 3.6;
   doc["integrator"]["h"] = 1e-4;
   const scene::LagrangianScene sc = scene::load_scene(doc);
-  std::int64_t steps = 0;
-  for (auto _ : state) {
-    const RunSummary s = scene::run_scene(sc, nullptr);
-    steps = s.steps;
-    benchmark::DoNotOptimize(s.q_final.data());
-  }
-  SetPerStep(state, steps);
+  RunScene(state, sc);
 }
 
 // n = 64: the friction bar (scenes/friction-bar.json: an elastic bar as 64 finite elements with Coulomb
@@ -95,13 +94,7 @@ void BM_DampedRelayJsonScene_moving(benchmark::State& state) {
 void FrictionBar64(benchmark::State& state, bool banded) {
   scene::LagrangianScene sc = LoadScene("friction-bar.json", 0.3);
   if (!banded) sc.settings.bandwidth = -1;  // the dense LU every scene used before
-  std::int64_t steps = 0;
-  for (auto _ : state) {
-    const RunSummary s = scene::run_scene(sc, nullptr);
-    steps = s.steps;
-    benchmark::DoNotOptimize(s.q_final.data());
-  }
-  SetPerStep(state, steps);
+  RunScene(state, sc);
 }
 void BM_FrictionBar64JsonScene_moving(benchmark::State& state) { FrictionBar64(state, true); }
 void BM_FrictionBar64JsonScene_moving_dense(benchmark::State& state) { FrictionBar64(state, false); }

@@ -1,6 +1,7 @@
 // The two backends behind render.h.
 #pragma once
 
+#include <exception>
 #include <string>
 
 #include "moreau/render/render.h"
@@ -13,5 +14,22 @@ namespace moreau::render::detail {
 Image rasterize(const Scene& scene);
 Image rasterize_with_opengl(const Scene& scene);
 std::string write_svg(const Scene& scene);  // svg_backend.cc
+
+// The body of an entry point of the raster module (gl_backend.cc, png.cc): runs f and returns 0, or 1
+// with the message of what it threw in *error. No exception leaves the module: the executable that loads
+// it may carry a C++ runtime of its own (moreau links libstdc++ statically), so the loader throws the
+// message on its side (gl_loader.cc).
+template <class F>
+int module_entry(std::string* error, F&& f) noexcept {
+  try {
+    f();
+    return 0;
+  } catch (const std::exception& e) {
+    *error = e.what();
+  } catch (...) {
+    *error = "unknown failure in the raster module";
+  }
+  return 1;
+}
 
 }  // namespace moreau::render::detail

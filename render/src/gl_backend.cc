@@ -453,19 +453,9 @@ Image rasterize_with_opengl(const Scene& scene) {
 }  // namespace moreau::render::detail
 
 // The entry point the loader (gl_loader.cc) looks up: this file is built as its own shared module, so
-// that OSMesa and LLVM are loaded only by a process that draws a PNG. No exception leaves the module: the
-// executable that loads it may carry a C++ runtime of its own (moreau links libstdc++ statically), so a
-// failure comes back as a message and the loader throws it on its side.
+// that OSMesa and LLVM are loaded only by a process that draws a PNG.
 extern "C" __attribute__((visibility("default"))) int moreau_render_gl_rasterize(const moreau::render::detail::Scene* scene,
                                                                                  moreau::render::Image* image,
                                                                                  std::string* error) {
-  try {
-    *image = moreau::render::detail::rasterize_with_opengl(*scene);
-    return 0;
-  } catch (const std::exception& e) {
-    *error = e.what();
-  } catch (...) {
-    *error = "unknown failure in the OpenGL backend";
-  }
-  return 1;
+  return moreau::render::detail::module_entry(error, [&] { *image = moreau::render::detail::rasterize_with_opengl(*scene); });
 }

@@ -8,6 +8,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "backends.h"
 #include "moreau/render/render.h"
 
 namespace moreau::render {
@@ -106,33 +107,17 @@ Image decode_png_with_libpng(std::span<const std::uint8_t> data) {
 }  // namespace
 }  // namespace moreau::render
 
-// Entry points of the raster module (gl_loader.cc); as moreau_render_gl_rasterize, no exception leaves
-// them: a failure comes back as a message.
+// Entry points of the raster module (gl_loader.cc, backends.h's module_entry).
 extern "C" __attribute__((visibility("default"))) int moreau_render_gl_encode_png(const moreau::render::Image* image,
                                                                                  const moreau::render::PngOptions* options,
                                                                                  std::vector<std::uint8_t>* out,
                                                                                  std::string* error) {
-  try {
-    *out = moreau::render::encode_png_with_libpng(*image, *options);
-    return 0;
-  } catch (const std::exception& e) {
-    *error = e.what();
-  } catch (...) {
-    *error = "libpng: unknown failure";
-  }
-  return 1;
+  return moreau::render::detail::module_entry(error, [&] { *out = moreau::render::encode_png_with_libpng(*image, *options); });
 }
 
 extern "C" __attribute__((visibility("default"))) int moreau_render_gl_decode_png(const std::uint8_t* data, std::size_t size,
                                                                                  moreau::render::Image* image,
                                                                                  std::string* error) {
-  try {
-    *image = moreau::render::decode_png_with_libpng(std::span<const std::uint8_t>(data, size));
-    return 0;
-  } catch (const std::exception& e) {
-    *error = e.what();
-  } catch (...) {
-    *error = "libpng: unknown failure";
-  }
-  return 1;
+  return moreau::render::detail::module_entry(
+      error, [&] { *image = moreau::render::decode_png_with_libpng(std::span<const std::uint8_t>(data, size)); });
 }
