@@ -100,16 +100,18 @@ class Watcher {
     // subscribeFunction rather than the member-function subscribe(), which LCM 1.3.1 and GCC 12's
     // UndefinedBehaviorSanitizer do not agree on.
     lc.subscribeFunction(channel, &Watcher::on_message, this);
-    std::cerr << "moreau watch: listening on " << channel << " (" << (o_.lcm_url.empty() ? "LCM_DEFAULT_URL or LCM's default" : o_.lcm_url)
-              << ")" << std::endl;
-
+    // Before "listening on": whoever waits for that line may interrupt at once.
     std::signal(SIGINT, on_interrupt);
     std::signal(SIGTERM, on_interrupt);
+    std::cerr << "moreau watch: listening on " << channel << " (" << (o_.lcm_url.empty() ? "LCM_DEFAULT_URL or LCM's default" : o_.lcm_url)
+              << ")" << std::endl;
     const auto start = Clock::now();
+    std::string why_stopped = "interrupted";
     auto last_figure = Clock::now();
     int code = 0;
     while (!g_interrupted && !(o_.until_finished && finished_)) {
       if (o_.timeout > 0 && std::chrono::duration<double>(Clock::now() - start).count() >= o_.timeout) {
+        why_stopped = "timed out after " + fmt(o_.timeout) + " s";
         if (o_.until_finished) {
           std::cerr << "moreau watch: no job finished within " << o_.timeout << " s\n";
           code = 1;
@@ -117,6 +119,8 @@ class Watcher {
         break;
       }
       if (lc.handleTimeout(50) < 0) {
+        if (g_interrupted) break;  // the signal interrupted the wait: Ctrl-C is how a watch ends
+        why_stopped = "LCM receive failed";
         std::cerr << "moreau watch: LCM receive failed\n";
         code = 1;
         break;
@@ -133,7 +137,17 @@ class Watcher {
     if (dirty_) draw();
     if (!o_.figure.empty() && figure_dirty_) write_figure();
     if (log_) log_.reset();
+    if (o_.until_finished && finished_ && !g_interrupted) why_stopped = "a job finished";
+    summarize(why_stopped);
     return code;
+  }
+
+  // One line on stderr when the watch ends: why, and what it saw.
+  void summarize(const std::string& why) const {
+    int ended = 0;
+    for (const auto& [id, j] : jobs_) ended += j.status == "done" || j.status == "failed" || j.status == "cancelled";
+    std::cerr << "moreau watch: " << why << "; received " << states_received_ << " states and " << events_received_
+              << " events of " << jobs_.size() << (jobs_.size() == 1 ? " job" : " jobs") << " (" << ended << " ended)\n";
   }
 
   static void on_message(const lcm::ReceiveBuffer* rbuf, const std::string& channel, Watcher* self) { self->handle(rbuf, channel); }
@@ -152,8 +166,10 @@ class Watcher {
     moreau::state_t s;
     moreau::job_event_t ev;
     if (s.decode(rbuf->data, 0, size) == size) {
+      ++states_received_;
       on_state(s);
     } else if (ev.decode(rbuf->data, 0, size) == size) {
+      ++events_received_;
       on_event(ev);
     }
   }
@@ -286,6 +302,7 @@ class Watcher {
   bool tty_;
   std::unique_ptr<lcm::LogFile> log_;
   std::int64_t events_logged_ = 0;
+  std::int64_t states_received_ = 0, events_received_ = 0;
   std::map<std::string, JobView> jobs_;
   std::vector<std::string> order_;
   std::map<std::string, Clock::time_point> last_plain_;

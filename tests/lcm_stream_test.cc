@@ -276,6 +276,17 @@ TEST(LcmStream, UdpmBetweenProcessesInAPrivateNetworkNamespace) {
   while (const lcm::LogEvent* e = file.readNextEvent()) got.add(e->channel, e->data, e->datalen);
   // Paced at 64 states per second, nothing is lost on the loopback interface.
   check_stream(got, id, report.at("report"), 1.0 / 64, 1.5);
+  // The first watch ended when the job finished and said so; the second, interrupted by SIGINT (Ctrl-C),
+  // exits 0 with its one-line summary instead of a receive error.
+  const auto read = [&](const char* name) {
+    std::ifstream f(dir / name);
+    return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  };
+  EXPECT_THAT(read("watch.out"), ::testing::HasSubstr("moreau watch: a job finished; received ")) << out;
+  EXPECT_EQ(read("interrupt.rc"), "0\n") << out;
+  const std::string interrupted = read("interrupt.out");
+  EXPECT_THAT(interrupted, ::testing::HasSubstr("moreau watch: interrupted; received 0 states and 0 events of 0 jobs (0 ended)"));
+  EXPECT_THAT(interrupted, ::testing::Not(::testing::HasSubstr("receive failed")));
   fs::remove_all(dir);
 #endif
 }

@@ -8,7 +8,8 @@
 # udpm://239.255.76.67:7667?ttl=0) and `moreau watch --log` as separate processes, submits a streamed,
 # realtime job with `moreau submit` and waits for it. No packet can reach the machine's real network.
 # Leaves DIR/watch.log (what the watcher received) and DIR/report.json (the finished job) for
-# tests/lcm_stream_test.cc to decode. Run from the source tree (it submits scenes/manipulator.json).
+# tests/lcm_stream_test.cc to decode, then interrupts a second watch with SIGINT (DIR/interrupt.out and
+# DIR/interrupt.rc, its output and exit status). Run from the source tree (it submits scenes/manipulator.json).
 set -eu
 [ $# -eq 3 ] || { echo "usage: $0 MOREAU_SERVER_BINARY MOREAU_BINARY DIR" >&2; exit 2; }
 
@@ -50,4 +51,20 @@ done
 wait "$watch_pid"
 watch_pid=
 echo "watch:"; cat "$dir/watch.out"
+
+# Ctrl-C ends a watch normally: exit status 0 and a one-line summary (DIR/interrupt.out, .rc).
+"$client" watch --lcm-url "$url" --plain >"$dir/interrupt.out" 2>&1 &
+watch_pid=$!
+i=0
+until grep -q "listening on" "$dir/interrupt.out" 2>/dev/null; do
+  i=$((i + 1))
+  if [ $i -ge 200 ]; then echo "moreau watch did not start:"; cat "$dir/interrupt.out"; exit 1; fi
+  sleep 0.05
+done
+kill -INT "$watch_pid"
+rc=0
+wait "$watch_pid" || rc=$?
+watch_pid=
+echo "$rc" >"$dir/interrupt.rc"
+echo "interrupted watch (exit $rc):"; cat "$dir/interrupt.out"
 ' sh "$1" "$2" "$3"
