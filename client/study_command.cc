@@ -35,8 +35,6 @@ int study(const StudyOptions& opt) {
   try {
     nlohmann::json doc = scene::read_scene_file(opt.scene_path);
     for (const auto& o : opt.overrides) scene::apply_override(doc, o);
-    if (doc.contains("system") && doc["system"].is_object() && doc["system"].value("type", "") == "lure")
-      throw scene::SceneError("/system/type", "studies compare schemes for Lagrangian systems; a lure scene has one scheme");
     const scene::LagrangianScene sc = scene::load_scene(doc);
     scene::StudySettings st;
     st.h = scene::parse_ladder(opt.ladder);

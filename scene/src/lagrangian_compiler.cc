@@ -518,7 +518,10 @@ LagrangianScene LagrangianCompiler::compile() {
   if (!system.contains("type") || !system["type"].is_string())
     throw SceneError("/system/type", "missing system type (expected \"lagrangian\")");
   const std::string type = system["type"].get<std::string>();
-  if (type == "lure") throw SceneError("/system/type", "a lure system: load it with load_lure_scene() or through Simulation");
+  // Reached only where a Lagrangian system is required (studies); everything else loads a scene of either
+  // kind through Simulation.
+  if (type == "lure")
+    throw SceneError("/system/type", "studies compare schemes for Lagrangian systems; a Lur'e system (\"lure\") has one scheme: run it instead");
   if (type != "lagrangian") throw SceneError("/system/type", "unknown system type '" + type + "' (expected: lagrangian, lure)");
   check_fields(system, "/system",
                {"type", "coordinates", "mass", "coriolis", "potential", "potential_gradient", "force", "controller", "constraints"});
