@@ -74,6 +74,10 @@ int report_failure(const Remote& remote, const httplib::Result& r, const std::st
     if (body.contains("reason")) message += ": " + body.value("reason", "");
   }
   if (r->status == 429 && r->has_header("Retry-After")) message += " (retry after " + r->get_header_value("Retry-After") + " s)";
+  if (r->status == 401)
+    message += remote.token.empty() && !std::getenv("MOREAU_TOKEN")
+                   ? " (this server needs a token: pass it with --token or the environment variable MOREAU_TOKEN)"
+                   : " (the token given by --token or MOREAU_TOKEN was not accepted)";
   std::cerr << "moreau: " << what << ": " << message << "\n";
   return r->status == 400 || r->status == 404 || r->status == 409 || r->status == 413 || r->status == 415 ? 2 : 1;
 }
