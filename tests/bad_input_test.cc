@@ -488,9 +488,13 @@ std::vector<Case> cases() {
   // Unknown endpoints and wrong methods.
   t.push_back(get("UnknownEndpoint", "/v1/nothing", 404, "not found"));
   t.push_back(get("Root", "/", 404, "not found"));
-  t.push_back({"PutJobs", "PUT", "/v1/jobs", kJson, valid, 404, "", "not found"});
-  t.push_back({"PatchJob", "PATCH", "/v1/jobs/{id}", kJson, "{}", 404, "", "not found"});
-  t.push_back({"PostHealthz", "POST", "/healthz", kJson, "{}", 404, "", "not found"});
+  t.push_back({"PutJobs", "PUT", "/v1/jobs", kJson, valid, 405, "", "method not allowed"});
+  t.push_back({"PatchJob", "PATCH", "/v1/jobs/{id}", kJson, "{}", 405, "", "method not allowed"});
+  t.push_back({"PostHealthz", "POST", "/healthz", kJson, "{}", 405, "", "method not allowed"});
+  t.push_back({"PostJobReport", "POST", "/v1/jobs/{id}/report", kJson, "{}", 405, "", "method not allowed"});
+  t.push_back({"DeleteScenes", "DELETE", "/v1/scenes", std::nullopt, "", 405, "", "method not allowed"});
+  t.push_back({"PutUnknownEndpoint", "PUT", "/v1/nothing", kJson, "{}", 404, "", "not found"});
+  t.push_back({"OptionsUnknownEndpoint", "OPTIONS", "/v1/nothing", std::nullopt, "", 404, "", "not found"});
   t.push_back({"UnknownMethod", "BREW", "/v1/jobs", std::nullopt, "", 400, "", "bad request"});
   return t;
 }

@@ -383,6 +383,62 @@ TEST(ServerApi, FullQueueAnswers429WithRetryAfter) {
   EXPECT_TRUE(last == 200 || last == 202) << last;
 }
 
+// A known path with a method it does not take: 405 with the methods it does take in Allow; OPTIONS says
+// the same with 204. The server's table of methods is checked against its routes both ways, path by
+// path: every method Allow lists reaches a handler (whatever it then answers, it is not "not found" or
+// 405), and every other method gets 405 with that same Allow.
+TEST(ServerApi, WrongMethodIs405WithAllowAndOptionsAnswers) {
+  TestServer ts;
+  auto c = ts.client();
+  const std::string id = "/0123456789abcdef0123456789abcdef";
+  const std::vector<std::pair<std::string, std::string>> paths = {
+      {"/healthz", "GET, HEAD, OPTIONS"},
+      {"/metrics", "GET, HEAD, OPTIONS"},
+      {"/v1/scenes", "GET, HEAD, OPTIONS"},
+      {"/v1/scenes/manipulator", "GET, HEAD, OPTIONS"},
+      {"/v1/jobs", "GET, HEAD, POST, OPTIONS"},
+      {"/v1/jobs" + id, "GET, HEAD, DELETE, OPTIONS"},
+      {"/v1/jobs" + id + "/events", "GET, HEAD, OPTIONS"},
+      {"/v1/jobs" + id + "/report", "GET, HEAD, OPTIONS"},
+      {"/v1/jobs" + id + "/trajectory", "GET, HEAD, OPTIONS"},
+      {"/v1/jobs" + id + "/figure", "GET, HEAD, OPTIONS"},
+      {"/v1/studies", "GET, HEAD, POST, OPTIONS"},
+      {"/v1/studies" + id, "GET, HEAD, DELETE, OPTIONS"},
+      {"/v1/studies" + id + "/events", "GET, HEAD, OPTIONS"},
+      {"/v1/studies" + id + "/table", "GET, HEAD, OPTIONS"},
+      {"/v1/studies" + id + "/figure", "GET, HEAD, OPTIONS"},
+  };
+  for (const auto& [path, allow] : paths) {
+    SCOPED_TRACE(path);
+    auto o = c->Options(path);
+    ASSERT_TRUE(o);
+    EXPECT_EQ(o->status, 204);
+    EXPECT_EQ(o->get_header_value("Allow"), allow);
+    for (const std::string method : {"GET", "POST", "DELETE", "PUT", "PATCH"}) {
+      SCOPED_TRACE(method);
+      httplib::Result r = method == "GET"      ? c->Get(path)
+                          : method == "POST"   ? c->Post(path, "{}", "application/json")
+                          : method == "DELETE" ? c->Delete(path)
+                          : method == "PUT"    ? c->Put(path, "{}", "application/json")
+                                               : c->Patch(path, "{}", "application/json");
+      ASSERT_TRUE(r);
+      const json body = json::parse(r->body, nullptr, false);
+      const std::string error = body.is_object() ? body.value("error", "") : "";
+      if (allow.find(method) != std::string::npos) {
+        EXPECT_NE(r->status, 405) << r->body;
+        EXPECT_NE(error, "not found") << r->body;
+      } else {
+        EXPECT_EQ(r->status, 405) << r->body;
+        EXPECT_EQ(r->get_header_value("Allow"), allow);
+        EXPECT_THAT(body.value("reason", ""), ::testing::HasSubstr(method + " is not allowed on " + path));
+      }
+    }
+  }
+  auto unknown = c->Options("/v1/nothing");
+  ASSERT_TRUE(unknown);
+  EXPECT_EQ(unknown->status, 404);
+}
+
 TEST(ServerApi, TokenGuardsEveryEndpointButHealthz) {
   ServerConfig cfg;
   cfg.token = "correct horse battery staple";

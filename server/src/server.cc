@@ -10,6 +10,7 @@
 #include <iostream>
 #include <map>
 #include <numeric>
+#include <regex>
 #include <sstream>
 
 #ifdef __GLIBC__
@@ -89,6 +90,38 @@ bool constant_time_equal(const std::string& given, const std::string& secret) {
     diff = static_cast<unsigned char>(diff | (g ^ static_cast<unsigned char>(secret[i])));
   }
   return diff == 0;
+}
+
+// Every path the API serves and the methods it takes (docs/api.md, the routes registered in
+// Impl::setup_routes()): the Allow header of a 405 and of an OPTIONS answer. HEAD is served wherever GET is.
+// ServerApi.WrongMethodIs405WithAllowAndOptionsAnswers checks this table against the routes.
+const char* allowed_methods(const std::string& path) {
+  struct Route {
+    std::regex pattern;
+    const char* allow;
+  };
+  static const Route routes[] = {
+      {std::regex("/healthz"), "GET, HEAD, OPTIONS"},
+      {std::regex("/metrics"), "GET, HEAD, OPTIONS"},
+      {std::regex("/v1/scenes"), "GET, HEAD, OPTIONS"},
+      {std::regex("/v1/scenes/[^/]+"), "GET, HEAD, OPTIONS"},
+      {std::regex("/v1/jobs"), "GET, HEAD, POST, OPTIONS"},
+      {std::regex("/v1/jobs/[^/]+"), "GET, HEAD, DELETE, OPTIONS"},
+      {std::regex("/v1/jobs/[^/]+/(events|report|trajectory|figure)"), "GET, HEAD, OPTIONS"},
+      {std::regex("/v1/studies"), "GET, HEAD, POST, OPTIONS"},
+      {std::regex("/v1/studies/[^/]+"), "GET, HEAD, DELETE, OPTIONS"},
+      {std::regex("/v1/studies/[^/]+/(events|table|figure)"), "GET, HEAD, OPTIONS"},
+  };
+  if (path.size() > 256) return nullptr;  // no route is that long; bounds the regex work
+  for (const Route& r : routes)
+    if (std::regex_match(path, r.pattern)) return r.allow;
+  return nullptr;
+}
+
+// 405 for a path that exists under other methods, with the Allow header (RFC 9110 15.5.6).
+void send_method_not_allowed(Response& res, const std::string& method, const std::string& path, const char* allow) {
+  res.set_header("Allow", allow);
+  send_error(res, 405, "method not allowed", "", method + " is not allowed on " + path + "; allowed: " + allow);
 }
 
 bool is_loopback(const std::string& host) { return host == "localhost" || host == "::1" || host.rfind("127.", 0) == 0; }
@@ -510,7 +543,7 @@ void Server::Impl::setup_routes() {
   // "Expect: 100-continue" is answered before routing: the client sends its body only after a 100, so
   // a request refused here never sends it.
   http_.set_expect_100_continue_handler([this](const Request& req, Response& res) { return screen(req, res) ? res.status : 100; });
-  http_.set_error_handler([this](const Request&, Response& res) {
+  http_.set_error_handler([this](const Request& req, Response& res) {
     if (!res.body.empty()) return;
     const ConnectionContext* conn = current_connection();
     if (conn && conn->timed_out) return send_error(res, 408, "request timeout", "", "the request did not arrive in time");
@@ -520,6 +553,9 @@ void Server::Impl::setup_routes() {
                         "the request line and headers may take at most " + std::to_string(http_.limits().max_header_bytes) + " bytes");
     }
     if (conn && conn->too_large) return body_too_large(res);
+    if (res.status == 404) {
+      if (const char* allow = allowed_methods(req.path)) return send_method_not_allowed(res, req.method, req.path, allow);
+    }
     switch (res.status) {
       case 404: send_error(res, 404, "not found", "", "see docs/api.md for the endpoints"); break;
       case 413: body_too_large(res); break;
@@ -570,8 +606,9 @@ void Server::Impl::setup_routes() {
     if (auto body = read_body(req, res, reader)) post_study(req, res, *body);
   });
   // Any other POST: answered without reading its body (the connection then closes).
-  http_.Post(".*", [this](const Request&, Response& res, const httplib::ContentReader&) {
+  http_.Post(".*", [this](const Request& req, Response& res, const httplib::ContentReader&) {
     close_connection_after(res);
+    if (const char* allow = allowed_methods(req.path)) return send_method_not_allowed(res, req.method, req.path, allow);
     send_error(res, 404, "not found", "", "see docs/api.md for the endpoints");
   });
   http_.Get("/v1/studies", [this](const Request& req, Response& res) { list_jobs(req, res, JobKind::kStudy); });
@@ -720,7 +757,23 @@ bool Server::Impl::screen(const Request& req, Response& res) {
 
   const bool has_body = te == 1 || (length && *length > 0);
   // No route takes PUT or PATCH: answered before any body is read.
-  if (req.method == "PUT" || req.method == "PATCH") return refuse(404, "not found", "see docs/api.md for the endpoints");
+  if (req.method == "PUT" || req.method == "PATCH") {
+    if (const char* allow = allowed_methods(req.path)) {
+      close_connection_after(res);
+      send_method_not_allowed(res, req.method, req.path, allow);
+      return true;
+    }
+    return refuse(404, "not found", "see docs/api.md for the endpoints");
+  }
+  // OPTIONS: which methods a path takes, without a body.
+  if (req.method == "OPTIONS") {
+    if (has_body) return refuse(400, "unexpected body", "OPTIONS requests take no body");
+    const char* allow = allowed_methods(req.path);
+    if (!allow) return refuse(404, "not found", "see docs/api.md for the endpoints");
+    res.status = 204;
+    res.set_header("Allow", allow);
+    return true;
+  }
   if (req.method != "POST") {
     if (has_body) return refuse(400, "unexpected body", req.method + " requests take no body");
     // No body, and httplib reads one for some methods unless told its length: it is 0 (RFC 9112 6.3).
