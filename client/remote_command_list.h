@@ -17,7 +17,7 @@ inline constexpr RemoteCommand kRemoteCommands[] = {
     {"submit", "Submit a scene to a moreau-server; prints the job id"},
     {"status", "Show a job's state, progress and report"},
     {"result", "Print a finished job's report, or save its trajectory with --out"},
-    {"figure", "Save a figure of a finished job (PNG drawn by the server)"},
+    {"figure", "Save a figure of a finished job (PNG, or SVG for a .svg file, drawn by the server)"},
     {"cancel", "Cancel a queued or running job"},
     {"jobs", "List the server's jobs"},
     {"scenes", "List the scenes a server ships"},

@@ -329,6 +329,9 @@ int figure(const FigureOptions& o) {
     }
     query += "&width=" + o.size.substr(0, x) + "&height=" + o.size.substr(x + 1);
   }
+  // SVG when the file is named so (drawn by the server without GL), else PNG.
+  const bool svg = o.out.size() >= 4 && o.out.compare(o.out.size() - 4, 4, ".svg") == 0;
+  if (svg) query += "&format=svg";
   auto c = o.remote.client();
   auto r = c->Get("/v1/jobs/" + o.id + "/figure" + query);
   if (!ok(r)) return report_failure(o.remote, r, o.kind + " figure of " + o.id);
@@ -439,7 +442,7 @@ void register_remote_commands(CLI::App& app, Actions& actions) {
     cmd->add_option("--kind", o->kind, "state, energy, step or phase")
         ->capture_default_str()
         ->check(CLI::IsMember({"state", "energy", "step", "phase"}));
-    cmd->add_option("-o,--out", o->out, "PNG file to write")->required();
+    cmd->add_option("-o,--out", o->out, "File to write: PNG, or SVG if its name ends in .svg")->required();
     cmd->add_option("--size", o->size, "WIDTHxHEIGHT in pixels (default 1200x800)");
     o->remote.add_to(cmd);
     actions[cmd] = [o] { return guarded([&] { return figure(*o); }); };

@@ -460,6 +460,9 @@ std::vector<Case> cases() {
                    400, "/stream/rate", "unknown field (expected channel, period, realtime)"));
 
   // Query parameters (on a finished job).
+  t.push_back(get("UnknownQueryParameter", "/v1/jobs?sort=age", 400, "unknown query parameter 'sort'"));
+  t.push_back(get("QueryParameterOfAnotherEndpoint", "/v1/jobs/{id}?limit=3", 400, "unknown query parameter 'limit'"));
+  t.push_back(get("FigureFormatUnknown", "/v1/jobs/{id}/figure?format=gif", 400, "'format' must be png or svg"));
   t.push_back(get("WaitNotANumber", "/v1/jobs/{id}?wait=abc", 400, "'wait' must be a number in [0, 60]"));
   t.push_back(get("WaitOneBillion", "/v1/jobs/{id}?wait=1e9", 400, "'wait' must be a number in [0, 60]"));
   t.push_back(get("WaitNegative", "/v1/jobs/{id}?wait=-1", 400, "'wait' must be a number in [0, 60]"));

@@ -5,6 +5,9 @@
 
 #include <array>
 #include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <string>
 #include <sys/wait.h>
 
@@ -50,6 +53,32 @@ TEST(ClientRemote, A401SaysHowToPassAToken) {
 
   const Outcome good = run_client("jobs " + server + " --token 'correct horse battery staple'");
   EXPECT_EQ(good.status, 0) << good.output;
+}
+
+// `moreau figure ID -o FILE`: SVG for a .svg name (the server draws it without GL), PNG otherwise.
+TEST(ClientRemote, FigureIsSvgOrPngByTheFileName) {
+  TestServer ts;
+  auto c = ts.client();
+  auto posted = c->Post("/v1/jobs", R"({"scene": "damped-relay"})", "application/json");
+  ASSERT_TRUE(posted);
+  ASSERT_EQ(posted->status, 202) << posted->body;
+  const std::string id = nlohmann::json::parse(posted->body).at("id");
+  const auto waited = nlohmann::json::parse(c->Get("/v1/jobs/" + id + "?wait=30")->body);
+  ASSERT_EQ(waited.at("state"), "done") << waited.dump();
+
+  const std::filesystem::path dir = testing::make_temp_dir("client-figure");
+  const std::string server = " --server http://127.0.0.1:" + std::to_string(ts.port());
+  const Outcome svg = run_client("figure " + id + " -o " + (dir / "state.svg").string() + server);
+  ASSERT_EQ(svg.status, 0) << svg.output;
+  const Outcome png = run_client("figure " + id + " -o " + (dir / "state.png").string() + server);
+  ASSERT_EQ(png.status, 0) << png.output;
+  const auto read = [](const std::filesystem::path& p) {
+    std::ifstream f(p, std::ios::binary);
+    return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  };
+  EXPECT_THAT(read(dir / "state.svg"), ::testing::HasSubstr("<svg"));
+  EXPECT_EQ(read(dir / "state.png").substr(0, 8), std::string("\x89PNG\r\n\x1a\n", 8));
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace

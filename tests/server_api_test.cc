@@ -173,10 +173,31 @@ TEST(ServerApi, JobLifeFromSubmissionToResults) {
     EXPECT_EQ(fig->get_header_value("Content-Type"), "image/png");
     EXPECT_EQ(fig->body.substr(0, 8), std::string("\x89PNG\r\n\x1a\n", 8));
     EXPECT_TRUE(fs::exists(ts.data() / "jobs" / id / "figure-energy.png"));
+    // The same figure as SVG (no GL): text, served and cached apart from the PNG.
+    auto svg = c->Get("/v1/jobs/" + id + "/figure?kind=energy&format=svg");
+    ASSERT_TRUE(svg);
+    EXPECT_EQ(svg->status, 200) << svg->body;
+    EXPECT_EQ(svg->get_header_value("Content-Type"), "image/svg+xml");
+    EXPECT_THAT(svg->body, ::testing::HasSubstr("<svg"));
+    EXPECT_THAT(svg->body, ::testing::HasSubstr("</svg>"));
+    EXPECT_TRUE(fs::exists(ts.data() / "jobs" / id / "figure-energy.svg"));
+    EXPECT_EQ(c->Get("/v1/jobs/" + id + "/figure?kind=energy&format=svg")->body, svg->body) << "served again from the cache";
   } else {
     EXPECT_EQ(fig->status, 501) << fig->body;
   }
   EXPECT_EQ(c->Get("/v1/jobs/" + id + "/figure?kind=nope")->status, 400);
+  // A query parameter the endpoint does not read is a 400 that names it, never silently ignored.
+  auto gif = c->Get("/v1/jobs/" + id + "/figure?format=gif");
+  EXPECT_EQ(gif->status, 400);
+  EXPECT_THAT(gif->body, ::testing::HasSubstr("'format' must be png or svg"));
+  auto typo = c->Get("/v1/jobs/" + id + "/figure?knd=energy");
+  EXPECT_EQ(typo->status, 400);
+  EXPECT_THAT(typo->body, ::testing::HasSubstr("unknown query parameter 'knd'"));
+  EXPECT_THAT(typo->body, ::testing::HasSubstr("(it takes kind, width, height, format)"));
+  auto report_param = c->Get("/v1/jobs/" + id + "/report?format=csv");
+  EXPECT_EQ(report_param->status, 400);
+  EXPECT_THAT(report_param->body, ::testing::HasSubstr("unknown query parameter 'format'"));
+  EXPECT_THAT(report_param->body, ::testing::HasSubstr("(it takes none)"));
 }
 
 TEST(ServerApi, ShippedScenesByNameWithOverrides) {

@@ -22,8 +22,16 @@ bool is_figure_kind(std::string_view kind) { return kind == "state" || kind == "
 
 bool figures_available() { return true; }
 
-std::vector<std::uint8_t> figure_png(std::string_view kind, std::string_view csv, std::optional<double> converged_time, int width,
-                                     int height, const std::string& title) {
+namespace {
+std::string encode(const render::Figure& fig, FigureFormat format) {
+  if (format == FigureFormat::kSvg) return render::render_svg(fig);
+  const std::vector<std::uint8_t> png = render::render_png_bytes(fig);
+  return std::string(png.begin(), png.end());
+}
+}  // namespace
+
+std::string figure_image(std::string_view kind, std::string_view csv, std::optional<double> converged_time, int width, int height,
+                         const std::string& title, FigureFormat format) {
   // The stored CSV, read in place (no copy of what may be hundreds of megabytes).
   struct ViewBuffer : std::streambuf {
     explicit ViewBuffer(std::string_view s) {
@@ -49,28 +57,28 @@ std::vector<std::uint8_t> figure_png(std::string_view kind, std::string_view csv
     fig = render::phase_figure(data, opt);
   else
     throw std::runtime_error("unknown figure kind (expected state, energy, step or phase)");
-  return render::render_png_bytes(fig);
+  return encode(fig, format);
 }
 
-std::vector<std::uint8_t> study_figure_png(std::string_view kind, const std::string& result_json, int width, int height) {
+std::string study_figure_image(std::string_view kind, const std::string& result_json, int width, int height, FigureFormat format) {
   const nlohmann::json j = nlohmann::json::parse(result_json, nullptr, false);
   if (j.is_discarded()) throw std::runtime_error("the stored study result is not valid JSON");
   const scene::StudyResult result = scene::StudyResult::from_json(j);
   render::FigureOptions opt;
   opt.width_px = width;
   opt.height_px = height;
-  return render::render_png_bytes(scene::study_figure(std::string(kind), result, opt));
+  return encode(scene::study_figure(std::string(kind), result, opt), format);
 }
 
 #else
 
 bool figures_available() { return false; }
 
-std::vector<std::uint8_t> study_figure_png(std::string_view, const std::string&, int, int) {
+std::string study_figure_image(std::string_view, const std::string&, int, int, FigureFormat) {
   throw std::runtime_error("this server was built without render/: figures are not available");
 }
 
-std::vector<std::uint8_t> figure_png(std::string_view, std::string_view, std::optional<double>, int, int, const std::string&) {
+std::string figure_image(std::string_view, std::string_view, std::optional<double>, int, int, const std::string&, FigureFormat) {
   throw std::runtime_error("this server was built without render/: figures are not available");
 }
 

@@ -2,11 +2,9 @@
 // `moreau run --figure`), and of a finished study, from its table.
 #pragma once
 
-#include <cstdint>
 #include <optional>
 #include <string>
 #include <string_view>
-#include <vector>
 
 namespace moreau::server {
 
@@ -16,13 +14,16 @@ bool figures_available();
 // Whether `kind` is one of state, energy, step, phase.
 bool is_figure_kind(std::string_view kind);
 
-// The PNG of figure `kind` for the trajectory CSV. Throws std::runtime_error (or render's FigureError)
-// with a clear message.
-std::vector<std::uint8_t> figure_png(std::string_view kind, std::string_view csv, std::optional<double> converged_time, int width,
-                                     int height, const std::string& title);
+// PNG (drawn through OSMesa) or SVG (text, no GL).
+enum class FigureFormat { kPng, kSvg };
 
-// The PNG of a study's "work" or "order" figure, from its stored result.json (as `moreau study --work` /
-// `--order` draw them). Throws std::runtime_error or std::invalid_argument with a clear message.
-std::vector<std::uint8_t> study_figure_png(std::string_view kind, const std::string& result_json, int width, int height);
+// The image of figure `kind` for the trajectory CSV, as bytes. Throws std::runtime_error (or render's
+// FigureError) with a clear message.
+std::string figure_image(std::string_view kind, std::string_view csv, std::optional<double> converged_time, int width, int height,
+                         const std::string& title, FigureFormat format);
+
+// The image of a study's "work" or "order" figure, from its stored result.json (as `moreau study --work`
+// / `--order` draw them). Throws std::runtime_error or std::invalid_argument with a clear message.
+std::string study_figure_image(std::string_view kind, const std::string& result_json, int width, int height, FigureFormat format);
 
 }  // namespace moreau::server

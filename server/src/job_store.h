@@ -11,7 +11,7 @@
 //   DATA/jobs/<id>/study.json      the study settings
 //   DATA/jobs/<id>/table.csv       the table (as `moreau study --csv` writes it)
 //   DATA/jobs/<id>/result.json     the table, orders and reference (as `moreau study --json` prints it)
-//   DATA/jobs/<id>/figure-work.png, figure-order.png  drawn on first request
+//   DATA/jobs/<id>/figure-work.png, figure-order.png (and .svg)  drawn on first request
 //
 // trajectory.csv and report.json are written to temporary files when the run ends; an I/O thread then
 // fsyncs and renames them (report.json last: it commits the job) and only then marks the job final, so

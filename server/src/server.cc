@@ -92,30 +92,58 @@ bool constant_time_equal(const std::string& given, const std::string& secret) {
   return diff == 0;
 }
 
-// Every path the API serves and the methods it takes (docs/api.md, the routes registered in
-// Impl::setup_routes()): the Allow header of a 405 and of an OPTIONS answer. HEAD is served wherever GET is.
+// Every path the API serves, the methods it takes and the query parameters it reads (docs/api.md, the
+// routes registered in Impl::setup_routes()): the Allow header of a 405 and of an OPTIONS answer, and the
+// 400 for a query parameter the path does not read. HEAD is served wherever GET is.
 // ServerApi.WrongMethodIs405WithAllowAndOptionsAnswers checks this table against the routes.
-const char* allowed_methods(const std::string& path) {
-  struct Route {
-    std::regex pattern;
-    const char* allow;
-  };
-  static const Route routes[] = {
-      {std::regex("/healthz"), "GET, HEAD, OPTIONS"},
-      {std::regex("/metrics"), "GET, HEAD, OPTIONS"},
-      {std::regex("/v1/scenes"), "GET, HEAD, OPTIONS"},
-      {std::regex("/v1/scenes/[^/]+"), "GET, HEAD, OPTIONS"},
-      {std::regex("/v1/jobs"), "GET, HEAD, POST, OPTIONS"},
-      {std::regex("/v1/jobs/[^/]+"), "GET, HEAD, DELETE, OPTIONS"},
-      {std::regex("/v1/jobs/[^/]+/(events|report|trajectory|figure)"), "GET, HEAD, OPTIONS"},
-      {std::regex("/v1/studies"), "GET, HEAD, POST, OPTIONS"},
-      {std::regex("/v1/studies/[^/]+"), "GET, HEAD, DELETE, OPTIONS"},
-      {std::regex("/v1/studies/[^/]+/(events|table|figure)"), "GET, HEAD, OPTIONS"},
+struct RouteInfo {
+  std::regex pattern;
+  const char* allow;
+  std::vector<std::string> params;
+};
+
+const RouteInfo* route_for(const std::string& path) {
+  static const std::vector<std::string> kNone, kList = {"state", "limit"}, kWait = {"wait"},
+                                               kFigure = {"kind", "width", "height", "format"};
+  static const RouteInfo routes[] = {
+      {std::regex("/healthz"), "GET, HEAD, OPTIONS", kNone},
+      {std::regex("/metrics"), "GET, HEAD, OPTIONS", kNone},
+      {std::regex("/v1/scenes"), "GET, HEAD, OPTIONS", kNone},
+      {std::regex("/v1/scenes/[^/]+"), "GET, HEAD, OPTIONS", kNone},
+      {std::regex("/v1/jobs"), "GET, HEAD, POST, OPTIONS", kList},
+      {std::regex("/v1/jobs/[^/]+"), "GET, HEAD, DELETE, OPTIONS", kWait},
+      {std::regex("/v1/jobs/[^/]+/(events|report)"), "GET, HEAD, OPTIONS", kNone},
+      {std::regex("/v1/jobs/[^/]+/trajectory"), "GET, HEAD, OPTIONS", {"format", "from", "to", "every"}},
+      {std::regex("/v1/jobs/[^/]+/figure"), "GET, HEAD, OPTIONS", kFigure},
+      {std::regex("/v1/studies"), "GET, HEAD, POST, OPTIONS", kList},
+      {std::regex("/v1/studies/[^/]+"), "GET, HEAD, DELETE, OPTIONS", kWait},
+      {std::regex("/v1/studies/[^/]+/events"), "GET, HEAD, OPTIONS", kNone},
+      {std::regex("/v1/studies/[^/]+/table"), "GET, HEAD, OPTIONS", {"format"}},
+      {std::regex("/v1/studies/[^/]+/figure"), "GET, HEAD, OPTIONS", kFigure},
   };
   if (path.size() > 256) return nullptr;  // no route is that long; bounds the regex work
-  for (const Route& r : routes)
-    if (std::regex_match(path, r.pattern)) return r.allow;
+  for (const RouteInfo& r : routes)
+    if (std::regex_match(path, r.pattern)) return &r;
   return nullptr;
+}
+
+const char* allowed_methods(const std::string& path) {
+  const RouteInfo* r = route_for(path);
+  return r ? r->allow : nullptr;
+}
+
+// The first query parameter of the request that its path does not read, with why, or "" if none.
+std::string unknown_query_parameter(const Request& req) {
+  const RouteInfo* r = route_for(req.path);
+  if (!r) return "";
+  for (const auto& [name, value] : req.params) {
+    if (std::find(r->params.begin(), r->params.end(), name) != r->params.end()) continue;
+    std::string takes;
+    for (const std::string& p : r->params) takes += (takes.empty() ? "" : ", ") + p;
+    return "unknown query parameter '" + name.substr(0, 64) + "' on " + req.path.substr(0, 256) +
+           (takes.empty() ? " (it takes none)" : " (it takes " + takes + ")");
+  }
+  return "";
 }
 
 // 405 for a path that exists under other methods, with the Allow header (RFC 9110 15.5.6).
@@ -412,38 +440,53 @@ class Server::Impl {
     std::lock_guard lock(job.mu);
     return job.*what && is_final(job.state);
   }
-  // The requested figure size (width, height: 64 to 4096, default 1200x800, at most --max-figure-pixels
-  // in all), or nullopt after answering 501 (no render/ in this build) or 400.
-  std::optional<std::pair<int, int>> figure_size(const Request& req, Response& res) const {
+  struct FigureRequest {
+    std::pair<int, int> size{kDefaultFigureWidth, kDefaultFigureHeight};
+    FigureFormat format = FigureFormat::kPng;
+  };
+  // The requested figure: size (width, height: 64 to 4096, default 1200x800, at most --max-figure-pixels
+  // in all) and format (png, the default, or svg), or nullopt after answering 501 (no render/ in this
+  // build) or 400.
+  std::optional<FigureRequest> figure_request(const Request& req, Response& res) const {
     if (!figures_available()) {
       send_error(res, 501, "figures not available", "", "this server was built without render/ (no OSMesa)");
       return std::nullopt;
     }
-    std::pair<int, int> size{kDefaultFigureWidth, kDefaultFigureHeight};
+    FigureRequest f;
     try {
-      if (auto w = number_param(req, "width", 64, 4096)) size.first = static_cast<int>(*w);
-      if (auto h = number_param(req, "height", 64, 4096)) size.second = static_cast<int>(*h);
+      if (auto w = number_param(req, "width", 64, 4096)) f.size.first = static_cast<int>(*w);
+      if (auto h = number_param(req, "height", 64, 4096)) f.size.second = static_cast<int>(*h);
     } catch (const std::exception& e) {
       send_error(res, 400, "bad query", "", e.what());
       return std::nullopt;
     }
-    if (static_cast<std::int64_t>(size.first) * size.second > cfg_.max_figure_pixels) {
+    if (static_cast<std::int64_t>(f.size.first) * f.size.second > cfg_.max_figure_pixels) {
       send_error(res, 400, "bad query", "",
                  "a figure has at most " + std::to_string(cfg_.max_figure_pixels) + " pixels (width times height); asked for " +
-                     std::to_string(static_cast<std::int64_t>(size.first) * size.second));
+                     std::to_string(static_cast<std::int64_t>(f.size.first) * f.size.second));
       return std::nullopt;
     }
-    return size;
+    const std::string format = req.has_param("format") ? req.get_param_value("format") : "png";
+    if (format != "png" && format != "svg") {
+      send_error(res, 400, "bad query", "", "query parameter 'format' must be png or svg");
+      return std::nullopt;
+    }
+    f.format = format == "svg" ? FigureFormat::kSvg : FigureFormat::kPng;
+    return f;
   }
-  // Answers with a PNG drawn by `draw` (422 if it throws, 500 if a stored file is unreadable). At the default size it is read from, or
-  // written to, `cache`: a name from a fixed list, never from the request.
+  // Answers with the figure `draw` makes (422 if it throws, 500 if a stored file is unreadable). At the
+  // default size it is read from, or written to, `cache_stem` + ".png" or ".svg": a name from a fixed
+  // list, never from the request.
   template <class Draw>
-  void send_png(Response& res, const fs::path& cache, std::pair<int, int> size, Draw&& draw) {
-    const bool default_size = size == std::pair<int, int>{kDefaultFigureWidth, kDefaultFigureHeight};
+  void send_figure(Response& res, const fs::path& cache_stem, const FigureRequest& f, Draw&& draw) {
+    const bool svg = f.format == FigureFormat::kSvg;
+    const char* content_type = svg ? "image/svg+xml" : "image/png";
+    const fs::path cache = cache_stem.string() + (svg ? ".svg" : ".png");
+    const bool default_size = f.size == std::pair<int, int>{kDefaultFigureWidth, kDefaultFigureHeight};
     if (default_size) {
-      if (auto png = read_file(cache)) {
+      if (auto bytes = read_file(cache)) {
         res.status = 200;
-        return res.set_content(std::move(*png), "image/png");
+        return res.set_content(std::move(*bytes), content_type);
       }
     }
     // At most --figures-at-once are drawn at once (each holds its trajectory and a frame buffer).
@@ -451,9 +494,9 @@ class Server::Impl {
       res.set_header("Retry-After", "1");
       return send_error(res, 503, "figures busy", "", "every figure slot stayed busy for 30 s; retry");
     }
-    std::vector<std::uint8_t> png;
+    std::string bytes;
     try {
-      png = draw();
+      bytes = draw();
     } catch (const StoredFileUnreadable& e) {
       drawing_.give_back();
       return send_error(res, 500, e.error);
@@ -465,7 +508,6 @@ class Server::Impl {
       return send_error(res, 422, "cannot draw this figure", "", e.what());
     }
     drawing_.give_back();
-    std::string bytes(png.begin(), png.end());
     if (default_size) {
       try {
         write_file_atomic(cache, bytes, Durability::kFsync);
@@ -474,7 +516,7 @@ class Server::Impl {
       }
     }
     res.status = 200;
-    res.set_content(std::move(bytes), "image/png");
+    res.set_content(std::move(bytes), content_type);
   }
 
   // The committed report of a run (report.json) or result of a study (result.json).
@@ -764,6 +806,13 @@ bool Server::Impl::screen(const Request& req, Response& res) {
       return true;
     }
     return refuse(404, "not found", "see docs/api.md for the endpoints");
+  }
+  // A query parameter the path does not read is refused, not ignored (format=svg on a server that only
+  // drew PNG returned a PNG).
+  if (const std::string why = unknown_query_parameter(req); !why.empty()) {
+    if (has_body) close_connection_after(res);
+    send_error(res, 400, "bad query", "", why);
+    return true;
   }
   // OPTIONS: which methods a path takes, without a body.
   if (req.method == "OPTIONS") {
@@ -1153,16 +1202,16 @@ void Server::Impl::job_figure(const Request& req, Response& res) {
   if (!job) return;
   const std::string kind = req.has_param("kind") ? req.get_param_value("kind") : "state";
   if (!is_figure_kind(kind)) return send_error(res, 400, "bad query", "", "kind must be state, energy, step or phase");
-  const auto size = figure_size(req, res);
-  if (!size) return;
+  const auto figure = figure_request(req, res);
+  if (!figure) return;
   if (!final_with(*job, &Job::has_trajectory)) {
     return send_error(res, 409, "no trajectory yet", "",
                       std::string("the job is ") + to_string(state_of(*job)) + "; figures are drawn once it has finished");
   }
   if (is_deleted(*job)) return send_deleted(res);
   static const std::map<std::string, std::string> kFiles = {
-      {"state", "figure-state.png"}, {"energy", "figure-energy.png"}, {"step", "figure-step.png"}, {"phase", "figure-phase.png"}};
-  send_png(res, job->dir / kFiles.at(kind), *size, [&] {
+      {"state", "figure-state"}, {"energy", "figure-energy"}, {"step", "figure-step"}, {"phase", "figure-phase"}};
+  send_figure(res, job->dir / kFiles.at(kind), *figure, [&] {
     std::error_code size_ec;
     const auto bytes = fs::file_size(job->dir / "trajectory.csv", size_ec);
     if (!size_ec && static_cast<std::int64_t>(bytes) > cfg_.max_figure_source_bytes) {
@@ -1179,7 +1228,8 @@ void Server::Impl::job_figure(const Request& req, Response& res) {
       if (report->contains("converged_time") && (*report)["converged_time"].is_number())
         converged = (*report)["converged_time"].get<double>();
     }
-    return figure_png(kind, *csv, converged, size->first, size->second, job->scene_name + " (" + job->id.substr(0, 8) + ")");
+    return figure_image(kind, *csv, converged, figure->size.first, figure->size.second,
+                        job->scene_name + " (" + job->id.substr(0, 8) + ")", figure->format);
   });
 }
 
@@ -1205,18 +1255,18 @@ void Server::Impl::study_figure(const Request& req, Response& res) {
   if (!job) return;
   const std::string kind = req.has_param("kind") ? req.get_param_value("kind") : "work";
   if (kind != "work" && kind != "order") return send_error(res, 400, "bad query", "", "kind must be work or order");
-  const auto size = figure_size(req, res);
-  if (!size) return;
+  const auto figure = figure_request(req, res);
+  if (!figure) return;
   if (!final_with(*job, &Job::has_report)) {
     return send_error(res, 409, "no table yet", "",
                       std::string("the study is ") + to_string(state_of(*job)) + "; figures are drawn once it is done");
   }
-  send_png(res, job->dir / (kind == "work" ? "figure-work.png" : "figure-order.png"), *size, [&] {
+  send_figure(res, job->dir / (kind == "work" ? "figure-work" : "figure-order"), *figure, [&] {
     bool deleted = false;
     auto result = job_file(*job, &Job::has_report, "result.json", &deleted);
     if (deleted) throw JobDeleted{};
     if (!result) throw StoredFileUnreadable{"stored study result unreadable"};
-    return study_figure_png(kind, *result, size->first, size->second);
+    return study_figure_image(kind, *result, figure->size.first, figure->size.second, figure->format);
   });
 }
 
