@@ -109,6 +109,28 @@ TEST(ServerStudy, TableEqualsTheLibraryStudyAndFiguresAreDrawn) {
   ASSERT_EQ(small->status, 200);
   EXPECT_EQ(png_size(small->body), std::make_pair(640u, 400u));
 
+  auto svg = c->Get("/v1/studies/" + id + "/figure?kind=work&format=svg");
+  ASSERT_EQ(svg->status, 200) << svg->body;
+  EXPECT_EQ(svg->get_header_value("Content-Type"), "image/svg+xml");
+  EXPECT_THAT(svg->body, ::testing::HasSubstr("<svg"));
+
+  // Every integration counts in /metrics: the study's runs are integration time (at least the sum of
+  // the rows' times) and steps.
+  const std::string metrics = c->Get("/metrics")->body;
+  const auto metric = [&](const std::string& name) {
+    const auto at = metrics.find("\n" + name + " ");
+    EXPECT_NE(at, std::string::npos) << name;
+    return at == std::string::npos ? -1.0 : std::stod(metrics.substr(at + name.size() + 2));
+  };
+  double rows_seconds = 0.0;
+  std::int64_t rows_steps = 0;
+  for (const json& row : served["rows"]) {
+    rows_seconds += row["wall_seconds"].get<double>();
+    rows_steps += row["steps"].get<std::int64_t>();
+  }
+  EXPECT_GE(metric("moreau_integrate_seconds_total"), rows_seconds);
+  EXPECT_EQ(metric("moreau_steps_total"), static_cast<double>(rows_steps));
+
   // Studies and jobs are listed apart; a study id is not a job.
   const json studies = json::parse(c->Get("/v1/studies")->body);
   EXPECT_EQ(studies["count"], 1);

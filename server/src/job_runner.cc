@@ -347,8 +347,10 @@ void JobRunner::run_study(const std::shared_ptr<Job>& job, std::unique_ptr<Commi
   }
   job->study_scene.reset();
   if (result) {
-    // The table's steps count every run of the study.
+    // The table's steps count every run of the study, and its time is integration time too (the runs
+    // and the references they are measured against): /metrics' moreau_integrate_seconds_total.
     for (const auto& row : result->rows) commit->summary.steps += row.steps;
+    commit->integrate_seconds = result->wall_seconds;
     try {
       write_file(job->dir / "table.csv.tmp", result->to_csv());
       write_file(job->dir / "result.json.tmp", result->to_json().dump(2) + "\n");
