@@ -19,6 +19,7 @@
 
 #include <lcm/lcm-cpp.hpp>
 #include <moreau/job_event_t.hpp>
+#include <moreau/lcm_url.h>
 #include <moreau/state_t.hpp>
 
 #include "commands.h"
@@ -79,6 +80,10 @@ class Watcher {
   explicit Watcher(const WatchOptions& o) : o_(o), tty_(!o.plain && isatty(STDOUT_FILENO)) {}
 
   int run() {
+    if (const std::string why = lcm_url_problem(o_.lcm_url); !why.empty()) {
+      std::cerr << "moreau: cannot open LCM URL '" << o_.lcm_url << "': " << why << "\n";
+      return 2;
+    }
     lcm::LCM lc(o_.lcm_url);
     if (!lc.good()) {
       std::cerr << "moreau: cannot open LCM URL '" << o_.lcm_url << "'\n";

@@ -19,6 +19,7 @@
 
 #include <lcm/lcm-cpp.hpp>
 #include <moreau/job_event_t.hpp>
+#include <moreau/lcm_url.h>
 #include <moreau/state_t.hpp>
 
 namespace {
@@ -212,6 +213,37 @@ TEST(LcmStream, FileLogIsWrittenAndReadBack) {
   }
   check_stream(got, id, report, 1.0 / 64, 4.0);
   fs::remove_all(dir);
+}
+
+// A file:// log in a directory that does not exist, or a log to read that does not exist: the server
+// refuses to start and `moreau watch` exits 2, each saying which, not only LCM's "Failed to open".
+TEST(LcmStream, AFileUrlWithoutItsDirectoryOrFileSaysWhich) {
+  EXPECT_EQ(moreau::lcm_url_problem("file:///nonexistent-moreau-dir/x.log?mode=w"), "the directory /nonexistent-moreau-dir does not exist");
+  EXPECT_EQ(moreau::lcm_url_problem("file:///nonexistent-moreau-dir/x.log"), "the log file /nonexistent-moreau-dir/x.log does not exist");
+  EXPECT_EQ(moreau::lcm_url_problem("file:///tmp/x.log?speed=2&mode=a"), "");
+  EXPECT_EQ(moreau::lcm_url_problem("memq://"), "");
+  EXPECT_EQ(moreau::lcm_url_problem("udpm://239.255.76.67:7667?ttl=0"), "");
+  EXPECT_EQ(moreau::lcm_url_problem(""), "");
+
+  ServerConfig cfg;
+  cfg.lcm_url = "file:///nonexistent-moreau-dir/stream.log?mode=w";
+  try {
+    TestServer ts(cfg);
+    ADD_FAILURE() << "the server started with an LCM log it cannot write";
+  } catch (const std::exception& e) {
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("cannot open LCM URL 'file:///nonexistent-moreau-dir/stream.log?mode=w': the directory "
+                                               "/nonexistent-moreau-dir does not exist"));
+  }
+#ifdef MOREAU_CLIENT_BINARY
+  const std::string out_file = (make_temp_dir("watch-url") / "out").string();
+  const int rc =
+      std::system((std::string(MOREAU_CLIENT_BINARY) + " watch --lcm-url 'file:///nonexistent-moreau-dir/x.log' > " + out_file + " 2>&1").c_str());
+  std::ifstream f(out_file);
+  const std::string out((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(WEXITSTATUS(rc), 2) << out;
+  EXPECT_THAT(out, ::testing::HasSubstr("the log file /nonexistent-moreau-dir/x.log does not exist"));
+  fs::remove_all(fs::path(out_file).parent_path());
+#endif
 }
 
 TEST(LcmStream, RealtimeIsPacedAndStillCancelsQuickly) {
