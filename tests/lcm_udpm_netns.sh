@@ -30,6 +30,15 @@ cleanup() {
   wait 2>/dev/null || true
 }
 trap cleanup EXIT
+# Waits (at most 10 s) until a watch has written "listening on" to its output file $1: it has subscribed.
+wait_listening() {
+  i=0
+  until grep -q "listening on" "$1" 2>/dev/null; do
+    i=$((i + 1))
+    if [ $i -ge 200 ]; then echo "moreau watch did not start:"; cat "$1"; exit 1; fi
+    sleep 0.05
+  done
+}
 
 i=0
 until "$client" scenes >/dev/null 2>&1; do
@@ -40,12 +49,7 @@ done
 
 "$client" watch --lcm-url "$url" --log "$dir/watch.log" --until-finished --timeout 30 --plain >"$dir/watch.out" 2>&1 &
 watch_pid=$!
-i=0
-until grep -q "listening on" "$dir/watch.out" 2>/dev/null; do
-  i=$((i + 1))
-  if [ $i -ge 200 ]; then echo "moreau watch did not start:"; cat "$dir/watch.out"; exit 1; fi
-  sleep 0.05
-done
+wait_listening "$dir/watch.out"
 
 "$client" submit scenes/manipulator.json --set integrator.t_end=1.5 --stream --realtime --wait --json >"$dir/report.json"
 wait "$watch_pid"
@@ -55,12 +59,7 @@ echo "watch:"; cat "$dir/watch.out"
 # Ctrl-C ends a watch normally: exit status 0 and a one-line summary (DIR/interrupt.out, .rc).
 "$client" watch --lcm-url "$url" --plain >"$dir/interrupt.out" 2>&1 &
 watch_pid=$!
-i=0
-until grep -q "listening on" "$dir/interrupt.out" 2>/dev/null; do
-  i=$((i + 1))
-  if [ $i -ge 200 ]; then echo "moreau watch did not start:"; cat "$dir/interrupt.out"; exit 1; fi
-  sleep 0.05
-done
+wait_listening "$dir/interrupt.out"
 kill -INT "$watch_pid"
 rc=0
 wait "$watch_pid" || rc=$?
