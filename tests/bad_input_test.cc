@@ -476,28 +476,32 @@ std::vector<Case> cases() {
   t.push_back(get("TrajectoryFormatXml", "/v1/jobs/{id}/trajectory?format=xml", 400, "format must be json or csv"));
 
   // Job ids: unknown, malformed, path traversal (plain and percent-encoded), and scene names.
-  t.push_back(get("UnknownJobId", "/v1/jobs/0123456789abcdef0123456789abcdef", 404, "no such job"));
-  t.push_back(get("UppercaseJobId", "/v1/jobs/0123456789ABCDEF0123456789ABCDEF/report", 404, "no such job"));
+  t.push_back(get("UnknownJobId", "/v1/jobs/0123456789abcdef0123456789abcdef", 404,
+                  "no job 0123456789abcdef0123456789abcdef on this server"));
+  t.push_back(get("UppercaseJobId", "/v1/jobs/0123456789ABCDEF0123456789ABCDEF/report", 404,
+                  "'0123456789ABCDEF0123456789ABCDEF' is not a job id: job ids are 32 lowercase hex digits"));
   t.push_back(get("JobIdTooLong", "/v1/jobs/{id}0/trajectory", 404, "no such job"));
   t.push_back(get("JobIdWithEncodedNul", "/v1/jobs/{id}%00", 404, "no such job"));
   t.push_back(get("JobIdPathTraversal", "/v1/jobs/../../etc/passwd", 404, "not found"));
   t.push_back(get("JobIdEncodedTraversal", "/v1/jobs/..%2F..%2Fetc%2Fpasswd", 404, "not found"));
   t.push_back(get("JobIdEncodedDotDot", "/v1/jobs/%2e%2e/report", 404, "no such job"));
+  t.push_back(get("UnknownStudyId", "/v1/studies/0123456789abcdef0123456789abcdef/table", 404,
+                  "no study 0123456789abcdef0123456789abcdef on this server"));
   t.push_back({"DeleteUnknownJob", "DELETE", "/v1/jobs/0123456789abcdef0123456789abcdef", std::nullopt, "", 404, "", "no such job"});
   t.push_back(get("EventsOfDotDot", "/v1/jobs/../events", 404, "no such job"));
   t.push_back(get("SceneEncodedTraversal", "/v1/scenes/..%2F..%2Fetc%2Fpasswd", 404, "not found"));
-  t.push_back(get("UnknownSceneName", "/v1/scenes/no-such-scene", 404, "no such scene"));
+  t.push_back(get("UnknownSceneName", "/v1/scenes/no-such-scene", 404, "no shipped scene 'no-such-scene'"));
 
   // Unknown endpoints and wrong methods.
-  t.push_back(get("UnknownEndpoint", "/v1/nothing", 404, "not found"));
+  t.push_back(get("UnknownEndpoint", "/v1/nothing", 404, "no endpoint GET /v1/nothing"));
   t.push_back(get("Root", "/", 404, "not found"));
   t.push_back({"PutJobs", "PUT", "/v1/jobs", kJson, valid, 405, "", "method not allowed"});
   t.push_back({"PatchJob", "PATCH", "/v1/jobs/{id}", kJson, "{}", 405, "", "method not allowed"});
   t.push_back({"PostHealthz", "POST", "/healthz", kJson, "{}", 405, "", "method not allowed"});
   t.push_back({"PostJobReport", "POST", "/v1/jobs/{id}/report", kJson, "{}", 405, "", "method not allowed"});
   t.push_back({"DeleteScenes", "DELETE", "/v1/scenes", std::nullopt, "", 405, "", "method not allowed"});
-  t.push_back({"PutUnknownEndpoint", "PUT", "/v1/nothing", kJson, "{}", 404, "", "not found"});
-  t.push_back({"OptionsUnknownEndpoint", "OPTIONS", "/v1/nothing", std::nullopt, "", 404, "", "not found"});
+  t.push_back({"PutUnknownEndpoint", "PUT", "/v1/nothing", kJson, "{}", 404, "", "no endpoint PUT /v1/nothing"});
+  t.push_back({"OptionsUnknownEndpoint", "OPTIONS", "/v1/nothing", std::nullopt, "", 404, "", "no endpoint OPTIONS /v1/nothing"});
   t.push_back({"UnknownMethod", "BREW", "/v1/jobs", std::nullopt, "", 400, "", "bad request"});
   return t;
 }

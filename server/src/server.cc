@@ -152,6 +152,11 @@ void send_method_not_allowed(Response& res, const std::string& method, const std
   send_error(res, 405, "method not allowed", "", method + " is not allowed on " + path + "; allowed: " + allow);
 }
 
+// The reason of a 404 for a path no endpoint serves: the method and path asked for (bounded).
+std::string no_endpoint(const Request& req) {
+  return "no endpoint " + req.method.substr(0, 16) + " " + req.path.substr(0, 256) + "; see docs/api.md for the endpoints";
+}
+
 bool is_loopback(const std::string& host) { return host == "localhost" || host == "::1" || host.rfind("127.", 0) == 0; }
 
 std::string fmt_g(double v) {
@@ -379,10 +384,13 @@ class Server::Impl {
     if (job && job->kind != kind) job = nullptr;
     if (job && is_deleted(*job)) job = nullptr;
     if (!job) {
-      if (kind == JobKind::kStudy)
-        send_error(res, 404, "no such study", "", "study ids are 32 lowercase hex digits, as POST /v1/studies returns them");
-      else
-        send_error(res, 404, "no such job", "", "job ids are 32 lowercase hex digits, as POST /v1/jobs returns them");
+      // Says which id was not found, or why it cannot be an id (quoted, bounded; JSON escapes it).
+      const char* what = kind == JobKind::kStudy ? "study" : "job";
+      const std::string post = kind == JobKind::kStudy ? "POST /v1/studies" : "POST /v1/jobs";
+      send_error(res, 404, std::string("no such ") + what, "",
+                 is_job_id(id) ? std::string("no ") + what + " " + id + " on this server (finished ones beyond --keep-jobs are deleted)"
+                               : "'" + id.substr(0, 64) + "' is not a " + what + " id: " + what +
+                                     " ids are 32 lowercase hex digits, as " + post + " returns them");
     }
     return job;
   }
@@ -599,7 +607,7 @@ void Server::Impl::setup_routes() {
       if (const char* allow = allowed_methods(req.path)) return send_method_not_allowed(res, req.method, req.path, allow);
     }
     switch (res.status) {
-      case 404: send_error(res, 404, "not found", "", "see docs/api.md for the endpoints"); break;
+      case 404: send_error(res, 404, "not found", "", no_endpoint(req)); break;
       case 413: body_too_large(res); break;
       case 400: send_error(res, 400, "bad request"); break;
       default: send_error(res, res.status, "error " + std::to_string(res.status)); break;
@@ -651,7 +659,7 @@ void Server::Impl::setup_routes() {
   http_.Post(".*", [this](const Request& req, Response& res, const httplib::ContentReader&) {
     close_connection_after(res);
     if (const char* allow = allowed_methods(req.path)) return send_method_not_allowed(res, req.method, req.path, allow);
-    send_error(res, 404, "not found", "", "see docs/api.md for the endpoints");
+    send_error(res, 404, "not found", "", no_endpoint(req));
   });
   http_.Get("/v1/studies", [this](const Request& req, Response& res) { list_jobs(req, res, JobKind::kStudy); });
   http_.Get(R"(/v1/studies/([^/]+))", [this](const Request& req, Response& res) { get_job(req, res, JobKind::kStudy); });
@@ -805,7 +813,7 @@ bool Server::Impl::screen(const Request& req, Response& res) {
       send_method_not_allowed(res, req.method, req.path, allow);
       return true;
     }
-    return refuse(404, "not found", "see docs/api.md for the endpoints");
+    return refuse(404, "not found", no_endpoint(req));
   }
   // A query parameter the path does not read is refused, not ignored (format=svg on a server that only
   // drew PNG returned a PNG).
@@ -818,7 +826,7 @@ bool Server::Impl::screen(const Request& req, Response& res) {
   if (req.method == "OPTIONS") {
     if (has_body) return refuse(400, "unexpected body", "OPTIONS requests take no body");
     const char* allow = allowed_methods(req.path);
-    if (!allow) return refuse(404, "not found", "see docs/api.md for the endpoints");
+    if (!allow) return refuse(404, "not found", no_endpoint(req));
     res.status = 204;
     res.set_header("Allow", allow);
     return true;
@@ -1289,7 +1297,8 @@ void Server::Impl::list_scenes(const Request&, Response& res) {
 void Server::Impl::get_scene(const Request& req, Response& res) {
   const auto files = scene_files();
   auto it = files.find(req.matches[1].str());
-  if (it == files.end()) return send_error(res, 404, "no such scene", "", "GET /v1/scenes lists the shipped scenes");
+  if (it == files.end())
+    return send_error(res, 404, "no such scene", "", "no shipped scene '" + req.matches[1].str().substr(0, 64) + "'; GET /v1/scenes lists them");
   auto text = read_file(it->second);
   if (!text) return send_error(res, 500, "scene unreadable");
   res.status = 200;
