@@ -1,0 +1,252 @@
+// Rigid-body algorithms of rigid_body.h. Pluecker vectors in the base frame at the base origin, angular
+// part first: a motion V = (w, u) (u: velocity of the body point at the origin), a force f = (n, f).
+#include "moreau/core/rigid_body.h"
+
+#include <Eigen/Geometry>
+
+namespace moreau {
+namespace {
+
+Eigen::Vector3d top(const Vector6d& x) { return x.head<3>(); }
+Eigen::Vector3d bottom(const Vector6d& x) { return x.tail<3>(); }
+
+Vector6d pack(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  Vector6d x;
+  x << a, b;
+  return x;
+}
+
+// V x S (motion cross product): (w x s, w x s_u + u x s).
+Vector6d cross_motion(const Vector6d& V, const Vector6d& S) {
+  const Eigen::Vector3d w = top(V), u = bottom(V), s = top(S), su = bottom(S);
+  return pack(w.cross(s), w.cross(su) + u.cross(s));
+}
+
+// V x* f (force cross product): (w x n + u x f, w x f).
+Vector6d cross_force(const Vector6d& V, const Vector6d& f) {
+  const Eigen::Vector3d w = top(V), u = bottom(V), n = top(f), fl = bottom(f);
+  return pack(w.cross(n) + u.cross(fl), w.cross(fl));
+}
+
+// The spatial inertia (m, h = m c, Ibar = rotational inertia about the origin) times a motion:
+// (Ibar s + h x s_u, m s_u - h x s).
+Vector6d inertia_times(double m, const Eigen::Vector3d& h, const Eigen::Matrix3d& Ibar, const Vector6d& S) {
+  const Eigen::Vector3d s = top(S), su = bottom(S);
+  return pack(Ibar * s + h.cross(su), m * su - h.cross(s));
+}
+
+// The 6 x 6 matrix of that spatial inertia.
+Matrix6d inertia_matrix(double m, const Eigen::Vector3d& h, const Eigen::Matrix3d& Ibar) {
+  Eigen::Matrix3d hx;
+  hx << 0.0, -h.z(), h.y(), h.z(), 0.0, -h.x(), -h.y(), h.x(), 0.0;
+  Matrix6d I;
+  I << Ibar, hx, hx.transpose(), m * Eigen::Matrix3d::Identity();
+  return I;
+}
+
+// Body i's own inertia in the base frame: mass, first moment m c and rotational inertia about the origin
+// (the parallel-axis theorem: I_com + m (|c|^2 E - c c^T)).
+void world_inertia(const RigidBody& body, const Eigen::Matrix3d& R, const Eigen::Vector3d& p, double& m, Eigen::Vector3d& h,
+                   Eigen::Matrix3d& Ibar) {
+  const RigidBodyInertia& in = body.inertia;
+  m = in.mass_kg;
+  const Eigen::Vector3d c = p + R * in.com_m;
+  h = m * c;
+  Ibar = R * in.inertia_com_kg_m2 * R.transpose();
+  Ibar += m * (c.squaredNorm() * Eigen::Matrix3d::Identity() - c * c.transpose());
+}
+
+// Poses only (V and dS/dt untouched).
+void update_poses(const RigidBodyModel& model, RigidBodyData& data, const double* q) {
+  const int n = model.dof();
+  for (int j = 0; j < n; ++j) {
+    const RigidBody& b = model.bodies[static_cast<std::size_t>(j)];
+    Eigen::Matrix3d R0;
+    Eigen::Vector3d p0;
+    if (b.parent < 0) {
+      R0 = b.rotation_in_parent;
+      p0 = b.position_in_parent_m;
+    } else {
+      const Eigen::Matrix3d& Rp = data.rotation[static_cast<std::size_t>(b.parent)];
+      R0.noalias() = Rp * b.rotation_in_parent;
+      p0 = data.position[static_cast<std::size_t>(b.parent)] + Rp * b.position_in_parent_m;
+    }
+    const Eigen::Vector3d axis = R0 * b.axis;  // the joint axis in the base frame
+    if (b.joint == JointType::kRevolute) {
+      data.rotation[static_cast<std::size_t>(j)].noalias() = R0 * Eigen::AngleAxisd(q[j], b.axis).toRotationMatrix();
+      data.position[static_cast<std::size_t>(j)] = p0;
+      data.S[static_cast<std::size_t>(j)] = pack(axis, p0.cross(axis));  // rotation about the line through p0
+    } else {
+      data.rotation[static_cast<std::size_t>(j)] = R0;
+      data.position[static_cast<std::size_t>(j)] = p0 + q[j] * axis;
+      data.S[static_cast<std::size_t>(j)] = pack(Eigen::Vector3d::Zero(), axis);
+    }
+  }
+}
+
+// Composite mass, first moment and rotational inertia of every subtree (children have higher indices).
+void composite_inertias(const RigidBodyModel& model, RigidBodyData& data) {
+  const int n = model.dof();
+  for (int j = 0; j < n; ++j)
+    world_inertia(model.bodies[static_cast<std::size_t>(j)], data.rotation[static_cast<std::size_t>(j)],
+                  data.position[static_cast<std::size_t>(j)], data.mass[static_cast<std::size_t>(j)],
+                  data.first_moment[static_cast<std::size_t>(j)], data.rotational[static_cast<std::size_t>(j)]);
+  for (int j = n - 1; j >= 0; --j) {
+    const int p = model.bodies[static_cast<std::size_t>(j)].parent;
+    if (p < 0) continue;
+    data.mass[static_cast<std::size_t>(p)] += data.mass[static_cast<std::size_t>(j)];
+    data.first_moment[static_cast<std::size_t>(p)] += data.first_moment[static_cast<std::size_t>(j)];
+    data.rotational[static_cast<std::size_t>(p)] += data.rotational[static_cast<std::size_t>(j)];
+  }
+}
+
+// G_j = -S_j^T (hc_j x g, mc_j g), from the composite mass and first moment.
+void gravity_from_composites(const RigidBodyModel& model, const RigidBodyData& data, Eigen::Ref<Eigen::VectorXd> G) {
+  const Eigen::Vector3d& g = model.gravity_m_s2;
+  for (int j = 0; j < model.dof(); ++j) {
+    const std::size_t k = static_cast<std::size_t>(j);
+    const Vector6d f = pack(data.first_moment[k].cross(g), data.mass[k] * g);
+    G(j) = -data.S[k].dot(f);
+  }
+}
+
+}  // namespace
+
+RigidBodyData::RigidBodyData(const RigidBodyModel& model) {
+  const std::size_t n = static_cast<std::size_t>(model.dof());
+  rotation.assign(n, Eigen::Matrix3d::Identity());
+  position.assign(n, Eigen::Vector3d::Zero());
+  S.assign(n, Vector6d::Zero());
+  S_dot.assign(n, Vector6d::Zero());
+  V.assign(n, Vector6d::Zero());
+  mass.assign(n, 0.0);
+  first_moment.assign(n, Eigen::Vector3d::Zero());
+  rotational.assign(n, Eigen::Matrix3d::Zero());
+  momentum.assign(n, Vector6d::Zero());
+  A.assign(n, Matrix6d::Zero());
+  F.assign(n, Vector6d::Zero());
+}
+
+void update_kinematics(const RigidBodyModel& model, RigidBodyData& data, const double* q, const double* v) {
+  update_poses(model, data, q);
+  for (int j = 0; j < model.dof(); ++j) {
+    const std::size_t k = static_cast<std::size_t>(j);
+    const int p = model.bodies[k].parent;
+    const Vector6d parent_v = p < 0 ? Vector6d::Zero() : data.V[static_cast<std::size_t>(p)];
+    data.V[k] = v ? Vector6d(parent_v + data.S[k] * v[j]) : Vector6d::Zero();
+    data.S_dot[k] = cross_motion(data.V[k], data.S[k]);  // S_j is fixed in body j: dS/dt = V_j x S_j
+  }
+}
+
+void mass_matrix(const RigidBodyModel& model, RigidBodyData& data, const double* q, Eigen::Ref<Eigen::MatrixXd> M) {
+  update_poses(model, data, q);
+  composite_inertias(model, data);
+  const int n = model.dof();
+  M.setZero();
+  for (int j = 0; j < n; ++j) {
+    const std::size_t k = static_cast<std::size_t>(j);
+    const Vector6d F2 = inertia_times(data.mass[k], data.first_moment[k], data.rotational[k], data.S[k]);
+    for (int a = j; a >= 0; a = model.bodies[static_cast<std::size_t>(a)].parent) {
+      const double value = data.S[static_cast<std::size_t>(a)].dot(F2);
+      M(a, j) = value;
+      M(j, a) = value;
+    }
+  }
+}
+
+void rigid_body_terms(const RigidBodyModel& model, RigidBodyData& data, const double* q, const double* v,
+                      Eigen::Ref<Eigen::MatrixXd> M, Eigen::Ref<Eigen::MatrixXd> C, Eigen::Ref<Eigen::VectorXd> G) {
+  update_kinematics(model, data, q, v);
+  const int n = model.dof();
+  // Each body's own inertia, momentum I_i V_i and A_i = (V_i x*) I_i; then the sums over subtrees.
+  for (int j = 0; j < n; ++j) {
+    const std::size_t k = static_cast<std::size_t>(j);
+    world_inertia(model.bodies[k], data.rotation[k], data.position[k], data.mass[k], data.first_moment[k], data.rotational[k]);
+    const Matrix6d I = inertia_matrix(data.mass[k], data.first_moment[k], data.rotational[k]);
+    data.momentum[k].noalias() = I * data.V[k];
+    for (int c = 0; c < 6; ++c) data.A[k].col(c) = cross_force(data.V[k], I.col(c));
+  }
+  for (int j = n - 1; j >= 0; --j) {
+    const std::size_t k = static_cast<std::size_t>(j);
+    const int p = model.bodies[k].parent;
+    if (p < 0) continue;
+    const std::size_t pk = static_cast<std::size_t>(p);
+    data.mass[pk] += data.mass[k];
+    data.first_moment[pk] += data.first_moment[k];
+    data.rotational[pk] += data.rotational[k];
+    data.momentum[pk] += data.momentum[k];
+    data.A[pk] += data.A[k];
+  }
+  M.setZero();
+  C.setZero();
+  for (int j = 0; j < n; ++j) {
+    const std::size_t k = static_cast<std::size_t>(j);
+    const Vector6d& S = data.S[k];
+    // Ic_j S_j, Bc_j S_j and Bc_j^T S_j with Bc = 1/2 (Ac + Ac^T + X(hc)), X(hc) S = S x* hc.
+    const Vector6d IS = inertia_times(data.mass[k], data.first_moment[k], data.rotational[k], S);
+    const Vector6d sym = data.A[k] * S + data.A[k].transpose() * S;
+    const Vector6d skew = cross_force(S, data.momentum[k]);
+    const Vector6d BS = 0.5 * (sym + skew);
+    const Vector6d BtS = 0.5 * (sym - skew);
+    const Vector6d F1 = inertia_times(data.mass[k], data.first_moment[k], data.rotational[k], data.S_dot[k]) + BS;
+    for (int a = j; a >= 0; a = model.bodies[static_cast<std::size_t>(a)].parent) {
+      const std::size_t ak = static_cast<std::size_t>(a);
+      const double m = data.S[ak].dot(IS);
+      M(a, j) = m;
+      M(j, a) = m;
+      C(a, j) = data.S[ak].dot(F1);
+      if (a != j) C(j, a) = IS.dot(data.S_dot[ak]) + BtS.dot(data.S[ak]);
+    }
+  }
+  gravity_from_composites(model, data, G);
+}
+
+void gravity_torque(const RigidBodyModel& model, RigidBodyData& data, const double* q, Eigen::Ref<Eigen::VectorXd> G) {
+  update_poses(model, data, q);
+  composite_inertias(model, data);
+  gravity_from_composites(model, data, G);
+}
+
+double potential_energy(const RigidBodyModel& model, RigidBodyData& data, const double* q) {
+  update_poses(model, data, q);
+  double V = 0.0;
+  for (int j = 0; j < model.dof(); ++j) {
+    const std::size_t k = static_cast<std::size_t>(j);
+    const RigidBodyInertia& in = model.bodies[k].inertia;
+    const Eigen::Vector3d c = data.position[k] + data.rotation[k] * in.com_m;
+    V -= in.mass_kg * model.gravity_m_s2.dot(c);
+  }
+  return V;
+}
+
+void inverse_dynamics(const RigidBodyModel& model, RigidBodyData& data, const double* q, const double* v, const double* a,
+                      bool with_gravity, Eigen::Ref<Eigen::VectorXd> tau) {
+  update_kinematics(model, data, q, v);
+  const int n = model.dof();
+  // Spatial accelerations: the base accelerates at -g, which puts gravity on every body.
+  const Vector6d base_acc = with_gravity ? pack(Eigen::Vector3d::Zero(), -model.gravity_m_s2) : Vector6d::Zero();
+  std::vector<Vector6d>& acc = data.F;  // accelerations first, then forces (same buffer, body by body)
+  for (int j = 0; j < n; ++j) {
+    const std::size_t k = static_cast<std::size_t>(j);
+    const int p = model.bodies[k].parent;
+    const Vector6d parent_acc = p < 0 ? base_acc : acc[static_cast<std::size_t>(p)];
+    acc[k] = parent_acc + data.S[k] * a[j] + data.S_dot[k] * v[j];
+  }
+  for (int j = 0; j < n; ++j) {
+    const std::size_t k = static_cast<std::size_t>(j);
+    double m;
+    Eigen::Vector3d h;
+    Eigen::Matrix3d Ibar;
+    world_inertia(model.bodies[k], data.rotation[k], data.position[k], m, h, Ibar);
+    const Vector6d IV = inertia_times(m, h, Ibar, data.V[k]);
+    data.F[k] = inertia_times(m, h, Ibar, acc[k]) + cross_force(data.V[k], IV);  // f_j = I a + V x* I V
+  }
+  for (int j = n - 1; j >= 0; --j) {
+    const std::size_t k = static_cast<std::size_t>(j);
+    tau(j) = data.S[k].dot(data.F[k]);
+    const int p = model.bodies[k].parent;
+    if (p >= 0) data.F[static_cast<std::size_t>(p)] += data.F[k];
+  }
+}
+
+}  // namespace moreau
