@@ -3,7 +3,6 @@
 
 #include <cerrno>
 #include <cstring>
-#include <filesystem>
 #include <iostream>
 #include <string>
 #include <string_view>
@@ -12,34 +11,22 @@
 
 #include "commands.h"
 #ifdef MOREAU_HAVE_REMOTE_COMMANDS
+#include "moreau/platform/install_paths.h"
 #include "remote_command_list.h"
 #endif
 
 namespace {
 
 #ifdef MOREAU_HAVE_REMOTE_COMMANDS
-// Where moreau-remote is looked for, in order: next to this executable; ../lib/moreau/ from it (an
-// installed tree: bin/ and lib/moreau/); the build tree it was built in.
-std::vector<std::filesystem::path> remote_helper_candidates() {
-  std::vector<std::filesystem::path> out;
-  std::error_code ec;
-  const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", ec);
-  if (!ec) {
-    out.push_back(exe.parent_path() / "moreau-remote");
-    out.push_back(exe.parent_path().parent_path() / "lib" / "moreau" / "moreau-remote");
-  }
-  out.emplace_back(MOREAU_REMOTE_BUILD_PATH);
-  return out;
-}
-
-// Replaces this process with moreau-remote, given the same arguments; returns only if none could run.
+// Replaces this process with moreau-remote (found as install_paths.h says), given the same arguments;
+// returns only if none could run.
 int exec_remote_helper(int argc, char** argv) {
   std::vector<char*> args(argv, argv + argc);
   args.push_back(nullptr);
   std::string tried;
-  for (const std::filesystem::path& path : remote_helper_candidates()) {
+  for (const std::string& path : moreau::platform::install_candidates("moreau-remote", nullptr, MOREAU_REMOTE_BUILD_PATH)) {
     ::execv(path.c_str(), args.data());
-    tried += "\n  " + path.string() + ": " + std::strerror(errno);
+    tried += "\n  " + path + ": " + std::strerror(errno);
   }
   std::cerr << "moreau: the server and LCM commands are in the helper moreau-remote, which could not be run:" << tried << "\n";
   return 1;

@@ -12,6 +12,8 @@ packages=(
   libosmesa6-dev libfreetype-dev libpng-dev fonts-dejavu-core  # figures
   libcpp-httplib-dev zlib1g-dev      # server (zlib: the hostile-client test makes gzip bodies)
   libboost-dev                       # Boost.Odeint (rosenbrock4), the stiff peer of studies
+  liburdfdom-dev                     # robots from URDF (the URDF module)
+  liborocos-kdl-dev                  # tests: KDL, the independent reference for the rigid-body algorithms
   libgtest-dev libgmock-dev libbenchmark-dev  # tests, benchmarks
   iproute2                           # `ip`, for tests/lcm_udpm_netns.sh (multicast in a private netns)
   python3                            # scripts/check-scene-results.py (shipped scenes against references)

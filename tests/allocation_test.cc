@@ -37,6 +37,16 @@ TEST(Allocation, FixedSizeRunDoesNotAllocatePerStep) {
   EXPECT_EQ(short_run, long_run);
 }
 
+TEST(Allocation, UrdfRobotRunDoesNotAllocatePerStep) {
+  // Seven joints from URDF (rigid_body.h computes M, C and G every step), with joint friction.
+  const auto doc = read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/iiwa14-coulomb-rest.json");
+  Decimated obs;
+  const long short_run = AllocationsOfRun(doc, 0.1, &obs);
+  const long long_run = AllocationsOfRun(doc, 1.0, &obs);
+  EXPECT_GT(short_run, 0);
+  EXPECT_EQ(short_run, long_run);
+}
+
 TEST(Allocation, DynamicSizeRunDoesNotAllocatePerStep) {
   // Five coupled coordinates: beyond the fixed-size dispatch, so Eigen::Dynamic code runs.
   nlohmann::json doc = read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/manipulator.json");

@@ -1,19 +1,15 @@
 // Loads the raster module (libmoreau_render_gl.so: the OSMesa backend, and with it LLVM, some 60 MB, and
 // the PNG codec over libpng) at the first PNG, so that a process that draws nothing, or only SVG, never
-// maps it. Where the module is looked for,
-// in order: $MOREAU_RENDER_GL (a path); next to the executable; ../lib/moreau/ from the executable (an
-// installed tree: bin/ and lib/moreau/); the build tree it was built in.
+// maps it. The module is looked for as install_paths.h says, $MOREAU_RENDER_GL first.
 #include <dlfcn.h>
-#include <unistd.h>
 
-#include <cstdlib>
-#include <filesystem>
 #include <mutex>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "backends.h"
+#include "moreau/platform/install_paths.h"
 
 namespace moreau::render::detail {
 namespace {
@@ -28,44 +24,23 @@ struct RasterModule {
 };
 constexpr const char* kModule = "libmoreau_render_gl.so";
 
-std::vector<std::string> candidates() {
-  std::vector<std::string> out;
-  if (const char* env = std::getenv("MOREAU_RENDER_GL"); env && *env) out.emplace_back(env);
-  std::error_code ec;
-  const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", ec);
-  if (!ec) {
-    out.push_back((exe.parent_path() / kModule).string());
-    out.push_back((exe.parent_path().parent_path() / "lib" / "moreau" / kModule).string());
-  }
-#ifdef MOREAU_RENDER_GL_BUILD_PATH
-  out.emplace_back(MOREAU_RENDER_GL_BUILD_PATH);
-#endif
-  return out;
-}
-
 RasterModule load() {
+#ifdef MOREAU_RENDER_GL_BUILD_PATH
+  const char* build_path = MOREAU_RENDER_GL_BUILD_PATH;
+#else
+  const char* build_path = nullptr;
+#endif
   std::string tried;
-  for (const std::string& path : candidates()) {
-    if (::access(path.c_str(), R_OK) != 0) {
-      tried += "\n  " + path + " (not found)";
-      continue;
-    }
-    // RTLD_LOCAL: the module's own copies of the font code stay its own.
-    void* handle = ::dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
-    if (!handle) {
-      tried += "\n  " + path + ": " + ::dlerror();
-      continue;
-    }
-    RasterModule m;
-    m.rasterize = reinterpret_cast<decltype(m.rasterize)>(::dlsym(handle, "moreau_render_gl_rasterize"));
-    m.encode_png = reinterpret_cast<decltype(m.encode_png)>(::dlsym(handle, "moreau_render_gl_encode_png"));
-    m.decode_png = reinterpret_cast<decltype(m.decode_png)>(::dlsym(handle, "moreau_render_gl_decode_png"));
-    if (m.rasterize && m.encode_png && m.decode_png) return m;
-    tried += "\n  " + path + ": not the module of this build (an entry point is missing)";
-    ::dlclose(handle);
-  }
-  throw std::runtime_error(std::string("PNG figures need the raster module ") + kModule +
-                           " (SVG figures do not); it was not found or could not be loaded:" + tried);
+  void* handle = platform::open_module(platform::install_candidates(kModule, "MOREAU_RENDER_GL", build_path),
+                                       {"moreau_render_gl_rasterize", "moreau_render_gl_encode_png", "moreau_render_gl_decode_png"}, tried);
+  if (!handle)
+    throw std::runtime_error(std::string("PNG figures need the raster module ") + kModule +
+                             " (SVG figures do not); it was not found or could not be loaded:" + tried);
+  RasterModule m;
+  m.rasterize = reinterpret_cast<decltype(m.rasterize)>(::dlsym(handle, "moreau_render_gl_rasterize"));
+  m.encode_png = reinterpret_cast<decltype(m.encode_png)>(::dlsym(handle, "moreau_render_gl_encode_png"));
+  m.decode_png = reinterpret_cast<decltype(m.decode_png)>(::dlsym(handle, "moreau_render_gl_decode_png"));
+  return m;
 }
 
 // Loaded once; a failure is not remembered, so that the next figure tries again and says why.

@@ -196,8 +196,8 @@ Guarantee lemma3(const LagrangianScene& scene, const RunSummary& s) {
     std::vector<double> slots(static_cast<std::size_t>(1 + 2 * n), 0.0);
     slots[0] = s.t_final;
     for (int i = 0; i < n; ++i) slots[1 + i] = s.q_final[i];
-    std::vector<double> split(c->split_force_tape.num_outputs()), scratch(c->split_force_tape.scratch_size());
-    c->split_force_tape.eval(slots.data(), split.data(), scratch.data());
+    std::vector<double> split(static_cast<std::size_t>(2 * n));
+    ForceTerms(*c).split(s.t_final, slots.data() + 1, slots.data() + 1 + n, split.data(), split.data() + n);
     std::vector<double> cons(c->constraint_tape.num_outputs()), scratch2(c->constraint_tape.scratch_size());
     c->constraint_tape.eval(slots.data(), cons.data(), scratch2.data());
     const Eigen::VectorXd grad_u = Eigen::Map<const Eigen::VectorXd>(split.data(), n);

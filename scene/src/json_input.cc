@@ -8,6 +8,7 @@
 
 #include "json_checks.h"
 #include "moreau/scene/scene.h"
+#include "moreau/scene/urdf.h"
 
 namespace moreau::scene {
 
@@ -248,28 +249,49 @@ void apply_override(nlohmann::json& doc, const std::string& assignment) {
   *node = value;
 }
 
-nlohmann::json read_scene_file(const std::string& path) {
+namespace {
+
+// A whole file of at most `limit` bytes, read as at most the limit and one byte whatever the file is: a
+// FIFO or a device has no size to trust (and /dev/zero never ends), and a regular file may grow while it
+// is read. `what` names the file in messages ("scene file 'a.json'"), `pointer` the field they are about.
+std::string read_bounded_file(const std::string& path, std::size_t limit, const std::string& what, const std::string& pointer) {
   std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) throw SceneError("/", "scene file '" + path + "' is a directory");
+  if (std::filesystem::is_directory(path, ec)) throw SceneError(pointer, what + " is a directory");
   std::ifstream in(path, std::ios::binary);
-  if (!in) throw SceneError("/", "cannot open scene file '" + path + "'");
-  // At most the limit and one byte, whatever the file is: a FIFO or a device has no size to trust (and
-  // /dev/zero never ends), and a regular file may grow while it is read.
+  if (!in) throw SceneError(pointer, "cannot open " + what);
   // The chunk is left uninitialised: zeroing 64 KiB would touch 16 fresh pages, a visible share of the
   // start-up of `moreau run` (README, "Performance"); read() fills only what the file holds.
   std::string text;
   constexpr std::size_t kChunk = std::size_t{1} << 16;
   const auto chunk = std::make_unique_for_overwrite<char[]>(kChunk);
-  while (text.size() <= kMaxSceneFileBytes && in) {
-    const std::size_t want = std::min(kChunk, kMaxSceneFileBytes + 1 - text.size());
+  while (text.size() <= limit && in) {
+    const std::size_t want = std::min(kChunk, limit + 1 - text.size());
     in.read(chunk.get(), static_cast<std::streamsize>(want));
     text.append(chunk.get(), static_cast<std::size_t>(in.gcount()));
   }
-  if (in.bad()) throw SceneError("/", "cannot read scene file '" + path + "'");
-  if (text.size() > kMaxSceneFileBytes)
-    throw SceneError(
-        "/", "scene file '" + path + "' is larger than " + std::to_string(kMaxSceneFileBytes >> 20) + " MiB, the limit for scene files");
-  return parse_json_text(text, "scene file '" + path + "'");
+  if (in.bad()) throw SceneError(pointer, "cannot read " + what);
+  if (text.size() > limit) throw SceneError(pointer, what + " is larger than " + std::to_string(limit >> 20) + " MiB, the limit for it");
+  return text;
+}
+
+}  // namespace
+
+nlohmann::json read_scene_file(const std::string& path) {
+  const std::string what = "scene file '" + path + "'";
+  nlohmann::json doc = parse_json_text(read_bounded_file(path, kMaxSceneFileBytes, what, "/"), what);
+  // /system/urdf/file: read here, relative to the scene file, and put in the scene as its text, so that
+  // the compiler (and a server the scene is sent to) never opens a path itself.
+  if (doc.is_object() && doc.contains("system") && doc["system"].is_object() && doc["system"].contains("urdf") &&
+      doc["system"]["urdf"].is_object() && doc["system"]["urdf"].contains("file")) {
+    nlohmann::json& urdf = doc["system"]["urdf"];
+    if (!urdf["file"].is_string() || urdf["file"].get<std::string>().empty())
+      throw SceneError("/system/urdf/file", "expected the path of a URDF file, relative to the scene file");
+    if (urdf.contains("text")) throw SceneError("/system/urdf", "give 'file' or 'text', not both");
+    const std::filesystem::path file = std::filesystem::path(path).parent_path() / urdf["file"].get<std::string>();
+    urdf["text"] = read_bounded_file(file.string(), kMaxUrdfBytes, "URDF file '" + file.string() + "'", "/system/urdf/file");
+    urdf.erase("file");
+  }
+  return doc;
 }
 
 }  // namespace moreau::scene

@@ -4,10 +4,12 @@
 #include "moreau/scene/scene.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <map>
 #include <set>
 
+#include "moreau/scene/urdf.h"
 #include "scene_reader.h"
 
 namespace moreau::scene {
@@ -27,6 +29,33 @@ class LagrangianCompiler : SceneReader {
 
  private:
   void coordinates(const json& system) {
+    if (robot_) {
+      for (const char* field : {"mass", "coordinates", "coriolis", "potential_gradient"})
+        if (system.contains(field))
+          throw SceneError(std::string("/system/") + field, std::string("a URDF system takes its ") +
+                                                                (std::string(field) == "coordinates" ? "coordinates (the joints)" : "dynamics") +
+                                                                " from the robot model; remove '" + field + "'");
+      n_ = robot_->model.dof();
+      if (n_ > kMaxDof)
+        throw SceneError("/system/urdf", "more than " + std::to_string(kMaxDof) + " moving joints (got " + std::to_string(n_) + ")");
+      std::set<std::string> seen;
+      for (int i = 0; i < n_; ++i) {
+        // Joint names as coordinate names: characters an expression cannot use become '_'.
+        const std::string& joint = robot_->model.bodies[static_cast<std::size_t>(i)].joint_name;
+        std::string q = joint;
+        for (char& ch : q)
+          if (!(std::isalnum(static_cast<unsigned char>(ch)) || ch == '_')) ch = '_';
+        if (q.empty() || std::isdigit(static_cast<unsigned char>(q[0]))) q = "j_" + q;
+        if (function_names().count(q) || q == "t" || params_.count(q) || params_.count(q + "_dot") || !seen.insert(q).second)
+          throw SceneError("/system/urdf", "joint '" + joint + "' gives the coordinate name '" + q +
+                                               "', which is reserved, a parameter's name or another joint's");
+        coord_names_.push_back(q);
+        vel_names_.push_back(q + "_dot");
+        coord_slot_[q] = 1 + i;
+        coord_slot_[q + "_dot"] = 1 + n_ + i;
+      }
+      return;
+    }
     if (!system.contains("mass")) throw SceneError("/system", "missing required field 'mass'");
     const json& mass = system["mass"];
     if (!mass.is_array() || mass.empty())
@@ -63,6 +92,123 @@ class LagrangianCompiler : SceneReader {
       coord_slot_[q] = 1 + i;
       coord_slot_[v] = 1 + n_ + i;
     }
+  }
+
+  // /system/urdf: the robot model (urdf.h). The text is inline ("text"); a "file" is read, relative to
+  // the scene file, when the scene is read from one (read_scene_file), never here.
+  void urdf(const json& system) {
+    const json& u = system["urdf"];
+    require_object(u, "/system/urdf");
+    check_fields(u, "/system/urdf", {"text", "file", "root", "tip", "gravity", "friction", "limits"});
+    if (u.contains("file"))
+      throw SceneError("/system/urdf/file", "a URDF file is read when the scene is read from a file (moreau run, moreau submit); "
+                                            "a scene sent as JSON carries the URDF itself in 'text'");
+    if (!u.contains("text") || !u["text"].is_string()) throw SceneError("/system/urdf", "missing 'text' (the URDF) or 'file' (its path)");
+    UrdfSelection sel;
+    for (const char* field : {"root", "tip"}) {
+      if (!u.contains(field)) continue;
+      if (!u[field].is_string() || u[field].get<std::string>().empty())
+        throw SceneError(std::string("/system/urdf/") + field, "expected the name of a link");
+      (std::string(field) == "root" ? sel.root_link : sel.tip_link) = u[field].get<std::string>();
+    }
+    try {
+      robot_ = std::make_shared<UrdfRobot>(read_urdf(u["text"].get<std::string>(), sel));
+    } catch (const UrdfError& e) {
+      throw SceneError("/system/urdf/text", e.what());
+    }
+    if (u.contains("gravity")) {
+      const json& g = u["gravity"];
+      if (!g.is_array() || g.size() != 3)
+        throw SceneError("/system/urdf/gravity", "expected [gx, gy, gz] in m/s^2 (the base frame), got " + brief(g));
+      for (int i = 0; i < 3; ++i) robot_->model.gravity_m_s2(i) = constant(g[i], "/system/urdf/gravity/" + std::to_string(i));
+    }
+  }
+
+  // Joint friction of a URDF system, as part of Phi: viscous b_i v_i is d(1/2 b_i v_i^2), Coulomb
+  // friction is d(mu_i |v_i|), both exactly the controller's quadratic and abs terms (Remark 4.2).
+  // "urdf" takes <dynamics damping friction>; an object gives {"viscous": [...], "coulomb": [...]}.
+  void joint_friction(const json& system, LagrangianScene& scene) {
+    if (!robot_ || !system["urdf"].contains("friction")) return;
+    const json& f = system["urdf"]["friction"];
+    const std::string ptr = "/system/urdf/friction";
+    auto& phi = scene.controller;
+    if (f.is_string() && f.get<std::string>() == "urdf") {
+      for (int i = 0; i < n_; ++i) {
+        phi.weights(i) += robot_->damping[static_cast<std::size_t>(i)];
+        phi.gains(i) += robot_->friction[static_cast<std::size_t>(i)];
+      }
+      return;
+    }
+    if (!f.is_object()) throw SceneError(ptr, "expected \"urdf\" (the URDF's <dynamics>) or {\"viscous\": [...], \"coulomb\": [...]}, got " + brief(f));
+    check_fields(f, ptr, {"viscous", "coulomb"});
+    for (const char* field : {"viscous", "coulomb"}) {
+      if (!f.contains(field)) continue;
+      const std::string p = ptr + "/" + field;
+      const json& a = array_of(f[field], p, static_cast<std::size_t>(n_), "an array (one entry per joint)");
+      for (int i = 0; i < n_; ++i) {
+        const double x = constant(a[i], p + "/" + std::to_string(i));
+        if (!(x >= 0.0)) throw SceneError(p + "/" + std::to_string(i), "must be >= 0 (friction dissipates), got " + format(x));
+        (std::string(field) == "viscous" ? phi.weights(i) : phi.gains(i)) += x;
+      }
+    }
+  }
+
+  // The URDF's joint limits as unilateral constraints q_i - lower_i >= 0 and upper_i - q_i >= 0, with
+  // Newton restitution (eq. 8 of Brogliato 2003): {"restitution": e, "joints": [names]} (all limited
+  // joints when "joints" is absent).
+  void joint_limits(const json& system, LagrangianScene& scene) {
+    if (!robot_ || !system["urdf"].contains("limits")) return;
+    const json& l = system["urdf"]["limits"];
+    const std::string ptr = "/system/urdf/limits";
+    require_object(l, ptr);
+    check_fields(l, ptr, {"restitution", "joints"});
+    double e = 0.0;
+    if (l.contains("restitution")) {
+      e = constant(l["restitution"], ptr + "/restitution");
+      if (!(e >= 0.0 && e <= 1.0)) throw SceneError(ptr + "/restitution", "must be in [0, 1] (Newton's impact law U+ = -e U-), got " + format(e));
+    }
+    std::set<int> chosen;
+    if (l.contains("joints")) {
+      if (!l["joints"].is_array()) throw SceneError(ptr + "/joints", "expected an array of joint names");
+      for (std::size_t k = 0; k < l["joints"].size(); ++k) {
+        const json& name = l["joints"][k];
+        const std::string p = ptr + "/joints/" + std::to_string(k);
+        int found = -1;
+        for (int i = 0; i < n_; ++i)
+          if (name.is_string() && robot_->model.bodies[static_cast<std::size_t>(i)].joint_name == name.get<std::string>()) found = i;
+        if (found < 0) throw SceneError(p, "is not a moving joint of the robot: " + brief(name));
+        chosen.insert(found);
+      }
+    }
+    for (const UrdfJointLimit& lim : robot_->limits) {
+      if (l.contains("joints") && !chosen.count(lim.coordinate)) continue;
+      chosen.erase(lim.coordinate);
+      // A joint at rest on its limit with an abs term (Coulomb friction, the controller's alpha) has two
+      // set-valued laws on one velocity: the one-step problem's rows for them are parallel, and how the
+      // reaction divides between them is not unique, so the Moreau-Jean step cannot solve it exactly.
+      if (scene.controller.gains(lim.coordinate) > 0.0)
+        throw SceneError(ptr, "joint '" + robot_->model.bodies[static_cast<std::size_t>(lim.coordinate)].joint_name +
+                                  "' has both a limit and an abs term (Coulomb friction or the controller's |v|): at rest on the limit "
+                                  "the two reactions do not divide uniquely, which the Moreau-Jean step does not solve yet; "
+                                  "leave the joint out of 'joints' or drop its abs term");
+      const Node q = graph_.variable(1 + lim.coordinate);
+      const std::string& name = coord_names_[static_cast<std::size_t>(lim.coordinate)];
+      const std::pair<Node, std::string> sides[] = {
+          {graph_.binary(Op::kSub, q, graph_.constant(lim.lower)), name + " - (" + format(lim.lower) + ")"},
+          {graph_.binary(Op::kSub, graph_.constant(lim.upper), q), format(lim.upper) + " - " + name}};
+      for (int side = 0; side < 2; ++side) {
+        gaps_.push_back(sides[side].first);
+        for (int j = 0; j < n_; ++j) gap_gradients_.push_back(graph_.derivative(sides[side].first, 1 + j));
+        scene.constraint_names.push_back(name + (side == 0 ? "_lower" : "_upper"));
+        scene.constraint_gaps.push_back(sides[side].second);
+        scene.restitution.push_back(e);
+      }
+    }
+    if (!chosen.empty())
+      throw SceneError(ptr + "/joints", "joint '" + robot_->model.bodies[static_cast<std::size_t>(*chosen.begin())].joint_name +
+                                            "' has no <limit> (a continuous joint)");
+    if (scene.constraint_names.size() > static_cast<std::size_t>(kMaxConstraints))
+      throw SceneError(ptr, "more than " + std::to_string(kMaxConstraints) + " constraints (two per limited joint): choose 'joints'");
   }
 
   void mass_matrix(const json& mass) {
@@ -434,10 +580,16 @@ class LagrangianCompiler : SceneReader {
     Eigen::MatrixXd M(n_, n_);
     for (int i = 0; i < n_; ++i)
       for (int j = 0; j < n_; ++j) M(i, j) = values[std::min(i, j) * n_ + std::max(i, j)];
+    if (robot_) {
+      RigidBodyData data(robot_->model);
+      moreau::mass_matrix(robot_->model, data, scene.q0.data(), M);
+      if (!M.allFinite()) throw SceneError("/initial/q", "the robot's M(q) is not finite at the initial state");
+    }
     Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(M, Eigen::EigenvaluesOnly);
     const double lmin = eig.eigenvalues()(0);
     if (!(lmin > 0.0))
-      throw SceneError("/system/mass", "M is not positive definite at the initial state (smallest eigenvalue " + format(lmin) + ")");
+      throw SceneError(robot_ ? "/system/urdf" : "/system/mass",
+                       "M is not positive definite at the initial state (smallest eigenvalue " + format(lmin) + ")");
     // The kinetic energy E_0 = 1/2 <M v0, v0> must be a number: finite entries can still overflow it
     // (v0 = 1e308), and a run from there fails at its first step with a NaN residual.
     const Eigen::VectorXd v0 = Eigen::Map<const Eigen::VectorXd>(scene.v0.data(), n_);
@@ -485,6 +637,14 @@ class LagrangianCompiler : SceneReader {
     std::vector<Node> split = gradient_;
     split.insert(split.end(), force_.begin(), force_.end());
     c->split_force_tape = expr::Tape::compile(graph_, split, 1 + 2 * n_);
+    if (robot_) {
+      c->robot = std::make_shared<const RigidBodyModel>(robot_->model);
+      c->constant_mass = false;
+      c->has_potential = true;  // gravity's, with the scene's own potential added when given
+      // M_ij != 0 only where i and j are on one branch; C likewise: the band is the widest such pair.
+      for (int j = 0; j < n_; ++j)
+        for (int a = j; a >= 0; a = c->robot->bodies[static_cast<std::size_t>(a)].parent) c->bandwidth = std::max(c->bandwidth, j - a);
+    }
     c->step_tape = expr::Tape::compile(graph_, step_outputs, 1 + 2 * n_);
     c->mass_tape = expr::Tape::compile(graph_, mass_outputs, 1 + 2 * n_);
     if (potential_ >= 0) {
@@ -506,6 +666,7 @@ class LagrangianCompiler : SceneReader {
   Node potential_ = -1;
   bool constant_mass_ = true;
   std::vector<Node> gaps_, gap_gradients_;  // h_i(q) and dh_i/dq_j (row-major)
+  std::shared_ptr<UrdfRobot> robot_;        // a URDF system's robot (/system/urdf)
 };
 
 LagrangianScene LagrangianCompiler::compile() {
@@ -524,19 +685,32 @@ LagrangianScene LagrangianCompiler::compile() {
     throw SceneError("/system/type", "studies compare schemes for Lagrangian systems; a Lur'e system (\"lure\") has one scheme: run it instead");
   if (type != "lagrangian") throw SceneError("/system/type", "unknown system type '" + type + "' (expected: lagrangian, lure)");
   check_fields(system, "/system",
-               {"type", "coordinates", "mass", "coriolis", "potential", "potential_gradient", "force", "controller", "constraints"});
+               {"type", "coordinates", "mass", "coriolis", "potential", "potential_gradient", "force", "controller", "constraints", "urdf"});
+  if (system.contains("urdf")) urdf(system);
   coordinates(system);
   check_all_parameters();
   scene.n = n_;
   scene.coordinates = coord_names_;
   scene.velocities = vel_names_;
-  mass_matrix(system["mass"]);
-  for (int i = 0; i < n_ * n_; ++i)
-    if (!graph_.is_constant(M_[i])) constant_mass_ = false;
-  coriolis(system, scene);
+  if (robot_) {
+    // M, C and grad V come from the robot model at every step (SceneModel); the expressions add F (and a
+    // potential, if the scene gives one) to them.
+    M_.assign(static_cast<std::size_t>(n_ * n_), graph_.constant(0.0));
+    C_.assign(static_cast<std::size_t>(n_ * n_), graph_.constant(0.0));
+    constant_mass_ = false;
+    scene.coriolis = "christoffel";
+    scene.robot_name = robot_->name;
+  } else {
+    mass_matrix(system["mass"]);
+    for (int i = 0; i < n_ * n_; ++i)
+      if (!graph_.is_constant(M_[i])) constant_mass_ = false;
+    coriolis(system, scene);
+  }
   forces(system, scene);
   controller(system, scene);
+  joint_friction(system, scene);
   constraints(system, scene);
+  joint_limits(system, scene);
   initial(scene);
   integrator(scene);
   if (const auto every = output_every()) scene.output_every = *every;

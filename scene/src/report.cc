@@ -165,13 +165,11 @@ struct MechanicalEnergy {
 MechanicalEnergy mechanical_energy(const LagrangianScene& scene, const RunSummary& s, double kinetic_initial, double kinetic_final) {
   MechanicalEnergy e;
   if (!scene.compiled || !scene.compiled->has_potential) return e;
-  const expr::Tape& V = scene.compiled->potential_tape;
-  std::vector<double> slots(static_cast<std::size_t>(1 + 2 * scene.n), 0.0), out(1), scratch(V.scratch_size());
+  ForceTerms terms(*scene.compiled);
   auto potential = [&](double t, const std::vector<double>& q) {
-    slots[0] = t;
-    for (int i = 0; i < scene.n && i < static_cast<int>(q.size()); ++i) slots[1 + i] = q[i];
-    V.eval(slots.data(), out.data(), scratch.data());
-    return out[0];
+    std::vector<double> full(static_cast<std::size_t>(scene.n), 0.0);
+    std::copy(q.begin(), q.begin() + std::min<std::size_t>(q.size(), full.size()), full.begin());
+    return terms.potential(t, full.data());
   };
   e.known = true;
   e.initial = kinetic_initial + potential(scene.settings.t0, scene.q0);

@@ -38,14 +38,8 @@ RunSummary run_lure(const LureScene& scene, RunObserver* observer, LureDiagnosti
 class ForceBoundSampler final : public RunObserver {
  public:
   ForceBoundSampler(const LagrangianScene& scene, RunObserver* next)
-      : tape_(scene.compiled->split_force_tape),
-        next_(next),
-        n_(scene.n),
-        alpha_(scene.controller.alpha()),
-        slots_(1 + 2 * scene.n),
-        out_(2 * scene.n),
-        scratch_(tape_.scratch_size()) {}
-  // Every kStride-th recorded state: one tape evaluation costs about as much as a step of the relay, and
+      : terms_(*scene.compiled), next_(next), n_(scene.n), alpha_(scene.controller.alpha()), grad_(scene.n), force_(scene.n) {}
+  // Every kStride-th recorded state: one evaluation costs about as much as a step of the relay, and
   // states kStride steps apart are close; a failure found at any of them is a failure of the assumption.
   static constexpr std::int64_t kStride = 16;
   void on_sample(const Sample& s) override {
@@ -57,14 +51,11 @@ class ForceBoundSampler final : public RunObserver {
 
  private:
   void evaluate(const Sample& s) {
-    slots_[0] = s.t;
-    std::copy(s.q, s.q + n_, slots_.begin() + 1);
-    std::copy(s.v, s.v + n_, slots_.begin() + 1 + n_);
-    tape_.eval(slots_.data(), out_.data(), scratch_.data());
+    terms_.split(s.t, s.q, s.v, grad_.data(), force_.data());
     double g2 = 0.0, f2 = 0.0;
     for (int i = 0; i < n_; ++i) {
-      g2 += out_[i] * out_[i];
-      f2 += out_[n_ + i] * out_[n_ + i];
+      g2 += grad_[i] * grad_[i];
+      f2 += force_[i] * force_[i];
     }
     ++track.samples;
     if (f2 > track.max_force * track.max_force) {
@@ -78,12 +69,12 @@ class ForceBoundSampler final : public RunObserver {
     track.failed = track.max_force >= alpha_ || track.max_gradient > 0.5 * (alpha_ - track.max_force);
   }
 
-  const expr::Tape& tape_;
+  ForceTerms terms_;
   RunObserver* next_;
   int n_;
   double alpha_;
   std::int64_t seen_ = 0;
-  std::vector<double> slots_, out_, scratch_;
+  std::vector<double> grad_, force_;
 };
 
 template <int N>
@@ -98,6 +89,40 @@ RunSummary run_fixed(const LagrangianScene& scene, RunObserver* observer) {
 }
 
 }  // namespace
+
+ForceTerms::ForceTerms(const CompiledLagrangian& compiled)
+    : c_(compiled),
+      slots_(static_cast<std::size_t>(1 + 2 * compiled.n), 0.0),
+      out_(std::max<std::size_t>(compiled.split_force_tape.num_outputs(), 1), 0.0),
+      scratch_(std::max(compiled.split_force_tape.scratch_size(), compiled.potential_tape.scratch_size()), 0.0),
+      gravity_(static_cast<std::size_t>(compiled.n), 0.0) {
+  if (c_.robot) robot_data_ = std::make_unique<RigidBodyData>(*c_.robot);
+}
+
+void ForceTerms::split(double t, const double* q, const double* v, double* grad_v, double* force) {
+  const int n = c_.n;
+  slots_[0] = t;
+  std::copy(q, q + n, slots_.begin() + 1);
+  std::copy(v, v + n, slots_.begin() + 1 + n);
+  c_.split_force_tape.eval(slots_.data(), out_.data(), scratch_.data());
+  std::copy(out_.begin(), out_.begin() + n, grad_v);
+  std::copy(out_.begin() + n, out_.begin() + 2 * n, force);
+  if (c_.robot) {
+    gravity_torque(*c_.robot, *robot_data_, q, Eigen::Map<Eigen::VectorXd>(gravity_.data(), n));
+    for (int i = 0; i < n; ++i) grad_v[i] += gravity_[static_cast<std::size_t>(i)];
+  }
+}
+
+double ForceTerms::potential(double t, const double* q) {
+  double value = 0.0;
+  if (c_.potential_tape.num_outputs() > 0) {
+    slots_[0] = t;
+    std::copy(q, q + c_.n, slots_.begin() + 1);
+    c_.potential_tape.eval(slots_.data(), &value, scratch_.data());
+  }
+  if (c_.robot) value += potential_energy(*c_.robot, *robot_data_, q);
+  return value;
+}
 
 RunSummary run_scene(const LagrangianScene& scene, RunObserver* observer) { return run_scene(scene, observer, nullptr); }
 

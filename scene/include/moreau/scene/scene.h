@@ -21,6 +21,7 @@
 #include "moreau/core/moreau_jean_integrator.h"
 #include "moreau/core/observer.h"
 #include "moreau/core/run_diagnostics.h"
+#include "moreau/core/rigid_body.h"
 #include "moreau/core/run_summary.h"
 #include "moreau/scene/expression.h"
 #include "moreau/scene/scheme.h"
@@ -101,6 +102,26 @@ struct CompiledLagrangian {
   // Unilateral constraints: outputs h_1..h_m(q), then the exact gradients dh_i/dq_j (row-major, m x n).
   int num_constraints = 0;
   expr::Tape constraint_tape;
+  // A URDF system's robot (/system/urdf): M(q), C(q, v) and the gravity part of grad V and of V come from
+  // it at every evaluation (rigid_body.h); the tapes hold only what the scene adds (F, a potential).
+  std::shared_ptr<const RigidBodyModel> robot;
+};
+
+// V(q), grad V(q) and F(t, q, v) of a compiled scene apart, wherever they come from (the expressions, the
+// robot model): for checks and reports (Assumption 4.1, energies, Lemma 3), not for the step. Buffers
+// are sized once.
+class ForceTerms {
+ public:
+  explicit ForceTerms(const CompiledLagrangian& compiled);
+  // grad_v and force: n entries each.
+  void split(double t, const double* q, const double* v, double* grad_v, double* force);
+  // V(q); 0 when the scene has no potential (has_potential false).
+  double potential(double t, const double* q);
+
+ private:
+  const CompiledLagrangian& c_;
+  std::vector<double> slots_, out_, scratch_, gravity_;
+  std::unique_ptr<RigidBodyData> robot_data_;
 };
 
 struct LagrangianScene {
@@ -115,7 +136,8 @@ struct LagrangianScene {
   AblSettings settings;
   std::int64_t output_every = 1;
   std::string coriolis = "christoffel";    // "christoffel", "explicit" or "none"
-  std::vector<std::string> christoffel_c;  // C(q, v) entries as text (row-major), for reports and tests
+  std::vector<std::string> christoffel_c;  // C(q, v) entries as text (row-major), for reports and tests; empty for URDF
+  std::string robot_name;                  // the URDF's <robot name>, for a URDF system
   bool force_depends_on_time = false;      // F(t, q, v) reads t (Theorem 4.3 assumes it does not, (4.16))
   bool has_force = false;                  // /system/force given (F is taken as non-zero then)
   // grad V and F use only operations smooth on all of R^k (expr::Graph::smooth_everywhere): Assumption 3.3

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <algorithm>
+#include <memory>
 #include <type_traits>
 #include <vector>
 
@@ -62,6 +63,10 @@ class SceneModel {
     mass_begin_.push_back(static_cast<int>(mass_index_.size()));
     constant_.resize(n_);
     load_constants(constant_);
+    if (c_.robot) {
+      robot_data_ = std::make_unique<RigidBodyData>(*c_.robot);
+      gravity_.setZero(n_);
+    }
   }
 
   int dof() const { return n_; }
@@ -69,10 +74,62 @@ class SceneModel {
   bool constant_mass() const { return c_.constant_mass; }
 
   void evaluate(double t, const Vec<N>& q, const Vec<N>& v, LagrangianTerms<N>& out) {
-    out.M = constant_.M;
-    out.C = constant_.C;
     out.g = constant_.g;
-    if (step_values_.empty()) return;  // everything is constant: no tape to run
+    if (c_.robot) {
+      // M, C and G = grad V of gravity from the robot (rigid_body.h); the tape adds F (and a potential's
+      // gradient) to G after the scatter below.
+      rigid_body_terms(*c_.robot, *robot_data_, q.data(), v.data(), out.M, out.C, gravity_);
+    } else {
+      out.M = constant_.M;
+      out.C = constant_.C;
+    }
+    if (!step_values_.empty()) scatter_step_tape(t, q, v, out);  // none when everything is constant
+    if (c_.robot) out.g += gravity_;
+  }
+
+  int num_constraints() const { return c_.num_constraints; }
+  double restitution(int i) const { return restitution_[i]; }
+  bool has_potential() const { return c_.has_potential; }
+
+  double potential(const Vec<N>& q) {
+    double value = 0.0;
+    if (c_.potential_tape.num_outputs() > 0) {
+      for (int i = 0; i < n_; ++i) slots_[1 + i] = q(i);
+      c_.potential_tape.eval(slots_.data(), &value, scratch_.data());
+    }
+    if (c_.robot) value += potential_energy(*c_.robot, *robot_data_, q.data());
+    return value;
+  }
+
+  // gap(i) = h_i(q), H.row(i) = grad h_i(q)^T.
+  template <class Rows>
+  void constraints(const Vec<N>& q, Eigen::VectorXd& gap, Rows& H) {
+    const int m = c_.num_constraints;
+    if (m == 0) return;
+    for (int i = 0; i < n_; ++i) slots_[1 + i] = q(i);
+    c_.constraint_tape.eval(slots_.data(), constraint_values_.data(), scratch_.data());
+    for (int i = 0; i < m; ++i) {
+      gap(i) = constraint_values_[i];
+      for (int j = 0; j < n_; ++j) H(i, j) = constraint_values_[m + i * n_ + j];
+    }
+  }
+
+  void mass(const Vec<N>& q, Mat<N>& M) {
+    if (c_.robot) {
+      mass_matrix(*c_.robot, *robot_data_, q.data(), M);
+      return;
+    }
+    M = constant_.M;
+    if (mass_values_.empty()) return;
+    for (int i = 0; i < n_; ++i) slots_[1 + i] = q(i);
+    c_.mass_tape.eval(slots_.data(), mass_values_.data(), scratch_.data());
+    for (std::size_t j = 0; j + 1 < mass_begin_.size(); ++j)
+      for (int k = mass_begin_[j]; k < mass_begin_[j + 1]; ++k) M.data()[mass_index_[k]] = mass_values_[j];
+  }
+
+ private:
+  // Runs the step tape and writes its values over the constant parts of M, C and g.
+  void scatter_step_tape(double t, const Vec<N>& q, const Vec<N>& v, LagrangianTerms<N>& out) {
     slots_[0] = t;
     for (int i = 0; i < n_; ++i) {
       slots_[1 + i] = q(i);
@@ -97,40 +154,6 @@ class SceneModel {
     }
   }
 
-  int num_constraints() const { return c_.num_constraints; }
-  double restitution(int i) const { return restitution_[i]; }
-  bool has_potential() const { return c_.has_potential; }
-
-  double potential(const Vec<N>& q) {
-    for (int i = 0; i < n_; ++i) slots_[1 + i] = q(i);
-    double value = 0.0;
-    c_.potential_tape.eval(slots_.data(), &value, scratch_.data());
-    return value;
-  }
-
-  // gap(i) = h_i(q), H.row(i) = grad h_i(q)^T.
-  template <class Rows>
-  void constraints(const Vec<N>& q, Eigen::VectorXd& gap, Rows& H) {
-    const int m = c_.num_constraints;
-    if (m == 0) return;
-    for (int i = 0; i < n_; ++i) slots_[1 + i] = q(i);
-    c_.constraint_tape.eval(slots_.data(), constraint_values_.data(), scratch_.data());
-    for (int i = 0; i < m; ++i) {
-      gap(i) = constraint_values_[i];
-      for (int j = 0; j < n_; ++j) H(i, j) = constraint_values_[m + i * n_ + j];
-    }
-  }
-
-  void mass(const Vec<N>& q, Mat<N>& M) {
-    M = constant_.M;
-    if (mass_values_.empty()) return;
-    for (int i = 0; i < n_; ++i) slots_[1 + i] = q(i);
-    c_.mass_tape.eval(slots_.data(), mass_values_.data(), scratch_.data());
-    for (std::size_t j = 0; j + 1 < mass_begin_.size(); ++j)
-      for (int k = mass_begin_[j]; k < mass_begin_[j + 1]; ++k) M.data()[mass_index_[k]] = mass_values_[j];
-  }
-
- private:
   void load_constants(LagrangianTerms<N>& t) const {
     const int nn = n_ * n_;
     for (int i = 0; i < nn; ++i) {
@@ -147,6 +170,8 @@ class SceneModel {
   std::vector<double> restitution_;
   std::vector<double> slots_, step_values_, mass_values_, scratch_, constraint_values_;
   std::vector<int> step_begin_, step_index_, mass_begin_, mass_index_;
+  std::unique_ptr<RigidBodyData> robot_data_;  // a URDF system's buffers
+  Vec<N> gravity_;
 };
 
 }  // namespace moreau::scene

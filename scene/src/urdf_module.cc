@@ -1,0 +1,169 @@
+// The URDF module, libmoreau_urdf.so: parses URDF text with urdfdom and describes the robot as plain
+// records (urdf_description.h). It is loaded at the first URDF scene (urdf.cc), so that a process that
+// never reads one never maps urdfdom, console_bridge and TinyXML.
+//
+// Before urdfdom sees the text, TinyXML parses it once more to name the line of a syntax error and of each
+// <link> and <joint> (urdfdom reports neither), and to refuse a robot of more than kMaxUrdfLinks links
+// before urdfdom builds it. urdfdom prints its errors through console_bridge; a handler collects them for
+// the message instead (console_bridge's handler is global: one parse at a time).
+#include <cstddef>
+#include <map>
+#include <mutex>
+#include <string>
+
+#include <console_bridge/console.h>
+#include <tinyxml.h>
+#include <urdf_parser/urdf_parser.h>
+
+#include "urdf_description.h"
+#include "moreau/scene/urdf.h"
+
+namespace {
+
+using moreau::scene::detail::UrdfDescription;
+using moreau::scene::detail::UrdfInertial;
+using moreau::scene::detail::UrdfJoint;
+using moreau::scene::detail::UrdfJointType;
+using moreau::scene::detail::UrdfPose;
+
+class CollectErrors : public console_bridge::OutputHandler {
+ public:
+  void log(const std::string& text, console_bridge::LogLevel level, const char*, int) override {
+    if (level < console_bridge::CONSOLE_BRIDGE_LOG_ERROR) return;  // warnings: not a reason to refuse
+    if (!messages.empty()) messages += "; ";
+    messages += text;
+  }
+  std::string messages;
+};
+
+UrdfPose pose(const urdf::Pose& p) {
+  UrdfPose out;
+  out.xyz[0] = p.position.x;
+  out.xyz[1] = p.position.y;
+  out.xyz[2] = p.position.z;
+  out.quaternion_xyzw[0] = p.rotation.x;
+  out.quaternion_xyzw[1] = p.rotation.y;
+  out.quaternion_xyzw[2] = p.rotation.z;
+  out.quaternion_xyzw[3] = p.rotation.w;
+  return out;
+}
+
+UrdfJointType joint_type(int type) {
+  switch (type) {
+    case urdf::Joint::REVOLUTE: return UrdfJointType::kRevolute;
+    case urdf::Joint::CONTINUOUS: return UrdfJointType::kContinuous;
+    case urdf::Joint::PRISMATIC: return UrdfJointType::kPrismatic;
+    case urdf::Joint::FIXED: return UrdfJointType::kFixed;
+    case urdf::Joint::FLOATING: return UrdfJointType::kFloating;
+    case urdf::Joint::PLANAR: return UrdfJointType::kPlanar;
+    default: return UrdfJointType::kUnknown;
+  }
+}
+
+// Lines of the <link> and <joint> elements under <robot>, by name; the number of links.
+struct ElementLines {
+  std::map<std::string, int> links, joints;
+  std::size_t link_count = 0;
+};
+
+void describe(const std::string& text, UrdfDescription& out) {
+  TiXmlDocument doc;
+  doc.Parse(text.c_str(), nullptr, TIXML_ENCODING_UTF8);
+  if (doc.Error())
+    throw std::runtime_error("malformed XML at line " + std::to_string(doc.ErrorRow()) + ", column " + std::to_string(doc.ErrorCol()) +
+                             ": " + doc.ErrorDesc());
+  const TiXmlElement* robot = doc.RootElement();
+  if (!robot || std::string(robot->Value()) != "robot")
+    throw std::runtime_error("the document element is not <robot> (line " + std::to_string(robot ? robot->Row() : 0) + ")");
+  ElementLines lines;
+  for (const TiXmlElement* e = robot->FirstChildElement(); e; e = e->NextSiblingElement()) {
+    const std::string tag = e->Value();
+    const char* name = e->Attribute("name");
+    if (tag == "link") {
+      if (++lines.link_count > moreau::scene::kMaxUrdfLinks)
+        throw std::runtime_error("more than " + std::to_string(moreau::scene::kMaxUrdfLinks) + " links (the " +
+                                 std::to_string(moreau::scene::kMaxUrdfLinks + 1) + "th is at line " + std::to_string(e->Row()) + ")");
+      if (name) lines.links.emplace(name, e->Row());
+    } else if (tag == "joint" && name) {
+      lines.joints.emplace(name, e->Row());
+    }
+  }
+
+  urdf::ModelInterfaceSharedPtr model;
+  {
+    static std::mutex mu;
+    std::lock_guard lock(mu);
+    CollectErrors errors;
+    console_bridge::useOutputHandler(&errors);
+    model = urdf::parseURDF(text);
+    console_bridge::restorePreviousOutputHandler();
+    if (!model) throw std::runtime_error(errors.messages.empty() ? std::string("urdfdom refused the model") : errors.messages);
+  }
+  const urdf::LinkConstSharedPtr root = model->getRoot();
+  if (!root) throw std::runtime_error("the model has no root link");
+  out.robot_name = model->getName();
+  out.root_link = root->name;
+  if (auto it = lines.links.find(root->name); it != lines.links.end()) out.root_line = it->second;
+
+  // Depth first, without recursion (a chain can be as long as kMaxUrdfLinks).
+  std::vector<urdf::LinkConstSharedPtr> stack{root};
+  while (!stack.empty()) {
+    const urdf::LinkConstSharedPtr link = stack.back();
+    stack.pop_back();
+    // Children pushed in reverse, so that they come out in the order the file gives them.
+    for (auto it = link->child_joints.rbegin(); it != link->child_joints.rend(); ++it) {
+      const urdf::Joint& j = **it;
+      UrdfJoint r;
+      r.name = j.name;
+      r.parent_link = j.parent_link_name;
+      r.child_link = j.child_link_name;
+      r.type = joint_type(j.type);
+      r.origin = pose(j.parent_to_joint_origin_transform);
+      r.axis[0] = j.axis.x;
+      r.axis[1] = j.axis.y;
+      r.axis[2] = j.axis.z;
+      if (j.limits) {
+        r.has_limits = true;
+        r.lower = j.limits->lower;
+        r.upper = j.limits->upper;
+      }
+      if (j.dynamics) {
+        r.damping = j.dynamics->damping;
+        r.friction = j.dynamics->friction;
+      }
+      const urdf::LinkConstSharedPtr child = model->getLink(j.child_link_name);
+      if (child && child->inertial) {
+        const urdf::Inertial& in = *child->inertial;
+        r.child_inertial.present = true;
+        r.child_inertial.mass = in.mass;
+        r.child_inertial.origin = pose(in.origin);
+        r.child_inertial.ixx = in.ixx;
+        r.child_inertial.ixy = in.ixy;
+        r.child_inertial.ixz = in.ixz;
+        r.child_inertial.iyy = in.iyy;
+        r.child_inertial.iyz = in.iyz;
+        r.child_inertial.izz = in.izz;
+      }
+      if (auto l = lines.joints.find(j.name); l != lines.joints.end()) r.line = l->second;
+      if (auto l = lines.links.find(j.child_link_name); l != lines.links.end()) r.child_line = l->second;
+      out.joints.push_back(std::move(r));
+    }
+    // Visit order must match the records: push children so that the first child is visited first.
+    for (auto it = link->child_links.rbegin(); it != link->child_links.rend(); ++it) stack.push_back(*it);
+  }
+}
+
+}  // namespace
+
+// Returns 0 with *out filled, or 1 with the reason in *error. No exception leaves the module.
+extern "C" __attribute__((visibility("default"))) int moreau_urdf_describe(const char* text, std::size_t size, UrdfDescription* out, std::string* error) noexcept {
+  try {
+    describe(std::string(text, size), *out);
+    return 0;
+  } catch (const std::exception& e) {
+    *error = e.what();
+  } catch (...) {
+    *error = "unknown failure in the URDF module";
+  }
+  return 1;
+}
