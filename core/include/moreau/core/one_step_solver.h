@@ -16,9 +16,12 @@
 //     s_i = 0, check the inclusion, update the pattern. Warm-started from the previous step's pattern,
 //     it usually needs one solve. Deviation from the paper: Lemma 6.1's projection form (6.8) is not
 //     iterated; it characterises the same solution, and the pattern equations are exact.
-//  3. if the pattern iteration cycles: a finite, exhaustive search over the 3^n patterns (n <= 10),
-//     else forward-backward splitting y <- prox(y - gamma (P y + x)), gamma = mu / L^2, globally
-//     convergent because y -> P y + x is strongly monotone, whose pattern is then polished exactly.
+//  3. if the pattern iteration cycles: for separable phi (no norm term), block principal pivoting with
+//     Judice and Pires' safeguard (Murty's least-index rule when the count of broken components stops
+//     falling), finite for the P-matrix P (see principal_pivoting); with a norm term, a finite exhaustive
+//     search over the 3^n patterns (n <= 10), else forward-backward splitting
+//     y <- prox(y - gamma (P y + x)), gamma = mu / L^2, globally convergent because y -> P y + x is
+//     strongly monotone, whose pattern is then polished exactly.
 // A solution is accepted only when dist(-(P y + x), d phi(y)) is within round-off of the problem's scale;
 // otherwise solve() returns false and the caller must stop: an unsolved step is never used.
 //
@@ -151,8 +154,10 @@ class OneStepSolver {
       if (!update_pattern(P, x, y)) break;  // no change: a fixed point that is not a solution
     }
 
-    // Fallbacks: exhaustive for small n (finite and exact), forward-backward otherwise.
+    // Fallbacks. Separable phi: safeguarded principal pivoting, finite and exact. With a norm term:
+    // exhaustive for small n (finite and exact), forward-backward otherwise.
     stats.used_fallback = true;
+    if (an_ == 0.0) return principal_pivoting(P, x, y, scale_px, gain_scale, stats);
     if (n <= 10) {
       if (enumerate(P, x, y, scale_px, gain_scale, stats)) return accept(P, x, y, scale_px, gain_scale, stats);
     }
@@ -416,6 +421,59 @@ class OneStepSolver {
       }
     }
     return changed;
+  }
+
+  // Separable phi (a_norm = 0): (6.5) is the box-constrained LCP "P y + x + s = 0, s_i in a_i Sgn(y_i)",
+  // and P is a P-matrix (its symmetric part is positive definite under Theorem 4.1's condition), so it has
+  // one solution. Block principal pivoting with the safeguard of Judice and Pires (Comput. Oper. Res. 21,
+  // 1994): each sweep solves the pattern's equations and counts the components that break it (a moving
+  // one with the wrong sign, a resting one whose multiplier leaves [-a_i, a_i]); while the count falls,
+  // every such component changes state at once (as the active-set update); after kTries sweeps without a
+  // new lowest count, only the one of least index changes (Murty's rule, finite for P-matrices), until
+  // the count falls below its lowest again. Exact like every other path: the result is the pattern's own
+  // solution, with 0.0 where a component rests. The sweep cap is a safety net, never a tolerance.
+  bool principal_pivoting(const Mat<N>& P, const Vec<N>& x, Vec<N>& y, double scale_px, double gain_scale, OneStepStats& stats) {
+    constexpr int kTries = 3;
+    const int n = size();
+    const long max_sweeps = 100L * n + 1000;
+    int lowest = n + 1, tries = 0;
+    for (long sweep = 0; sweep < max_sweeps; ++sweep) {
+      ++stats.iterations;
+      if (!solve_pattern(P, x, pattern_, y)) return false;  // singular: P is not a P-matrix
+      w_.noalias() = -(P * y);
+      w_ -= x;
+      const double tol =
+          64.0 * std::numeric_limits<double>::epsilon() * (x.cwiseAbs().maxCoeff() + scale_px * y.cwiseAbs().maxCoeff() + gain_scale);
+      int count = 0, first = -1;
+      for (int i = 0; i < n; ++i) {
+        if (!(a_(i) > 0.0)) continue;
+        const bool broken = pattern_(i) != 0 ? y(i) * pattern_(i) < 0.0 : std::abs(w_(i)) > a_(i) + tol;
+        if (!broken) continue;
+        ++count;
+        if (first < 0) first = i;
+      }
+      if (count == 0) {
+        y_zero_ = y.squaredNorm() == 0.0;
+        return accept(P, x, y, scale_px, gain_scale, stats, /*w_is_current=*/true);
+      }
+      const bool block = count < lowest || tries < kTries;
+      if (count < lowest) {
+        lowest = count;
+        tries = 0;
+      } else {
+        ++tries;
+      }
+      for (int i = block ? 0 : first; i < (block ? n : first + 1); ++i) {
+        if (!(a_(i) > 0.0)) continue;
+        if (pattern_(i) != 0) {
+          if (y(i) * pattern_(i) < 0.0) pattern_(i) = 0;  // moving the wrong way: rest
+        } else if (std::abs(w_(i)) > a_(i) + tol) {
+          pattern_(i) = w_(i) > 0.0 ? 1 : -1;  // the multiplier leaves [-a_i, a_i]: move its way
+        }
+      }
+    }
+    accept(P, x, y, scale_px, gain_scale, stats);
+    return false;
   }
 
   // Tries every pattern in {-1, 0, 1}^n; the solution's pattern is among them, so this is exact.

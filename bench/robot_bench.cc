@@ -1,0 +1,108 @@
+// Robots from URDF: the per-step cost of scheme (0.2) on the 7-joint KUKA iiwa with the paper's
+// controller on every joint (scenes/iiwa14-controller.json at a fixed h = 1e-3), on n-link planar chains
+// (scripts/make-chain-urdf.py, n = 2 .. 64) and the rigid-body terms alone (M, C, G: rigid_body.h), and
+// the time to load and compile a 64-link URDF scene. docs/robots.md has the figures and the command.
+#include <benchmark/benchmark.h>
+
+#include <fstream>
+#include <sstream>
+
+#include "moreau/core/rigid_body.h"
+#include "moreau/scene/scene.h"
+#include "moreau/scene/urdf.h"
+
+namespace {
+
+using namespace moreau;
+
+std::string chain_text(int n) {
+  std::ifstream in(std::string(MOREAU_CHAIN_DIR) + "/chain-" + std::to_string(n) + ".urdf");
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+void SetPerStep(benchmark::State& state, std::int64_t steps_per_run) {
+  state.SetItemsProcessed(state.iterations() * steps_per_run);
+  state.counters["ns_per_step"] =
+      benchmark::Counter(static_cast<double>(state.iterations() * steps_per_run), benchmark::Counter::kIsRate | benchmark::Counter::kInvert,
+                         benchmark::Counter::kIs1000);
+}
+
+void RunScene(benchmark::State& state, const scene::LagrangianScene& sc) {
+  std::int64_t steps = 0;
+  for (auto _ : state) {
+    const RunSummary s = scene::run_scene(sc, nullptr);
+    steps = s.steps;
+    if (s.status != RunStatus::kCompleted) state.SkipWithError(s.message.c_str());
+    benchmark::DoNotOptimize(s.q_final.data());
+  }
+  SetPerStep(state, steps);
+}
+
+// The arm of iiwa14-controller.json at a fixed h = 1e-3 until t = 0.15, before it comes to rest (0.19 s).
+void BM_Iiwa14Controller_moving(benchmark::State& state) {
+  nlohmann::json doc = scene::read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/iiwa14-controller.json");
+  doc["integrator"]["step_rule"] = "fixed";
+  doc["integrator"]["t_end"] = 0.15;
+  RunScene(state, scene::load_scene(doc));
+}
+
+// An n-link chain hanging under gravity, bent and moving, with the controller on every joint.
+nlohmann::json chain_scene(int n, double t_end) {
+  nlohmann::json q = nlohmann::json::array(), v = nlohmann::json::array();
+  for (int i = 0; i < n; ++i) {
+    q.push_back(i == 0 ? -1.2 : 0.3 * std::sin(0.7 * i));
+    v.push_back(1.5 * std::cos(0.9 * i));
+  }
+  return {{"name", "chain"},
+          {"system",
+           {{"type", "lagrangian"},
+            {"urdf", {{"text", chain_text(n)}, {"gravity", {0.0, -9.81, 0.0}}}},
+            {"controller", {{{"type", "quadratic"}, {"weights", std::vector<double>(n, 0.01)}}, {{"type", "abs"}, {"gains", std::vector<double>(n, 0.02)}}}}}},
+          {"initial", {{"q", q}, {"v", v}}},
+          {"integrator", {{"scheme", "abl"}, {"h", 1e-3}, {"t_end", t_end}}}};
+}
+
+void BM_ChainStep(benchmark::State& state) {
+  const int n = static_cast<int>(state.range(0));
+  RunScene(state, scene::load_scene(chain_scene(n, 0.1)));
+}
+
+// M, C and G alone (rigid_body_terms), the model part of a step.
+void BM_RigidBodyTerms(benchmark::State& state) {
+  const int n = static_cast<int>(state.range(0));
+  scene::UrdfRobot robot = n == 7 ? scene::read_urdf([] {
+    std::ifstream in(std::string(MOREAU_SOURCE_DIR) + "/scenes/robots/kuka-iiwa14.urdf");
+    std::stringstream s;
+    s << in.rdbuf();
+    return s.str();
+  }())
+                                  : scene::read_urdf(chain_text(n));
+  RigidBodyData data(robot.model);
+  Eigen::VectorXd q = Eigen::VectorXd::LinSpaced(n, -1.0, 1.0), v = Eigen::VectorXd::LinSpaced(n, 0.5, -0.5), G(n);
+  Eigen::MatrixXd M(n, n), C(n, n);
+  for (auto _ : state) {
+    rigid_body_terms(robot.model, data, q.data(), v.data(), M, C, G);
+    benchmark::DoNotOptimize(M.data());
+    benchmark::DoNotOptimize(C.data());
+    q(0) += 1e-9;
+  }
+}
+
+// Parse the 64-link URDF (in the module) and compile the scene: what `moreau run` does before stepping.
+void BM_LoadChain64Scene(benchmark::State& state) {
+  const nlohmann::json doc = chain_scene(64, 0.1);
+  for (auto _ : state) {
+    const scene::LagrangianScene sc = scene::load_scene(doc);
+    benchmark::DoNotOptimize(sc.n);
+  }
+}
+
+BENCHMARK(BM_Iiwa14Controller_moving)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_ChainStep)->Arg(2)->Arg(7)->Arg(16)->Arg(32)->Arg(64)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_RigidBodyTerms)->Arg(2)->Arg(7)->Arg(16)->Arg(32)->Arg(64)->Unit(benchmark::kNanosecond);
+BENCHMARK(BM_LoadChain64Scene)->Unit(benchmark::kMillisecond);
+
+}  // namespace
+BENCHMARK_MAIN();
