@@ -226,6 +226,30 @@ TEST(ServerApi, ShippedScenesByNameWithOverrides) {
   EXPECT_EQ(job["report"]["steps"], 50);
 }
 
+// Robots from URDF through the server: a shipped URDF scene by name (its URDF file is read next to it,
+// in the server's own scene directory), coordinates named after the joints; a scene sent with a URDF
+// *path* is refused, since the server opens no path a client names.
+TEST(ServerApi, UrdfScenesRunByNameAndPathsFromClientsAreRefused) {
+  TestServer ts;
+  auto c = ts.client();
+  auto r = submit(*c, {{"scene", "iiwa14-controller"}, {"overrides", {"integrator.t_end=0.05"}}});
+  ASSERT_EQ(r->status, 202) << r->body;
+  const json job = wait_final(*c, json::parse(r->body)["id"]);
+  EXPECT_EQ(job["state"], "done") << job.dump(2);
+  EXPECT_EQ(job["report"]["coordinates"][0], "iiwa_joint_1");
+  EXPECT_EQ(job["report"]["coordinates"].size(), 7u);
+  auto traj = c->Get("/v1/jobs/" + job["id"].get<std::string>() + "/trajectory");
+  ASSERT_EQ(traj->status, 200);
+  const json columns = json::parse(traj->body)["columns"];
+  EXPECT_EQ(columns[2], "iiwa_joint_1") << columns.dump();
+  EXPECT_EQ(columns[9], "iiwa_joint_1_dot") << columns.dump();
+
+  json scene = json::parse(slurp("scenes/iiwa14-controller.json"));
+  r = submit(*c, {{"scene", scene}});
+  EXPECT_EQ(r->status, 400) << r->body;
+  EXPECT_EQ(error_of(r)["pointer"], "/system/urdf/file") << r->body;
+}
+
 TEST(ServerApi, BadRequestsGetClearErrors) {
   ServerConfig cfg;
   cfg.max_body_bytes = 64 * 1024;
