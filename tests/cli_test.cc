@@ -47,6 +47,23 @@ TEST(Cli, RunPrintsAReadableReport) {
     EXPECT_NE(r.out.find(part), std::string::npos) << part << "\n" << r.out;
 }
 
+// moreau inspect: a URDF scene's joints, links and masses as the URDF gives them (scenes/robots/
+// kuka-iiwa14.urdf), its constraints, scheme and solver, without running it; an invalid one exits 2.
+TEST(Cli, InspectShowsTheRobotWithoutRunningIt) {
+  const Result r = Moreau("inspect " + std::string(MOREAU_SOURCE_DIR) + "/scenes/iiwa14-joint-limit.json");
+  ASSERT_EQ(r.status, 0) << r.out;
+  for (const char* part : {"7 coordinates from URDF robot 'iiwa14'", "iiwa_joint_2      revolute  iiwa_link_2       iiwa_link_1",
+                           "6.35", "constraints  14", "iiwa_joint_7_upper: 3.05432619099 - iiwa_joint_7 >= 0, e = 0.5",
+                           "scheme       moreau-jean"})
+    EXPECT_NE(r.out.find(part), std::string::npos) << part << "\n" << r.out;
+  EXPECT_EQ(r.out.find("wall time"), std::string::npos) << "inspect must not run the scene";
+  const Result banded = Moreau("inspect " + std::string(MOREAU_SOURCE_DIR) + "/scenes/friction-bar.json");
+  EXPECT_NE(banded.out.find("banded LU with partial pivoting, bandwidth 1"), std::string::npos) << banded.out;
+  const Result bad = Moreau("inspect " + std::string(MOREAU_SOURCE_DIR) + "/scenes/iiwa14-controller.json --set system.urdf.gravity=[0]");
+  EXPECT_EQ(bad.status, 2) << bad.out;
+  EXPECT_NE(bad.out.find("/system/urdf/gravity"), std::string::npos) << bad.out;
+}
+
 // The example: the manipulator at h = 1 with a large initial velocity breaks (4.2) of Theorem 4.1
 // from its first step (tests/guarantees_test.cc computes r_0 from the paper's closed forms). Without
 // --strict the run completes with a warning; with it, exit status 3. The default scene satisfies (4.2)
