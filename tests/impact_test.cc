@@ -366,6 +366,48 @@ TEST(Impact, ControllerAndContactInOneProblemStopTheBlockExactly) {
   EXPECT_EQ(r.diag.impact_count, 0);  // sliding contact, no impact
 }
 
+// A contact and an abs term on the same coordinate (a ball on a floor, with Coulomb friction on its own
+// height: the 1-DOF form of a joint limit with joint friction), which the Moreau-Jean step solves as one
+// row whose graph is the sum of the two laws (merge_rows). Against the closed form of the continuous
+// motion: falling with acceleration g - a/m, rising with g + a/m, Newton's law U+ = -e U- at each impact;
+// then the ball rests exactly on the floor. (The 7-joint arm of Urdf.JointLimitWithCoulombFriction... is
+// the case the unmerged rows could not solve.)
+TEST(Impact, CoulombFrictionOnTheContactCoordinateFollowsTheClosedFormAndRestsExactly) {
+  const double m = 1.0, a = 2.0, e = 0.5, y0 = 1.0, h = 1e-4;
+  json doc = {{"name", "ball-with-friction"},
+              {"parameters", {{"m", m}, {"g", kG}, {"a", a}}},
+              {"system",
+               {{"type", "lagrangian"},
+                {"coordinates", {"y"}},
+                {"mass", {{"m"}}},
+                {"potential", "m*g*y"},
+                {"controller", {{{"type", "abs"}, {"gains", {"a"}}}}},
+                {"constraints", {{{"name", "floor"}, {"gap", "y"}, {"restitution", e}}}}}},
+              {"initial", {{"q", {y0}}, {"v", {0}}}},
+              {"integrator", {{"scheme", "moreau-jean"}, {"h", h}, {"t_end", 3.0}}}};
+  const ContactRun r = RunContacts(doc);
+  const double down = kG - a / m, up = kG + a / m;
+  const double t1 = std::sqrt(2.0 * y0 / down), u1 = -std::sqrt(2.0 * y0 * down);
+  const double rise = e * -u1 / up, apex = (e * u1) * (e * u1) / (2.0 * up);
+  const double t2 = t1 + rise + std::sqrt(2.0 * apex / down), u2 = -std::sqrt(2.0 * apex * down);
+  ASSERT_GE(r.diag.impacts.size(), 2u);
+  EXPECT_NEAR(r.diag.impacts[0].t, t1, 2 * h);
+  EXPECT_NEAR(r.diag.impacts[0].pre, u1, 2 * h * up);
+  EXPECT_NEAR(r.diag.impacts[1].t, t2, 4 * h);
+  EXPECT_NEAR(r.diag.impacts[1].pre, u2, 4 * h * up);
+  for (const ImpactEvent& ev : r.diag.impacts) {
+    EXPECT_EQ(ev.post, -e * ev.pre) << "Newton's law at t = " << ev.t;  // the merged row's wall is -e U- itself
+    EXPECT_GT(ev.impulse, 0.0);
+  }
+  // At rest on the floor: gravity m g exceeds friction a, so the floor carries the rest, and the ball
+  // stays, v == 0.0 exactly, with the contact closed.
+  ASSERT_GE(r.diag.rest_step, 0);
+  EXPECT_EQ(r.summary.v_final[0], 0.0);
+  EXPECT_GE(r.diag.settle_step[0], 0) << "the floor carries an impulse at rest (m g > a)";
+  EXPECT_GE(r.diag.smallest_gap, -h * h * kG);
+  EXPECT_EQ(r.summary.solver.fallback_steps, 0);
+}
+
 // A curved constraint (inside the unit disc, gap 1 - x^2 - y^2): a closed contact keeps U = 0 but the
 // position moves along the tangent, so each step changes the gap by exactly -h^2 |V+|^2 (grad h = -2 q,
 // q . V+ = 0) and the drift accumulates below 0. With position_correction = projection the gap is

@@ -237,6 +237,31 @@ TEST(Urdf, FreeSwingConservesEnergyToFirstOrder) {
   EXPECT_LT(drift[2], 0.05);
 }
 
+// The arm falls onto joint 2's upper limit with Coulomb friction on the same joint
+// (scenes/iiwa14-joint-limit.json). At rest on the limit, friction and the limit act on one velocity and
+// the reaction does not divide uniquely between two rows: the Moreau-Jean step merges them into one law.
+// The run completes and ends at rest, v == 0.0 exactly, against the limit; every impact obeys Newton's
+// law U+ = -e U- to round-off; the gap never goes below the velocity-level scheme's O(h^2 g).
+TEST(Urdf, JointLimitWithCoulombFrictionRestsExactlyOnTheLimit) {
+  const LagrangianScene sc = load_scene(read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/iiwa14-joint-limit.json"));
+  ASSERT_GT(sc.controller.gains(1), 0.0) << "the scene must put Coulomb friction on the limited joint 2";
+  ContactDiagnostics diag;
+  const RunSummary s = run_scene(sc, nullptr, &diag);
+  ASSERT_EQ(s.status, RunStatus::kCompleted) << s.message;
+  ASSERT_TRUE(s.converged_step.has_value()) << "the arm must come to rest";
+  for (double v : s.v_final) EXPECT_EQ(v, 0.0);
+  int upper2 = -1;
+  for (std::size_t i = 0; i < sc.constraint_names.size(); ++i)
+    if (sc.constraint_names[i] == "iiwa_joint_2_upper") upper2 = static_cast<int>(i);
+  ASSERT_GE(upper2, 0);
+  EXPECT_GE(diag.settle_step[static_cast<std::size_t>(upper2)], 0) << "joint 2 must end held by its upper limit";
+  EXPECT_NEAR(s.q_final[1], 2.09439510239, 1e-5);
+  ASSERT_GT(diag.impacts.size(), 0u);
+  for (const ImpactEvent& ev : diag.impacts)
+    EXPECT_NEAR(ev.post, -sc.restitution[static_cast<std::size_t>(ev.constraint)] * ev.pre, 1e-12 * std::abs(ev.pre)) << "t = " << ev.t;
+  EXPECT_GT(diag.smallest_gap, -1e-5);
+}
+
 // ---- bad URDF -------------------------------------------------------------------------------------------
 std::string error_of(const std::string& text) {
   try {
@@ -341,13 +366,6 @@ TEST(Urdf, SceneErrorsNameTheirField) {
   EXPECT_EQ(scene_error(with("/system/mass", {{"1"}})).rfind("/system/mass: a URDF system", 0), 0u);
   EXPECT_EQ(scene_error(with("/system/urdf/friction", {{"coulomb", {1, 1, 1}}})).rfind("/system/urdf/friction/coulomb: ", 0), 0u);
   EXPECT_EQ(scene_error(with("/system/urdf/limits/joints", {"iiwa_joint_9"})).rfind("/system/urdf/limits/joints/0: ", 0), 0u);
-  // A limit and an abs term on one joint are refused (the reaction at rest on the limit does not divide
-  // uniquely); on different joints they are not.
-  nlohmann::json both = with("/system/urdf/friction", {{"coulomb", {1, 0, 0, 0, 0, 0, 0}}});
-  both["system"]["urdf"]["limits"] = {{"joints", {"iiwa_joint_2"}}};
-  EXPECT_EQ(scene_error(both), "(no error)");
-  both["system"]["urdf"]["limits"] = {{"joints", {"iiwa_joint_1"}}};
-  EXPECT_EQ(scene_error(both).rfind("/system/urdf/limits: joint 'iiwa_joint_1' has both a limit and an abs term", 0), 0u) << scene_error(both);
   // With the limits as constraints, a start beyond one is refused; without them it is not.
   EXPECT_EQ(scene_error(with("/initial/q", std::vector<double>(7, 2.5))), "(no error)");
   doc["system"]["urdf"]["limits"] = {{"restitution", 0.5}};

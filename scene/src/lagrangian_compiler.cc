@@ -183,14 +183,6 @@ class LagrangianCompiler : SceneReader {
     for (const UrdfJointLimit& lim : robot_->limits) {
       if (l.contains("joints") && !chosen.count(lim.coordinate)) continue;
       chosen.erase(lim.coordinate);
-      // A joint at rest on its limit with an abs term (Coulomb friction, the controller's alpha) has two
-      // set-valued laws on one velocity: the one-step problem's rows for them are parallel, and how the
-      // reaction divides between them is not unique, so the Moreau-Jean step cannot solve it exactly.
-      if (scene.controller.gains(lim.coordinate) > 0.0)
-        throw SceneError(ptr, "joint '" + robot_->model.bodies[static_cast<std::size_t>(lim.coordinate)].joint_name +
-                                  "' has both a limit and an abs term (Coulomb friction or the controller's |v|): at rest on the limit "
-                                  "the two reactions do not divide uniquely, which the Moreau-Jean step does not solve yet; "
-                                  "leave the joint out of 'joints' or drop its abs term");
       const Node q = graph_.variable(1 + lim.coordinate);
       const std::string& name = coord_names_[static_cast<std::size_t>(lim.coordinate)];
       const std::pair<Node, std::string> sides[] = {

@@ -220,6 +220,15 @@ class MonotoneGraph {
     return d;
   }
 
+  // Moves the only vertex of a one-vertex graph to (u, w), keeping its ends: the same graph translated.
+  // Allocation-free (the pieces are rebuilt in the storage they had), for graphs that change every step.
+  void move_single_vertex(double u, double w) {
+    if (u_.size() != 1) return;
+    u_[0] = u;
+    w_[0] = w;
+    build_pieces();
+  }
+
   // The piece on which u + d w = q meets the graph (d > 0), without computing the point.
   int locate(double q, double d) const {
     const int K = static_cast<int>(u_.size());

@@ -23,7 +23,9 @@
 // graph_inclusion_solver.h in m = (#a_j > 0) + (#constraints) unknowns: u = G_v V^{k+1} + b, w the impulses,
 // V^{k+1} = V_free - Wm^{-1} G_f^T w, Wm = M + h (C + W), each row either a controlled velocity
 // (u_j = v_j, w_j in a_j Sign(u_j), impulse h w_j) or a contact (u_i = U_i^{k+1} + e_i min(U_i^k, 0),
-// w_i = -P_i in d psi_{R+}(u_i), the corner law, for i in I_k; w_i = 0 otherwise). Solved exactly by
+// w_i = -P_i in d psi_{R+}(u_i), the corner law, for i in I_k; w_i = 0 otherwise). A contact whose
+// gradient is c e_j, on a coordinate j that also has an abs term (a joint limit with joint friction),
+// shares one row with it, whose law is the sum of the two (merge_rows). Solved exactly by
 // GraphInclusionSolver: a velocity at rest is 0.0 (when n rows sit on vertical pieces, V^{k+1} is solved
 // from them; otherwise a vertical row involving one coordinate fixes it), so a system at rest has
 // V == 0.0 exactly. An unsolved step stops the run (RunStatus::kFailed).
@@ -54,6 +56,7 @@
 //   bool has_potential() const;  double potential(const Vec<N>& q);
 #pragma once
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
@@ -131,10 +134,16 @@ class MoreauJeanIntegrator {
     nc_ = model_.num_constraints();
     const Controller<N>& phi = model_.controller();
     weights_ = phi.weights;
+    row_of_dof_.assign(static_cast<std::size_t>(n_), -1);
     for (int j = 0; j < n_; ++j) {
       if (phi.gains(j) > 0.0) {
+        row_of_dof_[static_cast<std::size_t>(j)] = static_cast<int>(ctrl_dof_.size());
         ctrl_dof_.push_back(j);
         relay_.push_back(MonotoneGraph::relay(phi.gains(j)));
+        // The controlled row's law merged with a contact on its coordinate alone (see merge_rows): a wall
+        // on the left (gradient c > 0) or on the right (c < 0), moved every step.
+        merged_left_wall_.push_back(MonotoneGraph({0.0}, {0.0}, MonotoneGraph::End::kWall, 0.0, MonotoneGraph::End::kSlope, 0.0));
+        merged_right_wall_.push_back(MonotoneGraph({0.0}, {0.0}, MonotoneGraph::End::kSlope, 0.0, MonotoneGraph::End::kWall, 0.0));
       }
     }
     norm_gain_ = phi.norm_gain;
@@ -175,6 +184,8 @@ class MoreauJeanIntegrator {
     w_.setZero(m_);
     ptrs_.assign(static_cast<std::size_t>(m_), &zero_);
     for (int r = 0; r < na_; ++r) ptrs_[r] = &relay_[r];
+    merged_contact_.assign(static_cast<std::size_t>(na_), -1);
+    merged_sign_.assign(static_cast<std::size_t>(na_), 0.0);
     solver_.configure(m_);
     // Impact steps and position correction.
     Z_.setZero(n_, nc_);
@@ -276,12 +287,17 @@ class MoreauJeanIntegrator {
         Gf_(r, ctrl_dof_[r]) = h;
         b_(r) = 0.0;
       }
+      for (int r = 0; r < na_; ++r) {
+        ptrs_[r] = &relay_[static_cast<std::size_t>(r)];
+        merged_contact_[static_cast<std::size_t>(r)] = -1;
+      }
       for (int i = 0; i < nc_; ++i) {
         const int r = na_ + i;
         Gv_.row(r) = H_.row(i);
         Gf_.row(r) = H_.row(i);
         b_(r) = active_[i] ? restitution_[i] * std::min(U_(i), 0.0) : 0.0;
         ptrs_[r] = active_[i] ? &corner_ : &zero_;
+        if (active_[i]) merge_rows(i, h);
       }
       // Small dense pieces, column by column with fixed-size N: no dynamic-size GEMM per step.
       for (int r = 0; r < m_; ++r) {
@@ -304,6 +320,7 @@ class MoreauJeanIntegrator {
       for (int j = 0; j < m_; ++j)
         if (w_(j) != 0.0) vn_ -= w_(j) * Y_.col(j);
       polish(vn_);
+      split_merged_impulses(h);
     } else {
       vn_ = vf_;
       w_.setZero();
@@ -398,6 +415,53 @@ class MoreauJeanIntegrator {
     if (rec.rest_from() >= 0) {
       d.rest_step = rec.rest_from();
       d.rest_time = rec.rest_time();
+    }
+  }
+
+  // A contact whose gradient is c e_j (a joint limit: c = +-1) on a coordinate j that also has an abs
+  // term a_j |v_j| (Coulomb friction, the controller): both laws act on v_j alone, and at rest on the
+  // contact their two rows would be parallel and both vertical, with a reaction that does not divide
+  // uniquely between them. They become one row on v_j, with the sum of the two laws as its graph, which
+  // is maximal monotone: impulse h a_j Sgn(v_j) + c d psi_{R+}(c v_j + b_i), i.e. a wall at
+  // v0 = -b_i / c (the Newton target) and, beside it, the friction level h a_j sign(c); the contact's own
+  // row then carries w = 0. The solution of the one-step problem is the same; only this row is solved for
+  // the total. split_merged_impulses gives each law its part afterwards.
+  void merge_rows(int i, double h) {
+    int col = -1, nonzero = 0;
+    for (int j = 0; j < n_; ++j)
+      if (H_(i, j) != 0.0) {
+        ++nonzero;
+        col = j;
+      }
+    if (nonzero != 1) return;
+    const int r = row_of_dof_[static_cast<std::size_t>(col)];
+    if (r < 0 || merged_contact_[static_cast<std::size_t>(r)] >= 0) return;  // no abs term, or merged already
+    const double c = H_(i, col);
+    const double a = relay_[static_cast<std::size_t>(r)].w().back();  // the relay's level a_j
+    const double v0 = -b_(na_ + i) / c;
+    MonotoneGraph& g = c > 0.0 ? merged_left_wall_[static_cast<std::size_t>(r)] : merged_right_wall_[static_cast<std::size_t>(r)];
+    g.move_single_vertex(v0, c > 0.0 ? h * a : -h * a);
+    Gf_(r, col) = 1.0;  // the row's w is now the whole impulse along e_j (the relay row's was h times it)
+    ptrs_[r] = &g;
+    ptrs_[na_ + i] = &zero_;
+    merged_contact_[static_cast<std::size_t>(r)] = i;
+    merged_sign_[static_cast<std::size_t>(r)] = c;
+  }
+
+  // After a step with merged rows: the total impulse W of row r (along e_j) as friction f in
+  // h a_j Sgn(v_j) and contact impulse, W = f + c w_c. Off the wall (or on a wall away from v_j = 0) the
+  // friction part is h a_j sign(v_j) exactly; at v_j = 0 the split is not unique and the contact takes
+  // only what friction cannot hold, f = clamp(W, -h a_j, h a_j). Row r and the contact's row then hold
+  // the values the unmerged rows would (w_r: the friction level, impulse h w_r; w_i = -P_i).
+  void split_merged_impulses(double h) {
+    for (int r = 0; r < na_; ++r) {
+      const int i = merged_contact_[static_cast<std::size_t>(r)];
+      if (i < 0) continue;
+      const double a = relay_[static_cast<std::size_t>(r)].w().back();
+      const double W = w_(r), vj = u_(r), c = merged_sign_[static_cast<std::size_t>(r)];
+      const double f = vj != 0.0 ? h * a * (vj > 0.0 ? 1.0 : -1.0) : std::clamp(W, -h * a, h * a);
+      w_(na_ + i) = (W - f) / c;
+      w_(r) = f / h;
     }
   }
 
@@ -584,6 +648,10 @@ class MoreauJeanIntegrator {
   double norm_gain_ = 0.0;
   std::vector<int> ctrl_dof_;
   std::vector<MonotoneGraph> relay_;
+  std::vector<MonotoneGraph> merged_left_wall_, merged_right_wall_;  // per controlled row (merge_rows)
+  std::vector<int> row_of_dof_;      // controlled row of each coordinate, -1 without an abs term
+  std::vector<int> merged_contact_;  // per controlled row: the contact merged into it this step, or -1
+  std::vector<double> merged_sign_;  // its gradient's entry c
   MonotoneGraph corner_ = MonotoneGraph::complementarity();
   MonotoneGraph zero_ = MonotoneGraph::zero();
   std::vector<double> restitution_;
