@@ -11,33 +11,18 @@
 #include "moreau/core/models/manipulator.h"
 #include "moreau/core/models/oscillator1.h"
 #include "moreau/scene/scene.h"
+#include "per_step.h"
 
 namespace {
 
 using namespace moreau;
+using bench::RunScene;
+using bench::SetPerStep;
 
 scene::LagrangianScene LoadScene(const char* file, double t_end) {
   nlohmann::json doc = scene::read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/" + file);
   doc["integrator"]["t_end"] = t_end;
   return scene::load_scene(doc);
-}
-
-void SetPerStep(benchmark::State& state, std::int64_t steps_per_run) {
-  state.SetItemsProcessed(state.iterations() * steps_per_run);
-  state.counters["ns_per_step"] =
-      benchmark::Counter(static_cast<double>(state.iterations() * steps_per_run), benchmark::Counter::kIsRate | benchmark::Counter::kInvert,
-                         benchmark::Counter::kIs1000);
-}
-
-// Runs a compiled scene once per iteration and reports time per step.
-void RunScene(benchmark::State& state, const scene::LagrangianScene& sc) {
-  std::int64_t steps = 0;
-  for (auto _ : state) {
-    const RunSummary s = scene::run_scene(sc, nullptr);
-    steps = s.steps;
-    benchmark::DoNotOptimize(s.q_final.data());
-  }
-  SetPerStep(state, steps);
 }
 
 void ManipulatorScene(benchmark::State& state, double t_end) {

@@ -9,11 +9,13 @@
 
 #include "moreau/core/rigid_body.h"
 #include "moreau/scene/scene.h"
+#include "per_step.h"
 #include "moreau/scene/urdf.h"
 
 namespace {
 
 using namespace moreau;
+using bench::RunScene;
 
 std::string chain_text(int n) {
   std::ifstream in(std::string(MOREAU_CHAIN_DIR) + "/chain-" + std::to_string(n) + ".urdf");
@@ -22,23 +24,6 @@ std::string chain_text(int n) {
   return s.str();
 }
 
-void SetPerStep(benchmark::State& state, std::int64_t steps_per_run) {
-  state.SetItemsProcessed(state.iterations() * steps_per_run);
-  state.counters["ns_per_step"] =
-      benchmark::Counter(static_cast<double>(state.iterations() * steps_per_run), benchmark::Counter::kIsRate | benchmark::Counter::kInvert,
-                         benchmark::Counter::kIs1000);
-}
-
-void RunScene(benchmark::State& state, const scene::LagrangianScene& sc) {
-  std::int64_t steps = 0;
-  for (auto _ : state) {
-    const RunSummary s = scene::run_scene(sc, nullptr);
-    steps = s.steps;
-    if (s.status != RunStatus::kCompleted) state.SkipWithError(s.message.c_str());
-    benchmark::DoNotOptimize(s.q_final.data());
-  }
-  SetPerStep(state, steps);
-}
 
 // The arm of iiwa14-controller.json at a fixed h = 1e-3 until t = 0.15, before it comes to rest (0.19 s).
 void BM_Iiwa14Controller_moving(benchmark::State& state) {

@@ -25,13 +25,8 @@ struct RasterModule {
 constexpr const char* kModule = "libmoreau_render_gl.so";
 
 RasterModule load() {
-#ifdef MOREAU_RENDER_GL_BUILD_PATH
-  const char* build_path = MOREAU_RENDER_GL_BUILD_PATH;
-#else
-  const char* build_path = nullptr;
-#endif
-  std::string tried;
-  void* handle = platform::open_module(platform::install_candidates(kModule, "MOREAU_RENDER_GL", build_path),
+  std::string tried;  // MOREAU_RENDER_GL_BUILD_PATH: defined by render/CMakeLists.txt
+  void* handle = platform::open_module(platform::install_candidates(kModule, "MOREAU_RENDER_GL", MOREAU_RENDER_GL_BUILD_PATH),
                                        {"moreau_render_gl_rasterize", "moreau_render_gl_encode_png", "moreau_render_gl_decode_png"}, tried);
   if (!handle)
     throw std::runtime_error(std::string("PNG figures need the raster module ") + kModule +

@@ -29,13 +29,9 @@ using DescribeFn = int (*)(const char*, std::size_t, UrdfDescription*, std::stri
 constexpr const char* kModule = "libmoreau_urdf.so";
 
 DescribeFn load_module() {
-#ifdef MOREAU_URDF_MODULE_BUILD_PATH
-  const char* build_path = MOREAU_URDF_MODULE_BUILD_PATH;
-#else
-  const char* build_path = nullptr;
-#endif
-  std::string tried;
-  void* handle = platform::open_module(platform::install_candidates(kModule, "MOREAU_URDF_MODULE", build_path), {"moreau_urdf_describe"}, tried);
+  std::string tried;  // MOREAU_URDF_MODULE_BUILD_PATH: defined by scene/CMakeLists.txt
+  void* handle = platform::open_module(platform::install_candidates(kModule, "MOREAU_URDF_MODULE", MOREAU_URDF_MODULE_BUILD_PATH),
+                                       {"moreau_urdf_describe"}, tried);
   if (!handle) throw UrdfError(std::string("URDF scenes need the module ") + kModule + ", which was not found or could not be loaded:" + tried);
   return reinterpret_cast<DescribeFn>(::dlsym(handle, "moreau_urdf_describe"));
 }
@@ -188,7 +184,6 @@ UrdfRobot read_urdf(std::string_view text, const UrdfSelection& selection) {
       }
       continue;
     }
-    if (robot.model.bodies.size() >= kMaxUrdfLinks) throw UrdfError("too many joints");
     RigidBody body;
     body.joint_name = j.name;
     body.link_name = j.child_link;

@@ -390,17 +390,22 @@ class OneStepSolver {
       if (y_zero_) return false;
       w_ -= (an_ / y.norm()) * y;
     }
-    const double tol =
-        64.0 * std::numeric_limits<double>::epsilon() * (x.cwiseAbs().maxCoeff() + scale_px * y.cwiseAbs().maxCoeff() + gain_scale);
-    for (int i = 0; i < size(); ++i) {
-      if (!(a_(i) > 0.0)) continue;
-      if (s(i) != 0) {
-        if (y(i) * s(i) < 0.0) return false;
-      } else if (std::abs(w_(i)) > a_(i) + tol) {
-        return false;
-      }
-    }
+    const double tol = pattern_tolerance(x, y, scale_px, gain_scale);
+    for (int i = 0; i < size(); ++i)
+      if (breaks_pattern(i, y, s, tol)) return false;
     return true;
+  }
+
+  // The slack of the multiplier test below: a few ulps of the size of the terms of (6.5).
+  double pattern_tolerance(const Vec<N>& x, const Vec<N>& y, double scale_px, double gain_scale) const {
+    return 64.0 * std::numeric_limits<double>::epsilon() * (x.cwiseAbs().maxCoeff() + scale_px * y.cwiseAbs().maxCoeff() + gain_scale);
+  }
+
+  // Whether component i breaks pattern s at y, with w_ = -(P y + x) (- a_norm y / ||y||) current: a
+  // moving component with the wrong sign, or a resting one whose multiplier leaves [-a_i, a_i].
+  bool breaks_pattern(int i, const Vec<N>& y, const Pattern& s, double tol) const {
+    if (!(a_(i) > 0.0)) return false;
+    return s(i) != 0 ? y(i) * s(i) < 0.0 : std::abs(w_(i)) > a_(i) + tol;
   }
 
   // The active-set update of the semismooth Newton method: s_i = sign(c_i y_i + w_i) where that exceeds
@@ -442,13 +447,10 @@ class OneStepSolver {
       if (!solve_pattern(P, x, pattern_, y)) return false;  // singular: P is not a P-matrix
       w_.noalias() = -(P * y);
       w_ -= x;
-      const double tol =
-          64.0 * std::numeric_limits<double>::epsilon() * (x.cwiseAbs().maxCoeff() + scale_px * y.cwiseAbs().maxCoeff() + gain_scale);
+      const double tol = pattern_tolerance(x, y, scale_px, gain_scale);
       int count = 0, first = -1;
       for (int i = 0; i < n; ++i) {
-        if (!(a_(i) > 0.0)) continue;
-        const bool broken = pattern_(i) != 0 ? y(i) * pattern_(i) < 0.0 : std::abs(w_(i)) > a_(i) + tol;
-        if (!broken) continue;
+        if (!breaks_pattern(i, y, pattern_, tol)) continue;
         ++count;
         if (first < 0) first = i;
       }
@@ -463,14 +465,10 @@ class OneStepSolver {
       } else {
         ++tries;
       }
-      for (int i = block ? 0 : first; i < (block ? n : first + 1); ++i) {
-        if (!(a_(i) > 0.0)) continue;
-        if (pattern_(i) != 0) {
-          if (y(i) * pattern_(i) < 0.0) pattern_(i) = 0;  // moving the wrong way: rest
-        } else if (std::abs(w_(i)) > a_(i) + tol) {
-          pattern_(i) = w_(i) > 0.0 ? 1 : -1;  // the multiplier leaves [-a_i, a_i]: move its way
-        }
-      }
+      // A broken moving component comes to rest; a broken resting one moves the way its multiplier left
+      // [-a_i, a_i].
+      for (int i = block ? 0 : first; i < (block ? n : first + 1); ++i)
+        if (breaks_pattern(i, y, pattern_, tol)) pattern_(i) = pattern_(i) != 0 ? 0 : (w_(i) > 0.0 ? 1 : -1);
     }
     accept(P, x, y, scale_px, gain_scale, stats);
     return false;
