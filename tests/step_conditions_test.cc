@@ -14,6 +14,24 @@
 namespace moreau {
 namespace {
 
+// What StepCheck::ratio_kind promises: exact, an upper bound that proves r_k <= 1, or a lower bound that
+// proves r_k > 1.
+void ExpectRatioAsLabelled(const StepCheck& c, double ratio, int step) {
+  switch (c.ratio_kind) {
+    case BoundKind::kExact:
+      EXPECT_NEAR(c.ratio(), ratio, 1e-10 * ratio) << "step " << step;
+      break;
+    case BoundKind::kUpperBound:
+      EXPECT_GE(c.ratio(), ratio * (1.0 - 1e-10)) << "step " << step;
+      EXPECT_LE(c.ratio(), 1.0) << "step " << step;
+      break;
+    case BoundKind::kLowerBound:
+      EXPECT_LE(c.ratio(), ratio * (1.0 + 1e-10)) << "step " << step;
+      EXPECT_GT(c.ratio(), 1.0) << "step " << step;
+      break;
+  }
+}
+
 template <int N>
 void CompareWithEigen(int n, std::mt19937& rng) {
   std::normal_distribution<double> normal;
@@ -45,10 +63,7 @@ void CompareWithEigen(int n, std::mt19937& rng) {
         EXPECT_NEAR(c.ratio(), ratio, 1e-10 * ratio);
       } else {
         EXPECT_LE(c.lambda_min_m, lambda + tol);
-        EXPECT_GE(c.ratio(), ratio * (1.0 - 1e-10));
-        if (c.ratio() > 1.0) {
-          EXPECT_NEAR(c.ratio(), ratio, 1e-10 * ratio) << "a violation must be exact";
-        }
+        ExpectRatioAsLabelled(c, ratio, trial);
       }
       // The verdict of (4.2) agrees with the reference whenever the reference is not within round-off of 1.
       if (std::abs(ratio - 1.0) > 1e-9) {
@@ -58,7 +73,9 @@ void CompareWithEigen(int n, std::mt19937& rng) {
     } else if (lambda < -tol) {
       EXPECT_LE(c.lambda_min_m, 0.0) << "trial " << trial;
       EXPECT_NEAR(c.lambda_min_m, lambda, tol) << "an indefinite M must be reported with its exact lambda_min";
-      EXPECT_EQ(checker.lambda_min(M) <= 0.0, true);
+      bool exact = false;
+      EXPECT_LE(checker.lambda_min(M, exact), 0.0);
+      EXPECT_TRUE(exact) << "an indefinite M must be reported with its exact lambda_min";
       ++indefinite;
     }
   }
@@ -77,16 +94,83 @@ TEST(StepConditions, AgreeWithEigenSolvers) {
   CompareWithEigen<Eigen::Dynamic>(7, rng);
 }
 
+// Along a smooth path M(t) = R(t) diag(d(t)) R(t)^T, C(t) = c(t) C0 (n = 7, M far from diagonally
+// dominant, so Gershgorin's bound cannot decide, and h large enough that the bound ||C||_1 ||C||_inf
+// cannot either), as M(Q^k) and C(Q^k, V^k) move in a run with (4.2) holding at some steps and failing at
+// others: each recorded lambda_min is at most the true one, each ratio is what its label says (exact, an
+// upper bound <= 1, a lower bound > 1, and then within 0.1%), the run's smallest recorded lambda_min is
+// within the 0.1% of the Cholesky certificate of the true smallest one, and eigenvalues are computed at
+// few steps.
+TEST(StepConditions, CholeskyCertificatesAlongASmoothPath) {
+  const int n = 7;
+  std::mt19937 rng(7);
+  std::normal_distribution<double> normal;
+  Eigen::MatrixXd A(n, n), B(n, n), C0(n, n);
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) {
+      A(i, j) = normal(rng);
+      B(i, j) = normal(rng);
+      C0(i, j) = normal(rng);
+    }
+  C0 /= Eigen::JacobiSVD<Eigen::MatrixXd>(C0).singularValues()(0);  // ||C0||_2 = 1
+  const Eigen::MatrixXd S = B - B.transpose();
+  const Eigen::MatrixXd Q = Eigen::HouseholderQR<Eigen::MatrixXd>(A).householderQ();
+  const Eigen::MatrixXd I = Eigen::MatrixXd::Identity(n, n);
+  StepConditionChecker<Eigen::Dynamic> checker(n);
+  MassDefinitenessTrack track;
+  double true_min = 1e300;
+  int gershgorin_failed = 0, norm_bound_failed = 0, violations = 0, bounded_violations = 0;
+  const int steps = 2000;
+  const double h = 0.12;  // r_k = 2 h ||C||_2 / lambda_min(M) from about 0.1 to 1.4
+  for (int k = 0; k < steps; ++k) {
+    const double t = 1e-3 * k;
+    Eigen::VectorXd d(n);
+    for (int i = 0; i < n; ++i) d(i) = 0.5 + i + 0.3 * std::sin(3.0 * t + i);  // lambda_min between 0.2 and 0.8
+    const Eigen::MatrixXd R = Q * (I - 0.05 * t * S).inverse() * (I + 0.05 * t * S);  // Cayley: a rotation
+    Eigen::MatrixXd M = R * d.asDiagonal() * R.transpose();
+    M = 0.5 * (M + M.transpose()).eval();
+    const Eigen::MatrixXd C = (1.0 + 0.5 * std::sin(2.0 * t)) * C0;
+    const double lambda = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(M).eigenvalues()(0);
+    const double ratio = 2.0 * h * Eigen::JacobiSVD<Eigen::MatrixXd>(C).singularValues()(0) / lambda;
+    double gersh = 1e300;
+    for (int i = 0; i < n; ++i) gersh = std::min(gersh, M(i, i) - (M.row(i).cwiseAbs().sum() - std::abs(M(i, i))));
+    gershgorin_failed += gersh <= 0.0;
+    const double c2_bound = C.cwiseAbs().colwise().sum().maxCoeff() * C.cwiseAbs().rowwise().sum().maxCoeff();
+    norm_bound_failed += 4.0 * h * h * c2_bound > lambda * lambda;
+    true_min = std::min(true_min, lambda);
+
+    const StepCheck c = checker.check(M, C, h);
+    ASSERT_LE(c.lambda_min_m, lambda * (1.0 + 1e-12)) << "step " << k;
+    ASSERT_GT(c.lambda_min_m, 0.0);
+    ExpectRatioAsLabelled(c, ratio, k);
+    if (ratio > 1.0 + 1e-9) {
+      ++violations;
+      bounded_violations += c.ratio_kind == BoundKind::kLowerBound;
+      EXPECT_GT(c.ratio(), (1.0 - 1e-3) * ratio) << "step " << k << ": the Rayleigh quotients' bound must stay tight";
+    }
+    if (c.exact) EXPECT_NEAR(c.lambda_min_m, lambda, 1e-12 * lambda);
+    track.record(c.lambda_min_m, c.exact, k, t);
+  }
+  EXPECT_EQ(gershgorin_failed, steps) << "the path must exercise the Cholesky certificate of M";
+  EXPECT_GT(norm_bound_failed, steps / 4) << "the path must exercise the Cholesky certificate of C";
+  EXPECT_GT(violations, steps / 10);
+  EXPECT_GT(bounded_violations, violations / 2) << "the path must exercise the Rayleigh quotients' bounds";
+  EXPECT_LE(track.lambda_min, true_min * (1.0 + 1e-12));
+  EXPECT_GE(track.lambda_min, (1.0 - 1e-3) * true_min * (1.0 - 1e-12));
+  EXPECT_LE(checker.eigenvalue_computations(), steps / 100);
+  EXPECT_GE(checker.eigenvalue_computations(), 2);
+}
+
 TEST(StepConditions, TrackCountsViolationsFromTheFirst) {
   StepConditionTrack t;
   EXPECT_EQ(t.verdict(), Verdict::kNotChecked);
   // r^2 as num / den.
-  t.record_squared(0.25, 1.0, 0, 0.0);
+  t.record_squared(0.25, 1.0, BoundKind::kExact, 0, 0.0);
   const double r = 1.0 + StepConditionTrack::kRoundoff / 2;  // the rule's own equality, up to round-off
-  t.record_squared(r * r * 4.0, 4.0, 1, 0.1);
+  t.record_squared(r * r * 4.0, 4.0, BoundKind::kExact, 1, 0.1);
   EXPECT_EQ(t.verdict(), Verdict::kHolds);
-  t.record_squared(9.0, 1.0, 2, 0.2);
-  t.record_squared(16.0, 4.0, 3, 0.3);
+  t.record_squared(9.0, 1.0, BoundKind::kExact, 2, 0.2);
+  t.record_squared(16.0, 4.0, BoundKind::kExact, 3, 0.3);
   EXPECT_EQ(t.verdict(), Verdict::kFails);
   EXPECT_EQ(t.violations, 2);
   EXPECT_EQ(t.first_violation_step, 2);

@@ -21,8 +21,10 @@ HypothesisCheck mass_check(const RunSummary& s) {
   if (s.mass.checked == 0) {
     h.detail = "no step was taken";
   } else if (h.verdict == Verdict::kHolds) {
-    h.detail = "checked at " + std::to_string(s.mass.checked) + " steps; smallest lambda_min(M) " + fmt(s.mass.lambda_min) +
-               " at t = " + fmt(s.mass.at_time) + " (the global bound k1 of the assumption is not checked, only the visited states)";
+    h.detail = "checked at " + std::to_string(s.mass.checked) + " steps; smallest lambda_min(M) " + (s.mass.lambda_min_exact ? "" : ">= ") +
+               fmt(s.mass.lambda_min) + " at t = " + fmt(s.mass.at_time) +
+               (s.mass.lambda_min_exact ? "" : " (a certified lower bound: Gershgorin's, or M - s I has a Cholesky factor)") +
+               " (the global bound k1 of the assumption is not checked, only the visited states)";
   } else {
     h.detail = "lambda_min(M) = " + fmt(s.mass.lambda_min) + " at t = " + fmt(s.mass.at_time) + ": the run stopped there";
   }
@@ -42,7 +44,7 @@ Guarantee theorem41(const RunSummary& s) {
                " at every step (largest at t = " + fmt(c.worst_time) + ")";
   } else {
     h.detail = "fails at " + std::to_string(c.violations) + " of " + std::to_string(c.checked) + " steps, first at t = " +
-               fmt(c.first_violation_time) + " (step " + std::to_string(c.first_violation_step) + "); largest r_k = " + fmt(c.worst_ratio()) +
+               fmt(c.first_violation_time) + " (step " + std::to_string(c.first_violation_step) + "); largest r_k " + (c.worst_kind == BoundKind::kLowerBound ? ">= " : "= ") + fmt(c.worst_ratio()) +
                " at t = " + fmt(c.worst_time) + " (r_k <= 1 required; the step rule theorem-4.1 enforces it)";
   }
   g.hypotheses.push_back(h);

@@ -255,8 +255,9 @@ class MoreauJeanIntegrator {
     const Vec<N>& q = q_;
     const Vec<N>& v = v_;
     // Assumption 3.1 at the visited states: M(Q^k) positive definite, else the run stops here.
-    const double lambda_m = checker_.lambda_min(terms_.M);
-    s.mass.record(lambda_m, k, t);
+    bool exact = true;
+    const double lambda_m = checker_.lambda_min(terms_.M, exact);
+    s.mass.record(lambda_m, exact, k, t);
     if (!(lambda_m > 0.0)) return f.at(k, t, q.data(), v.data(), not_positive_definite(lambda_m, q.data(), n_));
 
     // Free velocity: Wm V_free = M V^k - h g.

@@ -37,6 +37,9 @@ struct EquilibriumCheck {
 
 // A per-step condition "ratio <= 1": how many steps were checked, how many failed, the first failure and
 // the largest ratio (with where it was).
+// Whether a recorded value is the quantity itself or a certified bound of it.
+enum class BoundKind { kExact, kLowerBound, kUpperBound };
+
 struct StepConditionTrack {
   std::int64_t checked = 0;
   std::int64_t violations = 0;
@@ -49,12 +52,14 @@ struct StepConditionTrack {
   static constexpr double kRoundoff = 64.0 * std::numeric_limits<double>::epsilon();
 
   // r_k^2 = num / den (den > 0), given as a fraction so that the hot loop needs no division and no square
-  // root for it.
-  void record_squared(double num, double den, std::int64_t k, double t) {
+  // root for it; kind says whether it is r_k^2 or a bound of it (an upper bound where (4.2) holds, a
+  // lower bound where it certainly fails).
+  void record_squared(double num, double den, BoundKind kind, std::int64_t k, double t) {
     ++checked;
     if (num * worst_den_ > worst_num_ * den) {
       worst_num_ = num;
       worst_den_ = den;
+      worst_kind = kind;
       worst_step = k;
       worst_time = t;
     }
@@ -66,7 +71,9 @@ struct StepConditionTrack {
       ++violations;
     }
   }
-  // The largest r_k: an upper bound on every checked ratio, exact when > 1.
+  // The largest recorded r_k. With no violation, an upper bound on every checked ratio; with violations,
+  // the largest r_k or (worst_kind == kLowerBound) a lower bound of the largest.
+  BoundKind worst_kind = BoundKind::kExact;
   double worst_ratio() const { return worst_num_ > 0.0 ? std::sqrt(worst_num_ / worst_den_) : 0.0; }
   Verdict verdict() const { return checked == 0 ? Verdict::kNotChecked : (violations > 0 ? Verdict::kFails : Verdict::kHolds); }
 
@@ -75,17 +82,20 @@ struct StepConditionTrack {
 };
 
 // The smallest eigenvalue of M(Q^k) over the run (Assumption 3.1 at the visited states): exact for n <= 2;
-// for larger n a lower bound wherever Gershgorin's bound already proved definiteness.
+// for larger n a certified lower bound wherever a bound already proved definiteness (step_conditions.h),
+// and then lambda_min_exact is false.
 struct MassDefinitenessTrack {
   std::int64_t checked = 0;
   double lambda_min = std::numeric_limits<double>::infinity();
+  bool lambda_min_exact = true;  // false: lambda_min is a lower bound of the smallest eigenvalue seen
   std::int64_t at_step = -1;
   double at_time = 0.0;
 
-  void record(double lambda, std::int64_t k, double t) {
+  void record(double lambda, bool exact, std::int64_t k, double t) {
     ++checked;
     if (lambda < lambda_min) {
       lambda_min = lambda;
+      lambda_min_exact = exact;
       at_step = k;
       at_time = t;
     }

@@ -11,18 +11,31 @@
 //    "theorem-4.1" chooses h_k so that r_k <= 1; the rule "fixed" does not, and this check is what says
 //    whether its steps were covered by the theorem.
 //
-// Cost: closed forms for n = 1 and 2 (three square roots); for larger n, a Gershgorin lower bound on
-// lambda_min(M) and the bound ||C||_2 <= sqrt(||C||_1 ||C||_inf) first, and eigenvalues only when those
-// bounds cannot decide. The recorded worst ratio is therefore an upper bound on every r_k of the run
-// (exact where eigenvalues were computed, and every violation is exact).
+// Cost: closed forms for n = 1 and 2 (three square roots). For larger n, certified two-sided bounds first,
+// and eigenvalues only when the bounds cannot decide (r_k <= 1, or r_k > 1 + round-off, for certain):
+//  - lambda_min(M) >= Gershgorin's bound, and ||C||_2^2 <= ||C||_1 ||C||_inf;
+//  - lambda_min(M) <= x^T M x and ||C||_2^2 >= ||C u||^2 for unit x and u (Rayleigh quotients). x and u
+//    track the eigenvectors of lambda_min(M) and of ||C||_2^2 (of C^T C): set by the last eigenvalue
+//    computation and moved at every step by one step of inverse iteration (x) and of power iteration
+//    (u), so they follow M(Q^k) and C(Q^k, V^k) as these move by O(h) per step, and the quotients'
+//    error is quadratic in the vectors' error;
+//  - lambda_min(M) > s = (1 - 1e-3) x^T M x when M - s I has a Cholesky factor (a symmetric matrix is
+//    positive definite iff it has one), and ||C||_2^2 < t = (1 + 1e-3)^2 ||C u||^2 when t I - C^T C has.
+// So where a certificate decided, a recorded lambda_min is within 0.1% below the true one, an upper
+// bound of r_k within about 0.2% above it, and where (4.2) fails for certain the recorded r_k is a lower
+// bound from the Rayleigh quotients; StepCheck says which values are bounds. Cholesky in floating point is backward stable, so
+// a certificate holds unless M is so ill conditioned that 1e-3 lambda_min(M) is below about
+// n eps ||M||_2 (a condition number above ~1e12).
 #pragma once
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <limits>
 #include <string>
 
+#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 
 #include "moreau/core/run_summary.h"
@@ -34,8 +47,10 @@ namespace moreau {
 // the fraction ratio_sq_num / ratio_sq_den (valid when lambda_min_m > 0).
 struct StepCheck {
   double lambda_min_m = 0.0;  // > 0: M(Q^k) is positive definite (exact for n <= 2, else exact or a lower bound)
-  double ratio_sq_num = 0.0;  // (2 h_k ||C||_2)^2, or an upper bound when the bounds decided
-  double ratio_sq_den = 1.0;  // lambda_min(M)^2, or the square of its lower bound
+  bool exact = true;          // lambda_min_m is lambda_min(M) itself (false: a certified lower bound)
+  double ratio_sq_num = 0.0;  // (2 h_k ||C||_2)^2, or a bound of it (ratio_kind)
+  double ratio_sq_den = 1.0;  // lambda_min(M)^2, or a bound of it
+  BoundKind ratio_kind = BoundKind::kExact;  // kUpperBound: r_k <= ratio() <= 1; kLowerBound: r_k >= ratio() > 1
   double ratio() const { return std::sqrt(ratio_sq_num / ratio_sq_den); }
 };
 
@@ -57,20 +72,30 @@ class StepConditionChecker {
   explicit StepConditionChecker(int n) {
     if constexpr (N == Eigen::Dynamic) {
       CtC_.resize(n, n);
+      shifted_.resize(n, n);
       sums_.resize(n);
+      x_.resize(n);
+      u_.resize(n);
+      w_.resize(n);
+      llt_ = Eigen::LLT<Mat<N>>(n);
     }
   }
 
-  // M's definiteness only (Moreau-Jean, which has no condition (4.2)).
-  double lambda_min(const Mat<N>& M) {
+  // M's definiteness only (Moreau-Jean, which has no condition (4.2)): lambda_min(M) or a certified
+  // lower bound (exact says which).
+  double lambda_min(const Mat<N>& M, bool& exact) {
+    exact = true;
     if constexpr (N == 1) {
       return M(0, 0);
     } else if constexpr (N == 2) {
       return min_eig2(M(0, 0), 0.5 * (M(0, 1) + M(1, 0)), M(1, 1));
     } else {
-      const double g = gershgorin_lower(M);
-      if (g > 0.0) return g;
-      return exact_lambda_min(M);
+      exact = false;
+      double lo = gershgorin_lower(M), up = std::numeric_limits<double>::infinity();
+      if (lo > 0.0) return lo;
+      bound_lambda_min(M, lo, up);
+      if (lo > 0.0) return lo;
+      return lambda_min_exact(M, exact);
     }
   }
 
@@ -88,22 +113,66 @@ class StepConditionChecker {
       const double det = C(0, 0) * C(1, 1) - C(0, 1) * C(1, 0);
       c.ratio_sq_num = h2 * 0.5 * (f2 + std::sqrt(std::max(0.0, f2 * f2 - 4.0 * det * det)));
     } else {
-      // Bounds first: lambda_min(M) >= Gershgorin's bound, ||C||_2^2 <= ||C||_1 ||C||_inf.
+      // Bounds first (see the top of this file); exact values only where the bounds cannot decide.
       const double g = gershgorin_lower(M);
       const double c2_bound = C.cwiseAbs().colwise().sum().maxCoeff() * max_abs_row_sum(C);
       if (g > 0.0 && h2 * c2_bound <= g * g) {
         c.lambda_min_m = g;
+        c.exact = false;
         c.ratio_sq_num = h2 * c2_bound;
-      } else {
-        c.lambda_min_m = exact_lambda_min(M);
-        CtC_.noalias() = C.transpose() * C;
-        eig_.compute(CtC_, Eigen::EigenvaluesOnly);
-        c.ratio_sq_num = h2 * std::max(0.0, eig_.eigenvalues()(eig_.eigenvalues().size() - 1));
+        c.ratio_sq_den = g * g;
+        c.ratio_kind = BoundKind::kUpperBound;
+        return c;
       }
+      // lambda_min(M) in [lam_lo, lam_up] and ||C||_2^2 in [c2_lo, c2_up].
+      double lam_lo = g, lam_up = std::numeric_limits<double>::infinity();
+      bound_lambda_min(M, lam_lo, lam_up);
+      double c2_lo = 0.0, c2_up = c2_bound;
+      if (have_u_) {
+        w_.noalias() = C * u_;
+        c2_lo = w_.squaredNorm();
+        u_.noalias() = C.transpose() * w_;  // one power step for the next steps
+        if (u_.squaredNorm() > 0.0) {
+          u_.normalize();
+        } else {
+          have_u_ = false;
+        }
+        const double t = (1.0 + kMargin) * (1.0 + kMargin) * c2_lo;
+        if (lam_lo > 0.0 && h2 * c2_up > lam_lo * lam_lo && t < c2_up && h2 * t <= lam_lo * lam_lo && norm_sq_below(C, t)) c2_up = t;
+      }
+      constexpr double kViolation = (1.0 + StepConditionTrack::kRoundoff) * (1.0 + StepConditionTrack::kRoundoff);
+      if (lam_lo > 0.0 && h2 * c2_up <= lam_lo * lam_lo) {
+        c.lambda_min_m = lam_lo;  // (4.2) holds, r_k <= ratio()
+        c.exact = false;
+        c.ratio_sq_num = h2 * c2_up;
+        c.ratio_sq_den = lam_lo * lam_lo;
+        c.ratio_kind = BoundKind::kUpperBound;
+        return c;
+      }
+      if (lam_lo > 0.0 && h2 * c2_lo > lam_up * lam_up * kViolation) {
+        c.lambda_min_m = lam_lo;  // (4.2) fails for certain, r_k >= ratio()
+        c.exact = false;
+        c.ratio_sq_num = h2 * c2_lo;
+        c.ratio_sq_den = lam_up * lam_up;
+        c.ratio_kind = BoundKind::kLowerBound;
+        return c;
+      }
+      // Undecided: both exactly, and new vectors for the next steps' bounds.
+      c.lambda_min_m = lambda_min_exact(M, c.exact);
+      CtC_.noalias() = C.transpose() * C;
+      ++eigenvalue_computations_;
+      eig_.compute(CtC_, Eigen::ComputeEigenvectors);
+      const int last = static_cast<int>(eig_.eigenvalues().size()) - 1;
+      u_ = eig_.eigenvectors().col(last);
+      have_u_ = true;
+      c.ratio_sq_num = h2 * std::max(0.0, eig_.eigenvalues()(last));
     }
     c.ratio_sq_den = c.lambda_min_m * c.lambda_min_m;
     return c;
   }
+
+  // How many eigenvalue problems the checks solved (the certificates' cost model, for tests).
+  std::int64_t eigenvalue_computations() const { return eigenvalue_computations_; }
 
  private:
   static double min_eig2(double a, double b, double d) {
@@ -130,12 +199,49 @@ class StepConditionChecker {
       return C.cwiseAbs().rowwise().sum().maxCoeff();
     }
   }
-  double exact_lambda_min(const Mat<N>& M) {
-    eig_.compute(M, Eigen::EigenvaluesOnly);
+  double lambda_min_exact(const Mat<N>& M, bool& exact) {
+    ++eigenvalue_computations_;
+    eig_.compute(M, Eigen::ComputeEigenvectors);
+    x_ = eig_.eigenvectors().col(0);
+    have_x_ = true;
+    exact = true;
     return eig_.eigenvalues()(0);
   }
+  // Tightens lo <= lambda_min(M) <= up with the Rayleigh quotient of x_ and the Cholesky certificate just
+  // below it, and moves x_ by one step of inverse iteration with that factor.
+  void bound_lambda_min(const Mat<N>& M, double& lo, double& up) {
+    if (!have_x_) return;
+    w_.noalias() = M * x_;
+    up = x_.dot(w_);
+    const double s = (1.0 - kMargin) * up;
+    if (s > lo && exceeds(M, s)) {
+      lo = s;
+      llt_.solveInPlace(x_);
+      x_.normalize();
+    }
+  }
+  // M - s I positive definite (so lambda_min(M) > s): it has a Cholesky factor.
+  bool exceeds(const Mat<N>& M, double s) {
+    shifted_ = M;
+    shifted_.diagonal().array() -= s;
+    llt_.compute(shifted_);
+    return llt_.info() == Eigen::Success;
+  }
+  // t I - C^T C positive definite (so ||C||_2^2 < t).
+  bool norm_sq_below(const Mat<N>& C, double t) {
+    shifted_.noalias() = -C.transpose() * C;
+    shifted_.diagonal().array() += t;
+    llt_.compute(shifted_);
+    return llt_.info() == Eigen::Success;
+  }
 
-  Mat<N> CtC_;
+  // The certificates' relative margin below the Rayleigh quotient of M and above that of C^T C.
+  static constexpr double kMargin = 1e-3;
+  Vec<N> x_, u_, w_;      // unit vectors near the eigenvectors of lambda_min(M) and of ||C||_2^2; scratch
+  bool have_x_ = false, have_u_ = false;
+  std::int64_t eigenvalue_computations_ = 0;
+  Mat<N> CtC_, shifted_;
+  Eigen::LLT<Mat<N>> llt_;
   Vec<N> sums_;
   Eigen::SelfAdjointEigenSolver<Mat<N>> eig_;
 };
