@@ -35,13 +35,22 @@ Vector6d inertia_times(double m, const Eigen::Vector3d& h, const Eigen::Matrix3d
   return pack(Ibar * s + h.cross(su), m * su - h.cross(s));
 }
 
-// The 6 x 6 matrix of that spatial inertia.
-Matrix6d inertia_matrix(double m, const Eigen::Vector3d& h, const Eigen::Matrix3d& Ibar) {
-  Eigen::Matrix3d hx;
-  hx << 0.0, -h.z(), h.y(), h.z(), 0.0, -h.x(), -h.y(), h.x(), 0.0;
-  Matrix6d I;
-  I << Ibar, hx, hx.transpose(), m * Eigen::Matrix3d::Identity();
-  return I;
+Eigen::Matrix3d skew(const Eigen::Vector3d& a) {
+  Eigen::Matrix3d x;
+  x << 0.0, -a.z(), a.y(), a.z(), 0.0, -a.x(), -a.y(), a.x(), 0.0;
+  return x;
+}
+
+// A = (V x*) I for the spatial inertia I = [Ibar, hx; hx^T, m E] (hx = skew(h), hx^T = -hx) and
+// (V x*) = [wx, ux; 0, wx], by 3 x 3 blocks: [wx Ibar - ux hx, wx hx + m ux; -wx hx, m wx].
+void crf_times_inertia(const Vector6d& V, double m, const Eigen::Vector3d& h, const Eigen::Matrix3d& Ibar, Matrix6d& A) {
+  const Eigen::Matrix3d wx = skew(V.head<3>()), ux = skew(V.tail<3>()), hx = skew(h);
+  const Eigen::Matrix3d wxhx = wx * hx;
+  A.topLeftCorner<3, 3>().noalias() = wx * Ibar;
+  A.topLeftCorner<3, 3>().noalias() -= ux * hx;
+  A.topRightCorner<3, 3>() = wxhx + m * ux;
+  A.bottomLeftCorner<3, 3>() = -wxhx;
+  A.bottomRightCorner<3, 3>() = m * wx;
 }
 
 // Body i's own inertia in the base frame: mass, first moment m c and rotational inertia about the origin
@@ -162,9 +171,8 @@ void rigid_body_terms(const RigidBodyModel& model, RigidBodyData& data, const do
   for (int j = 0; j < n; ++j) {
     const std::size_t k = static_cast<std::size_t>(j);
     world_inertia(model.bodies[k], data.rotation[k], data.position[k], data.mass[k], data.first_moment[k], data.rotational[k]);
-    const Matrix6d I = inertia_matrix(data.mass[k], data.first_moment[k], data.rotational[k]);
-    data.momentum[k].noalias() = I * data.V[k];
-    for (int c = 0; c < 6; ++c) data.A[k].col(c) = cross_force(data.V[k], I.col(c));
+    data.momentum[k] = inertia_times(data.mass[k], data.first_moment[k], data.rotational[k], data.V[k]);
+    crf_times_inertia(data.V[k], data.mass[k], data.first_moment[k], data.rotational[k], data.A[k]);
   }
   for (int j = n - 1; j >= 0; --j) {
     const std::size_t k = static_cast<std::size_t>(j);
