@@ -27,7 +27,7 @@ std::string vec3(const Eigen::Vector3d& v) {
 
 // The factorisation OneStepSolver will choose for this scene (its own rule, applied by configuring one).
 std::string linear_solver(const scene::LagrangianScene& sc) {
-  if (sc.n <= scene::kMaxFixedDof) return "dense LU with partial pivoting (fixed-size, n = " + std::to_string(sc.n) + ")";
+  if (scene::is_fixed_dof(sc.n)) return "dense LU with partial pivoting (fixed-size, n = " + std::to_string(sc.n) + ")";
   OneStepSolver<Eigen::Dynamic> solver;
   solver.configure(sc.controller.gains, sc.controller.norm_gain, sc.settings.bandwidth);
   if (solver.banded_width() < 0) return "dense LU with partial pivoting (dynamic size)";

@@ -14,12 +14,20 @@
 
 namespace moreau::scene {
 
-// The largest number of degrees of freedom compiled as fixed-size Eigen code; larger scenes run on
-// dynamic-size code. Every path that runs a Lagrangian scene (run, study, stress, server) dispatches
-// through dispatch_dof, so they all have the same range.
-inline constexpr int kMaxFixedDof = 4;
+// The numbers of degrees of freedom compiled as fixed-size Eigen code: 1 to 4 (hand-written and small
+// systems) and 6 and 7 (robot arms from URDF: fixed size halves their step, docs/robots.md); other
+// sizes run on dynamic-size code. Each size costs compile time in three translation units, which is why
+// 5 and 8+ are not listed. Every path that runs a Lagrangian scene (run, study, stress, server)
+// dispatches through dispatch_dof, so they all have the same sizes.
+inline constexpr int kFixedDofSizes[] = {1, 2, 3, 4, 6, 7};
 
-// Calls f(std::integral_constant<int, N>{}) with N = n for 1 <= n <= kMaxFixedDof, else with
+inline constexpr bool is_fixed_dof(int n) {
+  for (int size : kFixedDofSizes)
+    if (size == n) return true;
+  return false;
+}
+
+// Calls f(std::integral_constant<int, N>{}) with N = n for n in kFixedDofSizes, else with
 // N = Eigen::Dynamic, and returns what f returns.
 template <class F>
 decltype(auto) dispatch_dof(int n, F&& f) {
@@ -28,10 +36,12 @@ decltype(auto) dispatch_dof(int n, F&& f) {
     case 2: return f(std::integral_constant<int, 2>{});
     case 3: return f(std::integral_constant<int, 3>{});
     case 4: return f(std::integral_constant<int, 4>{});
+    case 6: return f(std::integral_constant<int, 6>{});
+    case 7: return f(std::integral_constant<int, 7>{});
     default: return f(std::integral_constant<int, Eigen::Dynamic>{});
   }
 }
-static_assert(kMaxFixedDof == 4, "dispatch_dof lists the fixed sizes one by one");
+static_assert(sizeof(kFixedDofSizes) / sizeof(int) == 6, "dispatch_dof lists the fixed sizes one by one");
 
 template <int N>
 class SceneModel {
