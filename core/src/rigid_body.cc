@@ -12,7 +12,8 @@ Eigen::Vector3d bottom(const Vector6d& x) { return x.tail<3>(); }
 
 Vector6d pack(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   Vector6d x;
-  x << a, b;
+  x.head<3>() = a;
+  x.tail<3>() = b;
   return x;
 }
 
