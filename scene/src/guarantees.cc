@@ -95,10 +95,14 @@ Guarantee theorem42(const LagrangianScene& scene, const RunSummary& s, const Gua
                           "from the controller's coefficients: eta = min w_i / 2 = " + fmt(eta) + ", alpha = min a_i + a_norm = " + fmt(alpha)});
   g.hypotheses.push_back(assumption41_forces(s, alpha));
   if (scene.forces_smooth_everywhere) {
+    const bool robot = scene.compiled && scene.compiled->robot;
     g.hypotheses.push_back({"Assumption 3.3: F continuous and locally Lipschitz, grad V locally Lipschitz", Verdict::kHolds,
-                            "grad V and F are built only from +, -, *, integer powers, sin, cos, atan, sinh, cosh, tanh and exp: "
-                            "C-infinity on all of R^(1+2n), so locally Lipschitz, uniformly in t on [t0, t_end]; Phi convex by "
-                            "construction"});
+                            std::string(robot ? "gravity's part of grad V comes from the URDF robot (a polynomial in the joint positions "
+                                                "and their sines and cosines: C-infinity); the expressions' part of "
+                                              : "") +
+                                "grad V and F are built only from +, -, *, integer powers, sin, cos, atan, sinh, cosh, tanh and exp: "
+                                "C-infinity on all of R^(1+2n), so locally Lipschitz, uniformly in t on [t0, t_end]; Phi convex by "
+                                "construction"});
   } else {
     g.hypotheses.push_back({"Assumption 3.3: F continuous and locally Lipschitz, grad V locally Lipschitz", Verdict::kNotChecked,
                             "the expressions use an operation that is smooth only on a domain or not smooth (/, log, sqrt, tan, "
