@@ -17,6 +17,7 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev  # tests, benchmarks
   iproute2                           # `ip`, for tests/lcm_udpm_netns.sh (multicast in a private netns)
   python3                            # scripts/check-scene-results.py (shipped scenes against references)
+  python3-jsonschema                 # tests/check_openapi.py (server/openapi.json against the OpenAPI 3.1 schema)
 )
 
 missing=()

@@ -439,6 +439,7 @@ TEST(ServerApi, WrongMethodIs405WithAllowAndOptionsAnswers) {
   const std::vector<std::pair<std::string, std::string>> paths = {
       {"/healthz", "GET, HEAD, OPTIONS"},
       {"/metrics", "GET, HEAD, OPTIONS"},
+      {"/v1/openapi.json", "GET, HEAD, OPTIONS"},
       {"/v1/scenes", "GET, HEAD, OPTIONS"},
       {"/v1/scenes/manipulator", "GET, HEAD, OPTIONS"},
       {"/v1/jobs", "GET, HEAD, POST, OPTIONS"},

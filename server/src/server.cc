@@ -25,6 +25,7 @@
 #include "lcm_stream.h"
 #include "moreau/scene/scene.h"
 #include "moreau/scene/simulation.h"
+#include "openapi_document.h"
 #include "storage.h"
 #include "trajectory.h"
 
@@ -92,8 +93,8 @@ bool constant_time_equal(const std::string& given, const std::string& secret) {
   return diff == 0;
 }
 
-// Every path the API serves, the methods it takes and the query parameters it reads (docs/api.md, the
-// routes registered in Impl::setup_routes()): the Allow header of a 405 and of an OPTIONS answer, and the
+// Every path the API serves, the methods it takes and the query parameters its GET reads (docs/api.md,
+// server/openapi.json, the routes registered in Impl::setup_routes()): the Allow header of a 405 and of an OPTIONS answer, and the
 // 400 for a query parameter the path does not read. HEAD is served wherever GET is.
 // ServerApi.WrongMethodIs405WithAllowAndOptionsAnswers checks this table against the routes.
 struct RouteInfo {
@@ -131,6 +132,7 @@ const RouteInfo* route_for(const std::string& path) {
   static const RouteInfo routes[] = {
       {"/healthz", "GET, HEAD, OPTIONS", kNone},
       {"/metrics", "GET, HEAD, OPTIONS", kNone},
+      {"/v1/openapi.json", "GET, HEAD, OPTIONS", kNone},
       {"/v1/scenes", "GET, HEAD, OPTIONS", kNone},
       {"/v1/scenes/*", "GET, HEAD, OPTIONS", kNone},
       {"/v1/jobs", "GET, HEAD, POST, OPTIONS", kList},
@@ -158,11 +160,16 @@ const char* allowed_methods(const std::string& path) {
 std::string unknown_query_parameter(const Request& req) {
   const RouteInfo* r = route_for(req.path);
   if (!r) return "";
+  // The parameters are those of GET (and HEAD): no POST or DELETE reads one (DELETE /v1/jobs/ID?wait=5
+  // would otherwise be accepted and the wait ignored).
+  static const std::vector<std::string> kNone;
+  const bool reads = req.method == "GET" || req.method == "HEAD";
+  const std::vector<std::string>& params = reads ? r->params : kNone;
   for (const auto& [name, value] : req.params) {
-    if (std::find(r->params.begin(), r->params.end(), name) != r->params.end()) continue;
+    if (std::find(params.begin(), params.end(), name) != params.end()) continue;
     std::string takes;
-    for (const std::string& p : r->params) takes += (takes.empty() ? "" : ", ") + p;
-    return "unknown query parameter '" + name.substr(0, 64) + "' on " + req.path.substr(0, 256) +
+    for (const std::string& p : params) takes += (takes.empty() ? "" : ", ") + p;
+    return "unknown query parameter '" + name.substr(0, 64) + "' on " + req.method.substr(0, 16) + " " + req.path.substr(0, 256) +
            (takes.empty() ? " (it takes none)" : " (it takes " + takes + ")");
   }
   return "";
@@ -662,6 +669,10 @@ void Server::Impl::setup_routes() {
     send_json(res, 200, {{"status", "ok"}});
   });
   http_.Get("/metrics", [this](const Request& req, Response& res) { metrics(req, res); });
+  http_.Get("/v1/openapi.json", [](const Request&, Response& res) {
+    res.status = 200;
+    res.set_content(std::string(openapi_document()), "application/json");
+  });
   http_.Get("/v1/scenes", [this](const Request& req, Response& res) { list_scenes(req, res); });
   http_.Get(R"(/v1/scenes/([^/]+))", [this](const Request& req, Response& res) { get_scene(req, res); });
   http_.Post("/v1/jobs", [this](const Request& req, Response& res, const httplib::ContentReader& reader) {
@@ -1090,8 +1101,9 @@ void Server::Impl::get_job(const Request& req, Response& res, JobKind kind) {
 
 void Server::Impl::list_jobs(const Request& req, Response& res, JobKind kind) {
   std::string state = req.has_param("state") ? req.get_param_value("state") : "";
-  if (!state.empty() && state != "queued" && state != "running" && state != "done" && state != "failed" && state != "cancelled")
-    return send_error(res, 400, "bad query", "", "state must be queued, running, done, failed or cancelled");
+  if (!state.empty() && state != "queued" && state != "running" && state != "cancelling" && state != "done" && state != "failed" &&
+      state != "cancelled")
+    return send_error(res, 400, "bad query", "", "state must be queued, running, cancelling, done, failed or cancelled");
   std::optional<double> limit;
   try {
     limit = number_param(req, "limit", 1, 1e9);
