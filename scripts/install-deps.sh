@@ -18,6 +18,7 @@ packages=(
   iproute2                           # `ip`, for tests/lcm_udpm_netns.sh (multicast in a private netns)
   python3                            # scripts/check-scene-results.py (shipped scenes against references)
   python3-jsonschema                 # tests/check_openapi.py (server/openapi.json against the OpenAPI 3.1 schema)
+  python3-numpy                      # tests/python_client_test.py (the Python client returns numpy arrays when it can)
 )
 
 missing=()
