@@ -2,7 +2,20 @@
 # Installs Moreau's build dependencies from Debian 12 packages. Idempotent: packages already present
 # are left alone, and apt is not even called when nothing is missing. Installing needs root or sudo;
 # without either, the script names the missing packages and the apt-get command to run as root.
+#
+# --browser-test also installs what the web page's browser test needs (CI passes it): Debian's chromium,
+# and puppeteer-core from the npm registry into tests/browser/node_modules (npm ci, from the lock file),
+# with the machine's Node.js. Without it that test is not registered (CMake says so).
 set -euo pipefail
+cd "$(dirname "$0")/.."
+
+browser_test=false
+for arg in "$@"; do
+  case $arg in
+    --browser-test) browser_test=true ;;
+    *) echo "install-deps: unknown argument $arg (the only one is --browser-test)" >&2; exit 2 ;;
+  esac
+done
 
 packages=(
   build-essential cmake ninja-build pkg-config
@@ -20,6 +33,22 @@ packages=(
   python3-jsonschema                 # tests/check_openapi.py (server/openapi.json against the OpenAPI 3.1 schema)
   python3-numpy                      # tests/python_client_test.py (the Python client returns numpy arrays when it can)
 )
+if $browser_test; then packages+=(chromium); fi
+
+# puppeteer-core for the browser test, once the packages are there (it drives /usr/bin/chromium).
+install_browser_driver() {
+  $browser_test || return 0
+  if [ -f tests/browser/node_modules/puppeteer-core/package.json ]; then
+    echo "install-deps: puppeteer-core present in tests/browser"
+    return 0
+  fi
+  if ! command -v npm >/dev/null 2>&1; then
+    echo "install-deps: --browser-test needs npm (Node.js 18 or later) to install puppeteer-core" >&2
+    exit 1
+  fi
+  echo "install-deps: npm ci in tests/browser (puppeteer-core)"
+  (cd tests/browser && npm ci --no-fund --no-audit --loglevel=error)
+}
 
 missing=()
 for p in "${packages[@]}"; do
@@ -28,6 +57,7 @@ done
 
 if [ ${#missing[@]} -eq 0 ]; then
   echo "install-deps: all ${#packages[@]} packages present"
+  install_browser_driver
   exit 0
 fi
 
@@ -55,3 +85,4 @@ if ! "${sudo_cmd[@]}" apt-get update -qq ||
   print_root_command
   exit 1
 fi
+install_browser_driver

@@ -437,6 +437,9 @@ TEST(ServerApi, WrongMethodIs405WithAllowAndOptionsAnswers) {
   auto c = ts.client();
   const std::string id = "/0123456789abcdef0123456789abcdef";
   const std::vector<std::pair<std::string, std::string>> paths = {
+      {"/", "GET, HEAD, OPTIONS"},
+      {"/ui/app.js", "GET, HEAD, OPTIONS"},
+      {"/ui/style.css", "GET, HEAD, OPTIONS"},
       {"/healthz", "GET, HEAD, OPTIONS"},
       {"/metrics", "GET, HEAD, OPTIONS"},
       {"/v1/openapi.json", "GET, HEAD, OPTIONS"},
@@ -485,7 +488,7 @@ TEST(ServerApi, WrongMethodIs405WithAllowAndOptionsAnswers) {
   EXPECT_EQ(unknown->status, 404);
 }
 
-TEST(ServerApi, TokenGuardsEveryEndpointButHealthz) {
+TEST(ServerApi, TokenGuardsEveryEndpointButHealthzAndThePage) {
   ServerConfig cfg;
   cfg.token = "correct horse battery staple";
   TestServer ts(cfg);
@@ -494,6 +497,8 @@ TEST(ServerApi, TokenGuardsEveryEndpointButHealthz) {
   auto good = ts.client(cfg.token);
 
   EXPECT_EQ(anonymous->Get("/healthz")->status, 200);
+  // The web page's static files hold no data: the page asks for the token.
+  for (const std::string path : {"/", "/ui/app.js", "/ui/style.css"}) EXPECT_EQ(anonymous->Get(path)->status, 200) << path;
   // Every route (and paths that match none: the check runs before routing), with no token, a wrong one,
   // one with a prefix of the token, the token with a suffix, and the token without the Bearer scheme.
   const std::string id = "/0123456789abcdef0123456789abcdef";
@@ -512,7 +517,10 @@ TEST(ServerApi, TokenGuardsEveryEndpointButHealthz) {
                               "/v1/studies" + id + "/table",
                               "/v1/studies" + id + "/figure",
                               "/no/such/route",
-                              "/healthz/x"};
+                              "/healthz/x",
+                              "/ui/other.js",
+                              "/ui/app.js/x",
+                              "/index.html"};
   httplib::Headers no_scheme = {{"Authorization", cfg.token}};
   httplib::Headers prefix = {{"Authorization", "Bearer correct horse"}};
   for (const auto& path : gets) {

@@ -25,7 +25,7 @@
 #include "lcm_stream.h"
 #include "moreau/scene/scene.h"
 #include "moreau/scene/simulation.h"
-#include "openapi_document.h"
+#include "embedded_files.h"
 #include "storage.h"
 #include "trajectory.h"
 
@@ -106,6 +106,7 @@ struct RouteInfo {
 // Whether `path` matches `pattern` segment by segment (no regular expressions: this runs for every
 // request, before routing).
 bool path_matches(std::string_view path, std::string_view pattern) {
+  if (path == pattern) return true;  // "/" included, whose one segment is empty
   while (!path.empty() || !pattern.empty()) {
     if (path.empty() || pattern.empty() || path[0] != '/' || pattern[0] != '/') return false;
     path.remove_prefix(1);
@@ -130,6 +131,8 @@ const RouteInfo* route_for(const std::string& path) {
   static const std::vector<std::string> kNone, kList = {"state", "limit"}, kWait = {"wait"},
                                                kFigure = {"kind", "width", "height", "format"};
   static const RouteInfo routes[] = {
+      {"/", "GET, HEAD, OPTIONS", kNone},
+      {"/ui/app.js|style.css", "GET, HEAD, OPTIONS", kNone},
       {"/healthz", "GET, HEAD, OPTIONS", kNone},
       {"/metrics", "GET, HEAD, OPTIONS", kNone},
       {"/v1/openapi.json", "GET, HEAD, OPTIONS", kNone},
@@ -669,6 +672,23 @@ void Server::Impl::setup_routes() {
     send_json(res, 200, {{"status", "ok"}});
   });
   http_.Get("/metrics", [this](const Request& req, Response& res) { metrics(req, res); });
+  // The web page (server/web/): static, and open without the token (the page asks for it). Its policy
+  // lets it load only its own script and style, and images it made from fetched figures (blob:).
+  auto page_file = [](std::string_view text, const char* type) {
+    return [text, type](const Request&, Response& res) {
+      res.status = 200;
+      res.set_header("Content-Security-Policy",
+                     "default-src 'none'; script-src 'self'; style-src 'self'; img-src 'self' blob:; connect-src 'self'; "
+                     "base-uri 'none'; form-action 'none'; frame-ancestors 'none'");
+      res.set_header("X-Content-Type-Options", "nosniff");
+      res.set_header("Referrer-Policy", "no-referrer");
+      res.set_header("Cache-Control", "no-cache");
+      res.set_content(std::string(text), type);
+    };
+  };
+  http_.Get("/", page_file(web_index_html(), "text/html; charset=utf-8"));
+  http_.Get("/ui/app.js", page_file(web_app_js(), "text/javascript; charset=utf-8"));
+  http_.Get("/ui/style.css", page_file(web_style_css(), "text/css; charset=utf-8"));
   http_.Get("/v1/openapi.json", [](const Request&, Response& res) {
     res.status = 200;
     res.set_content(std::string(openapi_document()), "application/json");
@@ -827,7 +847,10 @@ bool Server::Impl::screen(const Request& req, Response& res) {
     length = std::stoull(v);
   }
 
-  if (!cfg_.token.empty() && req.path != "/healthz") {
+  // Open without the token: the health check, and the web page's static files (they hold no data; the
+  // page asks for the token and sends it with every API request).
+  const bool open_path = req.path == "/healthz" || req.path == "/" || req.path == "/ui/app.js" || req.path == "/ui/style.css";
+  if (!cfg_.token.empty() && !open_path) {
     const std::string auth = req.get_header_value("Authorization");
     const std::string prefix = "Bearer ";
     const bool ok = auth.size() > prefix.size() && lower(auth.substr(0, prefix.size())) == "bearer " &&

@@ -1,0 +1,157 @@
+// The web page in a real browser: Debian's headless Chromium, driven by puppeteer-core, against a
+// moreau-server on 127.0.0.1 that requires a token.
+//
+// It loads the page (the API answers 401 until the token is entered), enters the token, submits the
+// shipped manipulator scene with an override, waits for the job's row to say done, checks that the four
+// figures loaded (natural width > 0) and the report is shown in words, reloads to check that the token
+// was kept for the tab, then submits a scene whose name is HTML with a script and an error whose text is
+// HTML, and checks that both are shown as text and nothing ran. It fails on any page error or CSP
+// violation, and saves a screenshot.
+//
+// Usage: node page_test.mjs SERVER_BINARY SOURCE_DIR SCREENSHOT.png|.jpg
+import puppeteer from 'puppeteer-core';
+import { spawn } from 'node:child_process';
+import fs from 'node:fs';
+import os from 'node:os';
+import path from 'node:path';
+import readline from 'node:readline';
+
+const [serverBin, sourceDir, screenshotPath] = process.argv.slice(2);
+if (!serverBin || !sourceDir || !screenshotPath) {
+  console.error('usage: node page_test.mjs SERVER_BINARY SOURCE_DIR SCREENSHOT.png');
+  process.exit(2);
+}
+const TOKEN = 'browser-test-token';
+const XSS_NAME = '<img src=x onerror="window.__xss=1"><script>window.__xss=2</script>';
+const WAIT = { timeout: 30000 };
+
+function check(condition, message) {
+  if (!condition) throw new Error('check failed: ' + message);
+  console.log('ok:', message);
+}
+
+// The server, on a free port it picks and prints: wait for that line, not for a time.
+async function startServer(dataDir) {
+  const proc = spawn(serverBin, ['--host', '127.0.0.1', '--port', '0', '--token', TOKEN, '--workers', '2',
+                                 '--data', dataDir, '--scenes', path.join(sourceDir, 'scenes')],
+                     { stdio: ['ignore', 'pipe', 'inherit'] });
+  const lines = readline.createInterface({ input: proc.stdout });
+  const url = await new Promise((resolve, reject) => {
+    lines.on('line', (line) => {
+      const m = line.match(/listening on (http:\/\/127\.0\.0\.1:\d+)/);
+      if (m) resolve(m[1]);
+    });
+    proc.on('exit', (code) => reject(new Error('moreau-server exited with ' + code + ' before listening')));
+  });
+  lines.on('line', () => {});  // keep draining
+  return { proc, url };
+}
+
+async function stopServer(proc) {
+  if (proc.exitCode !== null) return;
+  const exited = new Promise((resolve) => proc.on('exit', resolve));
+  proc.kill('SIGTERM');
+  await exited;
+}
+
+async function main() {
+  const dataDir = fs.mkdtempSync(path.join(os.tmpdir(), 'moreau-browser-'));
+  const { proc, url } = await startServer(path.join(dataDir, 'data'));
+  let browser;
+  try {
+    browser = await puppeteer.launch({
+      executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
+      headless: true,
+      args: ['--no-sandbox', '--disable-gpu', '--disable-dev-shm-usage'],
+    });
+    const page = await browser.newPage();
+    await page.setViewport({ width: 1280, height: 900 });
+    const problems = [];
+    page.on('pageerror', (e) => problems.push('page error: ' + e.message));
+    // Expected failed loads: the 401s before the token is entered, and the 400 of the bad submission.
+    page.on('console', (m) => {
+      if (m.type() === 'error' && !/Failed to load resource: the server responded with a status of 40[01]/.test(m.text()))
+        problems.push('console error: ' + m.text());
+    });
+
+    await page.goto(url + '/', { waitUntil: 'load' });
+    await page.waitForFunction(() => document.getElementById('list-error').textContent.includes('401'), WAIT);
+    check(true, 'without the token the page says the API needs one (401)');
+
+    await page.type('#token', TOKEN);
+    await page.click('#token-form button');
+    await page.waitForFunction(() => document.getElementById('scene-select').value === 'manipulator', WAIT);
+    check(true, 'with the token the shipped scenes are listed and manipulator is chosen');
+
+    await page.type('#overrides', 'integrator.t_end=2');
+    await page.click('#submit-button');
+    await page.waitForFunction(() => [...document.querySelectorAll('#jobs tbody tr')].some(
+      (tr) => tr.querySelector('td.scene').textContent === 'manipulator' && tr.querySelector('td.state').textContent === 'done'), WAIT);
+    check(true, 'the submitted job reaches done in the list (live, from its event stream)');
+
+    await page.waitForFunction(() => {
+      const imgs = [...document.querySelectorAll('#job-figures img')];
+      return imgs.length === 4 && imgs.every((i) => i.complete && i.naturalWidth > 0);
+    }, WAIT);
+    const widths = await page.$$eval('#job-figures img', (imgs) => imgs.map((i) => [i.dataset.kind, i.naturalWidth]));
+    check(widths.length === 4 && widths.every(([, w]) => w === 1200), 'the four figures loaded at 1200 px: ' + JSON.stringify(widths));
+    const summary = await page.$eval('#job-summary', (e) => e.textContent);
+    check(summary.includes('completed') && summary.includes('2000 to t = 2'), 'the report is shown: ' + summary.slice(0, 120));
+    const guarantees = await page.$$eval('#job-guarantees > li', (lis) => lis.map((li) => li.textContent));
+    check(guarantees.some((g) => g.includes('Theorem 4.1')), 'the guarantees are listed (' + guarantees.length + ')');
+    const downloads = await page.$$eval('#job-downloads a', (as) => as.map((a) => a.textContent));
+    check(JSON.stringify(downloads) === JSON.stringify(['report.json', 'trajectory.csv', 'trajectory.json']), 'download links: ' + downloads);
+    // PNG, or JPEG for a .jpg path (the one docs/ shows: docs/figures/web-page.jpg).
+    const jpeg = screenshotPath.endsWith('.jpg');
+    await page.screenshot({ path: screenshotPath, fullPage: true, type: jpeg ? 'jpeg' : 'png', ...(jpeg ? { quality: 60 } : {}) });
+    check(fs.statSync(screenshotPath).size > 10000, 'screenshot saved to ' + screenshotPath);
+
+    // The token is kept for the tab: after a reload the list loads without typing it again.
+    await page.reload({ waitUntil: 'load' });
+    await page.waitForFunction(() => document.querySelectorAll('#jobs tbody tr').length >= 1, WAIT);
+    check(await page.$eval('#list-error', (e) => e.textContent === ''), 'after a reload the token is still used (session storage)');
+
+    // A scene named with HTML and a script: shown as text, nothing runs.
+    const scene = await page.evaluate(async (token) => {
+      const r = await fetch('/v1/scenes/manipulator', { headers: { Authorization: 'Bearer ' + token } });
+      return r.json();
+    }, TOKEN);
+    scene.name = XSS_NAME;
+    scene.integrator.t_end = 0.2;
+    await page.evaluate((text) => {
+      document.querySelector('input[value=pasted]').checked = true;
+      document.getElementById('scene-text').value = text;
+      document.getElementById('overrides').value = '';
+    }, JSON.stringify(scene));
+    await page.click('#submit-button');
+    await page.waitForFunction((name) => [...document.querySelectorAll('#jobs td.scene')].some((td) => td.textContent === name), WAIT, XSS_NAME);
+    await page.waitForFunction(() => document.getElementById('job-summary').textContent.includes('completed'), WAIT);
+    const ran = await page.evaluate(() => ({
+      xss: window.__xss, scripts: document.querySelectorAll('script').length, injectedImg: document.querySelectorAll('img[src="x"]').length,
+    }));
+    check(ran.xss === undefined && ran.scripts === 1 && ran.injectedImg === 0,
+          'a scene named with HTML and a script is shown as text and nothing in it ran: ' + JSON.stringify(ran));
+
+    // An error whose text is HTML (an override path): shown as text.
+    await page.evaluate(() => {
+      document.querySelector('input[value=shipped]').checked = true;
+      document.getElementById('overrides').value = '<b>bold</b>=1';
+    });
+    await page.click('#submit-button');
+    await page.waitForFunction(() => document.getElementById('submit-error').textContent.includes('400'), WAIT);
+    const error = await page.$eval('#submit-error', (e) => ({ text: e.textContent, elements: e.children.length }));
+    check(error.text.includes("'<b>bold</b>'") && error.elements === 0 && (await page.$$('b')).length === 0,
+          'an error message holding HTML is shown as text: ' + error.text);
+
+    check(problems.length === 0, 'no page errors, console errors or CSP violations' + (problems.length ? ': ' + problems.join('; ') : ''));
+  } finally {
+    if (browser) await browser.close();
+    await stopServer(proc);
+    fs.rmSync(dataDir, { recursive: true, force: true });
+  }
+}
+
+main().then(() => console.log('browser test passed'), (e) => {
+  console.error(e.stack || String(e));
+  process.exit(1);
+});
