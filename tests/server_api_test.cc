@@ -488,6 +488,68 @@ TEST(ServerApi, WrongMethodIs405WithAllowAndOptionsAnswers) {
   EXPECT_EQ(unknown->status, 404);
 }
 
+TEST(ServerApi, CorsIsOffByDefaultAndAnswersOnlyTheConfiguredOrigin) {
+  const httplib::Headers from_page = {{"Origin", "http://page.test:9000"}};
+  const httplib::Headers preflight = {{"Origin", "http://page.test:9000"},
+                                      {"Access-Control-Request-Method", "POST"},
+                                      {"Access-Control-Request-Headers", "authorization, content-type"}};
+  {
+    TestServer ts;  // default: no CORS header on anything
+    auto c = ts.client();
+    auto r = c->Get("/v1/jobs", from_page);
+    ASSERT_TRUE(r);
+    EXPECT_EQ(r->status, 200);
+    EXPECT_FALSE(r->has_header("Access-Control-Allow-Origin"));
+    auto p = c->Options("/v1/jobs", preflight);
+    ASSERT_TRUE(p);
+    EXPECT_FALSE(p->has_header("Access-Control-Allow-Origin"));
+    EXPECT_FALSE(p->has_header("Access-Control-Allow-Methods"));
+  }
+  ServerConfig cfg;
+  cfg.token = "cors token";
+  cfg.cors_origin = "http://page.test:9000";
+  TestServer ts(cfg);
+  auto anonymous = ts.client();
+  auto good = ts.client(cfg.token);
+  // The preflight carries no token and is answered: the methods of the path and the headers a page sends.
+  auto p = anonymous->Options("/v1/jobs", preflight);
+  ASSERT_TRUE(p);
+  EXPECT_EQ(p->status, 204);
+  EXPECT_EQ(p->get_header_value("Access-Control-Allow-Origin"), "http://page.test:9000");
+  EXPECT_EQ(p->get_header_value("Access-Control-Allow-Methods"), "GET, HEAD, POST, OPTIONS");
+  EXPECT_THAT(p->get_header_value("Access-Control-Allow-Headers"), ::testing::HasSubstr("Authorization"));
+  EXPECT_THAT(p->get_header_value("Access-Control-Allow-Headers"), ::testing::HasSubstr("Content-Type"));
+  // Answers to the origin, errors included, are marked readable by it; the token is still needed.
+  auto ok = good->Get("/v1/jobs", from_page);
+  ASSERT_TRUE(ok);
+  EXPECT_EQ(ok->status, 200);
+  EXPECT_EQ(ok->get_header_value("Access-Control-Allow-Origin"), "http://page.test:9000");
+  EXPECT_EQ(ok->get_header_value("Vary"), "Origin");
+  auto denied = anonymous->Get("/v1/jobs", from_page);
+  ASSERT_TRUE(denied);
+  EXPECT_EQ(denied->status, 401);
+  EXPECT_EQ(denied->get_header_value("Access-Control-Allow-Origin"), "http://page.test:9000");
+  auto missing = good->Get("/v1/jobs/0123456789abcdef0123456789abcdef", from_page);
+  ASSERT_TRUE(missing);
+  EXPECT_EQ(missing->status, 404);
+  EXPECT_EQ(missing->get_header_value("Access-Control-Allow-Origin"), "http://page.test:9000");
+  auto posted = good->Post("/v1/jobs", from_page, json({{"scene", "manipulator"}, {"overrides", {"integrator.t_end=0.1"}}}).dump(),
+                           "application/json");
+  ASSERT_TRUE(posted);
+  EXPECT_EQ(posted->status, 202);
+  EXPECT_EQ(posted->get_header_value("Access-Control-Allow-Origin"), "http://page.test:9000");
+  EXPECT_THAT(posted->get_header_value("Access-Control-Expose-Headers"), ::testing::HasSubstr("Location"));
+  // Another origin gets nothing, and its "preflight" is an ordinary OPTIONS, which needs the token.
+  const httplib::Headers other = {{"Origin", "http://evil.test"}, {"Access-Control-Request-Method", "POST"}};
+  auto o = anonymous->Options("/v1/jobs", other);
+  ASSERT_TRUE(o);
+  EXPECT_EQ(o->status, 401);
+  EXPECT_FALSE(o->has_header("Access-Control-Allow-Origin"));
+  auto og = good->Get("/v1/jobs", other);
+  ASSERT_TRUE(og);
+  EXPECT_FALSE(og->has_header("Access-Control-Allow-Origin"));
+}
+
 TEST(ServerApi, TokenGuardsEveryEndpointButHealthzAndThePage) {
   ServerConfig cfg;
   cfg.token = "correct horse battery staple";

@@ -72,6 +72,17 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, 64));
   app.add_option("--lcm-url", cfg.lcm_url, "LCM URL for live state (default: LCM_DEFAULT_URL, else LCM's default)");
   app.add_option("--token", cfg.token, "Require 'Authorization: Bearer TOKEN' (default: MOREAU_TOKEN)");
+  app.add_option("--cors-origin", cfg.cors_origin,
+                 "Answer cross-origin requests from this browser origin (scheme://host[:port], or *); default: none")
+      ->check([](const std::string& v) -> std::string {
+        if (v == "*") return "";
+        const auto sep = v.find("://");
+        const std::string scheme = sep == std::string::npos ? "" : v.substr(0, sep);
+        const std::string host = sep == std::string::npos ? "" : v.substr(sep + 3);
+        const bool ok = (scheme == "http" || scheme == "https") && !host.empty() && host.size() <= 253 &&
+                        host.find_first_of("/?# \t") == std::string::npos;
+        return ok ? "" : "expected * or an origin scheme://host[:port] with no path, e.g. https://lab.example:8443";
+      });
   app.add_flag("--allow-unauthenticated-remote", cfg.allow_unauthenticated_remote, "Allow a non-loopback --host without a token");
   app.add_option("--max-body", cfg.max_body_bytes, "Largest request body, bytes (larger: 413)")->capture_default_str();
   app.add_option("--max-steps", cfg.max_steps, "Integration steps per job at most")->capture_default_str()->check(CLI::PositiveNumber);

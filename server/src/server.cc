@@ -847,6 +847,27 @@ bool Server::Impl::screen(const Request& req, Response& res) {
     length = std::stoull(v);
   }
 
+  // CORS (--cors-origin): a request from the configured origin gets its answer marked readable by that
+  // origin, errors included (a page must be able to read why); a preflight is answered here, before the
+  // token, since browsers send preflights without credentials. Off by default: no header at all.
+  const std::string origin = req.get_header_value("Origin");
+  const bool cors = !cfg_.cors_origin.empty() && !origin.empty() && (cfg_.cors_origin == "*" || origin == cfg_.cors_origin);
+  if (cors) {
+    res.set_header("Access-Control-Allow-Origin", cfg_.cors_origin == "*" ? std::string("*") : origin);
+    res.set_header("Vary", "Origin");
+    res.set_header("Access-Control-Expose-Headers", "Location, Retry-After, ETag, WWW-Authenticate");
+    if (req.method == "OPTIONS" && req.has_header("Access-Control-Request-Method")) {
+      const char* allow = allowed_methods(req.path);
+      if (!allow) return refuse(404, "not found", no_endpoint(req));
+      res.status = 204;
+      res.set_header("Allow", allow);
+      res.set_header("Access-Control-Allow-Methods", allow);
+      res.set_header("Access-Control-Allow-Headers", "Authorization, Content-Type, Content-Encoding, Last-Event-ID, If-None-Match");
+      res.set_header("Access-Control-Max-Age", "600");
+      return true;
+    }
+  }
+
   // Open without the token: the health check, and the web page's static files (they hold no data; the
   // page asks for the token and sends it with every API request).
   const bool open_path = req.path == "/healthz" || req.path == "/" || req.path == "/ui/app.js" || req.path == "/ui/style.css";

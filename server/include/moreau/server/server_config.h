@@ -29,6 +29,10 @@ struct ServerConfig {
   std::string lcm_url;                        // empty: LCM_DEFAULT_URL, else LCM's default, opened at the first stream
   std::string token;                          // non-empty: every endpoint but /healthz needs "Authorization: Bearer TOKEN"
   bool allow_unauthenticated_remote = false;  // start() refuses a non-loopback host without a token unless set
+  // Cross-origin requests (CORS) from a browser page served elsewhere: empty (the default) answers none,
+  // "*" any origin, else exactly this origin ("https://lab.example:8443"). Preflights are answered
+  // without the token (browsers never send one with them); every other request still needs it.
+  std::string cors_origin;
   // The largest request body, counted after decoding (Content-Encoding) and whatever the framing
   // (Content-Length, chunked, or read to the end): larger gets 413.
   std::size_t max_body_bytes = 4u << 20;
