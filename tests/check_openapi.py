@@ -129,9 +129,13 @@ def request(base, method, path, body=None, token=None, headers=None):
         req.add_header(k, v)
     try:
         with urllib.request.urlopen(req, timeout=60) as r:
-            return r.status, r.headers.get("Content-Type", ""), r.read()
+            return r.status, r.headers.get("Content-Type", ""), r.read(), r.headers
     except urllib.error.HTTPError as e:
-        return e.code, e.headers.get("Content-Type", ""), e.read()
+        return e.code, e.headers.get("Content-Type", ""), e.read(), e.headers
+
+
+def request_3(*a, **k):
+    return request(*a, **k)[:3]
 
 
 def example_value(doc, param):
@@ -183,7 +187,7 @@ def concrete(path, job_id, study_id):
 def check_live(doc, doc_text, server_bin, scenes):
     with ServerProcess(server_bin, scenes) as srv:
         base = srv.url
-        status, ctype, body = request(base, "GET", "/v1/openapi.json")
+        status, ctype, body = request_3(base, "GET", "/v1/openapi.json")
         if status != 200 or body.decode() != doc_text:
             fail("GET /v1/openapi.json is not server/openapi.json byte for byte (status %d)" % status)
 
@@ -196,14 +200,14 @@ def check_live(doc, doc_text, server_bin, scenes):
             schema = ops[(schema_path, "post")]["requestBody"]["content"]["application/json"]["schema"]
             for e in list(validator_for(doc, schema).iter_errors(body_))[:1]:
                 fail("the test's %s request does not match the documented schema: %s" % (name, e.message))
-        status, ctype, body = request(base, "POST", "/v1/jobs", job_body)
+        status, ctype, body = request_3(base, "POST", "/v1/jobs", job_body)
         check_answer(doc, "POST /v1/jobs", ops[("/v1/jobs", "post")], status, ctype, body)
         job_id = json.loads(body)["id"]
-        status, ctype, body = request(base, "POST", "/v1/studies", study_body)
+        status, ctype, body = request_3(base, "POST", "/v1/studies", study_body)
         check_answer(doc, "POST /v1/studies", ops[("/v1/studies", "post")], status, ctype, body)
         study_id = json.loads(body)["id"]
         for kind, i in (("jobs", job_id), ("studies", study_id)):
-            status, _, body = request(base, "GET", "/v1/%s/%s?wait=60" % (kind, i))
+            status, _, body = request_3(base, "GET", "/v1/%s/%s?wait=60" % (kind, i))
             if status != 200 or json.loads(body)["state"] != "done":
                 fail("the %s %s did not finish: %s" % (kind, i, body[:300]))
 
@@ -229,7 +233,7 @@ def check_live(doc, doc_text, server_bin, scenes):
             if "{name}" in path:
                 cases.append(("an absent scene", path.replace("{name}", "no-such-scene")))
             for why, u in cases:
-                status, ctype, body = request(base, M, u, body_)
+                status, ctype, body, headers = request(base, M, u, body_)
                 what = "%s %s%s" % (M, u, " (" + why + ")" if why else "")
                 check_answer(doc, what, op, status, ctype, body)
                 if why == "" and status >= 400 and not (M == "DELETE" and status == 409):
@@ -240,13 +244,23 @@ def check_live(doc, doc_text, server_bin, scenes):
                     fail("%s: answered %d, not 400" % (what, status))
                 if why.startswith("an absent") and status != 404:
                     fail("%s: answered %d, not 404" % (what, status))
+                # Where an ETag is documented, the same request with it is 304 (and that is documented).
+                etag = headers.get("ETag") if status == 200 else None
+                if why == "" and "ETag" in op["responses"].get("200", {}).get("headers", {}):
+                    if not etag:
+                        fail("%s: no ETag, which the document promises" % what)
+                    else:
+                        s304, c304, b304 = request(base, M, u, body_, headers={"If-None-Match": etag})[:3]
+                        check_answer(doc, what + " (If-None-Match)", op, s304, c304, b304)
+                        if s304 != 304:
+                            fail("%s: If-None-Match with its own ETag answered %d, not 304" % (what, s304))
 
     token = "openapi-check-token"
     with ServerProcess(server_bin, scenes, ["--token", token]) as srv:
         for path, method, op in operations(doc):
             M = method.upper()
             u = concrete(path, "0123456789abcdef0123456789abcdef", "0123456789abcdef0123456789abcdef")
-            status, ctype, body = request(srv.url, M, u, posts.get(path) if M == "POST" else None)
+            status, ctype, body = request_3(srv.url, M, u, posts.get(path) if M == "POST" else None)
             check_answer(doc, "%s %s without the token" % (M, u), op, status, ctype, body)
             needs_token = op.get("security", doc.get("security")) != []
             if needs_token and status != 401:

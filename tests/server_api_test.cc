@@ -11,12 +11,14 @@
 #include <gtest/gtest.h>
 
 #include "moreau/scene/simulation.h"
+#include "conditional.h"
 #include "moreau/scene/trajectory_csv.h"
 #include "server_fixture.h"
 
 namespace {
 
 using moreau::server::ServerConfig;
+using moreau::server::strong_etag;
 using moreau::server::testing::manipulator;
 using moreau::server::testing::submit;
 using moreau::server::testing::TestServer;
@@ -486,6 +488,55 @@ TEST(ServerApi, WrongMethodIs405WithAllowAndOptionsAnswers) {
   auto unknown = c->Options("/v1/nothing");
   ASSERT_TRUE(unknown);
   EXPECT_EQ(unknown->status, 404);
+}
+
+TEST(ServerApi, FinishedResultsFiguresAndStaticFilesAnswerIfNoneMatchWith304) {
+  TestServer ts;
+  auto c = ts.client();
+  auto r = submit(*c, {{"scene", "manipulator"}, {"overrides", {"integrator.t_end=0.3"}}});
+  ASSERT_EQ(r->status, 202);
+  const std::string id = json::parse(r->body)["id"];
+  ASSERT_EQ(wait_final(*c, id)["state"], "done");
+  const std::string job = "/v1/jobs/" + id;
+  std::map<std::string, std::string> tags;
+  for (const std::string path : {job + "/report", job + "/trajectory", job + "/trajectory?format=csv", job + "/trajectory?from=0.1&every=2",
+                                 job + "/figure?kind=phase", job + "/figure?kind=phase&format=svg", job + "/figure?kind=energy&width=300&height=200",
+                                 std::string("/v1/openapi.json"), std::string("/"), std::string("/ui/app.js")}) {
+    SCOPED_TRACE(path);
+    auto first = c->Get(path);
+    ASSERT_TRUE(first);
+    ASSERT_EQ(first->status, 200);
+    const std::string etag = first->get_header_value("ETag");
+    ASSERT_FALSE(etag.empty());
+    EXPECT_EQ(tags.count(etag), 0u) << "a different representation has a different tag: " << tags[etag];
+    tags[etag] = path;
+    // The same request again: the same tag and bytes. With the tag: 304 and no body, alone, in a list,
+    // weak or not, or "*". With another tag: the whole answer.
+    auto again = c->Get(path);
+    EXPECT_EQ(again->get_header_value("ETag"), etag);
+    EXPECT_EQ(again->body, first->body);
+    const std::string opaque = etag.rfind("W/", 0) == 0 ? etag.substr(2) : etag;
+    for (const std::string held : {etag, "\"x\", " + etag, "W/" + opaque, opaque + " ,\"y\"", std::string("*")}) {
+      auto cached = c->Get(path, {{"If-None-Match", held}});
+      ASSERT_TRUE(cached);
+      EXPECT_EQ(cached->status, 304) << held;
+      EXPECT_EQ(cached->body, "");
+      EXPECT_EQ(cached->get_header_value("ETag"), etag);
+    }
+    auto stale = c->Get(path, {{"If-None-Match", "\"0000000000000000\", W/\"x\""}});
+    EXPECT_EQ(stale->status, 200);
+    EXPECT_EQ(stale->body, first->body);
+  }
+  // A strong tag is the bytes' hash: the report's tag is that of the bytes served.
+  auto report = c->Get(job + "/report");
+  EXPECT_EQ(report->get_header_value("ETag"), strong_etag(report->body));
+  // Unfinished and failing answers carry no tag.
+  auto running = submit(*c, {{"scene", "manipulator"}, {"overrides", {"integrator.t_end=1e4", "output.every=1000"}}});
+  const std::string busy = json::parse(running->body)["id"];
+  auto early = c->Get("/v1/jobs/" + busy + "/report");
+  EXPECT_EQ(early->status, 409);
+  EXPECT_FALSE(early->has_header("ETag"));
+  c->Delete("/v1/jobs/" + busy);
 }
 
 TEST(ServerApi, CorsIsOffByDefaultAndAnswersOnlyTheConfiguredOrigin) {

@@ -25,6 +25,7 @@
 #include "lcm_stream.h"
 #include "moreau/scene/scene.h"
 #include "moreau/scene/simulation.h"
+#include "conditional.h"
 #include "embedded_files.h"
 #include "storage.h"
 #include "trajectory.h"
@@ -63,6 +64,15 @@ void send_json(Response& res, int status, const json& j) {
 
 // Error bodies: {"error": what went wrong, "pointer": the JSON pointer of the field at fault,
 // "where": "scene" (pointer into the scene) or "request" (pointer into the request body), "reason"}.
+// Sets the ETag of a finished result, figure or static file, and answers 304 Not Modified (no body)
+// when the request's If-None-Match already holds it.
+bool not_modified(const Request& req, Response& res, const std::string& etag) {
+  res.set_header("ETag", etag);
+  if (!req.has_header("If-None-Match") || !if_none_match(req.get_header_value("If-None-Match"), etag)) return false;
+  res.status = 304;
+  return true;
+}
+
 void send_error(Response& res, int status, const std::string& error, const std::string& pointer = "", const std::string& reason = "",
                 const std::string& where = "") {
   json j = {{"error", error}};
@@ -518,13 +528,14 @@ class Server::Impl {
   // default size it is read from, or written to, `cache_stem` + ".png" or ".svg": a name from a fixed
   // list, never from the request.
   template <class Draw>
-  void send_figure(Response& res, const fs::path& cache_stem, const FigureRequest& f, Draw&& draw) {
+  void send_figure(const Request& req, Response& res, const fs::path& cache_stem, const FigureRequest& f, Draw&& draw) {
     const bool svg = f.format == FigureFormat::kSvg;
     const char* content_type = svg ? "image/svg+xml" : "image/png";
     const fs::path cache = cache_stem.string() + (svg ? ".svg" : ".png");
     const bool default_size = f.size == std::pair<int, int>{kDefaultFigureWidth, kDefaultFigureHeight};
     if (default_size) {
       if (auto bytes = read_file(cache)) {
+        if (not_modified(req, res, strong_etag(*bytes))) return;
         res.status = 200;
         return res.set_content(std::move(*bytes), content_type);
       }
@@ -555,6 +566,7 @@ class Server::Impl {
         std::cerr << "moreau-server: " << e.what() << "\n";
       }
     }
+    if (not_modified(req, res, strong_etag(bytes))) return;
     res.status = 200;
     res.set_content(std::move(bytes), content_type);
   }
@@ -675,7 +687,8 @@ void Server::Impl::setup_routes() {
   // The web page (server/web/): static, and open without the token (the page asks for it). Its policy
   // lets it load only its own script and style, and images it made from fetched figures (blob:).
   auto page_file = [](std::string_view text, const char* type) {
-    return [text, type](const Request&, Response& res) {
+    return [text, type, etag = strong_etag(text)](const Request& req, Response& res) {
+      if (not_modified(req, res, etag)) return;
       res.status = 200;
       res.set_header("Content-Security-Policy",
                      "default-src 'none'; script-src 'self'; style-src 'self'; img-src 'self' blob:; connect-src 'self'; "
@@ -689,7 +702,8 @@ void Server::Impl::setup_routes() {
   http_.Get("/", page_file(web_index_html(), "text/html; charset=utf-8"));
   http_.Get("/ui/app.js", page_file(web_app_js(), "text/javascript; charset=utf-8"));
   http_.Get("/ui/style.css", page_file(web_style_css(), "text/css; charset=utf-8"));
-  http_.Get("/v1/openapi.json", [](const Request&, Response& res) {
+  http_.Get("/v1/openapi.json", [etag = strong_etag(openapi_document())](const Request& req, Response& res) {
+    if (not_modified(req, res, etag)) return;
     res.status = 200;
     res.set_content(std::string(openapi_document()), "application/json");
   });
@@ -1236,6 +1250,7 @@ void Server::Impl::job_report(const Request& req, Response& res) {
   auto text = job_file(*job, &Job::has_report, "report.json", &deleted);
   if (deleted) return send_deleted(res);
   if (!text) return send_error(res, 409, "no report yet", "", std::string("the job is ") + to_string(state_of(*job)));
+  if (not_modified(req, res, strong_etag(*text))) return;
   res.status = 200;
   res.set_content(std::move(*text), "application/json");
 }
@@ -1261,6 +1276,7 @@ void Server::Impl::job_trajectory(const Request& req, Response& res) {
   // length), from the open file even if the job is deleted meanwhile.
   auto reader = std::make_shared<TrajectoryReader>();
   std::string error;
+  std::string identity;  // of the stored file and of the window asked for: the weak ETag's source
   {
     std::shared_lock files(job->files_mu);
     if (job->deleted) return send_deleted(res);
@@ -1271,7 +1287,14 @@ void Server::Impl::job_trajectory(const Request& req, Response& res) {
     if (!reader->open((job->dir / "trajectory.csv").string(), window,
                       format == "csv" ? TrajectoryReader::Format::kCsv : TrajectoryReader::Format::kJson, &error))
       return send_error(res, 500, "stored trajectory unreadable", "", error);
+    std::error_code ec;
+    const auto size = fs::file_size(job->dir / "trajectory.csv", ec);
+    const auto mtime = fs::last_write_time(job->dir / "trajectory.csv", ec);
+    char window_text[96];
+    std::snprintf(window_text, sizeof window_text, "|%.17g|%.17g|%lld", window.from, window.to, static_cast<long long>(window.every));
+    identity = job->id + "|" + std::to_string(size) + "|" + std::to_string(mtime.time_since_epoch().count()) + "|" + format + window_text;
   }
+  if (not_modified(req, res, weak_etag(identity))) return;
   res.status = 200;
   if (format == "csv") res.set_header("Content-Disposition", "attachment; filename=\"" + job->id + ".csv\"");
   res.set_chunked_content_provider(format == "csv" ? "text/csv" : "application/json", [reader](std::size_t, httplib::DataSink& sink) {
@@ -1297,7 +1320,7 @@ void Server::Impl::job_figure(const Request& req, Response& res) {
   if (is_deleted(*job)) return send_deleted(res);
   static const std::map<std::string, std::string> kFiles = {
       {"state", "figure-state"}, {"energy", "figure-energy"}, {"step", "figure-step"}, {"phase", "figure-phase"}};
-  send_figure(res, job->dir / kFiles.at(kind), *figure, [&] {
+  send_figure(req, res, job->dir / kFiles.at(kind), *figure, [&] {
     std::error_code size_ec;
     const auto bytes = fs::file_size(job->dir / "trajectory.csv", size_ec);
     if (!size_ec && static_cast<std::int64_t>(bytes) > cfg_.max_figure_source_bytes) {
@@ -1331,6 +1354,7 @@ void Server::Impl::study_table(const Request& req, Response& res) {
     return send_error(res, 409, "no table yet", "",
                       std::string("the study is ") + to_string(state_of(*job)) + "; the table is served once it is done");
   }
+  if (not_modified(req, res, strong_etag(*text))) return;
   res.status = 200;
   if (format == "csv") res.set_header("Content-Disposition", "attachment; filename=\"study-" + job->id + ".csv\"");
   res.set_content(std::move(*text), format == "csv" ? "text/csv" : "application/json");
@@ -1347,7 +1371,7 @@ void Server::Impl::study_figure(const Request& req, Response& res) {
     return send_error(res, 409, "no table yet", "",
                       std::string("the study is ") + to_string(state_of(*job)) + "; figures are drawn once it is done");
   }
-  send_figure(res, job->dir / (kind == "work" ? "figure-work" : "figure-order"), *figure, [&] {
+  send_figure(req, res, job->dir / (kind == "work" ? "figure-work" : "figure-order"), *figure, [&] {
     bool deleted = false;
     auto result = job_file(*job, &Job::has_report, "result.json", &deleted);
     if (deleted) throw JobDeleted{};

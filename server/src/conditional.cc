@@ -1,0 +1,49 @@
+#include "conditional.h"
+
+#include <cstdint>
+#include <cstdio>
+
+namespace moreau::server {
+namespace {
+
+std::string hash_hex(std::string_view bytes) {
+  std::uint64_t h = 14695981039346656037ull;  // FNV-1a, 64 bits
+  for (const char c : bytes) {
+    h ^= static_cast<unsigned char>(c);
+    h *= 1099511628211ull;
+  }
+  char hex[17];
+  std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(h));
+  return hex;
+}
+
+std::string_view trim(std::string_view s) {
+  while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
+  while (!s.empty() && (s.back() == ' ' || s.back() == '\t')) s.remove_suffix(1);
+  return s;
+}
+
+std::string_view opaque(std::string_view tag) {
+  if (tag.substr(0, 2) == "W/") tag.remove_prefix(2);
+  return tag;
+}
+
+}  // namespace
+
+std::string strong_etag(std::string_view bytes) { return "\"" + hash_hex(bytes) + "\""; }
+
+std::string weak_etag(std::string_view identity) { return "W/\"" + hash_hex(identity) + "\""; }
+
+bool if_none_match(std::string_view header, std::string_view etag) {
+  if (trim(header) == "*") return true;
+  while (!header.empty()) {
+    const auto comma = header.find(',');
+    const std::string_view tag = trim(header.substr(0, comma));
+    if (!tag.empty() && opaque(tag) == opaque(etag)) return true;
+    if (comma == std::string_view::npos) break;
+    header.remove_prefix(comma + 1);
+  }
+  return false;
+}
+
+}  // namespace moreau::server
