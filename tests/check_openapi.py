@@ -221,7 +221,10 @@ def check_live(doc, doc_text, server_bin, scenes):
             cases = [("", url)]
             query = [p for p in op.get("parameters", []) if p["in"] == "query"]
             if query:
-                cases.append(("every query parameter", url + "?" + "&".join("%s=%s" % (p["name"], example_value(doc, p)) for p in query)))
+                # A cursor must name a listed job or study: the finished one of that collection.
+                cursor = study_id if path.startswith("/v1/studies") else job_id
+                cases.append(("every query parameter", url + "?" + "&".join(
+                    "%s=%s" % (p["name"], cursor if p["name"] == "before" else example_value(doc, p)) for p in query)))
             cases.append(("an unknown query parameter", url + "?no_such_parameter=1"))
             # A parameter another method of the same path reads is unknown to this one.
             others = {q["name"] for m, o in doc["paths"][path].items() if m != method

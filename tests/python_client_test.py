@@ -185,6 +185,18 @@ class ClientAgainstServer(unittest.TestCase):
         self.assertEqual(final.state, "cancelled")
         self.assertIn(job.id, [j.id for j in self.client.jobs(state="cancelled")])
 
+    def test_list_pages_and_purge(self):
+        ids = [self.client.run("manipulator", overrides=["integrator.t_end=0.05"], timeout=60).id for _ in range(3)]
+        listed = [j.id for j in self.client.iter_jobs(scene="manipulator", page_size=2)]
+        self.assertEqual(len(set(listed)), len(listed))
+        # Newest first: the three just run lead, in reverse order of submission.
+        self.assertEqual(listed[:3], ids[::-1])
+        self.assertEqual(self.client.purge(ids[0]), {"id": ids[0], "deleted": True})
+        with self.assertRaises(MoreauError) as e:
+            self.client.job(ids[0])
+        self.assertEqual(e.exception.status, 404)
+        self.assertNotIn(ids[0], [j.id for j in self.client.iter_jobs(page_size=2)])
+
     def test_wait_times_out(self):
         job = self.client.submit("manipulator", overrides=["integrator.t_end=1e5", "output.every=100000"])
         try:

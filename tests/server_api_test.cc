@@ -539,6 +539,102 @@ TEST(ServerApi, FinishedResultsFiguresAndStaticFilesAnswerIfNoneMatchWith304) {
   c->Delete("/v1/jobs/" + busy);
 }
 
+TEST(ServerApi, JobListFiltersPagesWithACursorAndShowsQueuePositions) {
+  ServerConfig cfg;
+  cfg.workers = 1;  // one job runs, the others wait: their places in the queue are known
+  TestServer ts(cfg);
+  auto c = ts.client();
+  auto named = [](const std::string& name, double t_end) {
+    json doc = manipulator();
+    doc["name"] = name;
+    doc["integrator"]["t_end"] = t_end;
+    doc["output"]["every"] = 1000;
+    return json{{"scene", doc}};
+  };
+  auto id_of = [](const httplib::Result& r) { return json::parse(r->body)["id"].get<std::string>(); };
+  const std::string blocker = id_of(submit(*c, named("blocker", 5e4)));
+  ASSERT_EQ(wait_running(*c, blocker), "running");
+  const std::string q1 = id_of(submit(*c, named("alpha", 0.1))), q2 = id_of(submit(*c, named("beta", 0.1)));
+  EXPECT_EQ(json::parse(c->Get("/v1/jobs/" + q1)->body)["queue_position"], 1);
+  EXPECT_EQ(json::parse(c->Get("/v1/jobs/" + q2)->body)["queue_position"], 2);
+  EXPECT_FALSE(json::parse(c->Get("/v1/jobs/" + blocker)->body).contains("queue_position"));
+  const json queued = json::parse(c->Get("/v1/jobs?state=queued")->body);
+  ASSERT_EQ(queued["count"], 2);
+  EXPECT_EQ(queued["jobs"][0]["queue_position"], 1);
+  EXPECT_EQ(queued["jobs"][1]["queue_position"], 2);
+  // Cancelling the first queued one moves the other up.
+  c->Delete("/v1/jobs/" + q1);
+  EXPECT_EQ(json::parse(c->Get("/v1/jobs/" + q2)->body)["queue_position"], 1);
+  c->Delete("/v1/jobs/" + blocker);
+  wait_final(*c, q2);
+
+  // More jobs, then the list filtered by scene and state, and paged back from the newest.
+  std::vector<std::string> ids = {blocker, q1, q2};
+  for (int i = 0; i < 5; ++i) ids.push_back(id_of(submit(*c, named(i % 2 ? "alpha" : "beta", 0.05))));
+  for (const auto& id : ids) wait_final(*c, id);
+  const json alphas = json::parse(c->Get("/v1/jobs?scene=alpha")->body);
+  EXPECT_EQ(alphas["count"], 3);  // q1 and two of the five
+  for (const auto& j : alphas["jobs"]) EXPECT_EQ(j["scene"], "alpha");
+  const json done_alphas = json::parse(c->Get("/v1/jobs?scene=alpha&state=done")->body);
+  EXPECT_EQ(done_alphas["count"], 2);  // q1 was cancelled
+  std::vector<std::string> paged;
+  std::string url = "/v1/jobs?limit=3";
+  for (int page = 0; page < 10 && !url.empty(); ++page) {
+    const json p = json::parse(c->Get(url)->body);
+    std::vector<std::string> these;
+    for (const auto& j : p["jobs"]) these.push_back(j["id"]);
+    EXPECT_LE(these.size(), 3u);
+    paged.insert(paged.begin(), these.begin(), these.end());  // each page is older than the last
+    url = p.value("next", "");
+  }
+  EXPECT_EQ(paged, ids) << "the pages, newest first, cover every job once, oldest first within a page";
+  const json filtered_page = json::parse(c->Get("/v1/jobs?limit=1&scene=alpha")->body);
+  EXPECT_THAT(filtered_page.value("next", ""), ::testing::HasSubstr("scene=alpha"));
+  auto bad_cursor = c->Get("/v1/jobs?before=0123456789abcdef0123456789abcdef");
+  EXPECT_EQ(bad_cursor->status, 400);
+  EXPECT_THAT(bad_cursor->body, ::testing::HasSubstr("'before'"));
+}
+
+TEST(ServerApi, PurgeDeletesAFinishedJobWithItsFilesAndNeverARunningOne) {
+  TestServer ts;
+  auto c = ts.client();
+  auto r = submit(*c, {{"scene", "manipulator"}, {"overrides", {"integrator.t_end=0.2"}}});
+  const std::string done = json::parse(r->body)["id"];
+  wait_final(*c, done);
+  ASSERT_TRUE(std::filesystem::exists(ts.data() / "jobs" / done / "report.json"));
+  EXPECT_EQ(c->Delete("/v1/jobs/" + done + "?purge=maybe")->status, 400);
+  EXPECT_EQ(c->Delete("/v1/jobs/" + done + "?wait=1")->status, 400) << "DELETE reads no wait";
+  auto purged = c->Delete("/v1/jobs/" + done + "?purge=true");
+  ASSERT_EQ(purged->status, 200) << purged->body;
+  EXPECT_EQ(json::parse(purged->body), json({{"id", done}, {"deleted", true}}));
+  EXPECT_FALSE(std::filesystem::exists(ts.data() / "jobs" / done));
+  EXPECT_EQ(c->Get("/v1/jobs/" + done)->status, 404);
+  EXPECT_EQ(c->Get("/v1/jobs/" + done + "/report")->status, 404);
+  EXPECT_EQ(c->Delete("/v1/jobs/" + done + "?purge=1")->status, 404);
+  EXPECT_EQ(json::parse(c->Get("/v1/jobs")->body)["total"], 0);
+
+  // A running job is not purged: cancel it first; its partial results then go with it.
+  auto long_run = submit(*c, {{"scene", "manipulator"}, {"overrides", {"integrator.t_end=5e4", "output.every=1000"}}});
+  const std::string running = json::parse(long_run->body)["id"];
+  auto refused = c->Delete("/v1/jobs/" + running + "?purge=true");
+  EXPECT_EQ(refused->status, 409);
+  EXPECT_THAT(refused->body, ::testing::HasSubstr("cancel it"));
+  EXPECT_TRUE(std::filesystem::exists(ts.data() / "jobs" / running));
+  c->Delete("/v1/jobs/" + running);
+  EXPECT_EQ(wait_final(*c, running)["state"], "cancelled");
+  EXPECT_EQ(c->Delete("/v1/jobs/" + running + "?purge=true")->status, 200);
+  EXPECT_FALSE(std::filesystem::exists(ts.data() / "jobs" / running));
+
+  // A purged job stays gone after a restart.
+  const auto data = ts.release_data();
+  ts.stop();
+  TestServer again(ServerConfig{}, data);
+  auto c2 = again.client();
+  EXPECT_EQ(c2->Get("/v1/jobs/" + done)->status, 404);
+  EXPECT_EQ(json::parse(c2->Get("/v1/jobs")->body)["total"], 0);
+  std::filesystem::remove_all(data);
+}
+
 TEST(ServerApi, CorsIsOffByDefaultAndAnswersOnlyTheConfiguredOrigin) {
   const httplib::Headers from_page = {{"Origin", "http://page.test:9000"}};
   const httplib::Headers preflight = {{"Origin", "http://page.test:9000"},

@@ -168,11 +168,26 @@ class Client:
         """The job; with `wait` (seconds, at most 60), held until it is final or that time has passed."""
         return Job(self._json("GET", "/v1/jobs/" + job_id, {"wait": wait}, timeout=(wait or 0) + self.timeout))
 
-    def jobs(self, state=None, limit=None):
-        return [Job(j) for j in self._json("GET", "/v1/jobs", {"state": state, "limit": limit})["jobs"]]
+    def jobs(self, state=None, scene=None, limit=None):
+        """The jobs (oldest first) matching `state` and `scene`; with `limit`, the most recent that many.
+        Queued ones carry `raw["queue_position"]`."""
+        return [Job(j) for j in self._json("GET", "/v1/jobs", {"state": state, "scene": scene, "limit": limit})["jobs"]]
+
+    def iter_jobs(self, state=None, scene=None, page_size=100):
+        """Every job matching the filters, newest first, fetched a page at a time (the list's cursor)."""
+        path = "/v1/jobs?" + urllib.parse.urlencode({k: v for k, v in (("limit", page_size), ("state", state), ("scene", scene)) if v})
+        while path:
+            page = self._json("GET", path)
+            for j in reversed(page["jobs"]):
+                yield Job(j)
+            path = page.get("next")
 
     def cancel(self, job_id):
         return Job(self._json("DELETE", "/v1/jobs/" + job_id))
+
+    def purge(self, job_id):
+        """Deletes a finished job with its results (MoreauError 409 if it is not final: cancel it first)."""
+        return self._json("DELETE", "/v1/jobs/" + job_id, {"purge": "true"})
 
     def wait(self, job_id, timeout=None, progress=None):
         """Waits until the job (or study) is final and returns it. `progress(job)` is called each time its

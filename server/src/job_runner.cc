@@ -444,6 +444,14 @@ bool JobRunner::idle() const {
   return queue_.empty() && busy_.load() == 0;
 }
 
+std::map<std::string, int> JobRunner::queue_positions() const {
+  std::lock_guard lock(mu_);
+  std::map<std::string, int> out;
+  int place = 0;
+  for (const auto& job : queue_) out.emplace(job->id, ++place);
+  return out;
+}
+
 Metrics JobRunner::metrics() const {
   Metrics m;
   for (const char* s : {"queued", "running", "cancelling", "done", "failed", "cancelled"}) m.jobs_by_state[s] = 0;

@@ -65,6 +65,10 @@ class JobRunner {
 
   std::shared_ptr<Job> find(const std::string& id) const { return store_.find(id); }
   std::vector<std::shared_ptr<Job>> list() const { return store_.list(); }
+  // Each queued job's place in the queue, 1 for the next to run (runs and studies share the queue).
+  std::map<std::string, int> queue_positions() const;
+  // Deletes a final job and its files (JobStore::remove); false if it is not final.
+  bool remove(const std::shared_ptr<Job>& job) { return store_.remove(job); }
 
   enum class Cancel { kCancelled, kCancelling, kAlreadyFinished };
   // Cancels a queued job at once (kCancelled); asks a running one to stop (kCancelling: its state is

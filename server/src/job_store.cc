@@ -177,6 +177,28 @@ void JobStore::recover() {
   prune();
 }
 
+bool JobStore::remove(const std::shared_ptr<Job>& job) {
+  // Readers hold the files lock (shared) only while they open or read a whole file: wait for them, before
+  // the store's lock (prune() takes that one first, but only tries the files lock).
+  std::unique_lock files(job->files_mu);
+  {
+    std::lock_guard lock(mu_);
+    {
+      std::lock_guard jl(job->mu);
+      if (!is_final(job->state)) return false;
+    }
+    if (job->deleted) return false;
+    job->deleted = true;
+    jobs_.erase(job->id);
+    order_.erase(std::remove(order_.begin(), order_.end(), job), order_.end());
+    --finished_;
+  }
+  std::error_code ec;
+  fs::remove_all(job->dir, ec);
+  if (ec) std::cerr << "moreau-server: cannot delete job " << job->id << ": " << ec.message() << "\n";
+  return true;
+}
+
 void JobStore::prune() {
   const std::int64_t keep = config_.keep_jobs;
   const std::int64_t batch = std::max<std::int64_t>(1, keep / 10);  // prune a tenth at a time

@@ -63,6 +63,9 @@ class JobStore {
   // Deletes the oldest finished jobs (records, results, memory) once more than ServerConfig::keep_jobs
   // are finished, down to keep_jobs; a job whose files a reader holds waits for a later pass.
   void prune();
+  // Deletes one final job at its client's request (records, results, memory), once no reader holds its
+  // files. False if it is not final (or already deleted).
+  bool remove(const std::shared_ptr<Job>& job);
 
  private:
   const ServerConfig& config_;

@@ -64,6 +64,12 @@ void send_json(Response& res, int status, const json& j) {
 
 // Error bodies: {"error": what went wrong, "pointer": the JSON pointer of the field at fault,
 // "where": "scene" (pointer into the scene) or "request" (pointer into the request body), "reason"}.
+// A queued job's place in the queue (1: the next to run), added to its JSON.
+json with_queue_position(json j, const std::map<std::string, int>& positions) {
+  if (auto it = positions.find(j.value("id", "")); it != positions.end()) j["queue_position"] = it->second;
+  return j;
+}
+
 // Sets the ETag of a finished result, figure or static file, and answers 304 Not Modified (no body)
 // when the request's If-None-Match already holds it.
 bool not_modified(const Request& req, Response& res, const std::string& etag) {
@@ -110,7 +116,8 @@ bool constant_time_equal(const std::string& given, const std::string& secret) {
 struct RouteInfo {
   const char* pattern;  // segments; "*" is any one non-empty segment, "a|b" either name
   const char* allow;
-  std::vector<std::string> params;
+  std::vector<std::string> params;         // of GET (and HEAD)
+  std::vector<std::string> delete_params;  // of DELETE; POST reads none
 };
 
 // Whether `path` matches `pattern` segment by segment (no regular expressions: this runs for every
@@ -138,8 +145,8 @@ bool path_matches(std::string_view path, std::string_view pattern) {
 }
 
 const RouteInfo* route_for(const std::string& path) {
-  static const std::vector<std::string> kNone, kList = {"state", "limit"}, kWait = {"wait"},
-                                               kFigure = {"kind", "width", "height", "format"};
+  static const std::vector<std::string> kNone, kList = {"state", "scene", "limit", "before"}, kWait = {"wait"},
+                                               kFigure = {"kind", "width", "height", "format"}, kPurge = {"purge"};
   static const RouteInfo routes[] = {
       {"/", "GET, HEAD, OPTIONS", kNone},
       {"/ui/app.js|style.css", "GET, HEAD, OPTIONS", kNone},
@@ -149,12 +156,12 @@ const RouteInfo* route_for(const std::string& path) {
       {"/v1/scenes", "GET, HEAD, OPTIONS", kNone},
       {"/v1/scenes/*", "GET, HEAD, OPTIONS", kNone},
       {"/v1/jobs", "GET, HEAD, POST, OPTIONS", kList},
-      {"/v1/jobs/*", "GET, HEAD, DELETE, OPTIONS", kWait},
+      {"/v1/jobs/*", "GET, HEAD, DELETE, OPTIONS", kWait, kPurge},
       {"/v1/jobs/*/events|report", "GET, HEAD, OPTIONS", kNone},
       {"/v1/jobs/*/trajectory", "GET, HEAD, OPTIONS", {"format", "from", "to", "every"}},
       {"/v1/jobs/*/figure", "GET, HEAD, OPTIONS", kFigure},
       {"/v1/studies", "GET, HEAD, POST, OPTIONS", kList},
-      {"/v1/studies/*", "GET, HEAD, DELETE, OPTIONS", kWait},
+      {"/v1/studies/*", "GET, HEAD, DELETE, OPTIONS", kWait, kPurge},
       {"/v1/studies/*/events", "GET, HEAD, OPTIONS", kNone},
       {"/v1/studies/*/table", "GET, HEAD, OPTIONS", {"format"}},
       {"/v1/studies/*/figure", "GET, HEAD, OPTIONS", kFigure},
@@ -173,11 +180,12 @@ const char* allowed_methods(const std::string& path) {
 std::string unknown_query_parameter(const Request& req) {
   const RouteInfo* r = route_for(req.path);
   if (!r) return "";
-  // The parameters are those of GET (and HEAD): no POST or DELETE reads one (DELETE /v1/jobs/ID?wait=5
-  // would otherwise be accepted and the wait ignored).
+  // Each method reads its own: DELETE /v1/jobs/ID?wait=5 would otherwise be accepted and the wait
+  // ignored. POST reads none.
   static const std::vector<std::string> kNone;
-  const bool reads = req.method == "GET" || req.method == "HEAD";
-  const std::vector<std::string>& params = reads ? r->params : kNone;
+  const std::vector<std::string>& params = req.method == "GET" || req.method == "HEAD" ? r->params
+                                           : req.method == "DELETE"                     ? r->delete_params
+                                                                                        : kNone;
   for (const auto& [name, value] : req.params) {
     if (std::find(params.begin(), params.end(), name) != params.end()) continue;
     std::string takes;
@@ -430,7 +438,7 @@ class Server::Impl {
       const char* what = kind == JobKind::kStudy ? "study" : "job";
       const std::string post = kind == JobKind::kStudy ? "POST /v1/studies" : "POST /v1/jobs";
       send_error(res, 404, std::string("no such ") + what, "",
-                 is_job_id(id) ? std::string("no ") + what + " " + id + " on this server (finished ones beyond --keep-jobs are deleted)"
+                 is_job_id(id) ? std::string("no ") + what + " " + id + " on this server (finished ones are deleted when purged, or beyond --keep-jobs)"
                                : "'" + id.substr(0, 64) + "' is not a " + what + " id: " + what +
                                      " ids are 32 lowercase hex digits, as " + post + " returns them");
     }
@@ -455,7 +463,7 @@ class Server::Impl {
                    " long polls (?wait) and event streams open at once; retry, or poll without wait");
   }
   static void send_deleted(Response& res) {
-    send_error(res, 404, "no such job", "", "the job was deleted: this server keeps only its most recent finished jobs (--keep-jobs)");
+    send_error(res, 404, "no such job", "", "the job was deleted (purged, or beyond the most recent finished jobs this server keeps: --keep-jobs)");
   }
   // The job's state, report presence and trajectory presence, under its lock.
   static JobState state_of(const Job& job) {
@@ -481,7 +489,7 @@ class Server::Impl {
             "the server holds " + std::to_string(cfg_.queue) + " queued jobs at most; retry in " + std::to_string(retry_after) + " s");
       case JobRunner::Submit::kStopping: return send_error(res, 503, "server stopping");
     }
-    const json j = job_json(*job, nullptr);
+    const json j = with_queue_position(job_json(*job, nullptr), jobs_.queue_positions());
     res.set_header("Location", j["url"].get<std::string>());
     send_json(res, 202, j);
   }
@@ -1154,38 +1162,76 @@ void Server::Impl::get_job(const Request& req, Response& res, JobKind kind) {
     waiting_.give_back();
   }
   const auto report = read_report(*job);
-  send_json(res, 200, job_json(*job, report ? &*report : nullptr));
+  send_json(res, 200, with_queue_position(job_json(*job, report ? &*report : nullptr), jobs_.queue_positions()));
 }
 
 void Server::Impl::list_jobs(const Request& req, Response& res, JobKind kind) {
-  std::string state = req.has_param("state") ? req.get_param_value("state") : "";
+  const std::string state = req.has_param("state") ? req.get_param_value("state") : "";
   if (!state.empty() && state != "queued" && state != "running" && state != "cancelling" && state != "done" && state != "failed" &&
       state != "cancelled")
     return send_error(res, 400, "bad query", "", "state must be queued, running, cancelling, done, failed or cancelled");
+  const std::string scene = req.has_param("scene") ? req.get_param_value("scene") : "";
   std::optional<double> limit;
   try {
     limit = number_param(req, "limit", 1, 1e9);
   } catch (const std::exception& e) {
     return send_error(res, 400, "bad query", "", e.what());
   }
-  json list = json::array();
-  const auto all = jobs_.list();
+  const char* plural = kind == JobKind::kStudy ? "studies" : "jobs";
+  // The cursor: only jobs created before this one (the "next" link of a page names the oldest of it).
+  const std::string before = req.has_param("before") ? req.get_param_value("before") : "";
+  const auto all = jobs_.list();  // by creation
+  auto end = all.end();
+  if (!before.empty()) {
+    end = std::find_if(all.begin(), all.end(), [&](const auto& job) { return job->id == before && job->kind == kind; });
+    if (end == all.end() || is_deleted(**end))
+      return send_error(res, 400, "bad query", "",
+                        "query parameter 'before' names no " + std::string(kind == JobKind::kStudy ? "study" : "job") +
+                            " on this server (a cursor is the id of a listed one; it may have been deleted since: list again)");
+  }
   std::vector<std::shared_ptr<Job>> picked;
   std::size_t total = 0;
-  for (const auto& job : all) {
+  for (auto it = all.begin(); it != end; ++it) {
+    const auto& job = *it;
     if (job->kind != kind) continue;
     ++total;
-    if (state.empty() || to_string(state_of(*job)) == state) picked.push_back(job);
+    if (!state.empty() && to_string(state_of(*job)) != state) continue;
+    if (!scene.empty() && job->scene_name != scene) continue;
+    picked.push_back(job);
   }
   std::size_t from = 0;
   if (limit && picked.size() > static_cast<std::size_t>(*limit)) from = picked.size() - static_cast<std::size_t>(*limit);
-  for (std::size_t i = from; i < picked.size(); ++i) list.push_back(job_json(*picked[i], nullptr));
-  send_json(res, 200, {{kind == JobKind::kStudy ? "studies" : "jobs", list}, {"count", list.size()}, {"total", total}});
+  const auto positions = jobs_.queue_positions();
+  json list = json::array();
+  for (std::size_t i = from; i < picked.size(); ++i) list.push_back(with_queue_position(job_json(*picked[i], nullptr), positions));
+  json body = {{plural, list}, {"count", list.size()}, {"total", total}};
+  // The page of older ones, with the same filters.
+  if (from > 0) {
+    std::string next = std::string("/v1/") + plural + "?limit=" + std::to_string(static_cast<std::int64_t>(*limit)) + "&before=" + picked[from]->id;
+    if (!state.empty()) next += "&state=" + state;
+    if (!scene.empty()) next += "&scene=" + httplib::detail::encode_query_param(scene);
+    body["next"] = next;
+  }
+  send_json(res, 200, body);
 }
 
 void Server::Impl::delete_job(const Request& req, Response& res, JobKind kind) {
   auto job = job_for(req, res, kind);
   if (!job) return;
+  const char* what = kind == JobKind::kStudy ? "study" : "job";
+  // ?purge=true deletes a final job with its records and results; without it DELETE cancels, and never
+  // deletes results (a cancel that races the run's end must not lose them).
+  if (req.has_param("purge")) {
+    const std::string v = req.get_param_value("purge");
+    if (v != "true" && v != "1") return send_error(res, 400, "bad query", "", "query parameter 'purge' must be true or 1");
+    if (!jobs_.remove(job)) {
+      if (is_deleted(*job)) return send_deleted(res);
+      return send_error(res, 409, std::string(what) + " not finished", "",
+                        std::string("the ") + what + " is " + to_string(state_of(*job)) +
+                            "; cancel it (DELETE without purge), then purge it once it is final");
+    }
+    return send_json(res, 200, {{"id", job->id}, {"deleted", true}});
+  }
   const auto outcome = jobs_.cancel(job);
   // The status is read off the same snapshot as the body: a run can stop between the cancel and the
   // snapshot, and a 202 must never carry a final state. A run that ended done or failed before it saw
@@ -1193,8 +1239,8 @@ void Server::Impl::delete_job(const Request& req, Response& res, JobKind kind) {
   const json body = job_json(*job, nullptr);
   const std::string state = body.value("state", "");
   if (outcome == JobRunner::Cancel::kAlreadyFinished || state == "done" || state == "failed") {
-    const char* what = kind == JobKind::kStudy ? "study" : "job";
-    return send_error(res, 409, std::string(what) + " already finished", "", std::string("the ") + what + " is " + state);
+    return send_error(res, 409, std::string(what) + " already finished", "",
+                      std::string("the ") + what + " is " + state + " (DELETE ?purge=true deletes it with its results)");
   }
   // 200: cancelled (it was queued, or its run has already stopped); 202: cancelling, and cancelled once
   // its run stops.
