@@ -494,7 +494,7 @@ std::vector<Case> cases() {
 
   // Unknown endpoints and wrong methods.
   t.push_back(get("UnknownEndpoint", "/v1/nothing", 404, "no endpoint GET /v1/nothing"));
-  t.push_back(get("Root", "/", 404, "not found"));
+  t.push_back(get("UnknownTopLevelFile", "/index.html", 404, "not found"));  // "/" is the web page
   t.push_back({"PutJobs", "PUT", "/v1/jobs", kJson, valid, 405, "", "method not allowed"});
   t.push_back({"PatchJob", "PATCH", "/v1/jobs/{id}", kJson, "{}", 405, "", "method not allowed"});
   t.push_back({"PostHealthz", "POST", "/healthz", kJson, "{}", 405, "", "method not allowed"});
