@@ -475,6 +475,95 @@ TEST(ServerFault, KillNineWhileJobsRunThenRestart) {
             << " temporary files cleaned up\n";
 }
 
+// ---- a2. server-sent event ids across a SIGKILL and restarts ----
+
+struct Sse {
+  std::uint64_t id;
+  std::string name, data;
+};
+
+// The events of a stream, read until it ends or `stop_after` events with an id are in (then the client
+// hangs up), from `last_event_id` if given.
+std::vector<Sse> read_events(httplib::Client& c, const std::string& path, std::optional<std::uint64_t> last_event_id = {},
+                             std::size_t stop_after = SIZE_MAX) {
+  std::vector<Sse> out;
+  std::string buf;
+  httplib::Headers h;
+  if (last_event_id) h.emplace("Last-Event-ID", std::to_string(*last_event_id));
+  c.Get(path, h, [&](const char* data, std::size_t len) {
+    buf.append(data, len);
+    for (auto end = buf.find("\n\n"); end != std::string::npos; end = buf.find("\n\n")) {
+      const std::string block = buf.substr(0, end);
+      buf.erase(0, end + 2);
+      Sse e{0, "", ""};
+      bool has_id = false;
+      std::istringstream lines(block);
+      for (std::string line; std::getline(lines, line);) {
+        if (line.rfind("id: ", 0) == 0) e.id = std::stoull(line.substr(4)), has_id = true;
+        if (line.rfind("event: ", 0) == 0) e.name = line.substr(7);
+        if (line.rfind("data: ", 0) == 0) e.data = line.substr(6);
+      }
+      if (has_id) out.push_back(e);
+      if (out.size() >= stop_after) return false;
+    }
+    return true;
+  });
+  return out;
+}
+
+TEST(ServerFault, EventIdsGoOnAcrossAKillAndRestarts) {
+  TempDir tmp("sse-ids");
+  const fs::path data = tmp.path / "data";
+  const auto args = server_args(data, {"--workers", "2", "--max-steps", "2000000000"});
+  std::string done_id, running_id;
+  std::vector<Sse> done_events;
+  std::uint64_t running_last = 0;
+  {
+    Running srv = start_server(args, tmp.path);
+    auto c = srv.client();
+    auto d = post_job(*c, {{"scene", "manipulator"}, {"overrides", {"integrator.t_end=0.5"}}});
+    ASSERT_EQ(d->status, 202);
+    done_id = json::parse(d->body)["id"];
+    ASSERT_EQ(wait_final(*c, done_id)["state"], "done");
+    done_events = read_events(*c, "/v1/jobs/" + done_id + "/events");
+    ASSERT_FALSE(done_events.empty());
+    auto r = post_job(*c, long_job());
+    ASSERT_EQ(r->status, 202);
+    running_id = json::parse(r->body)["id"];
+    // Its state events and some progress events (about ten a second), then hang up and kill the server.
+    const auto seen = read_events(*c, "/v1/jobs/" + running_id + "/events", std::nullopt, 5);
+    ASSERT_EQ(seen.size(), 5u);
+    EXPECT_EQ(seen.back().name, "progress");
+    for (std::size_t i = 1; i < seen.size(); ++i) EXPECT_GT(seen[i].id, seen[i - 1].id);
+    running_last = seen.back().id;
+    srv.child->kill_and_reap();
+  }
+  for (int restart = 1; restart <= 2; ++restart) {
+    SCOPED_TRACE("restart " + std::to_string(restart));
+    Running srv = start_server(args, tmp.path);
+    auto c = srv.client();
+    // The finished job: its final state event again, with the id it had; resuming from the event before
+    // it gives exactly it, from it nothing.
+    const auto replay = read_events(*c, "/v1/jobs/" + done_id + "/events");
+    ASSERT_EQ(replay.size(), 1u);
+    EXPECT_EQ(replay[0].id, done_events.back().id);
+    EXPECT_EQ(replay[0].data, done_events.back().data);
+    const auto resumed = read_events(*c, "/v1/jobs/" + done_id + "/events", done_events.back().id - 1);
+    ASSERT_EQ(resumed.size(), 1u);
+    EXPECT_EQ(resumed[0].id, done_events.back().id);
+    EXPECT_TRUE(read_events(*c, "/v1/jobs/" + done_id + "/events", done_events.back().id).empty());
+    // The killed job: failed, with an id after every event it sent before the kill, so a client that
+    // resumes from the last one it saw gets the failure and nothing twice.
+    const auto after = read_events(*c, "/v1/jobs/" + running_id + "/events", running_last);
+    ASSERT_EQ(after.size(), 1u);
+    EXPECT_EQ(after[0].name, "state");
+    EXPECT_THAT(after[0].data, ::testing::HasSubstr("\"failed\""));
+    EXPECT_GT(after[0].id, running_last);
+    EXPECT_EQ(read_events(*c, "/v1/jobs/" + running_id + "/events").at(0).id, after[0].id) << "stable across restarts";
+    if (restart == 1) srv.child->kill_and_reap();  // the second restart follows a kill of the restarted server
+  }
+}
+
 // ---- b. unwritable data directory ----
 
 void expect_clean_refusal(Child& child, const std::string& dir_named) {

@@ -77,8 +77,12 @@ struct Job {
   double started = 0, finished = 0;
   bool has_report = false, has_trajectory = false;  // a study: result.json, table.csv
   std::deque<SseEvent> events;
-  std::uint64_t next_event_id = 1;
+  std::uint64_t next_event_id = 1;  // ids go on across restarts (job_record's event_id, JobStore::recover)
 };
+
+// How far past its record's event id a job that was not final continues after a restart: beyond every
+// progress event it can have sent since the record (10 a second for 13 years).
+inline constexpr std::uint64_t kEventIdGapAfterRestart = std::uint64_t{1} << 32;
 
 // The job as GET /v1/jobs/{id} shows it (with the report when `report` is given); a study as
 // GET /v1/studies/{id} shows it (with its result as "result").

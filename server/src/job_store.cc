@@ -120,6 +120,13 @@ void JobStore::recover() {
     job->has_report = fs::exists(job->dir / (study ? "result.json" : "report.json"), ec);
     job->has_trajectory = fs::exists(job->dir / (study ? "table.csv" : "trajectory.csv"), ec);
     const std::optional<JobState> recorded = parse_state(record.value("state", ""));
+    // Event ids continue (a Last-Event-ID from before the restart resumes exactly): a final record's state
+    // event took the record's event_id, and is replayed with it; a job that was not final may have sent
+    // progress events after its record, so its new state event comes after all of them.
+    const std::uint64_t recorded_event_id =
+        record.contains("event_id") && record["event_id"].is_number_unsigned() ? record["event_id"].get<std::uint64_t>() : 0;
+    job->next_event_id = recorded && is_final(*recorded) && recorded_event_id > 0 ? recorded_event_id
+                                                                                  : recorded_event_id + kEventIdGapAfterRestart;
     bool rewrite = false;
     if (recorded && is_final(*recorded)) {
       job->state = *recorded;
