@@ -4,12 +4,13 @@
 
 #include "commands.h"
 #include "figure_output.h"
+#include "moreau/scene/figures.h"
 
 namespace moreau::cli {
 
 void register_plot_command(CLI::App& app, Actions& actions) {
   struct Options {
-    std::string csv, kind = "state", out;
+    std::string csv, kind = "state", out, scene;
     FigureFlags flags;
   };
   auto opt = std::make_shared<Options>();
@@ -19,10 +20,15 @@ void register_plot_command(CLI::App& app, Actions& actions) {
       ->check(CLI::IsMember({"state", "energy", "step", "phase"}))
       ->capture_default_str();
   cmd->add_option("-o,--output", opt->out, "Output file (.png or .svg)")->required();
+  cmd->add_option("--scene", opt->scene,
+                  "The scene the trajectory came from: labels its figures for its kind of system (a Lur'e system: state x, "
+                  "output y = C x, storage W)");
   opt->flags.add_to(cmd);
   actions[cmd] = [opt]() -> int {
     try {
-      write_figure(opt->kind, read_trajectory_csv(opt->csv), opt->flags, opt->out);
+      render::TimeSeriesData data = read_trajectory_csv(opt->csv);
+      if (!opt->scene.empty()) scene::label_for_system(data, scene::Simulation::from_file(opt->scene));
+      write_figure(opt->kind, data, opt->flags, opt->out);
       return 0;
     } catch (const std::exception& e) {
       std::cerr << "moreau plot: " << e.what() << "\n";

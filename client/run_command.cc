@@ -11,6 +11,7 @@
 
 #include "commands.h"
 #include "figure_output.h"
+#include "moreau/scene/figures.h"
 #include "moreau/scene/simulation.h"
 #include "moreau/scene/trajectory_csv.h"
 #include "progress_bar.h"
@@ -115,6 +116,7 @@ int run(const RunOptions& opt) {
   if (recorder) {
     const auto t_fig = Clock::now();
     if (summary.converged_time) recorder->data().converged_time = *summary.converged_time;
+    scene::label_for_system(recorder->data(), *sim);  // a Lur'e system: state x, output y, storage W
     if (const ContactDiagnostics* contacts = diagnostics.contacts())  // impacts are marked on the time axis
       for (const auto& impact : contacts->impacts) recorder->data().impact_times.push_back(impact.t);
     for (const auto& spec : opt.figures) {

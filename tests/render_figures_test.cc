@@ -153,6 +153,59 @@ TEST(RenderFigures, StepAndPhaseFigures) {
   validate(p);
 }
 
+TEST(RenderFigures, StateSpaceSystemsAreLabelledAsSuchWithTheirStatePlane) {
+  // Three states x, their rates, one output: the state figure has three panels named for what they are,
+  // and the phase portrait pairs states with states (x_i, x_i+1), never a state with its rate.
+  TimeSeriesData d;
+  for (int k = 0; k <= 100; ++k) d.t.push_back(0.01 * k);
+  d.q = {d.t, d.t, d.t};
+  for (auto& x : d.q[1]) x = -x;
+  for (auto& x : d.q[2]) x = 2 * x;
+  d.v = {std::vector<double>(d.t.size(), 1.0), std::vector<double>(d.t.size(), -1.0), std::vector<double>(d.t.size(), 2.0)};
+  d.q_names = {"x1", "x2", "x3"};
+  d.v_names = {"x1_dot", "x2_dot", "x3_dot"};
+  d.q_title = "State x";
+  d.q_axis = "x";
+  d.v_title = "State rate dx/dt";
+  d.v_axis = "dx/dt";
+  d.y = {std::vector<double>(d.t.size(), 0.5)};
+  d.y_names = {"y"};
+  d.y_title = "Output y = C x";
+  d.state_space = true;
+  const Figure f = state_figure(d);
+  ASSERT_EQ(f.panels.size(), 3u);
+  EXPECT_EQ(f.panels[0].title, "State x");
+  EXPECT_EQ(f.panels[0].y_label, "x");
+  EXPECT_EQ(f.panels[1].title, "State rate dx/dt");
+  EXPECT_EQ(f.panels[2].title, "Output y = C x");
+  ASSERT_EQ(f.panels[2].series.size(), 1u);
+  EXPECT_EQ(f.panels[2].series[0].label, "y");
+  EXPECT_EQ(f.panels[2].series[0].y, d.y[0]);
+  validate(f);
+  const Figure p = phase_figure(d);
+  ASSERT_EQ(p.panels[0].series.size(), 2u);
+  EXPECT_EQ(p.panels[0].series[0].label, "(x1, x2)");
+  EXPECT_EQ(p.panels[0].series[0].x, d.q[0]);
+  EXPECT_EQ(p.panels[0].series[0].y, d.q[1]);
+  EXPECT_EQ(p.panels[0].series[1].label, "(x2, x3)");
+  validate(p);
+  FigureOptions one;
+  one.coordinates = {1};
+  const Figure p1 = phase_figure(d, one);
+  ASSERT_EQ(p1.panels[0].series.size(), 1u);
+  EXPECT_EQ(p1.panels[0].x_label, "x2");
+  EXPECT_EQ(p1.panels[0].y_label, "x3");
+  // One state: its plane is (x, dx/dt), named by the axes given.
+  TimeSeriesData d1 = d;
+  d1.q.resize(1);
+  d1.v.resize(1);
+  d1.q_names.resize(1);
+  d1.v_names.resize(1);
+  const Figure single = phase_figure(d1);
+  ASSERT_EQ(single.panels[0].series.size(), 1u);
+  EXPECT_EQ(single.panels[0].series[0].label, "(x1, x1_dot)");
+}
+
 TEST(RenderFigures, FitOrderRecoversThePowerLaw) {
   const auto runs = power_law_study();
   const OrderFit a = fit_order(runs[0].h, runs[0].error);

@@ -20,6 +20,7 @@ namespace {
 using moreau::server::ServerConfig;
 using moreau::server::strong_etag;
 using moreau::server::testing::manipulator;
+using moreau::server::testing::read_json_file;
 using moreau::server::testing::submit;
 using moreau::server::testing::TestServer;
 using moreau::server::testing::wait_final;
@@ -633,6 +634,37 @@ TEST(ServerApi, PurgeDeletesAFinishedJobWithItsFilesAndNeverARunningOne) {
   EXPECT_EQ(c2->Get("/v1/jobs/" + done)->status, 404);
   EXPECT_EQ(json::parse(c2->Get("/v1/jobs")->body)["total"], 0);
   std::filesystem::remove_all(data);
+}
+
+TEST(ServerApi, LureFiguresShowStateOutputAndStorageNotMechanicalLabels) {
+  TestServer ts;
+  auto c = ts.client();
+  auto lure = submit(*c, {{"scene", read_json_file("scenes/lure-relay-2state.json")}});
+  auto mech = submit(*c, {{"scene", "manipulator"}, {"overrides", {"integrator.t_end=0.2"}}});
+  const std::string lure_id = json::parse(lure->body)["id"], mech_id = json::parse(mech->body)["id"];
+  ASSERT_EQ(wait_final(*c, lure_id)["state"], "done");
+  ASSERT_EQ(wait_final(*c, mech_id)["state"], "done");
+  auto svg = [&](const std::string& id, const std::string& kind) {
+    auto r = c->Get("/v1/jobs/" + id + "/figure?format=svg&kind=" + kind);
+    EXPECT_EQ(r->status, 200) << r->body;
+    return r->body;
+  };
+  const std::string state = svg(lure_id, "state"), phase = svg(lure_id, "phase"), energy = svg(lure_id, "energy");
+  EXPECT_THAT(state, ::testing::HasSubstr("State x"));
+  EXPECT_THAT(state, ::testing::HasSubstr("Output y = C x"));
+  EXPECT_THAT(state, ::testing::Not(::testing::HasSubstr("Positions")));
+  EXPECT_THAT(state, ::testing::Not(::testing::HasSubstr("Velocities")));
+  EXPECT_THAT(phase, ::testing::HasSubstr("(x1, x2)"));
+  EXPECT_THAT(phase, ::testing::Not(::testing::HasSubstr("x1_dot")));
+  // No P in the scene: the storage is the positive realness test's certificate.
+  EXPECT_THAT(energy, ::testing::HasSubstr("W = 1/2 x^T P x (storage, P from the positive realness test)"));
+  EXPECT_THAT(energy, ::testing::Not(::testing::HasSubstr("&lt;M v, v&gt;")));
+  EXPECT_THAT(energy, ::testing::Not(::testing::HasSubstr("<M v, v>")));
+  // A mechanical job keeps its labels.
+  const std::string mstate = svg(mech_id, "state"), menergy = svg(mech_id, "energy");
+  EXPECT_THAT(mstate, ::testing::HasSubstr("Positions"));
+  EXPECT_THAT(mstate, ::testing::Not(::testing::HasSubstr("Output y")));
+  EXPECT_THAT(menergy, ::testing::HasSubstr("M v, v"));
 }
 
 TEST(ServerApi, CorsIsOffByDefaultAndAnswersOnlyTheConfiguredOrigin) {

@@ -149,20 +149,21 @@ Figure state_figure(const TimeSeriesData& d, const FigureOptions& o) {
   Figure f = base_figure(o);
   const std::vector<double> t = slice(d.t, w);
 
-  auto make_panel = [&](const std::vector<std::vector<double>>& data, const std::vector<std::string>& names, const char* prefix,
-                        const char* title, const char* y_label, bool first) {
+  auto make_panel = [&](const std::vector<std::vector<double>>& data, const std::vector<std::string>& names, const std::string& prefix,
+                        const std::string& title, const std::string& y_label, bool first, bool all = false) {
     Panel p;
     p.title = title;
     p.x_label = "t";
     p.y_label = y_label;
     p.x_axis = time_axis(w);
     p.y_axis.scale = scale;
-    for (std::size_t k = 0; k < coords.size(); ++k) {
-      const std::size_t i = coords[k];
+    const std::size_t count = all ? data.size() : coords.size();
+    for (std::size_t k = 0; k < count; ++k) {
+      const std::size_t i = all ? k : coords[k];
       if (i >= data.size()) continue;
-      check_length(data[i], d.t.size(), std::string(prefix) + "[" + std::to_string(i) + "]", who);
+      check_length(data[i], d.t.size(), prefix + "[" + std::to_string(i) + "]", who);
       Series s;
-      s.label = coordinate_name(names, i, prefix);
+      s.label = coordinate_name(names, i, prefix.c_str());
       s.x = t;
       s.y = slice(data[i], w);
       s.color = static_cast<int>(k);
@@ -173,8 +174,10 @@ Figure state_figure(const TimeSeriesData& d, const FigureOptions& o) {
     add_events(p, d, w, first);
     return p;
   };
-  if (!d.q.empty()) f.panels.push_back(make_panel(d.q, d.q_names, "q", "Positions", "q", true));
-  if (!d.v.empty()) f.panels.push_back(make_panel(d.v, d.v_names, "v", "Velocities", "v", d.q.empty()));
+  if (!d.q.empty()) f.panels.push_back(make_panel(d.q, d.q_names, d.q_axis, d.q_title, d.q_axis, true));
+  if (!d.v.empty()) f.panels.push_back(make_panel(d.v, d.v_names, d.v_axis, d.v_title, d.v_axis, d.q.empty()));
+  // Outputs: every one of them (the coordinate choice indexes q and v).
+  if (!d.y.empty()) f.panels.push_back(make_panel(d.y, d.y_names, d.y_axis, d.y_title, d.y_axis, false, true));
   require(!f.panels.empty(), std::string(who) + ": neither positions nor velocities given");
   return f;
 }
@@ -245,26 +248,54 @@ Figure phase_figure(const TimeSeriesData& d, const FigureOptions& o) {
   const std::vector<std::size_t> coords = pick_coordinates(d, o, who);
   Figure f = base_figure(o);
   Panel p;
-  p.x_label = "q";
-  p.y_label = "v";
+  p.x_label = d.q_axis;
+  p.y_label = d.v_axis;
   p.y_axis.scale = o.y_scale.value_or(Scale::linear);
-  for (std::size_t k = 0; k < coords.size(); ++k) {
-    const std::size_t i = coords[k];
-    require(i < d.q.size() && i < d.v.size(), std::string(who) + ": coordinate " + std::to_string(i) + " needs both q and v");
-    check_length(d.q[i], d.t.size(), "q[" + std::to_string(i) + "]", who);
-    check_length(d.v[i], d.t.size(), "v[" + std::to_string(i) + "]", who);
+  // The curves: (x, y) series of one or two coordinate groups, named (x name, y name).
+  struct Curve {
+    const std::vector<double>*x, *y;
+    std::string x_name, y_name, x_what, y_what;
+  };
+  std::vector<Curve> curves;
+  if (d.state_space && d.q.size() >= 2) {
+    // The state plane: (x_i, x_{i+1}) for each chosen state that has a next one (else the last two).
+    auto state_pair = [&](std::size_t i) {
+      return Curve{&d.q[i],
+                   &d.q[i + 1],
+                   coordinate_name(d.q_names, i, d.q_axis.c_str()),
+                   coordinate_name(d.q_names, i + 1, d.q_axis.c_str()),
+                   d.q_axis + "[" + std::to_string(i) + "]",
+                   d.q_axis + "[" + std::to_string(i + 1) + "]"};
+    };
+    for (const std::size_t i : coords)
+      if (i + 1 < d.q.size()) curves.push_back(state_pair(i));
+    if (curves.empty()) curves.push_back(state_pair(d.q.size() - 2));
+  } else {
+    // The mechanical phase plane (q_i, v_i); a state-space system with one state: (x, dx/dt).
+    for (const std::size_t i : coords) {
+      require(i < d.q.size() && i < d.v.size(), std::string(who) + ": coordinate " + std::to_string(i) + " needs both q and v");
+      curves.push_back({&d.q[i], &d.v[i], coordinate_name(d.q_names, i, d.q_axis.c_str()), coordinate_name(d.v_names, i, d.v_axis.c_str()),
+                        "q[" + std::to_string(i) + "]", "v[" + std::to_string(i) + "]"});
+    }
+  }
+  for (std::size_t k = 0; k < curves.size(); ++k) {
+    const Curve& c = curves[k];
+    check_length(*c.x, d.t.size(), c.x_what, who);
+    check_length(*c.y, d.t.size(), c.y_what, who);
     Series s;
-    const std::string qn = coordinate_name(d.q_names, i, "q"), vn = coordinate_name(d.v_names, i, "v");
-    s.label = "(" + qn + ", " + vn + ")";
-    s.x = slice(d.q[i], w);
-    s.y = slice(d.v[i], w);
+    s.label = "(" + c.x_name + ", " + c.y_name + ")";
+    s.x = slice(*c.x, w);
+    s.y = slice(*c.y, w);
     s.color = static_cast<int>(k);
     if (p.y_axis.scale == Scale::log) keep_positive_y(s);
     p.series.push_back(std::move(s));
-    if (coords.size() == 1) {
-      p.x_label = qn;
-      p.y_label = vn;
-    }
+  }
+  if (curves.size() == 1) {
+    p.x_label = curves[0].x_name;
+    p.y_label = curves[0].y_name;
+  } else if (d.state_space && d.q.size() >= 2) {
+    p.x_label = d.q_axis + "_i";
+    p.y_label = d.q_axis + "_i+1";
   }
   drop_empty(p);
   f.panels.push_back(std::move(p));

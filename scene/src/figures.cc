@@ -1,5 +1,7 @@
 #include "moreau/scene/figures.h"
 
+#include "moreau/scene/scene.h"
+
 #include <stdexcept>
 #include <utility>
 
@@ -16,6 +18,38 @@ render::TimeSeriesData time_series(TrajectoryColumns columns) {
   data.energy = std::move(columns.energy);
   data.energy_label = "E = 1/2 <M v, v>";
   return data;
+}
+
+void label_for_system(render::TimeSeriesData& data, const Simulation& sim) {
+  const LureScene* lure = sim.lure();
+  if (!lure) return;
+  data.q_title = "State x";
+  data.q_axis = "x";
+  data.v_title = "State rate dx/dt";
+  data.v_axis = "dx/dt";
+  data.state_space = true;
+  std::string energy = "1/2 |x|^2 (no storage matrix)";
+  if (lure->storage) {
+    energy = "W = 1/2 x^T P x (storage, P from the ";
+    energy += lure->storage_source == "scene" ? "scene)" : "positive realness test)";
+  }
+  data.energy_label = energy;
+  // y = C x, row by row, from the state columns.
+  const Eigen::Index m = lure->C.rows(), n = lure->C.cols();
+  if (static_cast<Eigen::Index>(data.q.size()) != n) return;  // a trajectory of another scene: no outputs
+  data.y.assign(static_cast<std::size_t>(m), std::vector<double>(data.t.size(), 0.0));
+  for (Eigen::Index i = 0; i < m; ++i)
+    for (Eigen::Index j = 0; j < n; ++j) {
+      const double c = lure->C(i, j);
+      if (c == 0.0) continue;
+      const auto& x = data.q[static_cast<std::size_t>(j)];
+      auto& y = data.y[static_cast<std::size_t>(i)];
+      for (std::size_t k = 0; k < y.size() && k < x.size(); ++k) y[k] += c * x[k];
+    }
+  data.y_names.clear();
+  for (Eigen::Index i = 0; i < m; ++i) data.y_names.push_back(m == 1 ? "y" : "y" + std::to_string(i + 1));
+  data.y_title = "Output y = C x";
+  data.y_axis = "y";
 }
 
 std::vector<render::SchemeRuns> study_scheme_runs(const StudyResult& result) {

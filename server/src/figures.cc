@@ -31,7 +31,7 @@ std::string encode(const render::Figure& fig, FigureFormat format) {
 }  // namespace
 
 std::string figure_image(std::string_view kind, std::string_view csv, std::optional<double> converged_time, int width, int height,
-                         const std::string& title, FigureFormat format) {
+                         const std::string& title, FigureFormat format, const scene::Simulation* system) {
   // The stored CSV, read in place (no copy of what may be hundreds of megabytes).
   struct ViewBuffer : std::streambuf {
     explicit ViewBuffer(std::string_view s) {
@@ -42,6 +42,7 @@ std::string figure_image(std::string_view kind, std::string_view csv, std::optio
   std::istream in(&buffer);
   render::TimeSeriesData data = scene::time_series(scene::read_trajectory_csv(in, "the stored trajectory"));
   data.converged_time = converged_time;
+  if (system) scene::label_for_system(data, *system);
   render::FigureOptions opt;
   opt.width_px = width;
   opt.height_px = height;
@@ -78,7 +79,8 @@ std::string study_figure_image(std::string_view, const std::string&, int, int, F
   throw std::runtime_error("this server was built without render/: figures are not available");
 }
 
-std::string figure_image(std::string_view, std::string_view, std::optional<double>, int, int, const std::string&, FigureFormat) {
+std::string figure_image(std::string_view, std::string_view, std::optional<double>, int, int, const std::string&, FigureFormat,
+                         const scene::Simulation*) {
   throw std::runtime_error("this server was built without render/: figures are not available");
 }
 

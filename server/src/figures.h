@@ -6,6 +6,10 @@
 #include <string>
 #include <string_view>
 
+namespace moreau::scene {
+class Simulation;
+}
+
 namespace moreau::server {
 
 // Whether this build can draw figures (render/ was available).
@@ -17,10 +21,11 @@ bool is_figure_kind(std::string_view kind);
 // PNG (drawn through OSMesa) or SVG (text, no GL).
 enum class FigureFormat { kPng, kSvg };
 
-// The image of figure `kind` for the trajectory CSV, as bytes. Throws std::runtime_error (or render's
-// FigureError) with a clear message.
+// The image of figure `kind` for the trajectory CSV, as bytes, labelled for the kind of system `system`
+// is (scene::label_for_system; null: a mechanical system's labels). Throws std::runtime_error (or
+// render's FigureError) with a clear message.
 std::string figure_image(std::string_view kind, std::string_view csv, std::optional<double> converged_time, int width, int height,
-                         const std::string& title, FigureFormat format);
+                         const std::string& title, FigureFormat format, const scene::Simulation* system = nullptr);
 
 // The image of a study's "work" or "order" figure, from its stored result.json (as `moreau study --work`
 // / `--order` draw them). Throws std::runtime_error or std::invalid_argument with a clear message.

@@ -117,7 +117,7 @@ struct RouteInfo {
   const char* pattern;  // segments; "*" is any one non-empty segment, "a|b" either name
   const char* allow;
   std::vector<std::string> params;         // of GET (and HEAD)
-  std::vector<std::string> delete_params;  // of DELETE; POST reads none
+  std::vector<std::string> delete_params = {};  // of DELETE; POST reads none
 };
 
 // Whether `path` matches `pattern` segment by segment (no regular expressions: this runs for every
@@ -1383,8 +1383,20 @@ void Server::Impl::job_figure(const Request& req, Response& res) {
       if (report->contains("converged_time") && (*report)["converged_time"].is_number())
         converged = (*report)["converged_time"].get<double>();
     }
+    // A Lur'e job's figures are labelled as such (state x, output y, storage W): its stored scene says so.
+    std::optional<scene::Simulation> system;
+    if (auto text = job_file(*job, &Job::has_trajectory, "scene.json")) {
+      const json doc = json::parse(*text, nullptr, false);
+      if (!doc.is_discarded() && scene::system_type(doc) == "lure") {
+        try {
+          system.emplace(scene::Simulation::from_json(doc));
+        } catch (const std::exception&) {
+          // A scene this build no longer compiles: the figure keeps the default labels.
+        }
+      }
+    }
     return figure_image(kind, *csv, converged, figure->size.first, figure->size.second,
-                        job->scene_name + " (" + job->id.substr(0, 8) + ")", figure->format);
+                        job->scene_name + " (" + job->id.substr(0, 8) + ")", figure->format, system ? &*system : nullptr);
   });
 }
 

@@ -21,6 +21,17 @@ struct TimeSeriesData {
   std::optional<double> converged_time;  // finite-time convergence, marked by a dashed line
   std::vector<double> impact_times;      // marked by ticks along the time axis
   std::string energy_label;              // default "energy"
+
+  // Titles and axis names of the two groups of coordinates: a mechanical system's positions q and
+  // velocities v (the defaults), or a state-space (Lur'e) system's state x and its rate dx/dt.
+  std::string q_title = "Positions", q_axis = "q", v_title = "Velocities", v_axis = "v";
+  // An optional third group, a third panel of the state figure (a Lur'e system's output y = C x).
+  std::vector<std::vector<double>> y;
+  std::vector<std::string> y_names;  // default y1, y2, ...
+  std::string y_title = "Outputs", y_axis = "y";
+  // The phase portrait of a state-space system is its state plane, (x_i, x_{i+1}); with one state,
+  // (x, dx/dt). Otherwise (the default) the mechanical phase plane (q_i, v_i).
+  bool state_space = false;
 };
 
 struct FigureOptions {

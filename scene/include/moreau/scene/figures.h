@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "moreau/render/figures.h"
+#include "moreau/scene/simulation.h"
 #include "moreau/scene/study.h"
 #include "moreau/scene/trajectory_csv.h"
 
@@ -15,6 +16,14 @@ namespace moreau::scene {
 
 // The columns of a trajectory as the time series of the state figures.
 render::TimeSeriesData time_series(TrajectoryColumns columns);
+
+// Titles, axes and derived series for the kind of system `sim` is. A Lagrangian system keeps the
+// defaults (positions q, velocities v, E = 1/2 <M v, v>). A Lur'e system (x' = A x - B y_L, y = C x,
+// eq. 4 of Brogliato 2003) is drawn as its state x, the state's discrete rate dx/dt (the CSV's _dot
+// columns), its output y = C x (computed here from the x columns) and the storage W = 1/2 x^T P x (the
+// energy column: the scene's P or the certificate of positive realness; 1/2 |x|^2 without one), and its
+// phase portrait is the state plane.
+void label_for_system(render::TimeSeriesData& data, const Simulation& sim);
 
 // One line per scheme of the study, in the order of `result.orders`, through its completed rows whose
 // max error of q is positive (a log axis cannot show 0): h, that error, and the timed run's wall time.
