@@ -158,12 +158,13 @@ void print_job(const json& job) {
   }
 }
 
-// Long-polls the job until it is final; draws a progress line on stderr when it is a terminal.
-std::optional<json> wait_for(const Remote& remote, httplib::Client& c, const std::string& id, int& code) {
+// Long-polls a job (collection "/v1/jobs/") or a study ("/v1/studies/") until it is final; draws a
+// progress line on stderr when it is a terminal (a job's t, a study's rows of the table).
+std::optional<json> wait_for(const Remote& remote, httplib::Client& c, const std::string& collection, const std::string& id, int& code) {
   const bool tty = isatty(STDERR_FILENO);
   bool drawn = false;
   while (true) {
-    auto r = c.Get("/v1/jobs/" + id + "?wait=" + (tty ? "0.5" : "30"));
+    auto r = c.Get(collection + id + "?wait=" + (tty ? "0.5" : "30"));
     if (!ok(r)) {
       code = report_failure(remote, r, "status of " + id);
       return std::nullopt;
@@ -175,9 +176,13 @@ std::optional<json> wait_for(const Remote& remote, httplib::Client& c, const std
       return job;
     }
     if (tty) {
-      const double f = job["progress"]["fraction"].is_number() ? job["progress"]["fraction"].get<double>() : 0.0;
-      std::fprintf(stderr, "\r%-8s %5.1f%%  t = %-12.6g", state.c_str(), 100.0 * f,
-                   job["progress"]["t"].is_number() ? job["progress"]["t"].get<double>() : 0.0);
+      const json& p = job["progress"];
+      const double f = p["fraction"].is_number() ? p["fraction"].get<double>() : 0.0;
+      if (p.contains("rows"))
+        std::fprintf(stderr, "\r%-8s %5.1f%%  rows %lld of %lld", state.c_str(), 100.0 * f, p["rows"].is_number() ? p["rows"].get<long long>() : 0LL,
+                     p["rows_total"].is_number() ? p["rows_total"].get<long long>() : 0LL);
+      else
+        std::fprintf(stderr, "\r%-8s %5.1f%%  t = %-12.6g", state.c_str(), 100.0 * f, p["t"].is_number() ? p["t"].get<double>() : 0.0);
       std::fflush(stderr);
       drawn = true;
     }
@@ -194,7 +199,38 @@ struct SubmitOptions {
   bool stream = false, realtime = false;
   std::optional<double> period;
   std::string channel;
+  // --study: a server-side study (POST /v1/studies), with the options of `moreau study`.
+  bool study = false;
+  std::string ladder, schemes, regularization, csv;
+  std::optional<double> reference_h, epsilon;
+  std::optional<int> eval_points, repeats;
 };
+
+// A finished study in a few lines: its state, and each scheme's fitted order with the theory that applies.
+void print_study(const json& study) {
+  std::cout << "study " << study.value("id", "?") << "  " << study.value("scene", "?") << "  " << study.value("state", "?") << "\n";
+  if (study.contains("reason")) std::cout << "  reason        " << study.value("reason", "") << "\n";
+  const json& result = field(study, "result");
+  if (!result.is_object()) return;
+  std::cout << "  rows          " << field(result, "rows").size() << " (reference: " << result.value("reference", "?") << ")\n";
+  for (const auto& o : field(result, "orders")) {
+    std::cout << "  order " << o.value("scheme", "?") << ": q_max " << (o["q_max"].is_number() ? fmt(o["q_max"].get<double>()) : "n/a")
+              << " (theory: " << o.value("theory", "?") << ")\n";
+  }
+}
+
+// The study settings of `moreau submit --study` (POST /v1/studies, "study"), as `moreau study` names them.
+json study_settings(const SubmitOptions& o) {
+  json settings = json::object();
+  if (!o.ladder.empty()) settings["h"] = o.ladder;
+  if (!o.schemes.empty()) settings["schemes"] = o.schemes;
+  if (o.reference_h) settings["reference_h"] = *o.reference_h;
+  if (o.epsilon) settings["epsilon"] = *o.epsilon;
+  if (!o.regularization.empty()) settings["regularization"] = o.regularization;
+  if (o.eval_points) settings["eval_points"] = *o.eval_points;
+  if (o.repeats) settings["repeats"] = *o.repeats;
+  return settings;
+}
 
 int submit(const SubmitOptions& o) {
   json request;
@@ -214,16 +250,30 @@ int submit(const SubmitOptions& o) {
     return 2;
   }
   if (!o.overrides.empty()) request["overrides"] = o.overrides;
-  if (o.stream || o.realtime || o.period || !o.channel.empty()) {
+  const bool streamed = o.stream || o.realtime || o.period || !o.channel.empty();
+  const json settings = study_settings(o);
+  if ((!settings.empty() || !o.csv.empty()) && !o.study) {
+    std::cerr << "moreau: --h, --schemes, --reference-h, --epsilon, --regularization, --eval-points, --repeats and --csv "
+                 "are options of a study: add --study\n";
+    return 2;
+  }
+  if (o.study && streamed) {
+    std::cerr << "moreau: a study is not streamed over LCM: --stream, --period, --realtime and --channel are for jobs\n";
+    return 2;
+  }
+  if (o.study && !settings.empty()) request["study"] = settings;
+  if (streamed) {
     json s = json::object();
     if (o.period) s["period"] = *o.period;
     if (o.realtime) s["realtime"] = true;
     if (!o.channel.empty()) s["channel"] = o.channel;
     request["stream"] = s;
   }
+  const std::string collection = o.study ? "/v1/studies/" : "/v1/jobs/";
+  const char* what = o.study ? "study" : "job";
   auto c = o.remote.client();
-  auto r = c->Post("/v1/jobs", request.dump(), "application/json");
-  if (!ok(r, 202)) return report_failure(o.remote, r, "submit " + o.scene);
+  auto r = c->Post(collection.substr(0, collection.size() - 1), request.dump(), "application/json");
+  if (!ok(r, 202)) return report_failure(o.remote, r, std::string("submit ") + (o.study ? "study of " : "") + o.scene);
   const json accepted = body_json(r);
   const std::string id = accepted.value("id", "");
   if (!o.wait) {
@@ -233,15 +283,28 @@ int submit(const SubmitOptions& o) {
       std::cout << id << "\n";
     return 0;
   }
-  if (!o.remote.json_output) std::cerr << "submitted " << id << "\n";
+  if (!o.remote.json_output) std::cerr << "submitted " << (o.study ? "study " : "") << id << "\n";
   int code = 0;
-  auto job = wait_for(o.remote, *c, id, code);
+  auto job = wait_for(o.remote, *c, collection, id, code);
   if (!job) return code;
+  const bool done = job->value("state", "") == "done";
+  if (o.study && done && !o.csv.empty()) {
+    auto t = c->Get(collection + id + "/table?format=csv");
+    if (!ok(t)) return report_failure(o.remote, t, std::string("table of ") + what + " " + id);
+    std::ofstream out(o.csv, std::ios::binary);
+    out << t->body;
+    if (!out) {
+      std::cerr << "moreau: cannot write '" << o.csv << "'\n";
+      return 2;
+    }
+  }
   if (o.remote.json_output)
     std::cout << job->dump(2) << "\n";
+  else if (o.study)
+    print_study(*job);
   else
     print_job(*job);
-  return job->value("state", "") == "done" ? 0 : 1;
+  return done ? 0 : 1;
 }
 
 // ---- status ----
@@ -257,7 +320,7 @@ int status(const IdOptions& o) {
   std::optional<json> job;
   if (o.wait) {
     int code = 0;
-    job = wait_for(o.remote, *c, o.id, code);
+    job = wait_for(o.remote, *c, "/v1/jobs/", o.id, code);
     if (!job) return code;
   } else {
     auto r = c->Get("/v1/jobs/" + o.id);
@@ -413,7 +476,16 @@ void register_remote_commands(CLI::App& app, Actions& actions) {
     cmd->add_option("--period", o->period, "Streaming period in simulation seconds (default 1/64)");
     cmd->add_flag("--realtime", o->realtime, "Stream paced to wall-clock time");
     cmd->add_option("--channel", o->channel, "LCM channel prefix (default MOREAU: MOREAU_STATE_<ID>)");
-    cmd->add_flag("--json", o->remote.json_output, "Print the job as JSON");
+    cmd->add_flag("--study", o->study, "Run a study on the server (as moreau study): step sizes and schemes below");
+    cmd->add_option("--h", o->ladder, "Study: step sizes FIRST:LAST:COUNT (log-spaced) or a comma list (default 1e-1:1e-5:9)");
+    cmd->add_option("--schemes", o->schemes, "Study: comma list of abl, explicit, regularized (default: all three)");
+    cmd->add_option("--reference-h", o->reference_h, "Study: force an abl reference at this h");
+    cmd->add_option("--epsilon", o->epsilon, "Study: width of the regularized sign");
+    cmd->add_option("--regularization", o->regularization, "Study: tanh or saturation")->check(CLI::IsMember({"tanh", "saturation"}));
+    cmd->add_option("--eval-points", o->eval_points, "Study: common times at which errors are measured");
+    cmd->add_option("--repeats", o->repeats, "Study: timed runs per point (the minimum is kept)");
+    cmd->add_option("--csv", o->csv, "Study, with --wait: write the table as CSV");
+    cmd->add_flag("--json", o->remote.json_output, "Print the job (or study) as JSON");
     o->remote.add_to(cmd);
     actions[cmd] = [o] { return guarded([&] { return submit(*o); }); };
   }

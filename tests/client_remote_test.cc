@@ -3,6 +3,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <cstdio>
 #include <filesystem>
@@ -53,6 +54,42 @@ TEST(ClientRemote, A401SaysHowToPassAToken) {
 
   const Outcome good = run_client("jobs " + server + " --token 'correct horse battery staple'");
   EXPECT_EQ(good.status, 0) << good.output;
+}
+
+// `moreau submit --study`: a study on the server, waited for, its table written; its CSV is the one the
+// server serves for that study, and its rows are the requested schemes times step sizes.
+TEST(ClientRemote, SubmitStudyRunsAServerSideStudy) {
+  TestServer ts;
+  auto c = ts.client();
+  const std::filesystem::path dir = testing::make_temp_dir("client-study");
+  const std::string server = " --server http://127.0.0.1:" + std::to_string(ts.port());
+  const std::string csv = (dir / "table.csv").string();
+  const Outcome done = run_client("submit manipulator --study --set integrator.t_end=0.5 --h 1e-2,1e-3 --schemes abl,explicit --repeats 1 "
+                                  "--wait --csv " + csv + server);
+  ASSERT_EQ(done.status, 0) << done.output;
+  EXPECT_THAT(done.output, ::testing::HasSubstr("order abl"));
+  EXPECT_THAT(done.output, ::testing::HasSubstr("order explicit"));
+  const auto studies = nlohmann::json::parse(c->Get("/v1/studies")->body);
+  ASSERT_EQ(studies.at("count"), 1);
+  const std::string id = studies["studies"][0]["id"];
+  EXPECT_THAT(done.output, ::testing::HasSubstr(id));
+  std::ifstream f(csv, std::ios::binary);
+  const std::string written((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(written, c->Get("/v1/studies/" + id + "/table?format=csv")->body);
+  EXPECT_EQ(std::count(written.begin(), written.end(), '\n'), 1 + 2 * 2) << written;
+  // Without --wait: the id only. Study options without --study, or streaming with it: refused.
+  const Outcome queued = run_client("submit manipulator --study --set integrator.t_end=0.1 --h 1e-2,1e-3 --schemes abl --repeats 1" + server);
+  ASSERT_EQ(queued.status, 0) << queued.output;
+  EXPECT_THAT(queued.output, ::testing::MatchesRegex("[0-9a-f]{32}\n"));
+  const Outcome no_flag = run_client("submit manipulator --h 1e-2,1e-3" + server);
+  EXPECT_EQ(no_flag.status, 2);
+  EXPECT_THAT(no_flag.output, ::testing::HasSubstr("add --study"));
+  const Outcome streamed = run_client("submit manipulator --study --stream" + server);
+  EXPECT_EQ(streamed.status, 2);
+  // A scene the server refuses to study: its reason, in full.
+  const Outcome lure = run_client("submit lure-relay --study" + server);
+  EXPECT_EQ(lure.status, 2) << lure.output;  // refused input, as a 400 always is
+  EXPECT_THAT(lure.output, ::testing::HasSubstr("a Lur'e system (\"lure\") has one scheme: run it instead"));
 }
 
 // `moreau figure ID -o FILE`: SVG for a .svg name (the server draws it without GL), PNG otherwise.
