@@ -18,6 +18,7 @@
 #include <vector>
 
 #include <lcm/lcm-cpp.hpp>
+#include <moreau/description_t.hpp>
 #include <moreau/job_event_t.hpp>
 #include <moreau/lcm_url.h>
 #include <moreau/state_t.hpp>
@@ -58,6 +59,7 @@ struct JobView {
   std::int64_t keep_every = 1;
   std::int64_t seen = 0;
   std::optional<double> converged_time;
+  std::optional<moreau::description_t> description;  // names and kind of system, once one arrived
 };
 
 constexpr std::size_t kMaxPoints = 20000;
@@ -100,7 +102,7 @@ class Watcher {
     if (channel.empty()) {
       std::string id = o_.job;
       for (char& c : id) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
-      channel = id.empty() ? "MOREAU_(STATE|EVENT)_.*" : "MOREAU_(STATE|EVENT)_" + id;
+      channel = id.empty() ? "MOREAU_(STATE|EVENT|DESC)_.*" : "MOREAU_(STATE|EVENT|DESC)_" + id;
     }
     // subscribeFunction rather than the member-function subscribe(), which LCM 1.3.1 and GCC 12's
     // UndefinedBehaviorSanitizer do not agree on.
@@ -170,12 +172,15 @@ class Watcher {
     const int size = static_cast<int>(rbuf->data_size);
     moreau::state_t s;
     moreau::job_event_t ev;
+    moreau::description_t desc;
     if (s.decode(rbuf->data, 0, size) == size) {
       ++states_received_;
       on_state(s);
     } else if (ev.decode(rbuf->data, 0, size) == size) {
       ++events_received_;
       on_event(ev);
+    } else if (desc.decode(rbuf->data, 0, size) == size) {
+      view(desc.job_id).description = desc;  // labels the live figure
     }
   }
 
@@ -290,6 +295,18 @@ class Watcher {
       try {
         render::TimeSeriesData d = j.series;
         d.converged_time = j.converged_time;
+        if (j.description) {
+          d.q_names = j.description->q_names;
+          d.v_names = j.description->v_names;
+          d.energy_label = j.description->energy;
+          if (j.description->system == "lure") {
+            d.q_title = "State x";
+            d.q_axis = "x";
+            d.v_title = "State rate dx/dt";
+            d.v_axis = "dx/dt";
+            d.state_space = true;
+          }
+        }
         render::FigureOptions opt;
         opt.title = "job " + j.id.substr(0, 8) + " (live, " + j.status + ")";
         const std::string tmp = o_.figure + ".tmp";
@@ -322,7 +339,7 @@ void register_watch_command(CLI::App& app, Actions& actions) {
   auto o = std::make_shared<WatchOptions>();
   auto* cmd = app.add_subcommand("watch", std::string(remote_command_description("watch")));
   cmd->add_option("--lcm-url", o->lcm_url, "LCM URL (default: LCM_DEFAULT_URL, else LCM's default)");
-  cmd->add_option("--channel", o->channel, "Channel regex (default MOREAU_(STATE|EVENT)_.*)");
+  cmd->add_option("--channel", o->channel, "Channel regex (default MOREAU_(STATE|EVENT|DESC)_.*)");
   cmd->add_option("--job", o->job, "Only this job's channels");
   cmd->add_option("--log", o->log, "Record every message received as an LCM log (lcm-logplayer can replay it)");
   cmd->add_option("--figure", o->figure, "Keep a PNG of the latest job's state up to date (once a second)");

@@ -18,6 +18,7 @@
 #include "server_fixture.h"
 
 #include <lcm/lcm-cpp.hpp>
+#include <moreau/description_t.hpp>
 #include <moreau/job_event_t.hpp>
 #include <moreau/lcm_url.h>
 #include <moreau/state_t.hpp>
@@ -44,18 +45,27 @@ std::string upper(std::string s) {
 struct Received {
   std::vector<moreau::state_t> states;
   std::vector<moreau::job_event_t> events;
-  std::vector<std::string> state_channels, event_channels;
+  std::vector<moreau::description_t> descriptions;
+  std::vector<std::string> state_channels, event_channels, description_channels;
+  std::string order;  // 'd', 's', 'e' per message, as received
   std::size_t undecodable = 0;
 
   void add(const std::string& channel, const void* data, int size) {
     moreau::state_t s;
     moreau::job_event_t e;
+    moreau::description_t d;
     if (s.decode(data, 0, size) == size) {
       states.push_back(s);
       state_channels.push_back(channel);
+      order += 's';
     } else if (e.decode(data, 0, size) == size) {
       events.push_back(e);
       event_channels.push_back(channel);
+      order += 'e';
+    } else if (d.decode(data, 0, size) == size) {
+      descriptions.push_back(d);
+      description_channels.push_back(channel);
+      order += 'd';
     } else {
       ++undecodable;
     }
@@ -72,6 +82,22 @@ void check_stream(const Received& got, const std::string& id, const json& report
   ASSERT_FALSE(got.states.empty());
   for (const auto& ch : got.state_channels) EXPECT_EQ(ch, "MOREAU_STATE_" + upper(id));
   for (const auto& ch : got.event_channels) EXPECT_EQ(ch, "MOREAU_EVENT_" + upper(id));
+  for (const auto& ch : got.description_channels) EXPECT_EQ(ch, "MOREAU_DESC_" + upper(id));
+  // The description comes first: a viewer can label the first state it gets.
+  ASSERT_FALSE(got.descriptions.empty());
+  EXPECT_EQ(got.order.front(), 'd') << got.order.substr(0, 10);
+  const auto& d = got.descriptions.front();
+  EXPECT_EQ(d.job_id, id);
+  EXPECT_EQ(d.scene, "manipulator");
+  EXPECT_EQ(d.system, "lagrangian");
+  EXPECT_EQ(d.n, 2);
+  EXPECT_EQ(d.q_names, (std::vector<std::string>{"x1", "th2"}));
+  EXPECT_EQ(d.v_names, (std::vector<std::string>{"x1_dot", "th2_dot"}));
+  EXPECT_EQ(d.energy, "E = 1/2 <M(q) v, v> (kinetic energy)");
+  EXPECT_DOUBLE_EQ(d.period, period);
+  EXPECT_DOUBLE_EQ(d.t_end, t_end);
+  EXPECT_EQ(d.state_channel, "MOREAU_STATE_" + upper(id));
+  EXPECT_EQ(d.event_channel, "MOREAU_EVENT_" + upper(id));
   // One state per period from t0, and the last state.
   const auto expected = static_cast<std::size_t>(std::llround(t_end / period)) + 1;
   EXPECT_EQ(got.states.size(), expected);
@@ -137,6 +163,7 @@ TEST(LcmStream, MemqStreamDecodesInOrderWithTheFinalEvent) {
   const std::string id = accepted["id"];
   EXPECT_EQ(accepted["stream"]["state_channel"], "MOREAU_STATE_" + upper(id));
   EXPECT_EQ(accepted["stream"]["event_channel"], "MOREAU_EVENT_" + upper(id));
+  EXPECT_EQ(accepted["stream"]["description_channel"], "MOREAU_DESC_" + upper(id));
   const json job = wait_final(*c, id);
   ASSERT_EQ(job["state"], "done");
 
@@ -251,6 +278,10 @@ TEST(LcmStream, RealtimeIsPacedAndStillCancelsQuickly) {
   cfg.lcm_url = "memq://";
   TestServer ts(cfg);
   auto c = ts.client();
+  lcm::LCM* l = ts.server().lcm();
+  ASSERT_NE(l, nullptr);
+  Collector col;
+  l->subscribeFunction("MOREAU_DESC_.*", &Collector::handle, &col);
   // 0.3 s of simulated time takes 0.3 s of wall-clock time.
   auto t0 = Clock::now();
   auto r = submit(*c, {{"scene", manipulator()}, {"overrides", {"integrator.t_end=0.3"}}, {"stream", {{"realtime", true}}}});
@@ -259,6 +290,10 @@ TEST(LcmStream, RealtimeIsPacedAndStillCancelsQuickly) {
   const double took = std::chrono::duration<double>(Clock::now() - t0).count();
   EXPECT_GE(took, 0.28);
   EXPECT_LT(took, 2.0);
+  while (l->handleTimeout(0) > 0) {
+  }
+  ASSERT_GE(col.got.descriptions.size(), 1u) << "a description when the stream starts";
+  const std::size_t first_job_descriptions = col.got.descriptions.size();
 
   // A paced job sleeps between states; cancelling it wakes it.
   r = submit(*c, {{"scene", manipulator()}, {"overrides", {"integrator.t_end=100"}}, {"stream", {{"realtime", true}}}});
@@ -274,6 +309,26 @@ TEST(LcmStream, RealtimeIsPacedAndStillCancelsQuickly) {
   const json job = wait_final(*c, id);
   EXPECT_EQ(job["state"], "cancelled");
   EXPECT_LE(job["report"]["steps"].get<std::int64_t>(), seen + moreau::RunObserver::kControlInterval);
+
+  // A long paced stream repeats its description about once a second of wall-clock time, for viewers
+  // that join late: wait (on the messages, not a clock) until a second one comes, and check the spacing.
+  r = submit(*c, {{"scene", manipulator()}, {"overrides", {"integrator.t_end=100"}}, {"stream", {{"realtime", true}}}});
+  const std::string late = json::parse(r->body)["id"];
+  auto of_late = [&] {
+    std::vector<moreau::description_t> out;
+    for (const auto& d : col.got.descriptions)
+      if (d.job_id == late) out.push_back(d);
+    return out;
+  };
+  const auto deadline = Clock::now() + std::chrono::seconds(20);
+  while (of_late().size() < 3 && Clock::now() < deadline) l->handleTimeout(50);
+  c->Delete("/v1/jobs/" + late);
+  const auto repeated = of_late();
+  ASSERT_GE(repeated.size(), 3u);
+  for (std::size_t i = 1; i < repeated.size(); ++i) {
+    EXPECT_GE(repeated[i].utime - repeated[i - 1].utime, 990000) << i;  // at most one per second
+  }
+  EXPECT_GE(col.got.descriptions.size(), first_job_descriptions + 3);
 }
 
 // ---- udpm:// between processes, inside a private network namespace ----

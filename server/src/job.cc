@@ -97,6 +97,7 @@ json job_json(const Job& job, const json* report) {
   if (job.stream.enabled) {
     j["stream"] = {{"state_channel", job.stream.state_channel},
                    {"event_channel", job.stream.event_channel},
+                   {"description_channel", job.stream.description_channel},
                    {"period", job.stream.period},
                    {"realtime", job.stream.realtime}};
   }

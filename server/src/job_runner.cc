@@ -7,6 +7,7 @@
 #include <iostream>
 
 #include "job_observer.h"
+#include "moreau/scene/scene.h"
 #include "moreau/scene/trajectory_csv.h"
 #include "storage.h"
 
@@ -241,7 +242,12 @@ void JobRunner::run(const std::shared_ptr<Job>& job) {
 
   std::optional<StreamObserver> stream_observer;
   if (job->stream.enabled) {
-    commit->stream = std::make_shared<JobStream>(job->id, job->stream, sim.dof());
+    // What the states hold, for viewers that know nothing of the scene.
+    StreamDescription description{sim.name(), sim.system_type(), "E = 1/2 <M(q) v, v> (kinetic energy)",
+                                  sim.position_names(), sim.velocity_names(), sim.t0(), sim.t_end()};
+    if (const scene::LureScene* lure = sim.lure())
+      description.energy = lure->storage ? "W = 1/2 x^T P x (storage)" : "1/2 |x|^2 (no storage matrix)";
+    commit->stream = std::make_shared<JobStream>(job->id, job->stream, sim.dof(), std::move(description));
     hub_.add(commit->stream);
     stream_observer.emplace(commit->stream, sim.t0(), &job->cancel);
     commit->stream->push_event(

@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include <lcm/lcm-cpp.hpp>
+#include <moreau/description_t.hpp>
 #include <moreau/job_event_t.hpp>
 #include <moreau/state_t.hpp>
 
@@ -19,6 +20,7 @@ void set_channels(StreamSettings& s, const std::string& job_id) {
   for (char& c : upper) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
   s.state_channel = s.prefix + "_STATE_" + upper;
   s.event_channel = s.prefix + "_EVENT_" + upper;
+  s.description_channel = s.prefix + "_DESC_" + upper;
 }
 
 std::int64_t utime_now() {
@@ -27,8 +29,8 @@ std::int64_t utime_now() {
 
 // ---- JobStream ----
 
-JobStream::JobStream(std::string job_id, StreamSettings settings, int n)
-    : job_id_(std::move(job_id)), settings_(std::move(settings)), n_(n) {
+JobStream::JobStream(std::string job_id, StreamSettings settings, int n, StreamDescription description)
+    : job_id_(std::move(job_id)), settings_(std::move(settings)), n_(n), description_(std::move(description)) {
   for (Batch* b : {&local_, &pending_}) {
     b->records.reserve(4 * kBatch);
     b->qv.reserve(4 * kBatch * 2 * static_cast<std::size_t>(n));
@@ -137,6 +139,7 @@ void LcmHub::loop() {
     std::vector<JobStream*> finished;
     for (auto& s : current) {
       const bool closed = s->take(batch);
+      describe(*s);  // before the stream's first state, then once a second
       drain(*s, batch);
       // close() comes after the last push, so a closed stream has nothing left once taken.
       if (closed) finished.push_back(s.get());
@@ -152,6 +155,7 @@ void LcmHub::loop() {
       std::lock_guard lock(mu_);
       for (auto& s : streams_) {
         s->take(batch);
+        describe(*s);
         drain(*s, batch);
       }
       streams_.clear();
@@ -162,6 +166,35 @@ void LcmHub::loop() {
     std::unique_lock lock(mu_);
     cv_.wait_for(lock, std::chrono::milliseconds(1), [&] { return stopping_; });
   }
+}
+
+void LcmHub::describe(JobStream& s) {
+  const auto now = std::chrono::steady_clock::now();
+  if (s.described_at_ != std::chrono::steady_clock::time_point{} && now - s.described_at_ < std::chrono::seconds(1)) return;
+  lcm::LCM* l = get();
+  if (!l) return;
+  s.described_at_ = now;
+  const StreamDescription& d = s.description();
+  moreau::description_t m;
+  m.utime = utime_now();
+  m.job_id = s.job_id();
+  m.scene = d.scene;
+  m.system = d.system;
+  m.n = s.n();
+  m.q_names = d.q_names;
+  m.v_names = d.v_names;
+  m.q_names.resize(static_cast<std::size_t>(s.n()));  // the message's arrays have n entries
+  m.v_names.resize(static_cast<std::size_t>(s.n()));
+  m.energy = d.energy;
+  m.t0 = d.t0;
+  m.t_end = d.t_end;
+  m.period = s.settings().period;
+  m.state_channel = s.settings().state_channel;
+  m.event_channel = s.settings().event_channel;
+  const int size = m.getEncodedSize();
+  buffer_.resize(static_cast<std::size_t>(size));
+  m.encode(buffer_.data(), 0, size);
+  if (l->publish(s.settings().description_channel, buffer_.data(), static_cast<unsigned>(size)) == 0) published_.fetch_add(1);
 }
 
 void LcmHub::drain(JobStream& s, JobStream::Batch& batch) {

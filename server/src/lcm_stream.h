@@ -25,13 +25,20 @@ namespace moreau::server {
 
 struct StreamSettings {
   bool enabled = false;
-  std::string prefix = "MOREAU";  // channels: <prefix>_STATE_<ID>, <prefix>_EVENT_<ID>
+  std::string prefix = "MOREAU";  // channels: <prefix>_STATE_<ID>, <prefix>_EVENT_<ID>, <prefix>_DESC_<ID>
   double period = 1.0 / 64.0;     // simulation seconds between published states
   bool realtime = false;          // pace the job so that simulation time follows wall-clock time
-  std::string state_channel, event_channel;
+  std::string state_channel, event_channel, description_channel;
 };
 
-// "MOREAU_STATE_" + the job id in upper case, and the event channel likewise.
+// What the job's states hold (published as moreau::description_t): names, kind of system, energy.
+struct StreamDescription {
+  std::string scene, system, energy;
+  std::vector<std::string> q_names, v_names;
+  double t0 = 0, t_end = 0;
+};
+
+// "MOREAU_STATE_" + the job id in upper case, and the event and description channels likewise.
 void set_channels(StreamSettings& s, const std::string& job_id);
 
 // Microseconds since the Unix epoch.
@@ -42,7 +49,7 @@ std::int64_t utime_now();
 // realtime stream, are handed over at once.
 class JobStream {
  public:
-  JobStream(std::string job_id, StreamSettings settings, int n);
+  JobStream(std::string job_id, StreamSettings settings, int n, StreamDescription description = {});
   ~JobStream();
   void push_state(std::int64_t step, double t, double h, const double* q, const double* v, double energy);
   void push_event(const char* kind, std::int64_t step, double t, std::string text);
@@ -53,6 +60,7 @@ class JobStream {
 
   const std::string& job_id() const { return job_id_; }
   const StreamSettings& settings() const { return settings_; }
+  const StreamDescription& description() const { return description_; }
   int n() const { return n_; }
 
  private:
@@ -84,6 +92,9 @@ class JobStream {
   std::string job_id_;
   StreamSettings settings_;
   int n_;
+  StreamDescription description_;
+  // The hub's own: when it last published the description (never: the epoch).
+  std::chrono::steady_clock::time_point described_at_{};
   // The producer's buffer and the shared one on separate cache lines.
   alignas(64) Batch local_;  // the producer's (no lock)
   alignas(64) std::mutex mu_;
@@ -115,6 +126,8 @@ class LcmHub {
  private:
   void loop();
   void drain(JobStream& s, JobStream::Batch& batch);
+  // Publishes the stream's description when it has not been, or a second has passed since it last was.
+  void describe(JobStream& s);
 
   std::string url_;
   std::mutex open_mu_;
