@@ -108,7 +108,8 @@ function renderRow(job) {
   const bar = el('progress', { max: '1', value: String(fraction(job)) });
   entry.tr.replaceChildren(
     el('td', { class: 'scene' }, job.scene || ''),
-    el('td', { class: 'state state-' + job.state }, job.state + (job.reason ? ` (${job.reason})` : '')),
+    el('td', { class: 'state state-' + job.state }, job.state + (job.queue_position ? ` (#${job.queue_position} in the queue)` : '') +
+       (job.reason ? ` (${job.reason})` : '')),
     el('td', {}, bar, ` ${Math.round(100 * fraction(job))}%`),
     el('td', {}, when(job.created)),
     el('td', { class: 'id' }, job.id));
@@ -225,6 +226,7 @@ function showJob(job) {
   const dl = el('dl');
   for (const [k, v] of facts) dl.append(el('dt', {}, k), el('dd', {}, String(v)));
   $('job-summary').replaceChildren(dl);
+  showActions(job);
 
   const ul = $('job-guarantees');
   ul.replaceChildren();
@@ -242,6 +244,32 @@ function showJob(job) {
   $('job-report').textContent = r ? JSON.stringify(r, null, 2) : '';
   showFigures(job);
   showDownloads(job);
+}
+
+// Cancel a job that is not final; delete (purge) one that is, with its results.
+function showActions(job) {
+  const box = $('job-actions');
+  box.replaceChildren();
+  const final = FINAL.has(job.state);
+  const button = el('button', { type: 'button', id: final ? 'delete-button' : 'cancel-button' }, final ? 'Delete job and results' : 'Cancel');
+  button.addEventListener('click', async () => {
+    try {
+      if (final) {
+        await api('DELETE', jobUrl(job.id) + '?purge=true');
+        const entry = rows.get(job.id);
+        if (entry) entry.tr.remove();
+        rows.delete(job.id);
+        selected = null;
+        $('job-section').hidden = true;
+      } else {
+        renderRow(await api('DELETE', jobUrl(job.id)));
+        follow(job.id);
+      }
+    } catch (e) {
+      showError('list-error', e);
+    }
+  });
+  if (job.state !== 'cancelling') box.append(button);
 }
 
 function showFigures(job) {

@@ -5,7 +5,7 @@
 // shipped manipulator scene with an override, waits for the job's row to say done, checks that the four
 // figures loaded (natural width > 0) and the report is shown in words, reloads to check that the token
 // was kept for the tab, then submits a scene whose name is HTML with a script and an error whose text is
-// HTML, and checks that both are shown as text and nothing ran. It fails on any page error or CSP
+// HTML, and checks that both are shown as text and nothing ran; cancels a long job and deletes it. It fails on any page error or CSP
 // violation, and saves a screenshot.
 //
 // Usage: node page_test.mjs SERVER_BINARY SOURCE_DIR SCREENSHOT.png|.jpg
@@ -68,9 +68,10 @@ async function main() {
     await page.setViewport({ width: 1280, height: 900 });
     const problems = [];
     page.on('pageerror', (e) => problems.push('page error: ' + e.message));
-    // Expected failed loads: the 401s before the token is entered, and the 400 of the bad submission.
+    // Expected failed loads: the 401s before the token is entered, the 400 of the bad submission, the 404
+    // of the deleted job.
     page.on('console', (m) => {
-      if (m.type() === 'error' && !/Failed to load resource: the server responded with a status of 40[01]/.test(m.text()))
+      if (m.type() === 'error' && !/Failed to load resource: the server responded with a status of 40[014]/.test(m.text()))
         problems.push('console error: ' + m.text());
     });
 
@@ -142,6 +143,28 @@ async function main() {
     const error = await page.$eval('#submit-error', (e) => ({ text: e.textContent, elements: e.children.length }));
     check(error.text.includes("'<b>bold</b>'") && error.elements === 0 && (await page.$$('b')).length === 0,
           'an error message holding HTML is shown as text: ' + error.text);
+
+    // Cancel a long job from its page, then delete it with its results.
+    await page.evaluate(() => {
+      document.querySelector('input[value=shipped]').checked = true;
+      document.getElementById('overrides').value = 'integrator.t_end=5e4\noutput.every=10000';
+    });
+    await page.click('#submit-button');
+    await page.waitForFunction(() => document.getElementById('job-summary').textContent.includes('state') &&
+                               document.getElementById('cancel-button') !== null, WAIT);
+    const longId = await page.$eval('#job-id', (e) => e.textContent);
+    await page.click('#cancel-button');
+    await page.waitForFunction((id) => {
+      const tr = document.querySelector(`#jobs tr[data-id="${id}"]`);
+      return tr && tr.querySelector('td.state').textContent.startsWith('cancelled');
+    }, WAIT, longId);
+    check(true, 'the Cancel button cancels a running job: its row says cancelled');
+    await page.waitForFunction(() => document.getElementById('delete-button') !== null, WAIT);
+    await page.click('#delete-button');
+    await page.waitForFunction((id) => document.querySelector(`#jobs tr[data-id="${id}"]`) === null, WAIT, longId);
+    const gone = await page.evaluate(async (id, token) => (await fetch('/v1/jobs/' + id, { headers: { Authorization: 'Bearer ' + token } })).status,
+                                     longId, TOKEN);
+    check(gone === 404, 'the Delete button deletes the finished job with its results (then 404): ' + gone);
 
     check(problems.length === 0, 'no page errors, console errors or CSP violations' + (problems.length ? ': ' + problems.join('; ') : ''));
   } finally {
