@@ -5,6 +5,8 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -28,6 +30,7 @@ namespace {
 using moreau::server::ServerConfig;
 using moreau::server::testing::make_temp_dir;
 using moreau::server::testing::manipulator;
+using moreau::server::testing::read_json_file;
 using moreau::server::testing::submit;
 using moreau::server::testing::TestServer;
 using moreau::server::testing::wait_final;
@@ -329,6 +332,81 @@ TEST(LcmStream, RealtimeIsPacedAndStillCancelsQuickly) {
     EXPECT_GE(repeated[i].utime - repeated[i - 1].utime, 990000) << i;  // at most one per second
   }
   EXPECT_GE(col.got.descriptions.size(), first_job_descriptions + 3);
+}
+
+// Impacts go out as they happen: one "impact" event per impacting contact, before the first state after
+// it, with the numbers the report records for it; and they agree with the closed form of a falling ball
+// and with Newton's law.
+TEST(LcmStream, ImpactEventsAreStreamedAsTheyHappen) {
+  ServerConfig cfg;
+  cfg.lcm_url = "memq://";
+  TestServer ts(cfg);
+  lcm::LCM* l = ts.server().lcm();
+  ASSERT_NE(l, nullptr);
+  Collector col;
+  l->subscribeFunction("MOREAU_.*", &Collector::handle, &col);
+  auto c = ts.client();
+  auto r = submit(*c, {{"scene", read_json_file("scenes/bouncing-ball-e0.8.json")}, {"stream", true}});
+  ASSERT_EQ(r->status, 202) << r->body;
+  const std::string id = json::parse(r->body)["id"];
+  const json job = wait_final(*c, id);
+  ASSERT_EQ(job["state"], "done");
+  const auto deadline = Clock::now() + std::chrono::seconds(5);
+  while (!col.got.finished() && Clock::now() < deadline) l->handleTimeout(10);
+  while (l->handleTimeout(0) > 0) {
+  }
+  ASSERT_EQ(col.got.undecodable, 0u);
+  const json& contacts = job["report"]["contacts"];
+  const json& recorded = contacts["impacts"];
+  ASSERT_FALSE(contacts["impacts_truncated"].get<bool>());
+
+  // The impact events, their fields parsed from the key=value text.
+  struct Impact {
+    std::int64_t step;
+    double t, pre, post, restitution, impulse;
+    int contact;
+  };
+  std::vector<Impact> impacts;
+  for (const auto& e : col.got.events) {
+    if (e.kind != "impact") continue;
+    Impact i{e.step, e.t, 0, 0, 0, 0, -1};
+    ASSERT_EQ(std::sscanf(e.text.c_str(), "contact=%d pre=%lf post=%lf restitution=%lf impulse=%lf", &i.contact, &i.pre, &i.post,
+                          &i.restitution, &i.impulse),
+              5)
+        << e.text;
+    impacts.push_back(i);
+  }
+  ASSERT_EQ(static_cast<std::int64_t>(impacts.size()), contacts["impact_count"].get<std::int64_t>());
+  ASSERT_EQ(impacts.size(), recorded.size());
+  ASSERT_GE(impacts.size(), 5u);
+  for (std::size_t k = 0; k < impacts.size(); ++k) {
+    SCOPED_TRACE(k);
+    const Impact& i = impacts[k];
+    EXPECT_EQ(i.step, recorded[k]["step"]);
+    EXPECT_EQ(i.t, recorded[k]["t"].get<double>());
+    EXPECT_EQ(i.pre, recorded[k]["pre_velocity"].get<double>());
+    EXPECT_EQ(i.post, recorded[k]["post_velocity"].get<double>());
+    EXPECT_EQ(i.impulse, recorded[k]["impulse"].get<double>());
+    EXPECT_EQ(i.contact, 0);
+    EXPECT_EQ(i.restitution, 0.8);
+    EXPECT_LT(i.pre, 0.0);
+    EXPECT_NEAR(i.post, -0.8 * i.pre, 1e-12 * std::abs(i.pre)) << "Newton's law at an impulse: U+ = -e U-";
+  }
+  // The first impact: the ball dropped from y0 = 1 m reaches the ground at t1 = sqrt(2 y0 / g) with speed
+  // g t1 (the scene's description), to within a step (h = 1e-3).
+  const double g = 9.81, t1 = std::sqrt(2.0 / g), h = 1e-3;
+  EXPECT_NEAR(impacts[0].t, t1, h);
+  EXPECT_NEAR(impacts[0].pre, -g * t1, g * h);
+  // As they happen: each impact event comes before the first state of its step or later, after the
+  // states before it.
+  std::int64_t last_state_step = -1;
+  std::size_t next_state = 0, next_event = 0;
+  for (const char kind : col.got.order) {
+    if (kind == 's') last_state_step = col.got.states[next_state++].step;
+    if (kind != 'e') continue;
+    const auto& e = col.got.events[next_event++];
+    if (e.kind == "impact") EXPECT_LT(last_state_step, e.step) << e.text;
+  }
 }
 
 // ---- udpm:// between processes, inside a private network namespace ----

@@ -53,6 +53,11 @@ class JobObserver final : public RunObserver {
     }
   }
 
+  // Impacts go out on the job's event stream (with the first sample after them, StreamObserver).
+  void on_impact(const ImpactEvent& impact) override {
+    if (stream_) stream_->on_impact(impact);
+  }
+
   bool keep_going(std::int64_t step, double t) override {
     job_.t_now.store(t, std::memory_order_relaxed);
     job_.step_now.store(step, std::memory_order_relaxed);

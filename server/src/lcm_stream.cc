@@ -139,7 +139,9 @@ void LcmHub::loop() {
     std::vector<JobStream*> finished;
     for (auto& s : current) {
       const bool closed = s->take(batch);
-      describe(*s);  // before the stream's first state, then once a second
+      // With the stream's first messages (before its first state), then at most once a second with the
+      // messages that follow, so never after its last one.
+      if (!batch.records.empty()) describe(*s);
       drain(*s, batch);
       // close() comes after the last push, so a closed stream has nothing left once taken.
       if (closed) finished.push_back(s.get());
@@ -155,7 +157,7 @@ void LcmHub::loop() {
       std::lock_guard lock(mu_);
       for (auto& s : streams_) {
         s->take(batch);
-        describe(*s);
+        if (!batch.records.empty()) describe(*s);
         drain(*s, batch);
       }
       streams_.clear();
@@ -257,9 +259,9 @@ StreamObserver::StreamObserver(std::shared_ptr<JobStream> stream, double t0, con
       wall_start_(std::chrono::steady_clock::now()) {}
 
 void StreamObserver::publish_and_advance(const Sample& s) {
-  any_ = true;
-  // The next multiple of the period after t (robust to steps that do not divide the period).
-  next_t_ = t0_ + period_ * (std::floor((s.t - t0_) / period_ + 1e-9) + 1.0);
+  // A state is due at the first sample and at each multiple of the period; impacts since the last sample
+  // go out with any sample.
+  const bool state_due = !any_ || s.t >= next_t_ - 1e-9 * period_;
   if (realtime_) {
     // Sleep in short slices so that a cancellation is seen within a few milliseconds.
     const auto target =
@@ -273,6 +275,24 @@ void StreamObserver::publish_and_advance(const Sample& s) {
   // A cancelled run publishes nothing more: without this, a paced stream woken by the cancellation
   // would publish its remaining states unpaced until the run reaches its next cancellation check.
   if (cancel_ && cancel_->load(std::memory_order_relaxed)) return;
+  for (const ImpactEvent& e : impacts_) {
+    // key=value pairs: a line to read, and fields to parse (docs/streaming.md).
+    char text[256];
+    std::snprintf(text, sizeof text, "contact=%d pre=%.17g post=%.17g restitution=%.17g impulse=%.17g", e.constraint, e.pre, e.post,
+                  e.restitution, e.impulse);
+    stream_->push_event("impact", e.step, e.t, text);
+  }
+  impacts_.clear();
+  if (impacts_seen_ > kMaxImpactEvents && !truncation_said_) {
+    truncation_said_ = true;
+    stream_->push_event("impacts_truncated", s.step, s.t,
+                        "this stream publishes the first " + std::to_string(kMaxImpactEvents) +
+                            " impacts; the report counts them all (contacts.impact_count)");
+  }
+  if (!state_due) return;
+  any_ = true;
+  // The next multiple of the period after t (robust to steps that do not divide the period).
+  next_t_ = t0_ + period_ * (std::floor((s.t - t0_) / period_ + 1e-9) + 1.0);
   stream_->push_state(s.step, s.t, s.h, s.q, s.v, s.kinetic_energy);
   last_published_step_ = s.step;
 }

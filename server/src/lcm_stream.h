@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "moreau/core/observer.h"
+#include "moreau/core/run_diagnostics.h"
 #include "moreau/core/run_summary.h"
 
 namespace lcm {
@@ -152,9 +153,17 @@ class StreamObserver final : public RunObserver {
   // Inline: most samples fall between two publication times and cost one comparison.
   void on_sample(const Sample& s) override {
     last_h_ = s.h;
-    if (any_ && s.t < next_t_ - 1e-9 * period_) return;
+    if (any_ && s.t < next_t_ - 1e-9 * period_ && impacts_.empty()) return;
     publish_and_advance(s);
   }
+  // Held until the next sample (the state just after it), then published as an "impact" event before
+  // that sample's state: a paced stream shows it at its time.
+  void on_impact(const ImpactEvent& impact) {
+    if (++impacts_seen_ <= kMaxImpactEvents) impacts_.push_back(impact);
+  }
+  // Impact events a stream publishes at most (a chattering contact could otherwise send one per step);
+  // beyond, one "impacts_truncated" event says so.
+  static constexpr std::int64_t kMaxImpactEvents = 10000;
   // Pushes the run's last state (from its summary) if it was not published yet.
   void flush_last(const RunSummary& summary);
 
@@ -169,6 +178,9 @@ class StreamObserver final : public RunObserver {
   std::int64_t last_published_step_ = -1;
   std::chrono::steady_clock::time_point wall_start_;
   double last_h_ = 0;  // the step of the last sample seen (the summary does not carry it)
+  std::vector<ImpactEvent> impacts_;  // since the last sample
+  std::int64_t impacts_seen_ = 0;
+  bool truncation_said_ = false;
 };
 
 }  // namespace moreau::server

@@ -207,6 +207,7 @@ class MoreauJeanIntegrator {
   RunSummary run(const Vec<N>& q0, const Vec<N>& v0, RunObserver* observer = nullptr, ContactDiagnostics* diag = nullptr) {
     q_ = q0;
     v_ = v0;
+    observer_ = observer;  // told of each impact (record_impacts)
     return SteppingDriver::run_with_diagnostics(*this, SteppingPlan::fixed_grid(settings_), observer, d_, diag);
   }
 
@@ -542,10 +543,9 @@ class MoreauJeanIntegrator {
       ++d.impact_count;
       const double reference_impulse = evaluated ? pref_(a) : 0.0;
       ++a;
-      if (static_cast<int>(d.impacts.size()) >= settings_.max_recorded_impacts) {
-        d.impacts_truncated = true;
-        continue;
-      }
+      const bool recorded = static_cast<int>(d.impacts.size()) < settings_.max_recorded_impacts;
+      if (!recorded) d.impacts_truncated = true;
+      if (!recorded && !observer_) continue;
       ImpactEvent ev;
       ev.step = step;
       ev.t = t;
@@ -553,13 +553,15 @@ class MoreauJeanIntegrator {
       ev.pre = U_(i);
       ev.post = Un_(i);
       ev.impulse = P;
+      ev.restitution = restitution_[static_cast<std::size_t>(i)];
       ev.kinetic_change = measured;
       ev.reference_evaluated = evaluated;
       ev.reference_impulse = reference_impulse;
       ev.eq9_change = evaluated ? eq9 : 0.0;
       ev.simultaneous = simultaneous;
-      if (evaluated) d.max_eq9_mismatch = std::max(d.max_eq9_mismatch, std::abs(measured - eq9));
-      d.impacts.push_back(ev);
+      if (evaluated && recorded) d.max_eq9_mismatch = std::max(d.max_eq9_mismatch, std::abs(measured - eq9));
+      if (observer_) observer_->on_impact(ev);
+      if (recorded) d.impacts.push_back(ev);
     }
   }
 
@@ -656,6 +658,7 @@ class MoreauJeanIntegrator {
   MonotoneGraph corner_ = MonotoneGraph::complementarity();
   MonotoneGraph zero_ = MonotoneGraph::zero();
   std::vector<double> restitution_;
+  RunObserver* observer_ = nullptr;  // of the current run: told of each impact
   LagrangianTerms<N> terms_;
   Mat<N> Wm_;
   Eigen::PartialPivLU<Mat<N>> lu_, mlu_, sqlu_;

@@ -1,12 +1,14 @@
 // How a run hands its states out without knowing where they go (recorder, CSV writer, LCM publisher,
 // progress bar, cancellation). The integrator calls on_sample() only every `output_every` steps (and at
-// the first and last state), and keep_going() every kControlInterval steps: the hot loop never makes a
-// virtual call per step.
+// the first and last state), keep_going() every kControlInterval steps, and on_impact() once per impact:
+// the hot loop never makes a virtual call per step.
 #pragma once
 
 #include <cstdint>
 
 namespace moreau {
+
+struct ImpactEvent;  // run_diagnostics.h
 
 struct Sample {
   std::int64_t step;      // k
@@ -27,6 +29,10 @@ class RunObserver {
   virtual void on_sample(const Sample& sample) = 0;
   // Return false to cancel the run (it then ends with RunStatus::kCancelled).
   virtual bool keep_going(std::int64_t /*step*/, double /*t*/) { return true; }
+  // An impact of a unilateral contact (the Moreau-Jean scheme): called from the integrating thread for
+  // every impacting contact, in the step that carries it, before that step's sample; also beyond the
+  // ContactDiagnostics' record limit. Impacts are rare: a virtual call each costs nothing per step.
+  virtual void on_impact(const ImpactEvent& /*impact*/) {}
 };
 
 }  // namespace moreau

@@ -64,6 +64,7 @@ struct ImpactEvent {
   double pre = 0.0;      // U_k = grad h(Q^k)^T V^k < 0, the approaching normal velocity
   double post = 0.0;     // U_{k+1} = grad h(Q^k)^T V^{k+1}
   double impulse = 0.0;  // P_{k+1} >= 0 (the contact percussion over the step)
+  double restitution = 0.0;  // e_i, the contact's Newton coefficient the step used (U+ = -e U- when P > 0)
   // The step's kinetic energy change 1/2 <M V^{k+1}, V^{k+1}> - 1/2 <M V^k, V^k> (M = M(Q^k)), against
   // eq. (9): the change Moreau's impact law alone gives from V^k for all the contacts impacting in this
   // step, 1/2 sum_i (1 - e_i) P_i U-_i (= -1/2 (1-e)/(1+e) |V+ - V-|_M^2 for a common e), with P its
