@@ -257,6 +257,10 @@ int submit(const SubmitOptions& o) {
                  "are options of a study: add --study\n";
     return 2;
   }
+  if (!o.csv.empty() && !o.wait) {
+    std::cerr << "moreau: --csv writes the table of a finished study: add --wait\n";
+    return 2;
+  }
   if (o.study && streamed) {
     std::cerr << "moreau: a study is not streamed over LCM: --stream, --period, --realtime and --channel are for jobs\n";
     return 2;
@@ -484,7 +488,7 @@ void register_remote_commands(CLI::App& app, Actions& actions) {
     cmd->add_option("--regularization", o->regularization, "Study: tanh or saturation")->check(CLI::IsMember({"tanh", "saturation"}));
     cmd->add_option("--eval-points", o->eval_points, "Study: common times at which errors are measured");
     cmd->add_option("--repeats", o->repeats, "Study: timed runs per point (the minimum is kept)");
-    cmd->add_option("--csv", o->csv, "Study, with --wait: write the table as CSV");
+    cmd->add_option("--csv", o->csv, "Study, with --wait: write the table as CSV (needs --wait)");
     cmd->add_flag("--json", o->remote.json_output, "Print the job (or study) as JSON");
     o->remote.add_to(cmd);
     actions[cmd] = [o] { return guarded([&] { return submit(*o); }); };

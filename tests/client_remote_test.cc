@@ -86,6 +86,9 @@ TEST(ClientRemote, SubmitStudyRunsAServerSideStudy) {
   EXPECT_THAT(no_flag.output, ::testing::HasSubstr("add --study"));
   const Outcome streamed = run_client("submit manipulator --study --stream" + server);
   EXPECT_EQ(streamed.status, 2);
+  const Outcome csv_without_wait = run_client("submit manipulator --study --csv " + csv + server);
+  EXPECT_EQ(csv_without_wait.status, 2);
+  EXPECT_THAT(csv_without_wait.output, ::testing::HasSubstr("add --wait"));
   // A scene the server refuses to study: its reason, in full.
   const Outcome lure = run_client("submit lure-relay --study" + server);
   EXPECT_EQ(lure.status, 2) << lure.output;  // refused input, as a 400 always is

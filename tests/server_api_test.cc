@@ -727,6 +727,19 @@ TEST(ServerApi, CorsIsOffByDefaultAndAnswersOnlyTheConfiguredOrigin) {
   auto og = good->Get("/v1/jobs", other);
   ASSERT_TRUE(og);
   EXPECT_FALSE(og->has_header("Access-Control-Allow-Origin"));
+  // The answer depends on the Origin, so every answer says so (a cache must not reuse one across origins),
+  // and origins compare without case.
+  auto plain = good->Get("/v1/jobs");
+  EXPECT_EQ(plain->get_header_value("Vary"), "Origin");
+  EXPECT_FALSE(plain->has_header("Access-Control-Allow-Origin"));
+  auto shouted = good->Get("/v1/jobs", {{"Origin", "HTTP://PAGE.TEST:9000"}});
+  EXPECT_EQ(shouted->get_header_value("Access-Control-Allow-Origin"), "HTTP://PAGE.TEST:9000");
+  // Any origin, without a token, would let every web page use the server: refused at start.
+  ServerConfig open_to_all;
+  open_to_all.cors_origin = "*";
+  EXPECT_THROW(TestServer{open_to_all}, std::runtime_error);
+  open_to_all.token = "t";
+  EXPECT_NO_THROW(TestServer{open_to_all});
 }
 
 TEST(ServerApi, TokenGuardsEveryEndpointButHealthzAndThePage) {

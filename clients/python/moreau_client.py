@@ -16,6 +16,7 @@ Every error the server answers is raised as MoreauError, carrying its HTTP statu
 
 import json
 import os
+import socket
 import time
 import urllib.error
 import urllib.parse
@@ -293,13 +294,18 @@ class Client:
                 if job.final:
                     return job
                 continue
-            # With a progress callback: follow the event stream, which ends after the final state.
-            for event in self._events(prefix + job_id + "/events", last, timeout=left + self.timeout):
-                last = event.id
-                if event.name in ("progress", "state"):
-                    progress(Job(self._json("GET", prefix + job_id)))
-                if deadline is not None and time.monotonic() > deadline:
-                    break
+            # With a progress callback: follow the event stream, which ends after the final state. Reads
+            # wait at most until the deadline (the server's keep-alive comes only every 15 s).
+            try:
+                for event in self._events(prefix + job_id + "/events", last, timeout=left if deadline is not None else None):
+                    last = event.id
+                    if event.name in ("progress", "state"):
+                        progress(Job(self._json("GET", prefix + job_id)))
+                    if deadline is not None and time.monotonic() > deadline:
+                        break
+            except (socket.timeout, TimeoutError):
+                if deadline is None or time.monotonic() < deadline:
+                    raise
             job = Job(self._json("GET", prefix + job_id))
             if job.final:
                 return job
@@ -308,7 +314,13 @@ class Client:
         headers = {"Accept": "text/event-stream"}
         if last_event_id is not None:
             headers["Last-Event-ID"] = str(last_event_id)
-        with self._open("GET", path, headers=headers, timeout=timeout or max(self.timeout, 30.0)) as r:
+        try:
+            r = self._open("GET", path, headers=headers, timeout=timeout or max(self.timeout, 30.0))
+        except MoreauError as e:
+            if e.status == 0 and "timed out" in e.reason:
+                raise socket.timeout(e.reason) from None
+            raise
+        with r:
             event_id, name, data = None, "message", []
             for raw in r:
                 line = raw.decode("utf-8").rstrip("\r\n")

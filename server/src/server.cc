@@ -336,6 +336,11 @@ class Server::Impl {
       throw std::runtime_error("refusing to serve " + cfg_.host +
                                " without a token: give --token (or MOREAU_TOKEN), or --allow-unauthenticated-remote");
     }
+    // Any web page the user visits could otherwise read, submit and delete jobs through the browser.
+    if (cfg_.cors_origin == "*" && cfg_.token.empty()) {
+      throw std::runtime_error("refusing --cors-origin '*' without a token: any web page could use this server; give --token "
+                               "(or MOREAU_TOKEN), or name the one origin to answer");
+    }
     jobs_.start();
     int port = cfg_.port;
     if (port == 0) {
@@ -536,12 +541,14 @@ class Server::Impl {
   // default size it is read from, or written to, `cache_stem` + ".png" or ".svg": a name from a fixed
   // list, never from the request.
   template <class Draw>
-  void send_figure(const Request& req, Response& res, const fs::path& cache_stem, const FigureRequest& f, Draw&& draw) {
+  void send_figure(const Request& req, Response& res, const Job& job, const fs::path& cache_stem, const FigureRequest& f, Draw&& draw) {
     const bool svg = f.format == FigureFormat::kSvg;
     const char* content_type = svg ? "image/svg+xml" : "image/png";
     const fs::path cache = cache_stem.string() + (svg ? ".svg" : ".png");
     const bool default_size = f.size == std::pair<int, int>{kDefaultFigureWidth, kDefaultFigureHeight};
     if (default_size) {
+      std::shared_lock files(job.files_mu);  // the cache is the job's file: never read one being deleted
+      if (job.deleted) return send_deleted(res);
       if (auto bytes = read_file(cache)) {
         if (not_modified(req, res, strong_etag(*bytes))) return;
         res.status = 200;
@@ -568,6 +575,9 @@ class Server::Impl {
     }
     drawing_.give_back();
     if (default_size) {
+      // Not into a job deleted (purged, pruned) while it was drawn: its directory is going.
+      std::shared_lock files(job.files_mu);
+      if (job.deleted) return send_deleted(res);
       try {
         write_file_atomic(cache, bytes, Durability::kFsync);
       } catch (const std::exception& e) {
@@ -693,13 +703,14 @@ void Server::Impl::setup_routes() {
   });
   http_.Get("/metrics", [this](const Request& req, Response& res) { metrics(req, res); });
   // The web page (server/web/): static, and open without the token (the page asks for it). Its policy
-  // lets it load only its own script and style, and images it made from fetched figures (blob:).
+  // lets it load only its own script and style, and images it made from fetched figures (blob:) or its
+  // empty icon (data:, which spares the browser a /favicon.ico request).
   auto page_file = [](std::string_view text, const char* type) {
     return [text, type, etag = strong_etag(text)](const Request& req, Response& res) {
       if (not_modified(req, res, etag)) return;
       res.status = 200;
       res.set_header("Content-Security-Policy",
-                     "default-src 'none'; script-src 'self'; style-src 'self'; img-src 'self' blob:; connect-src 'self'; "
+                     "default-src 'none'; script-src 'self'; style-src 'self'; img-src 'self' blob: data:; connect-src 'self'; "
                      "base-uri 'none'; form-action 'none'; frame-ancestors 'none'");
       res.set_header("X-Content-Type-Options", "nosniff");
       res.set_header("Referrer-Policy", "no-referrer");
@@ -872,11 +883,14 @@ bool Server::Impl::screen(const Request& req, Response& res) {
   // CORS (--cors-origin): a request from the configured origin gets its answer marked readable by that
   // origin, errors included (a page must be able to read why); a preflight is answered here, before the
   // token, since browsers send preflights without credentials. Off by default: no header at all.
+  // Origins compare without case (browsers send scheme and host in lower case). An answer that depends on
+  // the Origin says so (Vary) to every client, so that a cache never serves one origin's answer to another.
   const std::string origin = req.get_header_value("Origin");
-  const bool cors = !cfg_.cors_origin.empty() && !origin.empty() && (cfg_.cors_origin == "*" || origin == cfg_.cors_origin);
+  const bool cors =
+      !cfg_.cors_origin.empty() && !origin.empty() && (cfg_.cors_origin == "*" || lower(origin) == lower(cfg_.cors_origin));
+  if (!cfg_.cors_origin.empty() && cfg_.cors_origin != "*") res.set_header("Vary", "Origin");
   if (cors) {
     res.set_header("Access-Control-Allow-Origin", cfg_.cors_origin == "*" ? std::string("*") : origin);
-    res.set_header("Vary", "Origin");
     res.set_header("Access-Control-Expose-Headers", "Location, Retry-After, ETag, WWW-Authenticate");
     if (req.method == "OPTIONS" && req.has_header("Access-Control-Request-Method")) {
       const char* allow = allowed_methods(req.path);
@@ -1162,6 +1176,7 @@ void Server::Impl::get_job(const Request& req, Response& res, JobKind kind) {
     waiting_.give_back();
   }
   const auto report = read_report(*job);
+  if (is_deleted(*job)) return send_deleted(res);  // purged (or pruned) while it waited
   send_json(res, 200, with_queue_position(job_json(*job, report ? &*report : nullptr), jobs_.queue_positions()));
 }
 
@@ -1366,7 +1381,7 @@ void Server::Impl::job_figure(const Request& req, Response& res) {
   if (is_deleted(*job)) return send_deleted(res);
   static const std::map<std::string, std::string> kFiles = {
       {"state", "figure-state"}, {"energy", "figure-energy"}, {"step", "figure-step"}, {"phase", "figure-phase"}};
-  send_figure(req, res, job->dir / kFiles.at(kind), *figure, [&] {
+  send_figure(req, res, *job, job->dir / kFiles.at(kind), *figure, [&] {
     std::error_code size_ec;
     const auto bytes = fs::file_size(job->dir / "trajectory.csv", size_ec);
     if (!size_ec && static_cast<std::int64_t>(bytes) > cfg_.max_figure_source_bytes) {
@@ -1429,7 +1444,7 @@ void Server::Impl::study_figure(const Request& req, Response& res) {
     return send_error(res, 409, "no table yet", "",
                       std::string("the study is ") + to_string(state_of(*job)) + "; figures are drawn once it is done");
   }
-  send_figure(req, res, job->dir / (kind == "work" ? "figure-work" : "figure-order"), *figure, [&] {
+  send_figure(req, res, *job, job->dir / (kind == "work" ? "figure-work" : "figure-order"), *figure, [&] {
     bool deleted = false;
     auto result = job_file(*job, &Job::has_report, "result.json", &deleted);
     if (deleted) throw JobDeleted{};

@@ -16,6 +16,11 @@ const $ = (id) => document.getElementById(id);
 let token = sessionStorage.getItem('moreau-token') || '';
 const rows = new Map();       // job id -> {tr, job}
 const following = new Set();  // job ids whose event stream is open
+// Browsers open at most 6 connections to a server: streams are kept for the chosen job and a few others;
+// the rest are updated by the list's refresh. A stream that ended early is not reopened for a while.
+const MAX_STREAMS = 3;
+const STREAM_RETRY_MS = 2000;
+const streamRetryAt = new Map();  // job id -> time before which its stream is not reopened
 let selected = null;
 let figureUrls = [];
 
@@ -114,7 +119,14 @@ function renderRow(job) {
     el('td', {}, when(job.created)),
     el('td', { class: 'id' }, job.id));
   entry.tr.classList.toggle('selected', job.id === selected);
-  if (!FINAL.has(job.state)) follow(job.id);
+  maybeFollow(job);
+}
+
+function maybeFollow(job) {
+  if (FINAL.has(job.state) || following.has(job.id)) return;
+  if (Date.now() < (streamRetryAt.get(job.id) || 0)) return;
+  if (job.id !== selected && following.size >= MAX_STREAMS) return;
+  follow(job.id);
 }
 
 async function refreshList() {
@@ -152,6 +164,7 @@ async function follow(id) {
     showError('list-error', e);
   } finally {
     following.delete(id);
+    streamRetryAt.set(id, Date.now() + STREAM_RETRY_MS);
   }
   try {
     const job = await api('GET', jobUrl(id));
@@ -185,6 +198,7 @@ function onEvent(id, event) {
   if (event.name === 'state') {
     job.state = data.state;
     if (data.reason) job.reason = data.reason;
+    if (job.state !== 'queued') delete job.queue_position;
   } else if (event.name === 'progress') {
     const span = data.t_end - data.t0;
     job.progress = Object.assign({}, job.progress, { fraction: span > 0 ? Math.min(1, Math.max(0, (data.t - data.t0) / span)) : 0 });
@@ -198,6 +212,8 @@ function onEvent(id, event) {
 
 async function select(id) {
   selected = id;
+  const entry = rows.get(id);
+  if (entry) maybeFollow(entry.job);
   for (const [rid, entry] of rows) entry.tr.classList.toggle('selected', rid === id);
   try {
     showJob(await api('GET', jobUrl(id)));
@@ -388,5 +404,5 @@ document.addEventListener('DOMContentLoaded', () => {
   $('submit-form').addEventListener('submit', submit);
   loadScenes();
   refreshList();
-  setInterval(refreshList, 5000);  // jobs submitted elsewhere; the open streams keep the others live
+  setInterval(refreshList, 2000);  // jobs submitted elsewhere, queue positions, and jobs without a stream
 });
