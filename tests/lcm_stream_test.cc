@@ -150,14 +150,35 @@ struct Collector {
   Received got;
 };
 
-TEST(LcmStream, MemqStreamDecodesInOrderWithTheFinalEvent) {
+ServerConfig memq_config() {
   ServerConfig cfg;
   cfg.lcm_url = "memq://";
-  TestServer ts(cfg);
-  lcm::LCM* l = ts.server().lcm();
-  ASSERT_NE(l, nullptr);
+  return cfg;
+}
+
+// An in-process server streaming to memq://, and everything it publishes on MOREAU_*, collected.
+struct MemqServer {
+  TestServer ts{memq_config()};
+  lcm::LCM* lcm = ts.server().lcm();
   Collector col;
-  l->subscribeFunction("MOREAU_.*", &Collector::handle, &col);
+  MemqServer() {
+    if (lcm) lcm->subscribeFunction("MOREAU_.*", &Collector::handle, &col);
+  }
+  // Takes the messages published so far, waiting (at most 5 s) for a job's final event first: the hub
+  // publishes within about a millisecond of the job's end.
+  void drain() {
+    const auto deadline = Clock::now() + std::chrono::seconds(5);
+    while (!col.got.finished() && Clock::now() < deadline) lcm->handleTimeout(10);
+    while (lcm->handleTimeout(0) > 0) {
+    }
+  }
+};
+
+TEST(LcmStream, MemqStreamDecodesInOrderWithTheFinalEvent) {
+  MemqServer m;
+  ASSERT_NE(m.lcm, nullptr);
+  TestServer& ts = m.ts;
+  Collector& col = m.col;
 
   auto c = ts.client();
   auto r = submit(*c, {{"scene", manipulator()}, {"stream", {{"period", 1.0 / 64}}}});
@@ -170,11 +191,7 @@ TEST(LcmStream, MemqStreamDecodesInOrderWithTheFinalEvent) {
   const json job = wait_final(*c, id);
   ASSERT_EQ(job["state"], "done");
 
-  // The hub publishes within about a millisecond of the job's end.
-  const auto deadline = Clock::now() + std::chrono::seconds(5);
-  while (!col.got.finished() && Clock::now() < deadline) l->handleTimeout(10);
-  while (l->handleTimeout(0) > 0) {
-  }
+  m.drain();
   check_stream(col.got, id, job["report"], 1.0 / 64, 10.0);
 
   // Streaming does not change the trajectory: every step recorded as without it.
@@ -184,12 +201,10 @@ TEST(LcmStream, MemqStreamDecodesInOrderWithTheFinalEvent) {
 }
 
 TEST(LcmStream, CoarseTrajectoryDecimationStillStreamsEveryPeriod) {
-  ServerConfig cfg;
-  cfg.lcm_url = "memq://";
-  TestServer ts(cfg);
-  lcm::LCM* l = ts.server().lcm();
-  Collector col;
-  l->subscribeFunction("MOREAU_.*", &Collector::handle, &col);
+  MemqServer m;
+  ASSERT_NE(m.lcm, nullptr);
+  TestServer& ts = m.ts;
+  Collector& col = m.col;
   auto c = ts.client();
 
   // Without streaming, for reference.
@@ -205,8 +220,7 @@ TEST(LcmStream, CoarseTrajectoryDecimationStillStreamsEveryPeriod) {
   ASSERT_EQ(r->status, 202) << r->body;
   const std::string id = json::parse(r->body)["id"];
   const json job = wait_final(*c, id);
-  const auto deadline = Clock::now() + std::chrono::seconds(5);
-  while (!col.got.finished() && Clock::now() < deadline) l->handleTimeout(10);
+  m.drain();
   check_stream(col.got, id, job["report"], 0.05, 10.0);
   EXPECT_EQ(c->Get("/v1/jobs/" + id + "/trajectory?format=csv")->body, plain_csv);
   // The scene as stored keeps its own decimation.
@@ -338,23 +352,17 @@ TEST(LcmStream, RealtimeIsPacedAndStillCancelsQuickly) {
 // it, with the numbers the report records for it; and they agree with the closed form of a falling ball
 // and with Newton's law.
 TEST(LcmStream, ImpactEventsAreStreamedAsTheyHappen) {
-  ServerConfig cfg;
-  cfg.lcm_url = "memq://";
-  TestServer ts(cfg);
-  lcm::LCM* l = ts.server().lcm();
-  ASSERT_NE(l, nullptr);
-  Collector col;
-  l->subscribeFunction("MOREAU_.*", &Collector::handle, &col);
+  MemqServer m;
+  ASSERT_NE(m.lcm, nullptr);
+  TestServer& ts = m.ts;
+  Collector& col = m.col;
   auto c = ts.client();
   auto r = submit(*c, {{"scene", read_json_file("scenes/bouncing-ball-e0.8.json")}, {"stream", true}});
   ASSERT_EQ(r->status, 202) << r->body;
   const std::string id = json::parse(r->body)["id"];
   const json job = wait_final(*c, id);
   ASSERT_EQ(job["state"], "done");
-  const auto deadline = Clock::now() + std::chrono::seconds(5);
-  while (!col.got.finished() && Clock::now() < deadline) l->handleTimeout(10);
-  while (l->handleTimeout(0) > 0) {
-  }
+  m.drain();
   ASSERT_EQ(col.got.undecodable, 0u);
   const json& contacts = job["report"]["contacts"];
   const json& recorded = contacts["impacts"];
@@ -405,7 +413,9 @@ TEST(LcmStream, ImpactEventsAreStreamedAsTheyHappen) {
     if (kind == 's') last_state_step = col.got.states[next_state++].step;
     if (kind != 'e') continue;
     const auto& e = col.got.events[next_event++];
-    if (e.kind == "impact") EXPECT_LT(last_state_step, e.step) << e.text;
+    if (e.kind == "impact") {
+      EXPECT_LT(last_state_step, e.step) << e.text;
+    }
   }
 }
 
