@@ -21,6 +21,7 @@ const following = new Set();  // job ids whose event stream is open
 const MAX_STREAMS = 3;
 const STREAM_RETRY_MS = 2000;
 const streamRetryAt = new Map();  // job id -> time before which its stream is not reopened
+const deleted = new Set();        // jobs deleted from this page: an answer still in flight must not bring them back
 let selected = null;
 let figureUrls = [];
 
@@ -101,6 +102,7 @@ function when(unixSeconds) {
 // ---- the job list -------------------------------------------------------------------------------
 
 function renderRow(job) {
+  if (deleted.has(job.id)) return;
   let entry = rows.get(job.id);
   if (!entry) {
     const tr = el('tr', { 'data-id': job.id });
@@ -134,6 +136,13 @@ async function refreshList() {
     const list = await api('GET', '/v1/jobs?limit=50');
     showError('list-error', null);
     for (const job of list.jobs) renderRow(job);
+    // Jobs no longer listed (deleted here or elsewhere, or older than the 50 shown) leave the table.
+    const listed = new Set(list.jobs.map((j) => j.id));
+    for (const [id, entry] of rows) {
+      if (listed.has(id)) continue;
+      entry.tr.remove();
+      rows.delete(id);
+    }
   } catch (e) {
     showError('list-error', e);
   }
@@ -272,6 +281,7 @@ function showActions(job) {
     try {
       if (final) {
         await api('DELETE', jobUrl(job.id) + '?purge=true');
+        deleted.add(job.id);
         const entry = rows.get(job.id);
         if (entry) entry.tr.remove();
         rows.delete(job.id);

@@ -159,18 +159,26 @@ async function main() {
       document.getElementById('overrides').value = 'integrator.t_end=5e4\noutput.every=10000';
     });
     await page.click('#submit-button');
+    // The job's view is redrawn as its state changes: each button is found and clicked in one step in
+    // the page, so a redraw between finding and clicking cannot detach it.
+    const clickWhenThere = (id) =>
+      page.waitForFunction((buttonId) => {
+        const b = document.getElementById(buttonId);
+        if (!b) return false;
+        b.click();
+        return true;
+      }, WAIT, id);
     await page.waitForFunction(() => document.getElementById('job-summary').textContent.includes('state') &&
                                document.getElementById('cancel-button') !== null, WAIT);
     const longId = await page.$eval('#job-id', (e) => e.textContent);
-    await page.click('#cancel-button');
+    await clickWhenThere('cancel-button');
     await page.waitForFunction((id) => {
       const tr = document.querySelector(`#jobs tr[data-id="${id}"]`);
       return tr && tr.querySelector('td.state').textContent.startsWith('cancelled');
     }, WAIT, longId);
     check(true, 'the Cancel button cancels a running job: its row says cancelled');
-    await page.waitForFunction(() => document.getElementById('delete-button') !== null, WAIT);
     expected = { status: 404, url: '/v1/jobs/' + longId };
-    await page.click('#delete-button');
+    await clickWhenThere('delete-button');
     await page.waitForFunction((id) => document.querySelector(`#jobs tr[data-id="${id}"]`) === null, WAIT, longId);
     const gone = await page.evaluate(async (id, token) => (await fetch('/v1/jobs/' + id, { headers: { Authorization: 'Bearer ' + token } })).status,
                                      longId, TOKEN);
