@@ -197,10 +197,7 @@ class Client:
 
     def run(self, scene, overrides=None, timeout=None, progress=None, **submit_options):
         """submit() then wait(): the final job, with its report. Raises MoreauError if it failed."""
-        job = self.wait(self.submit(scene, overrides, **submit_options).id, timeout, progress)
-        if job.state == "failed":
-            raise MoreauError(200, "job failed", job.reason or "")
-        return job
+        return _unless_failed(self.wait(self.submit(scene, overrides, **submit_options).id, timeout, progress))
 
     def report(self, job_id):
         """The job's report (what `moreau run --json` prints)."""
@@ -228,11 +225,7 @@ class Client:
     def figure(self, job_id, kind="state", format="png", width=None, height=None, path=None):
         """A figure of the job (kind: state, energy, step, phase) as PNG or SVG bytes; with `path`, also
         written to that file."""
-        data = self._bytes("/v1/jobs/%s/figure" % job_id, {"kind": kind, "format": format, "width": width, "height": height})
-        if path is not None:
-            with open(path, "wb") as f:
-                f.write(data)
-        return data
+        return self._figure("/v1/jobs/%s/figure" % job_id, kind, format, width, height, path)
 
     def events(self, job_id, last_event_id=None):
         """The job's server-sent events, as Event objects, until the stream ends (after the final state).
@@ -259,20 +252,14 @@ class Client:
 
     def run_study(self, scene, overrides=None, timeout=None, progress=None, **study):
         """submit_study() then wait: the finished study, whose `result` holds the table and the fitted orders."""
-        job = self.wait_study(self.submit_study(scene, overrides, **study).id, timeout, progress)
-        if job.state == "failed":
-            raise MoreauError(200, "study failed", job.reason or "")
-        return job
+        return _unless_failed(self.wait_study(self.submit_study(scene, overrides, **study).id, timeout, progress))
 
     def study_table_csv(self, study_id):
         return self._bytes("/v1/studies/%s/table" % study_id, {"format": "csv"}).decode("utf-8")
 
     def study_figure(self, study_id, kind="work", format="png", width=None, height=None, path=None):
-        data = self._bytes("/v1/studies/%s/figure" % study_id, {"kind": kind, "format": format, "width": width, "height": height})
-        if path is not None:
-            with open(path, "wb") as f:
-                f.write(data)
-        return data
+        """A figure of the study (kind: work, order) as PNG or SVG bytes; with `path`, also written there."""
+        return self._figure("/v1/studies/%s/figure" % study_id, kind, format, width, height, path)
 
     def cancel_study(self, study_id):
         return Job(self._json("DELETE", "/v1/studies/" + study_id))
@@ -281,6 +268,13 @@ class Client:
         return self._events("/v1/studies/%s/events" % study_id, last_event_id)
 
     # -- helpers --------------------------------------------------------------------------------
+
+    def _figure(self, path, kind, format, width, height, file):
+        data = self._bytes(path, {"kind": kind, "format": format, "width": width, "height": height})
+        if file is not None:
+            with open(file, "wb") as f:
+                f.write(data)
+        return data
 
     def _wait(self, prefix, job_id, timeout, progress):
         deadline = None if timeout is None else time.monotonic() + timeout
@@ -339,6 +333,12 @@ class Client:
                         name = value
                     elif field == "data":
                         data.append(value)
+
+
+def _unless_failed(job):
+    if job.state == "failed":
+        raise MoreauError(200, ("study" if job.kind == "study" else "job") + " failed", job.reason or "")
+    return job
 
 
 def _scene_value(scene):
