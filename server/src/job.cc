@@ -62,12 +62,15 @@ json job_json(const Job& job, const json* report) {
   j["finished"] = job.finished > 0 ? json(job.finished) : json(nullptr);
   const std::string url = j["url"];
   json links = {{"events", url + "/events"}};
+  // Results are linked once the job is final: they are committed (has_report, has_trajectory) a moment
+  // before the final state is set, and are served (not 409) only from then on.
+  const bool final = is_final(job.state);
   if (study) {
     const std::int64_t done = job.state == JobState::kDone ? job.rows_total : job.rows_done.load();
     j["progress"] = {{"rows", done},
                      {"rows_total", job.rows_total},
                      {"fraction", job.rows_total > 0 ? static_cast<double>(done) / static_cast<double>(job.rows_total) : 0.0}};
-    if (job.has_report) {
+    if (job.has_report && final) {
       links["table"] = url + "/table";
       links["csv"] = url + "/table?format=csv";
       links["work_figure"] = url + "/figure?kind=work";
@@ -87,8 +90,8 @@ json job_json(const Job& job, const json* report) {
                      {"step", step},
                      {"planned_steps", job.planned_steps},
                      {"fraction", span > 0 ? finite_or_null(std::clamp((t - job.t0) / span, 0.0, 1.0)) : json(0.0)}};
-    if (job.has_report) links["report"] = url + "/report";
-    if (job.has_trajectory) {
+    if (job.has_report && final) links["report"] = url + "/report";
+    if (job.has_trajectory && final) {
       links["trajectory"] = url + "/trajectory";
       links["figure"] = url + "/figure?kind=state";
     }
