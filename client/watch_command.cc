@@ -250,7 +250,9 @@ class Watcher {
       j.status = e.kind;
       finished_ = true;
     }
+    // "converged" comes when the rest is detected; "convergence_withdrawn" takes it back (docs/streaming.md).
     if (e.kind == "converged") j.converged_time = e.t;
+    if (e.kind == "convergence_withdrawn") j.converged_time.reset();
     clear_table();
     std::printf("%s  %-9s step %lld, t = %s: %s\n", e.job_id.substr(0, 8).c_str(), e.kind.c_str(), static_cast<long long>(e.step),
                 fmt(e.t).c_str(), e.text.c_str());

@@ -19,6 +19,8 @@
 
 #include "server_fixture.h"
 
+#include "moreau/core/run_summary.h"
+
 #include <lcm/lcm-cpp.hpp>
 #include <moreau/description_t.hpp>
 #include <moreau/job_event_t.hpp>
@@ -134,10 +136,30 @@ void check_stream(const Received& got, const std::string& id, const json& report
   EXPECT_EQ(got.events.front().kind, "started");
   EXPECT_EQ(got.events.back().kind, "finished");
   EXPECT_EQ(got.events.back().step, report["steps"]);
+  EXPECT_EQ(std::count_if(got.events.begin(), got.events.end(), [](const auto& e) { return e.kind == "converged"; }), 1);
+  EXPECT_EQ(std::count_if(got.events.begin(), got.events.end(), [](const auto& e) { return e.kind == "convergence_withdrawn"; }), 0);
   auto conv = std::find_if(got.events.begin(), got.events.end(), [](const auto& e) { return e.kind == "converged"; });
   ASSERT_NE(conv, got.events.end());
   EXPECT_EQ(conv->step, report["converged_step"]);
   EXPECT_DOUBLE_EQ(conv->t, report["converged_time"].get<double>());
+  // Sent when detected (the report's window of rest reached, at step converged_step + kMinRestSteps),
+  // not when the run ended: after the states before that step and before every state from it on.
+  const auto detected_at = conv->step + moreau::RunSummary::kMinRestSteps;
+  std::int64_t last_state_step = -1;
+  std::size_t states_before = 0, next_state = 0, next_event = 0;
+  for (const char kind : got.order) {
+    if (kind == 's') last_state_step = got.states[next_state++].step;
+    if (kind != 'e') continue;
+    if (got.events[next_event++].kind != "converged") continue;
+    states_before = next_state;
+    EXPECT_LT(last_state_step, detected_at);
+  }
+  // Exactly the states before the detection step came before it (the event goes out just before the
+  // state of the step that detected it, or of the first step after it that is published).
+  EXPECT_EQ(states_before,
+            static_cast<std::size_t>(std::count_if(got.states.begin(), got.states.end(), [&](const auto& s) { return s.step < detected_at; })));
+  EXPECT_LT(states_before, got.states.size()) << "the manipulator rests from t = 1.135, before t_end";
+  EXPECT_THAT(conv->text, ::testing::HasSubstr("detected at step " + std::to_string(detected_at)));
   for (const auto& e : got.events) EXPECT_EQ(e.job_id, id);
 }
 
@@ -417,6 +439,41 @@ TEST(LcmStream, ImpactEventsAreStreamedAsTheyHappen) {
       EXPECT_LT(last_state_step, e.step) << e.text;
     }
   }
+}
+
+// A rest that ends: the forced relay of scenes/forced-relay.json sticks at t* = m v0 / (a - f) = 1.2,
+// and from t = 1.5 a force of 3.5 > a breaks the stiction. The stream says "converged" when the rest
+// reaches the report's window, "convergence_withdrawn" at the step the velocity leaves 0.0, and nothing
+// more: the report does not count the run as converged.
+TEST(LcmStream, ConvergenceIsWithdrawnWhenTheRestEnds) {
+  MemqServer m;
+  ASSERT_NE(m.lcm, nullptr);
+  auto c = m.ts.client();
+  json scene = read_json_file("scenes/forced-relay.json");
+  scene.erase("exact");
+  scene["system"]["force"][0] = "-f - 3*min(1, max(0, 1e6*(t - 1.5)))";  // a step at t = 1.5 (within 1 us)
+  scene["integrator"]["t_end"] = 2.0;
+  auto r = submit(*c, {{"scene", scene}, {"stream", true}});
+  ASSERT_EQ(r->status, 202) << r->body;
+  const std::string id = json::parse(r->body)["id"];
+  const json job = wait_final(*c, id);
+  ASSERT_EQ(job["state"], "done");
+  m.drain();
+  ASSERT_EQ(m.col.got.undecodable, 0u);
+  EXPECT_EQ(job["report"]["converged_step"], nullptr);
+
+  std::vector<moreau::job_event_t> rest;
+  for (const auto& e : m.col.got.events)
+    if (e.kind == "converged" || e.kind == "convergence_withdrawn") rest.push_back(e);
+  ASSERT_EQ(rest.size(), 2u);
+  const double h = 1e-3, t_stop = 1.5 * 1.2 / (2.0 - 0.5);
+  EXPECT_EQ(rest[0].kind, "converged");
+  EXPECT_NEAR(rest[0].t, t_stop, 2 * h);
+  EXPECT_EQ(rest[1].kind, "convergence_withdrawn");
+  EXPECT_GE(rest[1].t, 1.5);
+  EXPECT_LE(rest[1].t, 1.5 + 2 * h);
+  EXPECT_THAT(rest[1].text, ::testing::HasSubstr("the rest from step " + std::to_string(rest[0].step) + " ended"));
+  EXPECT_EQ(m.col.got.events.back().kind, "finished");
 }
 
 // ---- udpm:// between processes, inside a private network namespace ----

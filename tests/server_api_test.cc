@@ -500,7 +500,7 @@ TEST(ServerApi, FinishedResultsFiguresAndStaticFilesAnswerIfNoneMatchWith304) {
   ASSERT_EQ(wait_final(*c, id)["state"], "done");
   const std::string job = "/v1/jobs/" + id;
   std::map<std::string, std::string> tags;
-  for (const std::string path : {job + "/report", job + "/trajectory", job + "/trajectory?format=csv", job + "/trajectory?from=0.1&every=2",
+  for (const std::string& path : {job + "/report", job + "/trajectory", job + "/trajectory?format=csv", job + "/trajectory?from=0.1&every=2",
                                  job + "/figure?kind=phase", job + "/figure?kind=phase&format=svg", job + "/figure?kind=energy&width=300&height=200",
                                  std::string("/v1/openapi.json"), std::string("/"), std::string("/ui/app.js")}) {
     SCOPED_TRACE(path);
@@ -517,7 +517,7 @@ TEST(ServerApi, FinishedResultsFiguresAndStaticFilesAnswerIfNoneMatchWith304) {
     EXPECT_EQ(again->get_header_value("ETag"), etag);
     EXPECT_EQ(again->body, first->body);
     const std::string opaque = etag.rfind("W/", 0) == 0 ? etag.substr(2) : etag;
-    for (const std::string held : {etag, "\"x\", " + etag, "W/" + opaque, opaque + " ,\"y\"", std::string("*")}) {
+    for (const std::string& held : {etag, "\"x\", " + etag, "W/" + opaque, opaque + " ,\"y\"", std::string("*")}) {
       auto cached = c->Get(path, {{"If-None-Match", held}});
       ASSERT_TRUE(cached);
       EXPECT_EQ(cached->status, 304) << held;

@@ -26,6 +26,15 @@ class ForceBoundSampler final : public RunObserver {
     if (next_) next_->on_sample(s);
   }
   bool keep_going(std::int64_t k, double t) override { return !next_ || next_->keep_going(k, t); }
+  void on_impact(const ImpactEvent& e) override {
+    if (next_) next_->on_impact(e);
+  }
+  void on_rest_detected(std::int64_t from_step, double from_t, std::int64_t step, double t) override {
+    if (next_) next_->on_rest_detected(from_step, from_t, step, t);
+  }
+  void on_rest_ended(std::int64_t from_step, std::int64_t step, double t) override {
+    if (next_) next_->on_rest_ended(from_step, step, t);
+  }
   ForceBoundTrack track;
 
  private:

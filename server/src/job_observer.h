@@ -57,6 +57,13 @@ class JobObserver final : public RunObserver {
   void on_impact(const ImpactEvent& impact) override {
     if (stream_) stream_->on_impact(impact);
   }
+  // Convergence as it is detected, and a detected rest that ended (StreamObserver).
+  void on_rest_detected(std::int64_t from_step, double from_t, std::int64_t step, double t) override {
+    if (stream_) stream_->on_rest_detected(from_step, from_t, step, t);
+  }
+  void on_rest_ended(std::int64_t from_step, std::int64_t step, double t) override {
+    if (stream_) stream_->on_rest_ended(from_step, step, t);
+  }
 
   bool keep_going(std::int64_t step, double t) override {
     job_.t_now.store(t, std::memory_order_relaxed);

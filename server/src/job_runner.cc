@@ -267,6 +267,7 @@ void JobRunner::run(const std::shared_ptr<Job>& job) {
   observer.finish();
   if (stream_observer) {
     stream_observer->flush_last(summary);
+    commit->announced_rest = stream_observer->announced_rest();
     commit->stream->flush();
   }
 
@@ -425,9 +426,23 @@ void JobRunner::commit(Commit& c) {
   // final over HTTP, with its results stored.
   if (c.stream) {
     if (!c.hypothesis_failure.empty()) c.stream->push_event("hypothesis_failed", summary.steps, summary.t_final, c.hypothesis_failure);
-    if (summary.converged_step) {
-      c.stream->push_event("converged", *summary.converged_step, summary.converged_time.value_or(summary.t_final),
-                           "v == 0.0 exactly from step " + std::to_string(*summary.converged_step) + " to the end");
+    // "converged" went out when the rest was detected (StreamObserver); the end confirms it silently, or
+    // says so when the report's verdict differs from what the stream last said.
+    if (summary.converged_step != c.announced_rest) {
+      if (c.announced_rest) {
+        std::string why = "the report does not count the rest from step " + std::to_string(*c.announced_rest) + " as convergence: ";
+        if (summary.status == RunStatus::kFailed)
+          why += "the run failed";
+        else if (summary.rest_step == c.announced_rest)
+          why += "the final state is not an equilibrium of the scheme (Theorem 4.3's inclusion)";
+        else
+          why += "the rest ended";
+        c.stream->push_event("convergence_withdrawn", summary.steps, summary.t_final, why);
+      }
+      if (summary.converged_step) {
+        c.stream->push_event("converged", *summary.converged_step, summary.converged_time.value_or(summary.t_final),
+                             "v == 0.0 exactly from step " + std::to_string(*summary.converged_step) + " to the end");
+      }
     }
     const char* kind = c.state == JobState::kDone ? "finished" : c.state == JobState::kCancelled ? "cancelled" : "failed";
     c.stream->push_event(kind, summary.steps, summary.t_final, c.reason.empty() ? summary.BriefReport() : c.reason);

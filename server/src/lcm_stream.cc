@@ -5,8 +5,10 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <stdexcept>
+#include <string_view>
 
 #include <lcm/lcm-cpp.hpp>
 #include <moreau/description_t.hpp>
@@ -275,14 +277,12 @@ void StreamObserver::publish_and_advance(const Sample& s) {
   // A cancelled run publishes nothing more: without this, a paced stream woken by the cancellation
   // would publish its remaining states unpaced until the run reaches its next cancellation check.
   if (cancel_ && cancel_->load(std::memory_order_relaxed)) return;
-  for (const ImpactEvent& e : impacts_) {
-    // key=value pairs: a line to read, and fields to parse (docs/streaming.md).
-    char text[256];
-    std::snprintf(text, sizeof text, "contact=%d pre=%.17g post=%.17g restitution=%.17g impulse=%.17g", e.constraint, e.pre, e.post,
-                  e.restitution, e.impulse);
-    stream_->push_event("impact", e.step, e.t, text);
+  for (HeldEvent& e : held_) {
+    if (std::string_view(e.kind) == "converged") announced_rest_ = e.rest_from;
+    if (std::string_view(e.kind) == "convergence_withdrawn") announced_rest_.reset();
+    stream_->push_event(e.kind, e.step, e.t, std::move(e.text));
   }
-  impacts_.clear();
+  held_.clear();
   if (impacts_seen_ > kMaxImpactEvents && !truncation_said_) {
     truncation_said_ = true;
     stream_->push_event("impacts_truncated", s.step, s.t,
@@ -295,6 +295,32 @@ void StreamObserver::publish_and_advance(const Sample& s) {
   next_t_ = t0_ + period_ * (std::floor((s.t - t0_) / period_ + 1e-9) + 1.0);
   stream_->push_state(s.step, s.t, s.h, s.q, s.v, s.kinetic_energy);
   last_published_step_ = s.step;
+}
+
+void StreamObserver::on_impact(const ImpactEvent& e) {
+  if (++impacts_seen_ > kMaxImpactEvents) return;
+  // key=value pairs: a line to read, and fields to parse (docs/streaming.md).
+  char text[256];
+  std::snprintf(text, sizeof text, "contact=%d pre=%.17g post=%.17g restitution=%.17g impulse=%.17g", e.constraint, e.pre, e.post,
+                e.restitution, e.impulse);
+  held_.push_back({"impact", e.step, e.t, text, std::nullopt});
+}
+
+void StreamObserver::on_rest_detected(std::int64_t from_step, double from_t, std::int64_t step, double t) {
+  char text[320];
+  std::snprintf(text, sizeof text,
+                "v == 0.0 exactly from step %lld (t = %.17g), detected at step %lld (t = %.17g) after %lld steps at rest; "
+                "final if the rest lasts to the end and the final state is an equilibrium of the scheme, "
+                "else a convergence_withdrawn event follows",
+                static_cast<long long>(from_step), from_t, static_cast<long long>(step), t, static_cast<long long>(step - from_step));
+  held_.push_back({"converged", from_step, from_t, text, from_step});
+}
+
+void StreamObserver::on_rest_ended(std::int64_t from_step, std::int64_t step, double t) {
+  char text[200];
+  std::snprintf(text, sizeof text, "v != 0 at step %lld (t = %.17g): the rest from step %lld ended, the run is no longer converged",
+                static_cast<long long>(step), t, static_cast<long long>(from_step));
+  held_.push_back({"convergence_withdrawn", step, t, text, std::nullopt});
 }
 
 void StreamObserver::flush_last(const RunSummary& summary) {

@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -153,17 +154,23 @@ class StreamObserver final : public RunObserver {
   // Inline: most samples fall between two publication times and cost one comparison.
   void on_sample(const Sample& s) override {
     last_h_ = s.h;
-    if (any_ && s.t < next_t_ - 1e-9 * period_ && impacts_.empty()) return;
+    if (any_ && s.t < next_t_ - 1e-9 * period_ && held_.empty()) return;
     publish_and_advance(s);
   }
-  // Held until the next sample (the state just after it), then published as an "impact" event before
-  // that sample's state: a paced stream shows it at its time.
-  void on_impact(const ImpactEvent& impact) {
-    if (++impacts_seen_ <= kMaxImpactEvents) impacts_.push_back(impact);
-  }
+  // Events of the run are held until the next sample (the state just after them) and published before
+  // that sample's state, in the order they happened: a paced stream shows each at its time.
+  // An impact: an "impact" event.
+  void on_impact(const ImpactEvent& impact) override;
+  // Convergence detected (the report's window of rest reached): a "converged" event; and a detected rest
+  // that ended: a "convergence_withdrawn" event.
+  void on_rest_detected(std::int64_t from_step, double from_t, std::int64_t step, double t) override;
+  void on_rest_ended(std::int64_t from_step, std::int64_t step, double t) override;
   // Impact events a stream publishes at most (a chattering contact could otherwise send one per step);
   // beyond, one "impacts_truncated" event says so.
   static constexpr std::int64_t kMaxImpactEvents = 10000;
+  // The first step of the rest a published "converged" event announced and no "convergence_withdrawn"
+  // took back, if any: what the run's end has to confirm or withdraw (JobRunner::commit).
+  std::optional<std::int64_t> announced_rest() const { return announced_rest_; }
   // Pushes the run's last state (from its summary) if it was not published yet.
   void flush_last(const RunSummary& summary);
 
@@ -178,8 +185,16 @@ class StreamObserver final : public RunObserver {
   std::int64_t last_published_step_ = -1;
   std::chrono::steady_clock::time_point wall_start_;
   double last_h_ = 0;  // the step of the last sample seen (the summary does not carry it)
-  std::vector<ImpactEvent> impacts_;  // since the last sample
+  struct HeldEvent {
+    const char* kind;
+    std::int64_t step;
+    double t;
+    std::string text;
+    std::optional<std::int64_t> rest_from;  // "converged": the rest it announces; "convergence_withdrawn": none
+  };
+  std::vector<HeldEvent> held_;  // since the last sample, in order
   std::int64_t impacts_seen_ = 0;
+  std::optional<std::int64_t> announced_rest_;
   bool truncation_said_ = false;
 };
 

@@ -1,7 +1,7 @@
 // How a run hands its states out without knowing where they go (recorder, CSV writer, LCM publisher,
 // progress bar, cancellation). The integrator calls on_sample() only every `output_every` steps (and at
-// the first and last state), keep_going() every kControlInterval steps, and on_impact() once per impact:
-// the hot loop never makes a virtual call per step.
+// the first and last state), keep_going() every kControlInterval steps, on_impact() once per impact and
+// on_rest_detected()/on_rest_ended() once per rest: the hot loop never makes a virtual call per step.
 #pragma once
 
 #include <cstdint>
@@ -33,6 +33,15 @@ class RunObserver {
   // every impacting contact, in the step that carries it, before that step's sample; also beyond the
   // ContactDiagnostics' record limit. Impacts are rare: a virtual call each costs nothing per step.
   virtual void on_impact(const ImpactEvent& /*impact*/) {}
+  // Convergence as it is detected (RunRecorder::rest): the velocity has been exactly 0.0 from step
+  // `from_step` (time from_t) through step `step` (time t), RunSummary::kMinRestSteps steps, the window the
+  // report's definition of converged asks for. The report counts the run as converged only if this rest
+  // lasts to the end and the final state passes the scheme's equilibrium test, so the detection is
+  // provisional: on_rest_ended() follows if the velocity leaves 0.0 again. Each is called at most once per
+  // rest, from the integrating thread: no virtual call per step.
+  virtual void on_rest_detected(std::int64_t /*from_step*/, double /*from_t*/, std::int64_t /*step*/, double /*t*/) {}
+  // A rest announced by on_rest_detected() ended: the velocity is nonzero at step `step` (time t).
+  virtual void on_rest_ended(std::int64_t /*from_step*/, std::int64_t /*step*/, double /*t*/) {}
 };
 
 }  // namespace moreau

@@ -86,13 +86,22 @@ class RunRecorder {
   }
 
   // Whether the state rests at step k (time t): the first step of the final run of resting steps is the
-  // run's convergence step (Theorem 4.3's finite time).
+  // run's convergence step (Theorem 4.3's finite time). The observer hears of a rest when it reaches
+  // RunSummary::kMinRestSteps steps (the window finish() asks for) and again if it ends: a live viewer
+  // learns of convergence when it happens, not when the run ends (one comparison per step).
   void rest(bool at_rest, std::int64_t k, double t) {
     if (!at_rest) {
+      if (rest_announced_) {
+        rest_announced_ = false;
+        if (observer_) observer_->on_rest_ended(rest_from_, k, t);
+      }
       rest_from_ = -1;
     } else if (rest_from_ < 0) {
       rest_from_ = k;
       rest_time_ = t;
+    } else if (!rest_announced_ && k - rest_from_ == RunSummary::kMinRestSteps) {
+      rest_announced_ = true;
+      if (observer_) observer_->on_rest_detected(rest_from_, rest_time_, k, t);
     }
   }
 
@@ -192,6 +201,7 @@ class RunRecorder {
   RunSummary s_;
   std::int64_t rest_from_ = -1;
   double rest_time_ = 0.0;
+  bool rest_announced_ = false;  // on_rest_detected() was called for the rest from rest_from_
   std::int64_t last_emitted_ = 0;
 };
 

@@ -61,6 +61,15 @@ class ObserverFan : public RunObserver {
     for (auto* o : observers_) go = o->keep_going(step, t) && go;
     return go;
   }
+  void on_impact(const ImpactEvent& e) override {
+    for (auto* o : observers_) o->on_impact(e);
+  }
+  void on_rest_detected(std::int64_t from_step, double from_t, std::int64_t step, double t) override {
+    for (auto* o : observers_) o->on_rest_detected(from_step, from_t, step, t);
+  }
+  void on_rest_ended(std::int64_t from_step, std::int64_t step, double t) override {
+    for (auto* o : observers_) o->on_rest_ended(from_step, step, t);
+  }
 
  private:
   std::vector<RunObserver*> observers_;

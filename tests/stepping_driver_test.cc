@@ -1,0 +1,144 @@
+// The run bookkeeping every scheme shares (core/include/moreau/core/stepping_driver.h): convergence is
+// announced to the observer when the rest reaches the report's window of RunSummary::kMinRestSteps steps,
+// withdrawn if the velocity leaves 0.0 again, and the announcements agree with the summary's converged step.
+#include "moreau/core/stepping_driver.h"
+
+#include <gtest/gtest.h>
+
+#include <cstdint>
+#include <vector>
+
+#include "moreau/core/abl_integrator.h"
+#include "moreau/core/models/oscillator1.h"
+
+namespace moreau {
+namespace {
+
+// The rest announcements, with how many samples the observer had seen when each came.
+struct RestLog : RunObserver {
+  struct Entry {
+    bool detected;
+    std::int64_t from_step, step;
+    double from_t, t;
+    std::size_t samples_seen;
+  };
+  std::vector<Entry> entries;
+  std::size_t samples = 0;
+  void on_sample(const Sample&) override { ++samples; }
+  void on_rest_detected(std::int64_t from_step, double from_t, std::int64_t step, double t) override {
+    entries.push_back({true, from_step, step, from_t, t, samples});
+  }
+  void on_rest_ended(std::int64_t from_step, std::int64_t step, double t) override {
+    entries.push_back({false, from_step, step, 0.0, t, samples});
+  }
+};
+
+// Drives a RunRecorder through steps 1..rest.size()-1 with the given rest flags (rest[0]: the initial
+// state), t_k = k / 100, and returns the summary of the run ending at the last step.
+RunSummary drive(RunRecorder& rec, const std::vector<bool>& rest) {
+  const double x = 0.0;
+  rec.start(0.0, 0.0, rest[0]);
+  rec.first_sample(0.0, 0.01, &x, &x, 0.0);
+  const auto n = static_cast<std::int64_t>(rest.size()) - 1;
+  for (std::int64_t k = 1; k <= n; ++k) {
+    rec.step_taken(0.01);
+    rec.rest(rest[static_cast<std::size_t>(k)], k, k / 100.0);
+    rec.after_step(k, k / 100.0, 0.01, &x, &x, 0.0);
+  }
+  rec.last_sample(n, n / 100.0, 0.01, &x, &x, 0.0);
+  rec.finish(n, n / 100.0, &x, &x, 0.0);
+  return rec.close();
+}
+
+std::vector<bool> flags(std::initializer_list<std::pair<int, bool>> runs) {
+  std::vector<bool> v;
+  for (auto [count, value] : runs) v.insert(v.end(), static_cast<std::size_t>(count), value);
+  return v;
+}
+
+TEST(RunRecorder, AnnouncesRestAtTheReportsWindowAndWithdrawsItWhenItEnds) {
+  constexpr std::int64_t W = RunSummary::kMinRestSteps;
+  // Steps 0-4 moving, 5-20 at rest, 21 moving, 22-24 at rest (shorter than the window), 25 moving,
+  // 26 to the end at rest.
+  const std::vector<bool> rest = flags({{5, false}, {16, true}, {1, false}, {3, true}, {1, false}, {30, true}});
+  RestLog log;
+  RunRecorder rec(&log, 1, 1);
+  const RunSummary s = drive(rec, rest);
+  ASSERT_EQ(log.entries.size(), 3u);
+  // The rest from step 5 is announced at step 5 + W, before that step's sample (samples 0 .. 4 + W seen).
+  EXPECT_TRUE(log.entries[0].detected);
+  EXPECT_EQ(log.entries[0].from_step, 5);
+  EXPECT_DOUBLE_EQ(log.entries[0].from_t, 0.05);
+  EXPECT_EQ(log.entries[0].step, 5 + W);
+  EXPECT_EQ(log.entries[0].samples_seen, static_cast<std::size_t>(5 + W));
+  // It ends at step 21.
+  EXPECT_FALSE(log.entries[1].detected);
+  EXPECT_EQ(log.entries[1].from_step, 5);
+  EXPECT_EQ(log.entries[1].step, 21);
+  EXPECT_DOUBLE_EQ(log.entries[1].t, 0.21);
+  // The three steps from 22 are never announced; the final rest from 26 is, and it is the summary's.
+  EXPECT_TRUE(log.entries[2].detected);
+  EXPECT_EQ(log.entries[2].from_step, 26);
+  EXPECT_EQ(log.entries[2].step, 26 + W);
+  ASSERT_TRUE(s.converged_step.has_value());
+  EXPECT_EQ(*s.converged_step, 26);
+  EXPECT_DOUBLE_EQ(*s.converged_time, 0.26);
+}
+
+TEST(RunRecorder, ARestShorterThanTheWindowIsNeitherAnnouncedNorConverged) {
+  constexpr auto W = static_cast<int>(RunSummary::kMinRestSteps);
+  RestLog log;
+  RunRecorder rec(&log, 1, 1);
+  // At rest for the last W - 1 steps: the summary's window is not reached, and nothing was announced.
+  const RunSummary s = drive(rec, flags({{10, false}, {W - 1, true}}));
+  EXPECT_TRUE(log.entries.empty());
+  EXPECT_FALSE(s.converged_step.has_value());
+  ASSERT_TRUE(s.rest_step.has_value());
+  EXPECT_EQ(*s.rest_step, 10);
+  // Exactly W steps: announced at the last step, and converged.
+  RestLog log2;
+  RunRecorder rec2(&log2, 1, 1);
+  const RunSummary s2 = drive(rec2, flags({{10, false}, {W + 1, true}}));
+  ASSERT_EQ(log2.entries.size(), 1u);
+  EXPECT_EQ(log2.entries[0].step, 10 + W);
+  ASSERT_TRUE(s2.converged_step.has_value());
+  EXPECT_EQ(*s2.converged_step, 10);
+}
+
+TEST(RunRecorder, AStateAtRestFromTheStartIsAnnouncedAfterTheWindow) {
+  RestLog log;
+  RunRecorder rec(&log, 1, 1);
+  const RunSummary s = drive(rec, flags({{40, true}}));
+  ASSERT_EQ(log.entries.size(), 1u);
+  EXPECT_EQ(log.entries[0].from_step, 0);
+  EXPECT_EQ(log.entries[0].step, RunSummary::kMinRestSteps);
+  ASSERT_TRUE(s.converged_step.has_value());
+  EXPECT_EQ(*s.converged_step, 0);
+}
+
+// In a real run of the scheme (0.2): the damped relay m v' = -c v - a Sign(v) stops in finitely many
+// steps; the announcement comes during the run, at the summary's converged step plus the window, with
+// the samples up to then (one per step) and not the rest of the run seen by the observer.
+TEST(RunRecorder, AblRunAnnouncesConvergenceWhenItIsDetected) {
+  const double m = 2.0, c = 0.5, a = 1.0, v0 = 3.0, h = 1e-3;
+  models::Oscillator1 model(m, 0.0, 0.0, c, a);
+  AblSettings settings;
+  settings.h = h;
+  settings.t_end = 8.0;
+  RestLog log;
+  AblIntegrator<models::Oscillator1> integrator(model, settings);
+  const RunSummary s = integrator.run(Vec<1>(0.0), Vec<1>(v0), &log);
+  ASSERT_TRUE(s.converged_step.has_value());
+  ASSERT_EQ(log.entries.size(), 1u);
+  const auto& e = log.entries[0];
+  EXPECT_TRUE(e.detected);
+  EXPECT_EQ(e.from_step, *s.converged_step);
+  EXPECT_EQ(e.from_t, *s.converged_time);
+  EXPECT_EQ(e.step, *s.converged_step + RunSummary::kMinRestSteps);
+  EXPECT_EQ(e.samples_seen, static_cast<std::size_t>(e.step));
+  EXPECT_LT(e.samples_seen, log.samples / 2) << "the relay stops at t* = (m/c) ln(1 + c v0 / a) = 3.67 of 8";
+  EXPECT_EQ(log.samples, static_cast<std::size_t>(s.steps) + 1);
+}
+
+}  // namespace
+}  // namespace moreau
