@@ -14,6 +14,10 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <csignal>
+#include <chrono>
+#include <thread>
+#include <set>
 
 #include <nlohmann/json.hpp>
 
@@ -192,6 +196,70 @@ TEST(Cli, ProgressBarForLongRuns) {
 }  // namespace
 
 namespace {
+std::size_t count_lines(const std::string& path) {
+  std::ifstream in(path);
+  return static_cast<std::size_t>(std::count(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>(), '\n'));
+}
+
+// moreau campaign: the shipped campaign runs and prints its verdict; Ctrl-C (SIGINT) stops a long one
+// cleanly (exit 130, every finished sample kept), and the same command finishes it without recomputing
+// or duplicating a sample; --collect checks it and prints the same summary.
+TEST(Cli, CampaignRunsStopsOnCtrlCAndResumes) {
+  const std::string shipped_dir = moreau::test_support::scratch_dir() + "/campaign-shipped";
+  const Result shipped = Moreau("campaign " + std::string(MOREAU_SOURCE_DIR) + "/campaigns/manipulator-robust.json --out " + shipped_dir);
+  ASSERT_EQ(shipped.status, 0) << shipped.out;
+  EXPECT_NE(shipped.out.find("manipulator-robust: "), std::string::npos) << shipped.out;
+  EXPECT_NE(shipped.out.find("95% Wilson interval"), std::string::npos) << shipped.out;
+  EXPECT_EQ(count_lines(shipped_dir + "/samples.jsonl"), 256u);
+
+  // 2000 samples of the manipulator at t_end = 10 on one thread: about 2 s, long enough to interrupt.
+  const std::string dir = moreau::test_support::scratch_dir() + "/campaign-stop";
+  const std::string spec = moreau::test_support::scratch_dir() + "/campaign-stop.json";
+  nlohmann::json s = nlohmann::json::parse(std::ifstream(std::string(MOREAU_SOURCE_DIR) + "/campaigns/manipulator-robust.json"));
+  s["scene"] = std::string(MOREAU_SOURCE_DIR) + "/scenes/manipulator-fig6.4.json";
+  s["samples"] = 2000;
+  std::ofstream(spec) << s.dump();
+  const std::string log = dir + ".log";
+  const pid_t pid = fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    const int fd = open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    dup2(fd, 1);
+    dup2(fd, 2);
+    execl(MOREAU_BINARY, MOREAU_BINARY, "campaign", spec.c_str(), "--out", dir.c_str(), "-j", "1", "--quiet", static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  // Wait for the state we need (20 finished samples), never for a fixed time.
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (count_lines(dir + "/samples.jsonl") < 20 && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  ASSERT_EQ(kill(pid, SIGINT), 0);
+  int status = 0;
+  ASSERT_EQ(waitpid(pid, &status, 0), pid);
+  std::ifstream log_in(log);
+  const std::string out((std::istreambuf_iterator<char>(log_in)), std::istreambuf_iterator<char>());
+  ASSERT_TRUE(WIFEXITED(status)) << out;
+  const std::size_t kept = count_lines(dir + "/samples.jsonl");
+  if (kept == 2000) GTEST_SKIP() << "the campaign finished before the interrupt arrived";
+  EXPECT_EQ(WEXITSTATUS(status), 130) << out;
+  EXPECT_NE(out.find("stopped; every finished sample is kept"), std::string::npos) << out;
+  EXPECT_GE(kept, 20u);
+  EXPECT_FALSE(std::filesystem::exists(dir + "/summary.json"));
+
+  const Result resumed = Moreau("campaign " + spec + " --out " + dir + " -j 2 --quiet");
+  ASSERT_EQ(resumed.status, 0) << resumed.out;
+  EXPECT_NE(resumed.out.find(std::to_string(2000 - kept) + " run in"), std::string::npos) << resumed.out;
+  EXPECT_NE(resumed.out.find(std::to_string(kept) + " already done"), std::string::npos) << resumed.out;
+  std::set<long long> indices;
+  std::ifstream records(dir + "/samples.jsonl");
+  for (std::string line; std::getline(records, line);) EXPECT_TRUE(indices.insert(nlohmann::json::parse(line)["index"].get<long long>()).second);
+  EXPECT_EQ(indices.size(), 2000u);
+  EXPECT_EQ(*indices.rbegin(), 1999);
+  const Result collected = Moreau("campaign --collect " + dir);
+  ASSERT_EQ(collected.status, 0) << collected.out;
+  EXPECT_NE(resumed.out.find(collected.out), std::string::npos) << "the same summary\n" << collected.out << "\n" << resumed.out;
+}
+
 // A sweep split over three shards and merged gives every point once; a missing shard is an error.
 TEST(Cli, SweepShardsAndMerge) {
   const std::string dir = moreau::test_support::scratch_dir() + "/sweep";

@@ -1,0 +1,55 @@
+// Robustness campaigns: the cost of one sample of the paper's manipulator (t_end = 3, h = 1e-3) against
+// the integration alone, so that the per-sample overhead (applying the sample's values, compiling the
+// scene, the report and the record) can be read off: docs/campaigns.md, "Speed".
+#include <benchmark/benchmark.h>
+
+#include <string>
+
+#include "moreau/scene/campaign.h"
+#include "moreau/scene/scene.h"
+#include "moreau/scene/simulation.h"
+
+namespace {
+
+using json = nlohmann::json;
+
+moreau::scene::CampaignSpec manipulator_spec() {
+  json spec = moreau::scene::read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/campaigns/manipulator-robust.json");
+  json scene = moreau::scene::read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/manipulator-fig6.4.json");
+  scene["integrator"]["t_end"] = 3.0;
+  spec["scene"] = scene;
+  spec["samples"] = 1 << 20;
+  return moreau::scene::CampaignSpec::from_json(spec, "");
+}
+
+// One whole sample: its values, the scene compiled with them, the run, the report and the record.
+void BM_CampaignSample_manipulator_T3(benchmark::State& state) {
+  const auto spec = manipulator_spec();
+  const moreau::scene::CampaignDesign design(spec);
+  std::int64_t i = 0;
+  for (auto _ : state) benchmark::DoNotOptimize(moreau::scene::run_campaign_sample(spec, design, i++).dump());
+  state.counters["samples_per_second"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+}
+BENCHMARK(BM_CampaignSample_manipulator_T3)->Unit(benchmark::kMicrosecond);
+
+// The integration alone (the scene compiled once, outside the loop, every state seen as in a sample).
+void BM_CampaignIntegrationOnly_manipulator_T3(benchmark::State& state) {
+  const auto spec = manipulator_spec();
+  const auto sim = moreau::scene::Simulation::from_json(spec.scene).with_limits(moreau::scene::RunLimits{std::nullopt, 1});
+  struct Nothing : moreau::RunObserver {
+    void on_sample(const moreau::Sample&) override {}
+  } observer;
+  moreau::scene::RunDiagnostics diagnostics;
+  for (auto _ : state) benchmark::DoNotOptimize(sim.run(&observer, &diagnostics).steps);
+}
+BENCHMARK(BM_CampaignIntegrationOnly_manipulator_T3)->Unit(benchmark::kMicrosecond);
+
+// Compiling the scene alone (what each sample does before it runs).
+void BM_CampaignCompileOnly_manipulator(benchmark::State& state) {
+  const auto spec = manipulator_spec();
+  for (auto _ : state) benchmark::DoNotOptimize(moreau::scene::Simulation::from_json(spec.scene).dof());
+}
+BENCHMARK(BM_CampaignCompileOnly_manipulator)->Unit(benchmark::kMicrosecond);
+
+}  // namespace
+BENCHMARK_MAIN();

@@ -1,0 +1,134 @@
+// Robustness campaigns: one scene run over many sampled values of its uncertain inputs, with a verdict.
+//
+// A campaign spec (docs/campaigns.md) names a scene, its uncertain inputs (any scene path, each with a
+// distribution or a grid), a sampler (Monte Carlo, Latin hypercube, Sobol, full grid) with a seed, and a
+// number of samples. Sample i's values depend only on the spec and i (never on the worker or the order
+// in which samples run), so any split of the index range over processes or threads gives the same
+// samples. Each sample's record (its inputs and outcomes) is one JSON line; the summary gives the success
+// rate with its Wilson interval, quantiles of the convergence time and of the final error, the worst
+// samples and Spearman rank correlations of each outcome with each input.
+//
+// Files of a campaign directory:
+//   campaign.json       the spec as run (a directory holds one campaign: another spec is refused)
+//   samples.jsonl       one record per finished sample, in the order they finished
+//   samples.csv         the same records as a table
+//   summary.json/.txt   once every sample is present (run_campaign, or collect_campaign)
+// A stopped run leaves samples.jsonl and samples.csv as they were after the last finished sample; the
+// next run skips what is there (a line cut short by a kill is dropped and recomputed).
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+namespace moreau::scene {
+
+// A distribution of one uncertain input, drawn by the inverse of its CDF from u in [0, 1).
+struct InputDistribution {
+  enum class Kind { kUniform, kNormal, kLogUniform, kDiscrete, kGrid };
+  Kind kind = Kind::kUniform;
+  double low = 0.0, high = 0.0;    // uniform, log-uniform, grid; the truncation bounds of a normal
+  double mean = 0.0, stddev = 0.0;  // normal
+  std::vector<nlohmann::json> values;  // discrete (equally likely); a grid's points
+
+  // The value at u in [0, 1): low + u (high - low); exp of the same in log; the truncated normal's
+  // quantile Phi^-1(Phi(a) + u (Phi(b) - Phi(a))) (a, b the standardized bounds); values[floor(u n)].
+  nlohmann::json at(double u) const;
+  bool numeric() const { return kind != Kind::kDiscrete || all_numbers_; }
+  bool all_numbers_ = true;  // discrete values are all numbers
+};
+
+struct CampaignInput {
+  std::string path;  // a JSON pointer into the scene (/parameters/m2, /initial/q/0)
+  InputDistribution distribution;
+};
+
+enum class Sampler { kMonteCarlo, kLatinHypercube, kSobol, kGrid };
+
+// Largest number of samples in one campaign: about 10 GB of JSON Lines at 1 kB per record.
+inline constexpr std::int64_t kMaxCampaignSamples = 10'000'000;
+// The Latin hypercube keeps one permutation of the samples per input in memory (4 bytes per sample and
+// input): it is limited to this many samples.
+inline constexpr std::int64_t kMaxLatinHypercubeSamples = 2'000'000;
+// Uncertain inputs at most (Sobol's table has more; a campaign over more inputs is not a robustness check).
+inline constexpr int kMaxCampaignInputs = 64;
+
+struct CampaignSpec {
+  std::string name;
+  nlohmann::json scene;  // the scene document the samples override
+  std::vector<CampaignInput> inputs;
+  Sampler sampler = Sampler::kMonteCarlo;
+  std::uint64_t seed = 0;
+  std::int64_t samples = 0;
+  // The target set: a sample succeeds when it converged (the report's definition) and, with a target,
+  // its final q lies within `tolerance` (Euclidean distance) of target_q.
+  std::vector<double> target_q;
+  double target_tolerance = 0.0;
+  nlohmann::json document;  // the spec as given, with the scene inlined: what campaign.json stores
+
+  // Validates a spec. `base_dir` resolves a scene given as a file path. Throws SceneError naming the
+  // field (a JSON pointer into the spec) and what is wrong.
+  static CampaignSpec from_json(const nlohmann::json& spec, const std::string& base_dir);
+  static CampaignSpec from_file(const std::string& path);
+};
+
+// The design: sample i's point in [0, 1)^d, and its input values.
+class CampaignDesign {
+ public:
+  explicit CampaignDesign(const CampaignSpec& spec);
+  std::vector<double> unit_point(std::int64_t i) const;
+  std::vector<nlohmann::json> values(std::int64_t i) const;
+
+ private:
+  const CampaignSpec& spec_;
+  std::vector<std::vector<std::uint32_t>> strata_;  // Latin hypercube: the stratum of sample i per input
+};
+
+// Runs sample i and returns its record (never throws for a bad sample: an invalid scene or a failed run
+// is recorded as such, with the field and the reason).
+nlohmann::json run_campaign_sample(const CampaignSpec& spec, const CampaignDesign& design, std::int64_t i);
+
+// The summary of a campaign's records (all of them, each index once).
+nlohmann::json summarize_campaign(const CampaignSpec& spec, const std::vector<nlohmann::json>& records);
+std::string format_campaign_summary(const nlohmann::json& summary);
+
+struct CampaignRunOptions {
+  int workers = 1;
+  std::int64_t begin = 0, end = -1;        // the index range [begin, end) (end < 0: every sample)
+  const std::atomic<bool>* stop = nullptr;  // set (e.g. by SIGINT) to stop after the samples running now
+  std::function<void(std::int64_t done, std::int64_t total)> progress;  // after each sample, from one thread
+};
+
+struct CampaignRunResult {
+  std::int64_t ran = 0;      // samples computed by this run
+  std::int64_t skipped = 0;  // already in the directory
+  bool stopped = false;      // stopped before every sample of the range was done
+  bool summarized = false;   // every sample present: summary.json written
+};
+
+// Runs the campaign's samples in the range that the directory does not hold yet, appending each record as
+// it finishes, and writes the summary when every sample is present. Throws std::runtime_error (a
+// directory that holds another campaign, an unreadable record) naming the file.
+CampaignRunResult run_campaign(const CampaignSpec& spec, const std::string& dir, const CampaignRunOptions& options);
+
+// Reads every record of a campaign directory, checks that each sample is present exactly once, writes
+// summary.json and summary.txt and returns the summary. Throws std::runtime_error naming what is missing,
+// duplicated or malformed.
+nlohmann::json collect_campaign(const std::string& dir);
+
+// Statistics the summary uses, for tests.
+struct WilsonInterval {
+  double low, high;
+};
+WilsonInterval wilson_interval(std::int64_t successes, std::int64_t n, double z = 1.959963984540054);
+// The q-quantile of sorted values, linear between order statistics (Hyndman and Fan's type 7).
+double quantile_sorted(const std::vector<double>& sorted, double q);
+// Spearman's rank correlation (average ranks for ties); nullopt when either side is constant or n < 3.
+std::optional<double> spearman(const std::vector<double>& x, const std::vector<double>& y);
+
+}  // namespace moreau::scene

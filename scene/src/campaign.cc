@@ -1,0 +1,886 @@
+#include "moreau/scene/campaign.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <mutex>
+#include <numeric>
+#include <set>
+#include <sstream>
+#include <thread>
+
+#include <boost/math/distributions/normal.hpp>
+#include <boost/random/sobol.hpp>
+
+#include "moreau/core/observer.h"
+#include "moreau/scene/line_reader.h"
+#include "moreau/scene/scene.h"
+#include "moreau/scene/simulation.h"
+
+namespace moreau::scene {
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+namespace {
+
+// ---- the spec ----
+
+std::string describe(const json& j) {
+  std::string s = j.dump();
+  return s.size() > 60 ? s.substr(0, 57) + "..." : s;
+}
+
+double finite_number(const json& j, const std::string& ptr) {
+  if (!j.is_number()) throw SceneError(ptr, "expected a number, got " + describe(j));
+  const double v = j.get<double>();
+  if (!std::isfinite(v)) throw SceneError(ptr, "expected a finite number");
+  return v;
+}
+
+const json& member(const json& obj, const std::string& ptr, const char* name) {
+  if (!obj.contains(name)) throw SceneError(ptr, std::string("missing '") + name + "'");
+  return obj[name];
+}
+
+void only_fields(const json& obj, const std::string& ptr, std::initializer_list<const char*> allowed) {
+  for (const auto& [key, value] : obj.items()) {
+    if (std::none_of(allowed.begin(), allowed.end(), [&](const char* a) { return key == a; }))
+      throw SceneError(ptr + "/" + json_pointer_token(key), "unknown field '" + key + "'");
+  }
+}
+
+// "/parameters/m2", or dotted "parameters.m2" / "initial.q.0" (also "initial.q/0"), as a JSON pointer.
+std::string as_pointer(const std::string& path) {
+  if (!path.empty() && path[0] == '/') return path;
+  std::string ptr, token;
+  for (char c : path + ".") {
+    if (c == '.' || c == '/') {
+      ptr += "/" + json_pointer_token(token);
+      token.clear();
+    } else {
+      token += c;
+    }
+  }
+  return ptr;
+}
+
+InputDistribution parse_distribution(const json& d, const std::string& ptr) {
+  if (!d.is_object()) throw SceneError(ptr, "expected an object with a 'type', got " + describe(d));
+  const json& type = member(d, ptr, "type");
+  if (!type.is_string()) throw SceneError(ptr + "/type", "expected a string");
+  const std::string t = type.get<std::string>();
+  InputDistribution r;
+  auto bounds = [&](bool positive) {
+    r.low = finite_number(member(d, ptr, "low"), ptr + "/low");
+    r.high = finite_number(member(d, ptr, "high"), ptr + "/high");
+    if (!(r.low < r.high)) throw SceneError(ptr + "/high", "the bounds are inverted or equal: low must be below high");
+    if (positive && !(r.low > 0.0)) throw SceneError(ptr + "/low", "a log-uniform distribution needs low > 0");
+    if (!std::isfinite(r.high - r.low)) throw SceneError(ptr + "/high", "high - low overflows a double");
+  };
+  if (t == "uniform") {
+    only_fields(d, ptr, {"type", "low", "high"});
+    r.kind = InputDistribution::Kind::kUniform;
+    bounds(false);
+  } else if (t == "log-uniform") {
+    only_fields(d, ptr, {"type", "low", "high"});
+    r.kind = InputDistribution::Kind::kLogUniform;
+    bounds(true);
+  } else if (t == "normal") {
+    only_fields(d, ptr, {"type", "mean", "std", "low", "high"});
+    r.kind = InputDistribution::Kind::kNormal;
+    r.mean = finite_number(member(d, ptr, "mean"), ptr + "/mean");
+    r.stddev = finite_number(member(d, ptr, "std"), ptr + "/std");
+    if (!(r.stddev > 0.0)) throw SceneError(ptr + "/std", "the standard deviation must be positive");
+    bounds(false);
+    // Phi(b) - Phi(a) must not vanish: bounds many deviations away from the mean leave nothing to draw.
+    const boost::math::normal n(r.mean, r.stddev);
+    if (!(boost::math::cdf(n, r.high) - boost::math::cdf(n, r.low) > 1e-12))
+      throw SceneError(ptr + "/low", "the bounds hold no probability of this normal (they lie far in one tail)");
+  } else if (t == "discrete" || t == "grid") {
+    r.kind = t == "grid" ? InputDistribution::Kind::kGrid : InputDistribution::Kind::kDiscrete;
+    if (d.contains("values")) {
+      only_fields(d, ptr, {"type", "values"});
+      const json& v = d["values"];
+      if (!v.is_array() || v.empty()) throw SceneError(ptr + "/values", "expected a non-empty array of values");
+      if (v.size() > 1'000'000) throw SceneError(ptr + "/values", "more than 1000000 values");
+      for (std::size_t i = 0; i < v.size(); ++i) {
+        if (v[i].is_number()) finite_number(v[i], ptr + "/values/" + std::to_string(i));
+        r.all_numbers_ = r.all_numbers_ && v[i].is_number();
+        r.values.push_back(v[i]);
+      }
+    } else if (t == "grid") {
+      only_fields(d, ptr, {"type", "low", "high", "count"});
+      bounds(false);
+      const json& c = member(d, ptr, "count");
+      if (!c.is_number_integer() || c.get<std::int64_t>() < 2 || c.get<std::int64_t>() > 1'000'000)
+        throw SceneError(ptr + "/count", "expected a whole number of points in [2, 1000000]");
+      const auto n = c.get<std::int64_t>();
+      for (std::int64_t i = 0; i < n; ++i) r.values.push_back(r.low + (r.high - r.low) * static_cast<double>(i) / static_cast<double>(n - 1));
+    } else {
+      throw SceneError(ptr, "a discrete distribution needs 'values'");
+    }
+  } else {
+    throw SceneError(ptr + "/type", "unknown distribution '" + t + "' (uniform, normal, log-uniform, discrete, grid)");
+  }
+  return r;
+}
+
+// ---- reproducible randomness ----
+
+// SplitMix64 (Steele, Lea and Flood 2014): a bijective mixer; mixing the seed, the sample and the input
+// gives each (sample, input) its own uniform number, whatever order samples run in.
+std::uint64_t splitmix64(std::uint64_t x) {
+  x += 0x9E3779B97F4A7C15ull;
+  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
+  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
+  return x ^ (x >> 31);
+}
+// In [0, 1): the top 53 bits.
+double unit_from_bits(std::uint64_t x) { return static_cast<double>(x >> 11) * 0x1.0p-53; }
+double hashed_unit(std::uint64_t seed, std::uint64_t stream, std::uint64_t i, std::uint64_t d) {
+  return unit_from_bits(splitmix64(splitmix64(splitmix64(seed ^ stream) + i) + d));
+}
+constexpr std::uint64_t kMonteCarloStream = 0x4d43, kLatinJitterStream = 0x4c4a, kLatinPermutationStream = 0x4c50;
+
+}  // namespace
+
+json InputDistribution::at(double u) const {
+  switch (kind) {
+    case Kind::kUniform: return std::min(high, low + u * (high - low));
+    case Kind::kLogUniform: return std::clamp(std::exp(std::log(low) + u * (std::log(high) - std::log(low))), low, high);
+    case Kind::kNormal: {
+      const boost::math::normal n(mean, stddev);
+      const double pa = boost::math::cdf(n, low), pb = boost::math::cdf(n, high);
+      const double p = pa + u * (pb - pa);
+      if (!(p > 0.0)) return low;
+      if (!(p < 1.0)) return high;
+      return std::clamp(boost::math::quantile(n, p), low, high);
+    }
+    case Kind::kDiscrete:
+    case Kind::kGrid: {
+      const auto n = values.size();
+      return values[std::min(n - 1, static_cast<std::size_t>(u * static_cast<double>(n)))];
+    }
+  }
+  return nullptr;
+}
+
+CampaignSpec CampaignSpec::from_json(const json& spec, const std::string& base_dir) {
+  if (!spec.is_object()) throw SceneError("/", "a campaign spec is a JSON object");
+  only_fields(spec, "", {"name", "description", "scene", "inputs", "sampler", "seed", "samples", "target"});
+  CampaignSpec s;
+  s.document = spec;
+  s.name = spec.value("name", "campaign");
+  if (spec.contains("name") && !spec["name"].is_string()) throw SceneError("/name", "expected a string");
+  // The scene: inline, or a file relative to the spec's directory.
+  const json& scene = member(spec, "", "scene");
+  if (scene.is_string()) {
+    fs::path p = scene.get<std::string>();
+    if (p.is_relative()) p = fs::path(base_dir) / p;
+    try {
+      s.scene = read_scene_file(p.string());
+    } catch (const SceneError& e) {
+      throw SceneError("/scene", "the scene file '" + p.string() + "': " + e.what());
+    }
+    s.document["scene"] = s.scene;
+  } else if (scene.is_object()) {
+    s.scene = scene;
+  } else {
+    throw SceneError("/scene", "expected a scene (an object) or the path of a scene file");
+  }
+  // The scene itself must be valid: its errors name their field under /scene.
+  try {
+    (void)Simulation::from_json(s.scene);
+  } catch (const SceneError& e) {
+    throw SceneError("/scene" + (e.pointer() == "/" ? std::string() : e.pointer()), e.reason());
+  }
+
+  const json& inputs = member(spec, "", "inputs");
+  if (!inputs.is_array() || inputs.empty()) throw SceneError("/inputs", "expected a non-empty array of uncertain inputs");
+  if (inputs.size() > static_cast<std::size_t>(kMaxCampaignInputs))
+    throw SceneError("/inputs", "more than " + std::to_string(kMaxCampaignInputs) + " inputs");
+  std::set<std::string> seen;
+  for (std::size_t k = 0; k < inputs.size(); ++k) {
+    const std::string ptr = "/inputs/" + std::to_string(k);
+    const json& in = inputs[k];
+    if (!in.is_object()) throw SceneError(ptr, "expected an object with 'path' and 'distribution'");
+    only_fields(in, ptr, {"path", "distribution"});
+    const json& path = member(in, ptr, "path");
+    if (!path.is_string() || path.get<std::string>().empty()) throw SceneError(ptr + "/path", "expected a scene path such as /parameters/m2");
+    CampaignInput ci;
+    ci.path = as_pointer(path.get<std::string>());
+    json::json_pointer jp;
+    try {
+      jp = json::json_pointer(ci.path);
+    } catch (const json::exception&) {
+      throw SceneError(ptr + "/path", "'" + path.get<std::string>() + "' is not a valid JSON pointer");
+    }
+    if (!s.scene.contains(jp)) throw SceneError(ptr + "/path", "the scene has nothing at '" + ci.path + "'");
+    if (!seen.insert(ci.path).second) throw SceneError(ptr + "/path", "'" + ci.path + "' is already an input");
+    ci.distribution = parse_distribution(member(in, ptr, "distribution"), ptr + "/distribution");
+    s.inputs.push_back(std::move(ci));
+  }
+
+  std::string sampler = "monte-carlo";
+  if (spec.contains("sampler")) {
+    if (!spec["sampler"].is_string()) throw SceneError("/sampler", "expected a string");
+    sampler = spec["sampler"].get<std::string>();
+  }
+  if (sampler == "monte-carlo") s.sampler = Sampler::kMonteCarlo;
+  else if (sampler == "latin-hypercube") s.sampler = Sampler::kLatinHypercube;
+  else if (sampler == "sobol") s.sampler = Sampler::kSobol;
+  else if (sampler == "grid") s.sampler = Sampler::kGrid;
+  else throw SceneError("/sampler", "unknown sampler '" + sampler + "' (monte-carlo, latin-hypercube, sobol, grid)");
+
+  if (spec.contains("seed")) {
+    const json& seed = spec["seed"];
+    if (!seed.is_number_unsigned() && !(seed.is_number_integer() && seed.get<std::int64_t>() >= 0))
+      throw SceneError("/seed", "expected a whole number >= 0");
+    s.seed = spec["seed"].get<std::uint64_t>();
+  }
+
+  if (s.sampler == Sampler::kGrid) {
+    // The full grid: the product of every input's points, the last input varying fastest.
+    std::int64_t total = 1;
+    for (std::size_t k = 0; k < s.inputs.size(); ++k) {
+      const auto& d = s.inputs[k].distribution;
+      if (d.kind != InputDistribution::Kind::kGrid && d.kind != InputDistribution::Kind::kDiscrete)
+        throw SceneError("/inputs/" + std::to_string(k) + "/distribution", "the grid sampler needs a grid or discrete values for every input");
+      const auto n = static_cast<std::int64_t>(d.values.size());
+      if (n > kMaxCampaignSamples / total)
+        throw SceneError("/inputs", "the grid has more than " + std::to_string(kMaxCampaignSamples) + " points");
+      total *= n;
+    }
+    if (spec.contains("samples") && spec["samples"] != total)
+      throw SceneError("/samples", "the grid has " + std::to_string(total) + " points; leave 'samples' out or give that number");
+    s.samples = total;
+  } else {
+    const json& n = member(spec, "", "samples");
+    if (!n.is_number_integer() || n.get<std::int64_t>() < 1)
+      throw SceneError("/samples", "expected a whole number of samples >= 1, got " + describe(n));
+    s.samples = n.get<std::int64_t>();
+    if (s.samples > kMaxCampaignSamples)
+      throw SceneError("/samples", "more than the limit of " + std::to_string(kMaxCampaignSamples) + " samples");
+    if (s.sampler == Sampler::kLatinHypercube && s.samples > kMaxLatinHypercubeSamples)
+      throw SceneError("/samples", "a Latin hypercube of more than " + std::to_string(kMaxLatinHypercubeSamples) +
+                                       " samples (use sobol or monte-carlo)");
+  }
+
+  if (spec.contains("target")) {
+    const json& t = spec["target"];
+    if (!t.is_object()) throw SceneError("/target", "expected {\"q\": [...], \"tolerance\": ...}");
+    only_fields(t, "/target", {"q", "tolerance"});
+    const json& q = member(t, "/target", "q");
+    const int n = Simulation::from_json(s.scene).dof();
+    if (!q.is_array() || static_cast<int>(q.size()) != n)
+      throw SceneError("/target/q", "expected an array of " + std::to_string(n) + " numbers (the scene's coordinates)");
+    for (std::size_t i = 0; i < q.size(); ++i) s.target_q.push_back(finite_number(q[i], "/target/q/" + std::to_string(i)));
+    s.target_tolerance = finite_number(member(t, "/target", "tolerance"), "/target/tolerance");
+    if (s.target_tolerance < 0.0) throw SceneError("/target/tolerance", "expected a number >= 0");
+  }
+  return s;
+}
+
+CampaignSpec CampaignSpec::from_file(const std::string& path) {
+  const json doc = read_scene_file(path);
+  return from_json(doc, fs::path(path).parent_path().string());
+}
+
+// ---- the design ----
+
+CampaignDesign::CampaignDesign(const CampaignSpec& spec) : spec_(spec) {
+  if (spec.sampler != Sampler::kLatinHypercube) return;
+  // One permutation of the strata 0..N-1 per input (Fisher-Yates driven by SplitMix64, so the same on
+  // every platform, unlike std::shuffle): sample i lies in stratum strata_[d][i] of input d.
+  const auto n = static_cast<std::uint32_t>(spec.samples);
+  strata_.resize(spec.inputs.size());
+  for (std::size_t d = 0; d < spec.inputs.size(); ++d) {
+    auto& p = strata_[d];
+    p.resize(n);
+    std::iota(p.begin(), p.end(), 0u);
+    for (std::uint32_t i = n; i > 1; --i) {
+      const std::uint64_t r = splitmix64(splitmix64(spec.seed ^ kLatinPermutationStream) + (static_cast<std::uint64_t>(d) << 32) + i);
+      std::swap(p[i - 1], p[static_cast<std::uint32_t>(r % i)]);
+    }
+  }
+}
+
+std::vector<double> CampaignDesign::unit_point(std::int64_t i) const {
+  const std::size_t d = spec_.inputs.size();
+  std::vector<double> u(d);
+  const auto ui = static_cast<std::uint64_t>(i);
+  switch (spec_.sampler) {
+    case Sampler::kMonteCarlo:
+      for (std::size_t k = 0; k < d; ++k) u[k] = hashed_unit(spec_.seed, kMonteCarloStream, ui, k);
+      break;
+    case Sampler::kLatinHypercube:
+      for (std::size_t k = 0; k < d; ++k)
+        u[k] = (strata_[k][static_cast<std::size_t>(i)] + hashed_unit(spec_.seed, kLatinJitterStream, ui, k)) / static_cast<double>(spec_.samples);
+      break;
+    case Sampler::kSobol: {
+      // The Sobol sequence from its origin: point 0 is (0, ..., 0) and point i >= 1 is Boost's (i-1)-th
+      // (Joe and Kuo's direction numbers; Boost's engine skips the origin and seeks to a point in O(log i)).
+      // With the origin, any 2^m points from index 0 put one point in each of the 2^m strata of every
+      // input (a (0, m, 1)-net); without it they would not. The seed does not scramble the points: the
+      // same spec gives the same points.
+      if (i > 0) {
+        boost::random::sobol engine(d);
+        engine.seed(ui - 1);
+        for (std::size_t k = 0; k < d; ++k) u[k] = static_cast<double>(engine()) * 0x1.0p-64;
+      }
+      break;
+    }
+    case Sampler::kGrid: {
+      std::uint64_t rest = ui;
+      for (std::size_t k = d; k-- > 0;) {
+        const auto n = spec_.inputs[k].distribution.values.size();
+        u[k] = (static_cast<double>(rest % n) + 0.5) / static_cast<double>(n);
+        rest /= n;
+      }
+      break;
+    }
+  }
+  return u;
+}
+
+std::vector<json> CampaignDesign::values(std::int64_t i) const {
+  const std::vector<double> u = unit_point(i);
+  std::vector<json> v;
+  v.reserve(u.size());
+  for (std::size_t k = 0; k < u.size(); ++k) v.push_back(spec_.inputs[k].distribution.at(u[k]));
+  return v;
+}
+
+// ---- one sample ----
+
+namespace {
+
+// The largest |q_i| and energy over every state of the run.
+class ExtremaTracker final : public RunObserver {
+ public:
+  void on_sample(const Sample& s) override {
+    for (int i = 0; i < s.n; ++i) max_abs_q = std::max(max_abs_q, std::abs(s.q[i]));
+    max_energy = std::max(max_energy, s.kinetic_energy);
+  }
+  double max_abs_q = 0.0, max_energy = 0.0;
+};
+
+json number_or_null(double x) { return std::isfinite(x) ? json(x) : json(nullptr); }
+json numbers(const std::vector<double>& v) {
+  json a = json::array();
+  for (double x : v) a.push_back(number_or_null(x));
+  return a;
+}
+
+}  // namespace
+
+json run_campaign_sample(const CampaignSpec& spec, const CampaignDesign& design, std::int64_t i) {
+  const auto start = std::chrono::steady_clock::now();
+  json record = {{"index", i}};
+  const std::vector<json> values = design.values(i);
+  json inputs = json::object();
+  json doc = spec.scene;
+  for (std::size_t k = 0; k < values.size(); ++k) {
+    inputs[spec.inputs[k].path] = values[k];
+    doc[json::json_pointer(spec.inputs[k].path)] = values[k];
+  }
+  record["inputs"] = inputs;
+  try {
+    const Simulation sim = Simulation::from_json(doc).with_limits(RunLimits{std::nullopt, 1});
+    ExtremaTracker extrema;
+    RunDiagnostics diagnostics;
+    const RunSummary summary = sim.run(&extrema, &diagnostics);
+    const bool completed = summary.status == RunStatus::kCompleted;
+    record["status"] = to_string(summary.status);
+    record["converged"] = summary.converged_step.has_value();
+    record["converged_time"] = summary.converged_time ? json(*summary.converged_time) : json(nullptr);
+    record["final_q"] = numbers(summary.q_final);
+    record["final_v"] = numbers(summary.v_final);
+    double distance = 0.0;
+    if (!spec.target_q.empty() && summary.q_final.size() == spec.target_q.size()) {
+      for (std::size_t k = 0; k < spec.target_q.size(); ++k) distance += std::pow(summary.q_final[k] - spec.target_q[k], 2);
+      distance = std::sqrt(distance);
+      record["target_distance"] = number_or_null(distance);
+    } else {
+      record["target_distance"] = nullptr;
+    }
+    record["max_abs_q"] = number_or_null(extrema.max_abs_q);
+    record["max_energy"] = number_or_null(extrema.max_energy);
+    record["steps"] = summary.steps;
+    const std::string failure = completed ? sim.guarantees(summary).relied_on_failure() : std::string();
+    record["hypothesis_failed"] = failure.empty() ? json(nullptr) : json(failure);
+    record["success"] = completed && summary.converged_step.has_value() &&
+                        (spec.target_q.empty() || (std::isfinite(distance) && distance <= spec.target_tolerance));
+    record["message"] = summary.message;
+    record["error"] = nullptr;
+    record["report"] = sim.report_json(summary, diagnostics);
+  } catch (const SceneError& e) {
+    record["status"] = "invalid";
+    record["success"] = false;
+    record["error"] = {{"pointer", e.pointer()}, {"reason", e.reason()}};
+  }
+  record["wall_seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return record;
+}
+
+// ---- statistics ----
+
+WilsonInterval wilson_interval(std::int64_t successes, std::int64_t n, double z) {
+  if (n <= 0) return {0.0, 1.0};
+  const double nn = static_cast<double>(n), p = static_cast<double>(successes) / nn, z2 = z * z;
+  const double denom = 1.0 + z2 / nn;
+  const double center = (p + z2 / (2.0 * nn)) / denom;
+  const double half = z / denom * std::sqrt(p * (1.0 - p) / nn + z2 / (4.0 * nn * nn));
+  return {std::max(0.0, center - half), std::min(1.0, center + half)};
+}
+
+double quantile_sorted(const std::vector<double>& sorted, double q) {
+  if (sorted.empty()) return std::nan("");
+  const double h = (static_cast<double>(sorted.size()) - 1.0) * q;
+  const auto lo = static_cast<std::size_t>(std::floor(h));
+  const std::size_t hi = std::min(sorted.size() - 1, lo + 1);
+  return sorted[lo] + (h - static_cast<double>(lo)) * (sorted[hi] - sorted[lo]);
+}
+
+namespace {
+std::vector<double> ranks(const std::vector<double>& x) {
+  std::vector<std::size_t> order(x.size());
+  std::iota(order.begin(), order.end(), std::size_t{0});
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return x[a] < x[b]; });
+  std::vector<double> r(x.size());
+  for (std::size_t i = 0; i < order.size();) {
+    std::size_t j = i;
+    while (j + 1 < order.size() && x[order[j + 1]] == x[order[i]]) ++j;
+    const double average = (static_cast<double>(i) + static_cast<double>(j)) / 2.0 + 1.0;  // ranks from 1
+    for (std::size_t k = i; k <= j; ++k) r[order[k]] = average;
+    i = j + 1;
+  }
+  return r;
+}
+}  // namespace
+
+std::optional<double> spearman(const std::vector<double>& x, const std::vector<double>& y) {
+  if (x.size() != y.size() || x.size() < 3) return std::nullopt;
+  const std::vector<double> rx = ranks(x), ry = ranks(y);
+  const double n = static_cast<double>(x.size());
+  const double mx = std::accumulate(rx.begin(), rx.end(), 0.0) / n, my = std::accumulate(ry.begin(), ry.end(), 0.0) / n;
+  double sxy = 0, sxx = 0, syy = 0;
+  for (std::size_t i = 0; i < rx.size(); ++i) {
+    sxy += (rx[i] - mx) * (ry[i] - my);
+    sxx += (rx[i] - mx) * (rx[i] - mx);
+    syy += (ry[i] - my) * (ry[i] - my);
+  }
+  if (!(sxx > 0.0) || !(syy > 0.0)) return std::nullopt;
+  return sxy / std::sqrt(sxx * syy);
+}
+
+// ---- the summary ----
+
+namespace {
+constexpr double kQuantiles[] = {0.05, 0.25, 0.5, 0.75, 0.95};
+
+json quantiles_of(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  json q = {{"count", v.size()}};
+  if (v.empty()) return q;
+  q["min"] = v.front();
+  q["max"] = v.back();
+  for (double p : kQuantiles) {
+    char key[8];
+    std::snprintf(key, sizeof key, "p%02d", static_cast<int>(std::lround(p * 100)));
+    q[key] = quantile_sorted(v, p);
+  }
+  return q;
+}
+
+double as_number(const json& j) { return j.is_number() ? j.get<double>() : std::nan(""); }
+}  // namespace
+
+namespace {
+
+// What the summary needs of one record: a few numbers, so that a million samples take tens of megabytes
+// (the records themselves stay on disk).
+struct SampleRow {
+  std::int64_t index;
+  int failure_class;  // 3 invalid, 2 failed run, 1 did not succeed, 0 succeeded
+  bool success, converged, hypothesis_failed;
+  double converged_time, target_distance, max_abs_q;  // NaN: none
+  std::vector<double> inputs;                         // NaN: not a number
+};
+
+SampleRow row_of(const CampaignSpec& spec, const json& r) {
+  SampleRow row;
+  row.index = r["index"].get<std::int64_t>();
+  const std::string status = r.value("status", "");
+  row.success = r.value("success", false);
+  row.converged = r.value("converged", false);
+  row.failure_class = status == "invalid" ? 3 : status == "failed" ? 2 : !row.success ? 1 : 0;
+  row.hypothesis_failed = r.contains("hypothesis_failed") && r["hypothesis_failed"].is_string();
+  auto number = [&](const char* key) { return r.contains(key) ? as_number(r[key]) : std::nan(""); };
+  row.converged_time = row.converged ? number("converged_time") : std::nan("");
+  row.target_distance = number("target_distance");
+  row.max_abs_q = number("max_abs_q");
+  const json& inputs = r.contains("inputs") ? r["inputs"] : json::object();
+  for (const auto& in : spec.inputs) row.inputs.push_back(inputs.contains(in.path) ? as_number(inputs[in.path]) : std::nan(""));
+  return row;
+}
+
+json summarize_rows(const CampaignSpec& spec, const std::vector<SampleRow>& rows) {
+  const auto n = static_cast<std::int64_t>(rows.size());
+  std::int64_t successes = 0, converged = 0, invalid = 0, failed = 0, hypothesis = 0;
+  std::vector<double> conv_times, errors;
+  for (const SampleRow& r : rows) {
+    successes += r.success;
+    converged += r.converged;
+    invalid += r.failure_class == 3;
+    failed += r.failure_class == 2;
+    hypothesis += r.hypothesis_failed;
+    if (std::isfinite(r.converged_time)) conv_times.push_back(r.converged_time);
+    if (std::isfinite(r.target_distance)) errors.push_back(r.target_distance);
+  }
+  const WilsonInterval w = wilson_interval(successes, n);
+  json s = {{"name", spec.name},
+            {"samples", n},
+            {"successes", successes},
+            {"success_rate", n ? static_cast<double>(successes) / static_cast<double>(n) : 0.0},
+            {"success_rate_95", {{"method", "Wilson score interval"}, {"low", w.low}, {"high", w.high}}},
+            {"converged", converged},
+            {"failed_runs", failed},
+            {"invalid_samples", invalid},
+            {"hypothesis_failed", hypothesis},
+            {"success_means", spec.target_q.empty() ? "converged (v == 0.0 exactly for the report's window, to the end, at an equilibrium)"
+                                                    : "converged, with the final q within the target's tolerance"},
+            {"convergence_time", quantiles_of(conv_times)},
+            {"target_distance", quantiles_of(errors)}};
+
+  // The worst samples: failures first (invalid, failed run, did not succeed), then the largest distance
+  // to the target, then the latest convergence; ties by index.
+  std::vector<std::size_t> order(rows.size());
+  std::iota(order.begin(), order.end(), std::size_t{0});
+  auto badness = [&](const SampleRow& r) {
+    return std::make_tuple(r.failure_class, std::isfinite(r.target_distance) ? r.target_distance : 0.0,
+                           std::isfinite(r.converged_time) ? r.converged_time : 0.0);
+  };
+  const std::size_t worst_count = std::min<std::size_t>(10, rows.size());
+  std::partial_sort(order.begin(), order.begin() + static_cast<std::ptrdiff_t>(worst_count), order.end(), [&](std::size_t a, std::size_t b) {
+    const auto ba = badness(rows[a]), bb = badness(rows[b]);
+    return ba != bb ? ba > bb : rows[a].index < rows[b].index;
+  });
+  json worst = json::array();
+  for (std::size_t k = 0; k < worst_count; ++k) {
+    const SampleRow& r = rows[order[k]];
+    json inputs = json::object();
+    for (std::size_t d = 0; d < spec.inputs.size(); ++d) inputs[spec.inputs[d].path] = number_or_null(r.inputs[d]);
+    worst.push_back({{"index", r.index},
+                     {"inputs", inputs},
+                     {"success", r.success},
+                     {"outcome", r.failure_class == 3 ? "invalid" : r.failure_class == 2 ? "failed run" : r.success ? "succeeded" : "did not succeed"},
+                     {"converged_time", number_or_null(r.converged_time)},
+                     {"target_distance", number_or_null(r.target_distance)}});
+  }
+  s["worst"] = worst;
+
+  // First-order sensitivity: Spearman's rank correlation of each outcome with each numeric input, over
+  // the samples where both are numbers.
+  json sens = json::array();
+  const std::vector<std::pair<const char*, double (*)(const SampleRow&)>> outcomes = {
+      {"success", [](const SampleRow& r) { return r.success ? 1.0 : 0.0; }},
+      {"converged_time", [](const SampleRow& r) { return r.converged_time; }},
+      {"target_distance", [](const SampleRow& r) { return r.target_distance; }},
+      {"max_abs_q", [](const SampleRow& r) { return r.max_abs_q; }}};
+  for (std::size_t d = 0; d < spec.inputs.size(); ++d) {
+    if (!spec.inputs[d].distribution.numeric()) continue;
+    json row = {{"input", spec.inputs[d].path}};
+    for (const auto& [name, get] : outcomes) {
+      std::vector<double> x, y;
+      for (const SampleRow& r : rows) {
+        const double xi = r.inputs[d], yi = get(r);
+        if (std::isfinite(xi) && std::isfinite(yi)) {
+          x.push_back(xi);
+          y.push_back(yi);
+        }
+      }
+      const auto rho = spearman(x, y);
+      row[name] = rho ? json(*rho) : json(nullptr);
+    }
+    sens.push_back(row);
+  }
+  s["sensitivity"] = {{"method", "Spearman rank correlation of each outcome with each input (null: constant or fewer than 3 samples)"},
+                      {"inputs", sens}};
+  return s;
+}
+
+}  // namespace
+
+json summarize_campaign(const CampaignSpec& spec, const std::vector<json>& records) {
+  std::vector<SampleRow> rows;
+  rows.reserve(records.size());
+  for (const json& r : records) rows.push_back(row_of(spec, r));
+  std::sort(rows.begin(), rows.end(), [](const SampleRow& a, const SampleRow& b) { return a.index < b.index; });
+  return summarize_rows(spec, rows);
+}
+
+std::string format_campaign_summary(const json& s) {
+  std::ostringstream o;
+  char line[256];
+  const std::int64_t n = s["samples"], k = s["successes"];
+  std::snprintf(line, sizeof line, "%s: %lld of %lld samples succeeded (%.2f%%; 95%% Wilson interval [%.2f%%, %.2f%%])\n",
+                s["name"].get<std::string>().c_str(), static_cast<long long>(k), static_cast<long long>(n),
+                100.0 * s["success_rate"].get<double>(), 100.0 * s["success_rate_95"]["low"].get<double>(),
+                100.0 * s["success_rate_95"]["high"].get<double>());
+  o << line << "  success means " << s["success_means"].get<std::string>() << "\n";
+  std::snprintf(line, sizeof line, "  converged %lld, failed runs %lld, invalid samples %lld, a hypothesis failed in %lld\n",
+                static_cast<long long>(s["converged"].get<std::int64_t>()), static_cast<long long>(s["failed_runs"].get<std::int64_t>()),
+                static_cast<long long>(s["invalid_samples"].get<std::int64_t>()), static_cast<long long>(s["hypothesis_failed"].get<std::int64_t>()));
+  o << line;
+  for (const char* key : {"convergence_time", "target_distance"}) {
+    const json& q = s[key];
+    if (q["count"] == 0) continue;
+    std::snprintf(line, sizeof line, "  %-16s min %.4g  p05 %.4g  p25 %.4g  median %.4g  p75 %.4g  p95 %.4g  max %.4g (%lld samples)\n", key,
+                  q["min"].get<double>(), q["p05"].get<double>(), q["p25"].get<double>(), q["p50"].get<double>(), q["p75"].get<double>(),
+                  q["p95"].get<double>(), q["max"].get<double>(), static_cast<long long>(q["count"].get<std::int64_t>()));
+    o << line;
+  }
+  o << "  rank correlation (Spearman) with success / convergence time / target distance / max |q|:\n";
+  for (const json& r : s["sensitivity"]["inputs"]) {
+    o << "    " << r["input"].get<std::string>() << ":";
+    for (const char* key : {"success", "converged_time", "target_distance", "max_abs_q"}) {
+      if (r[key].is_number()) {
+        std::snprintf(line, sizeof line, " %+.3f", r[key].get<double>());
+        o << line;
+      } else {
+        o << " -";
+      }
+    }
+    o << "\n";
+  }
+  o << "  worst samples:";
+  for (const json& w : s["worst"]) o << " " << w["index"].get<std::int64_t>() << (w["success"].get<bool>() ? "" : "*");
+  o << " (* did not succeed)\n";
+  return o.str();
+}
+
+// ---- the campaign directory ----
+
+namespace {
+
+constexpr std::size_t kMaxRecordLine = std::size_t{64} << 20;
+
+// Calls `each` with every record of samples.jsonl, read one bounded line at a time (a million records
+// never sit in memory together). A last line without its newline (a run killed while writing it) is cut
+// off the file when `repair` (so that the next record starts a line of its own), else an error.
+template <class Each>
+void for_each_record(const fs::path& file, bool repair, Each each) {
+  if (!fs::exists(file)) return;
+  std::uintmax_t good_end = 0;
+  bool partial = false;
+  {
+    std::ifstream in(file, std::ios::binary);
+    if (!in) throw std::runtime_error("cannot read '" + file.string() + "'");
+    std::string line;
+    for (std::size_t line_no = 1;; ++line_no) {
+      const std::string where = "'" + file.string() + "' line " + std::to_string(line_no);
+      if (!read_line(in, line, kMaxRecordLine, where, "64 MiB")) break;
+      if (in.eof()) {  // the input ended before this line's '\n'
+        if (!repair) throw std::runtime_error(where + " is cut short (a task killed while writing it?)");
+        partial = true;
+        break;
+      }
+      json r;
+      try {
+        r = json::parse(line);
+      } catch (const json::exception&) {
+        throw std::runtime_error(where + " is not a sample record (not JSON)");
+      }
+      if (!r.is_object() || !r.contains("index") || !r["index"].is_number_integer()) throw std::runtime_error(where + " is not a sample record (no index)");
+      good_end += line.size() + 1;
+      each(std::move(r));
+    }
+  }
+  if (partial) fs::resize_file(file, good_end);
+}
+
+std::string csv_cell(const json& j) {
+  if (j.is_null()) return "";
+  if (j.is_string()) {
+    std::string s = j.get<std::string>(), out = "\"";
+    for (char c : s) out += c == '"' ? std::string("\"\"") : std::string(1, c == '\n' ? ' ' : c);
+    return out + "\"";
+  }
+  if (j.is_boolean()) return j.get<bool>() ? "1" : "0";
+  return j.dump();
+}
+
+std::string csv_header(const CampaignSpec& spec, int dof) {
+  std::string h = "index";
+  for (const auto& in : spec.inputs) h += "," + csv_cell(in.path);
+  h += ",status,success,converged,converged_time,target_distance,max_abs_q,max_energy,steps,wall_seconds,hypothesis_failed,error";
+  for (int i = 0; i < dof; ++i) h += ",final_q" + std::to_string(i + 1);
+  return h + "\n";
+}
+
+std::string csv_row(const CampaignSpec& spec, const json& r, int dof) {
+  std::string row = std::to_string(r["index"].get<std::int64_t>());
+  for (const auto& in : spec.inputs) row += "," + csv_cell(r["inputs"][in.path]);
+  for (const char* key : {"status", "success", "converged", "converged_time", "target_distance", "max_abs_q", "max_energy", "steps", "wall_seconds",
+                          "hypothesis_failed"})
+    row += "," + (r.contains(key) ? csv_cell(r[key]) : std::string());
+  row += "," + (r.contains("error") && r["error"].is_object()
+                    ? csv_cell(json(r["error"]["pointer"].get<std::string>() + ": " + r["error"]["reason"].get<std::string>()))
+                    : std::string());
+  for (int i = 0; i < dof; ++i)
+    row += "," + (r.contains("final_q") && static_cast<int>(r["final_q"].size()) > i ? csv_cell(r["final_q"][i]) : std::string());
+  return row + "\n";
+}
+
+// campaign.json: the spec as given (scene inlined). A directory with another campaign's spec is refused.
+void claim_directory(const CampaignSpec& spec, const fs::path& dir) {
+  fs::create_directories(dir);
+  const fs::path file = dir / "campaign.json";
+  if (fs::exists(file)) {
+    json held;
+    try {
+      held = read_scene_file(file.string());
+    } catch (const std::exception& e) {
+      throw std::runtime_error("'" + file.string() + "' is not a campaign spec: " + e.what());
+    }
+    if (held != spec.document)
+      throw std::runtime_error("'" + dir.string() + "' holds a different campaign (its campaign.json differs from this spec): use another directory");
+    return;
+  }
+  const fs::path tmp = dir / "campaign.json.tmp";
+  std::ofstream(tmp) << spec.document.dump(2) << "\n";
+  fs::rename(tmp, file);
+}
+
+void write_summary(const fs::path& dir, const json& summary) {
+  for (const auto& [name, text] : {std::pair<const char*, std::string>{"summary.json", summary.dump(2) + "\n"},
+                                   std::pair<const char*, std::string>{"summary.txt", format_campaign_summary(summary)}}) {
+    const fs::path tmp = dir / (std::string(name) + ".tmp");
+    std::ofstream out(tmp, std::ios::trunc);
+    out << text;
+    out.close();
+    if (!out) throw std::runtime_error("cannot write '" + tmp.string() + "'");
+    fs::rename(tmp, dir / name);
+  }
+}
+
+}  // namespace
+
+namespace {
+
+// Every record of the directory, each index once and inside the campaign, as summary rows; the CSV
+// rewritten from them when `csv` is given. `missing` gets the indices not present.
+std::vector<SampleRow> load_rows(const CampaignSpec& spec, const fs::path& dir, bool repair, std::vector<bool>& present, std::ofstream* csv, int dof) {
+  const fs::path jsonl = dir / "samples.jsonl";
+  present.assign(static_cast<std::size_t>(spec.samples), false);
+  std::vector<SampleRow> rows;
+  for_each_record(jsonl, repair, [&](json&& r) {
+    const auto i = r["index"].get<std::int64_t>();
+    if (i < 0 || i >= spec.samples)
+      throw std::runtime_error("'" + jsonl.string() + "' holds sample " + std::to_string(i) + ", outside the campaign's " +
+                               std::to_string(spec.samples) + " samples");
+    if (present[static_cast<std::size_t>(i)]) throw std::runtime_error("'" + jsonl.string() + "' holds sample " + std::to_string(i) + " twice");
+    present[static_cast<std::size_t>(i)] = true;
+    if (csv) *csv << csv_row(spec, r, dof);
+    rows.push_back(row_of(spec, r));
+  });
+  return rows;
+}
+
+json summarize_and_write(const CampaignSpec& spec, const fs::path& dir, std::vector<SampleRow>& rows) {
+  std::sort(rows.begin(), rows.end(), [](const SampleRow& a, const SampleRow& b) { return a.index < b.index; });
+  json summary = summarize_rows(spec, rows);
+  write_summary(dir, summary);
+  return summary;
+}
+
+}  // namespace
+
+CampaignRunResult run_campaign(const CampaignSpec& spec, const std::string& dir_name, const CampaignRunOptions& options) {
+  const fs::path dir = dir_name;
+  claim_directory(spec, dir);
+  const int dof = Simulation::from_json(spec.scene).dof();
+  const fs::path jsonl = dir / "samples.jsonl", csv = dir / "samples.csv";
+  std::vector<bool> done;
+  // The table is rewritten from the records: it may have been cut at another point than they were.
+  std::vector<SampleRow> rows;
+  {
+    std::ofstream table(csv, std::ios::trunc);
+    table << csv_header(spec, dof);
+    rows = load_rows(spec, dir, /*repair=*/true, done, &table, dof);
+    if (!table) throw std::runtime_error("cannot write '" + csv.string() + "'");
+  }
+  std::ofstream out_jsonl(jsonl, std::ios::app | std::ios::binary), out_csv(csv, std::ios::app);
+  if (!out_jsonl || !out_csv) throw std::runtime_error("cannot write to '" + dir.string() + "'");
+
+  const std::int64_t begin = std::clamp<std::int64_t>(options.begin, 0, spec.samples);
+  const std::int64_t end = options.end < 0 ? spec.samples : std::clamp<std::int64_t>(options.end, begin, spec.samples);
+  CampaignRunResult result;
+  for (std::int64_t i = begin; i < end; ++i) result.skipped += done[static_cast<std::size_t>(i)];
+
+  const CampaignDesign design(spec);
+  std::atomic<std::int64_t> next{begin};
+  std::mutex write_mu;
+  std::exception_ptr error;
+  std::int64_t finished = result.skipped;
+  auto worker = [&] {
+    while (!(options.stop && options.stop->load())) {
+      std::int64_t i = next.fetch_add(1);
+      while (i < end && done[static_cast<std::size_t>(i)]) i = next.fetch_add(1);  // done[] of a skipped sample never changes
+      if (i >= end) return;
+      json r = run_campaign_sample(spec, design, i);
+      const std::string line = r.dump() + '\n', row = csv_row(spec, r, dof);
+      SampleRow summary_row = row_of(spec, r);
+      std::lock_guard lock(write_mu);
+      if (error) return;
+      // The record, then its row: the records are the truth (the table is rebuilt from them).
+      out_jsonl << line;
+      out_jsonl.flush();
+      out_csv << row;
+      out_csv.flush();
+      if (!out_jsonl || !out_csv) {
+        error = std::make_exception_ptr(std::runtime_error("writing to '" + dir.string() + "' failed (disk full?)"));
+        return;
+      }
+      rows.push_back(std::move(summary_row));
+      ++result.ran;
+      if (options.progress) options.progress(++finished, end - begin);
+    }
+  };
+  const std::int64_t todo = (end - begin) - result.skipped;
+  const int workers = static_cast<int>(std::clamp<std::int64_t>(options.workers, 1, std::max<std::int64_t>(1, todo)));
+  std::vector<std::thread> threads;
+  for (int t = 1; t < workers; ++t) threads.emplace_back(worker);
+  worker();
+  for (auto& t : threads) t.join();
+  if (error) std::rethrow_exception(error);
+  result.stopped = result.ran + result.skipped < end - begin;
+  if (static_cast<std::int64_t>(rows.size()) == spec.samples) {
+    summarize_and_write(spec, dir, rows);
+    result.summarized = true;
+  }
+  return result;
+}
+
+json collect_campaign(const std::string& dir_name) {
+  const fs::path dir = dir_name;
+  const fs::path spec_file = dir / "campaign.json";
+  if (!fs::exists(spec_file)) throw std::runtime_error("'" + dir.string() + "' holds no campaign.json: not a campaign directory");
+  const CampaignSpec spec = CampaignSpec::from_json(read_scene_file(spec_file.string()), dir.string());
+  std::vector<bool> present;
+  std::vector<SampleRow> rows = load_rows(spec, dir, /*repair=*/false, present, nullptr, 0);
+  std::int64_t missing = 0, first_missing = -1;
+  for (std::int64_t i = 0; i < spec.samples; ++i)
+    if (!present[static_cast<std::size_t>(i)] && missing++ == 0) first_missing = i;
+  if (missing)
+    throw std::runtime_error(std::to_string(missing) + " of " + std::to_string(spec.samples) + " samples are missing (the first: " +
+                             std::to_string(first_missing) + "): run the campaign again on the same directory to finish it");
+  return summarize_and_write(spec, dir, rows);
+}
+
+}  // namespace moreau::scene

@@ -1,0 +1,352 @@
+// Robustness campaigns (scene/include/moreau/scene/campaign.h): the samplers against their defining
+// properties (Sobol's known first points and stratification, one Latin-hypercube point per stratum,
+// order-independent Monte Carlo), the distributions' inverse CDFs against closed forms, the statistics
+// against hand-computed values, the spec's errors, and the campaign directory: the same records however
+// the samples are split, a stop and a killed write resumed without loss or duplicates.
+#include "moreau/scene/campaign.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <set>
+
+#include "moreau/scene/scene.h"
+#include "support/scratch_dir.h"
+
+namespace moreau::scene {
+namespace {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+using ::testing::HasSubstr;
+
+std::string source_path(const std::string& rel) { return std::string(MOREAU_SOURCE_DIR) + "/" + rel; }
+
+// The forced relay (scenes/forced-relay.json, 1-DOF, rests at t* = m v0 / (a - f)) with uncertain f
+// and v0: cheap samples, an outcome that depends on them in a known way.
+json relay_spec(const std::string& sampler, std::int64_t samples) {
+  json scene = read_scene_file(source_path("scenes/forced-relay.json"));
+  scene["integrator"]["t_end"] = 1.0;
+  scene.erase("exact");
+  return {{"name", "relay"},
+          {"scene", scene},
+          {"inputs",
+           {{{"path", "/parameters/f"}, {"distribution", {{"type", "uniform"}, {"low", 0.0}, {"high", 1.0}}}},
+            {{"path", "parameters.v0"}, {"distribution", {{"type", "log-uniform"}, {"low", 0.1}, {"high", 2.0}}}}}},
+          {"sampler", sampler},
+          {"samples", samples},
+          {"seed", 7}};
+}
+
+fs::path fresh_dir(const std::string& name) {
+  const fs::path d = fs::path(moreau::test_support::scratch_dir()) / name;
+  fs::remove_all(d);
+  return d;
+}
+
+// ---- samplers ----
+
+TEST(CampaignSampler, SobolGivesTheKnownFirstPointsAndStratifiesEveryInput) {
+  json spec = relay_spec("sobol", 64);
+  const CampaignSpec s = CampaignSpec::from_json(spec, "");
+  const CampaignDesign design(s);
+  // The 2-D Sobol sequence from its origin (Bratley and Fox's Gray-code order).
+  const double expected[][2] = {{0.0, 0.0}, {0.5, 0.5}, {0.75, 0.25}, {0.25, 0.75}, {0.375, 0.375}, {0.875, 0.875}};
+  for (int i = 0; i < 6; ++i) {
+    const auto u = design.unit_point(i);
+    EXPECT_EQ(u[0], expected[i][0]) << i;
+    EXPECT_EQ(u[1], expected[i][1]) << i;
+  }
+  // Any 2^m consecutive points from index 0: each input's interval [0, 1) cut in 2^m equal strata holds
+  // one point each (every Sobol coordinate is a (0, m, 1)-net).
+  for (int m = 1; m <= 6; ++m) {
+    const int n = 1 << m;
+    for (int d = 0; d < 2; ++d) {
+      std::set<int> strata;
+      for (int i = 0; i < n; ++i) strata.insert(static_cast<int>(design.unit_point(i)[d] * n));
+      EXPECT_EQ(static_cast<int>(strata.size()), n) << "m = " << m << ", input " << d;
+    }
+  }
+}
+
+TEST(CampaignSampler, LatinHypercubePutsOnePointInEachStratumOfEveryInput) {
+  const CampaignSpec s = CampaignSpec::from_json(relay_spec("latin-hypercube", 500), "");
+  const CampaignDesign design(s);
+  for (int d = 0; d < 2; ++d) {
+    std::set<int> strata;
+    for (int i = 0; i < 500; ++i) {
+      const double u = design.unit_point(i)[d];
+      ASSERT_GE(u, 0.0);
+      ASSERT_LT(u, 1.0);
+      strata.insert(static_cast<int>(u * 500));
+    }
+    EXPECT_EQ(strata.size(), 500u) << "input " << d;
+  }
+  // Another seed, another design.
+  json other = relay_spec("latin-hypercube", 500);
+  other["seed"] = 8;
+  const CampaignSpec s2 = CampaignSpec::from_json(other, "");
+  EXPECT_NE(CampaignDesign(s2).unit_point(0), design.unit_point(0));
+}
+
+TEST(CampaignSampler, MonteCarloDependsOnlyOnTheSeedAndTheIndex) {
+  const CampaignSpec s = CampaignSpec::from_json(relay_spec("monte-carlo", 20000), "");
+  const CampaignDesign a(s), b(s);
+  // Any order, any design object: the same point.
+  EXPECT_EQ(a.unit_point(12345), b.unit_point(12345));
+  EXPECT_EQ(a.unit_point(7), b.unit_point(7));
+  EXPECT_NE(a.unit_point(7), a.unit_point(8));
+  // Uniform on [0, 1): the mean of 20000 draws is 1/2 within 5 standard errors (1/sqrt(12 n)), and the
+  // two inputs are uncorrelated within 5 standard errors (1/sqrt(n)).
+  double m0 = 0, m1 = 0, c = 0;
+  const int n = 20000;
+  for (int i = 0; i < n; ++i) {
+    const auto u = a.unit_point(i);
+    m0 += u[0];
+    m1 += u[1];
+    c += (u[0] - 0.5) * (u[1] - 0.5);
+  }
+  EXPECT_NEAR(m0 / n, 0.5, 5.0 / std::sqrt(12.0 * n));
+  EXPECT_NEAR(m1 / n, 0.5, 5.0 / std::sqrt(12.0 * n));
+  EXPECT_NEAR(12.0 * c / n, 0.0, 5.0 / std::sqrt(n));
+}
+
+TEST(CampaignSampler, GridIsTheProductWithTheLastInputFastest) {
+  json spec = relay_spec("grid", 0);
+  spec.erase("samples");
+  spec["inputs"][0]["distribution"] = {{"type", "grid"}, {"low", 0.0}, {"high", 1.0}, {"count", 3}};
+  spec["inputs"][1]["distribution"] = {{"type", "discrete"}, {"values", {0.5, 1.5}}};
+  const CampaignSpec s = CampaignSpec::from_json(spec, "");
+  ASSERT_EQ(s.samples, 6);
+  const CampaignDesign d(s);
+  const double f[] = {0.0, 0.0, 0.5, 0.5, 1.0, 1.0}, v[] = {0.5, 1.5, 0.5, 1.5, 0.5, 1.5};
+  for (int i = 0; i < 6; ++i) {
+    const auto x = d.values(i);
+    EXPECT_EQ(x[0].get<double>(), f[i]) << i;
+    EXPECT_EQ(x[1].get<double>(), v[i]) << i;
+  }
+  spec["samples"] = 7;
+  EXPECT_THROW(CampaignSpec::from_json(spec, ""), SceneError);
+}
+
+// ---- distributions ----
+
+TEST(CampaignDistribution, InverseCdfsAgreeWithClosedForms) {
+  InputDistribution u;
+  u.kind = InputDistribution::Kind::kUniform;
+  u.low = -2;
+  u.high = 6;
+  EXPECT_EQ(u.at(0.25).get<double>(), 0.0);
+  InputDistribution lu;
+  lu.kind = InputDistribution::Kind::kLogUniform;
+  lu.low = 0.01;
+  lu.high = 100;
+  EXPECT_NEAR(lu.at(0.5).get<double>(), 1.0, 1e-12);   // the geometric mean
+  EXPECT_NEAR(lu.at(0.75).get<double>(), 10.0, 1e-12);
+  InputDistribution n;
+  n.kind = InputDistribution::Kind::kNormal;
+  n.mean = 3;
+  n.stddev = 0.5;
+  n.low = 2;
+  n.high = 4;
+  EXPECT_NEAR(n.at(0.5).get<double>(), 3.0, 1e-12);  // symmetric bounds: the median is the mean
+  // Truncated at mean +- 2 sigma: Phi(2) = 0.97724986805182079; u = 1 maps to the upper bound, and the
+  // quantile of u = (0.84134474606854293 - Phi(-2)) / (Phi(2) - Phi(-2)) is mean + sigma.
+  const double phi2 = 0.97724986805182079, phi1 = 0.84134474606854293;
+  EXPECT_NEAR(n.at((phi1 - (1 - phi2)) / (2 * phi2 - 1)).get<double>(), 3.5, 1e-9);
+  EXPECT_LE(n.at(0.999999999).get<double>(), 4.0);
+  EXPECT_GE(n.at(0.0).get<double>(), 2.0);
+}
+
+// ---- statistics ----
+
+TEST(CampaignStatistics, WilsonQuantilesAndSpearmanAgainstHandComputedValues) {
+  // k = n: the interval is [n / (n + z^2), 1]; k = 0: [0, z^2 / (n + z^2)].
+  const double z = 1.959963984540054;
+  EXPECT_NEAR(wilson_interval(256, 256).low, 256 / (256 + z * z), 1e-15);
+  EXPECT_DOUBLE_EQ(wilson_interval(256, 256).high, 1.0);
+  EXPECT_NEAR(wilson_interval(0, 10).high, z * z / (10 + z * z), 1e-15);
+  // 8 of 10: (p + z^2/2n)/(1 + z^2/n) -+ z/(1 + z^2/n) sqrt(p(1-p)/n + z^2/4n^2) = 0.49016 .. 0.94332.
+  EXPECT_NEAR(wilson_interval(8, 10).low, 0.4901624, 1e-6);
+  EXPECT_NEAR(wilson_interval(8, 10).high, 0.9433178, 1e-6);
+  // Type 7 quantiles (numpy's default): [1, 2, 3, 4] -> median 2.5, first quartile 1.75.
+  EXPECT_DOUBLE_EQ(quantile_sorted({1, 2, 3, 4}, 0.5), 2.5);
+  EXPECT_DOUBLE_EQ(quantile_sorted({1, 2, 3, 4}, 0.25), 1.75);
+  EXPECT_DOUBLE_EQ(quantile_sorted({1, 2, 3, 4}, 1.0), 4.0);
+  // Spearman: 1 - 6 sum d^2 / (n (n^2 - 1)) without ties; any monotone map gives +-1; ties take the
+  // average rank (x = 1, 2, 2, 3 has ranks 1, 2.5, 2.5, 4).
+  EXPECT_NEAR(*spearman({1, 2, 3, 4, 5}, {2, 1, 4, 3, 5}), 0.8, 1e-15);
+  EXPECT_NEAR(*spearman({1, 2, 3, 4, 5}, {1, 8, 27, 64, 125}), 1.0, 1e-15);
+  EXPECT_NEAR(*spearman({1, 2, 3, 4, 5}, {5, 4, 3, 2, 1}), -1.0, 1e-15);
+  // Ties: Pearson of ranks (1, 2.5, 2.5, 4) and (1, 2, 3, 4) = 4.5 / sqrt(4.5 * 5) = 0.9486833.
+  EXPECT_NEAR(*spearman({1, 2, 2, 3}, {1, 2, 3, 4}), 4.5 / std::sqrt(4.5 * 5.0), 1e-15);
+  EXPECT_FALSE(spearman({1, 1, 1}, {1, 2, 3}).has_value());
+}
+
+// ---- the spec's errors ----
+
+TEST(CampaignSpec, EveryBadFieldIsNamed) {
+  struct Case {
+    const char* what;
+    std::function<void(json&)> edit;
+    const char* pointer;
+    const char* reason;
+  };
+  const std::vector<Case> cases = {
+      {"unknown path", [](json& s) { s["inputs"][0]["path"] = "/parameters/nope"; }, "/inputs/0/path", "nothing at"},
+      {"inverted bounds", [](json& s) { s["inputs"][0]["distribution"]["low"] = 2.0; }, "/inputs/0/distribution/high", "inverted"},
+      {"non-finite", [](json& s) { s["inputs"][1]["distribution"]["high"] = std::numeric_limits<double>::infinity(); },
+       "/inputs/1/distribution/high", "finite"},
+      {"log of zero", [](json& s) { s["inputs"][1]["distribution"]["low"] = 0.0; }, "/inputs/1/distribution/low", "low > 0"},
+      {"zero samples", [](json& s) { s["samples"] = 0; }, "/samples", ">= 1"},
+      {"too many samples", [](json& s) { s["samples"] = kMaxCampaignSamples + 1; }, "/samples", "limit"},
+      {"unknown sampler", [](json& s) { s["sampler"] = "halton"; }, "/sampler", "unknown sampler"},
+      {"unknown distribution", [](json& s) { s["inputs"][0]["distribution"]["type"] = "beta"; }, "/inputs/0/distribution/type", "unknown"},
+      {"unknown field", [](json& s) { s["sample"] = 3; }, "/sample", "unknown field"},
+      {"duplicate input", [](json& s) { s["inputs"][1]["path"] = "/parameters/f"; }, "/inputs/1/path", "already"},
+      {"bad scene", [](json& s) { s["scene"]["integrator"]["h"] = -1; }, "/scene/integrator/h", ""},
+      {"normal without mass", [](json& s) {
+         s["inputs"][0]["distribution"] = {{"type", "normal"}, {"mean", 0}, {"std", 1e-3}, {"low", 5}, {"high", 6}};
+       }, "/inputs/0/distribution/low", "no probability"},
+      {"target size", [](json& s) { s["target"] = {{"q", {1, 2}}, {"tolerance", 0.1}}; }, "/target/q", "1 numbers"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.what);
+    json spec = relay_spec("monte-carlo", 10);
+    c.edit(spec);
+    try {
+      CampaignSpec::from_json(spec, "");
+      ADD_FAILURE() << "accepted";
+    } catch (const SceneError& e) {
+      EXPECT_EQ(e.pointer(), c.pointer) << e.what();
+      EXPECT_THAT(e.reason(), HasSubstr(c.reason));
+    }
+  }
+}
+
+// ---- the campaign directory ----
+
+std::map<std::int64_t, json> records_of(const fs::path& dir) {
+  std::map<std::int64_t, json> r;
+  std::ifstream in(dir / "samples.jsonl");
+  for (std::string line; std::getline(in, line);) {
+    json j = json::parse(line);
+    const auto i = j["index"].get<std::int64_t>();
+    EXPECT_EQ(r.count(i), 0u) << "sample " << i << " twice";
+    // What depends on the machine's clock, not on the sample.
+    j.erase("wall_seconds");
+    j["report"].erase("wall_seconds");
+    j["report"].erase("phase_seconds");
+    r[i] = j;
+  }
+  return r;
+}
+
+TEST(CampaignRun, TheSameRecordsHoweverTheSamplesAreSplit) {
+  const CampaignSpec s = CampaignSpec::from_json(relay_spec("latin-hypercube", 60), "");
+  const fs::path one = fresh_dir("split1"), two = fresh_dir("split2");
+  CampaignRunOptions all;
+  all.workers = 2;
+  const CampaignRunResult r1 = run_campaign(s, one.string(), all);
+  EXPECT_EQ(r1.ran, 60);
+  EXPECT_TRUE(r1.summarized);
+  // Three ranges, one worker, out of order.
+  for (auto [b, e] : {std::pair{40, 60}, std::pair{0, 15}, std::pair{15, 40}}) {
+    CampaignRunOptions part;
+    part.begin = b;
+    part.end = e;
+    const CampaignRunResult r = run_campaign(s, two.string(), part);
+    EXPECT_EQ(r.ran, e - b);
+  }
+  const auto a = records_of(one), b = records_of(two);
+  ASSERT_EQ(a.size(), 60u);
+  EXPECT_EQ(a, b);
+  EXPECT_EQ(read_scene_file((one / "summary.json").string()), read_scene_file((two / "summary.json").string()));
+  // The relay rests at t* = m v0 / (a - f) (m = 1.5, a = 2): success exactly when t* <= 1 - window.
+  for (const auto& [i, r] : a) {
+    const double f = r["inputs"]["/parameters/f"], v0 = r["inputs"]["/parameters/v0"];
+    const double t_stop = 1.5 * v0 / (2.0 - f);
+    if (t_stop < 0.95) {
+      EXPECT_TRUE(r["success"].get<bool>()) << i;
+      EXPECT_NEAR(r["converged_time"].get<double>(), t_stop, 2e-3) << i;
+    } else if (t_stop > 1.0) {
+      EXPECT_FALSE(r["success"].get<bool>()) << i;
+    }
+  }
+  const json summary = read_scene_file((one / "summary.json").string());
+  // The success rate's sensitivity: a larger v0 stops later, so fails more: negative rank correlation.
+  EXPECT_LT(summary["sensitivity"]["inputs"][1]["success"].get<double>(), 0.0);
+  EXPECT_GT(summary["sensitivity"]["inputs"][1]["converged_time"].get<double>(), 0.9);
+  // The CSV: a header and one row per sample.
+  std::ifstream csv(one / "samples.csv");
+  std::string header;
+  std::getline(csv, header);
+  EXPECT_THAT(header, HasSubstr("index,\"/parameters/f\",\"/parameters/v0\",status,success"));
+  std::size_t rows = 0;
+  for (std::string line; std::getline(csv, line);) ++rows;
+  EXPECT_EQ(rows, 60u);
+  fs::remove_all(one);
+  fs::remove_all(two);
+}
+
+TEST(CampaignRun, AStopAndAKilledWriteResumeWithoutLossOrDuplicates) {
+  const CampaignSpec s = CampaignSpec::from_json(relay_spec("sobol", 50), "");
+  const fs::path ref = fresh_dir("ref"), dir = fresh_dir("resume");
+  run_campaign(s, ref.string(), CampaignRunOptions{});
+  // Stopped after 12 samples (as Ctrl-C does): what finished is kept, no summary yet.
+  std::atomic<bool> stop{false};
+  CampaignRunOptions o;
+  o.stop = &stop;
+  o.progress = [&](std::int64_t done, std::int64_t) {
+    if (done == 12) stop = true;
+  };
+  const CampaignRunResult r1 = run_campaign(s, dir.string(), o);
+  EXPECT_TRUE(r1.stopped);
+  EXPECT_EQ(r1.ran, 12);
+  EXPECT_FALSE(fs::exists(dir / "summary.json"));
+  EXPECT_THROW(collect_campaign(dir.string()), std::runtime_error);
+  // A task killed while writing its 13th record: half a line at the end.
+  {
+    std::ofstream out(dir / "samples.jsonl", std::ios::app);
+    out << "{\"index\": 13, \"inputs\": {\"/param";
+  }
+  try {
+    collect_campaign(dir.string());
+    ADD_FAILURE() << "a cut record was accepted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_THAT(e.what(), HasSubstr("samples.jsonl' line 13 is cut short"));
+  }
+  const CampaignRunResult r2 = run_campaign(s, dir.string(), CampaignRunOptions{});
+  EXPECT_EQ(r2.skipped, 12);
+  EXPECT_EQ(r2.ran, 38);
+  EXPECT_TRUE(r2.summarized);
+  EXPECT_EQ(records_of(dir), records_of(ref));
+  EXPECT_EQ(collect_campaign(dir.string()), read_scene_file((ref / "summary.json").string()));
+  // Running it again computes nothing.
+  EXPECT_EQ(run_campaign(s, dir.string(), CampaignRunOptions{}).ran, 0);
+  // A duplicated record is refused by name.
+  {
+    std::ifstream in(dir / "samples.jsonl");
+    std::string first;
+    std::getline(in, first);
+    std::ofstream(dir / "samples.jsonl", std::ios::app) << first << "\n";
+  }
+  EXPECT_THROW(collect_campaign(dir.string()), std::runtime_error);
+  // A different campaign in the same directory is refused, and nothing there changes.
+  json other = relay_spec("sobol", 51);
+  try {
+    run_campaign(CampaignSpec::from_json(other, ""), dir.string(), CampaignRunOptions{});
+    ADD_FAILURE() << "another campaign was run in the directory";
+  } catch (const std::runtime_error& e) {
+    EXPECT_THAT(e.what(), HasSubstr("holds a different campaign"));
+  }
+  fs::remove_all(ref);
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace moreau::scene
