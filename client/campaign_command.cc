@@ -1,9 +1,16 @@
 // moreau campaign SPEC --out DIR [-j N] [--range BEGIN:END] : runs a robustness campaign (or its share);
 // moreau campaign --collect DIR : checks that every sample is present once and writes the summary.
 // The spec, the files and the statistics: scene/include/moreau/scene/campaign.h and docs/campaigns.md.
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <atomic>
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+#include <sstream>
+#include <tuple>
+#include <vector>
 #include <chrono>
 #include <csignal>
 #include <fstream>
@@ -20,14 +27,142 @@
 namespace moreau::cli {
 namespace {
 
+namespace fs = std::filesystem;
+
 std::atomic<bool> g_stop{false};
 extern "C" void on_interrupt(int) { g_stop.store(true); }
 
 struct CampaignOptions {
-  std::string spec_path, out_dir, collect_dir, range;
+  std::string spec_path, out_dir, collect_dir, range, task;
   int jobs = 0;
   bool quiet = false;
+  // --slurm: a job array of `tasks` tasks and a dependent collect job, with sbatch's own options passed on.
+  bool slurm = false;
+  int tasks = 16;
+  int cpus_per_task = 1;
+  std::string account, partition, time_limit;
 };
+
+// K/T: task K of T.
+std::pair<std::int64_t, std::int64_t> parse_task(const std::string& text) {
+  long long k = -1, t = 0;
+  char slash = 0;
+  std::istringstream in(text);
+  if (!(in >> k >> slash >> t) || slash != '/' || t < 1 || k < 0 || k >= t || !in.eof())
+    throw std::runtime_error("--task must be K/T with 0 <= K < T, got '" + text + "'");
+  return {k, t};
+}
+
+// The worker threads: -j, else Slurm's allocation (SLURM_CPUS_PER_TASK), else every core.
+int worker_count(int jobs) {
+  if (jobs > 0) return jobs;
+  if (const char* slurm = std::getenv("SLURM_CPUS_PER_TASK")) {
+    const int n = std::atoi(slurm);
+    if (n > 0) return n;
+  }
+  return static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+}
+
+// 'text' for a bash script.
+std::string shell_quote(const std::string& text) {
+  std::string q = "'";
+  for (char c : text) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+
+// Runs argv (no shell) and returns its exit status and standard output.
+std::pair<int, std::string> run_capture(const std::vector<std::string>& argv) {
+  int fds[2];
+  if (pipe(fds) != 0) throw std::runtime_error("pipe failed");
+  const pid_t pid = fork();
+  if (pid < 0) throw std::runtime_error("fork failed");
+  if (pid == 0) {
+    dup2(fds[1], 1);
+    close(fds[0]);
+    close(fds[1]);
+    std::vector<char*> args;
+    for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+    args.push_back(nullptr);
+    execvp(args[0], args.data());
+    std::fprintf(stderr, "moreau campaign: cannot run %s: %s\n", argv[0].c_str(), std::strerror(errno));
+    _exit(127);
+  }
+  close(fds[1]);
+  std::string out;
+  char buf[4096];
+  for (ssize_t n; (n = read(fds[0], buf, sizeof buf)) > 0;) out.append(buf, static_cast<std::size_t>(n));
+  close(fds[0]);
+  int status = 0;
+  waitpid(pid, &status, 0);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
+}
+
+// --slurm: writes DIR/campaign.json, the array's batch script, and submits the tasks whose blocks miss
+// samples (all of them the first time) and a collect job that runs once they all succeeded.
+int submit_to_slurm(const CampaignOptions& opt) {
+  const scene::CampaignSpec spec = scene::CampaignSpec::from_file(opt.spec_path);
+  if (opt.tasks < 1 || opt.tasks > 100000) throw std::runtime_error("--tasks must be in [1, 100000]");
+  if (opt.cpus_per_task < 1) throw std::runtime_error("--cpus-per-task must be at least 1");
+  const std::int64_t tasks = std::min<std::int64_t>(opt.tasks, spec.samples);
+  const fs::path dir = fs::absolute(opt.out_dir);
+  // The directory is claimed now (a different campaign there is refused before anything is submitted).
+  scene::claim_campaign_directory(spec, dir.string());
+  const std::vector<std::int64_t> missing = scene::missing_per_task(dir.string(), spec, tasks);
+  std::string array;
+  std::int64_t to_run = 0, samples_missing = 0;
+  for (std::int64_t k = 0; k < tasks; ++k) {
+    if (missing[static_cast<std::size_t>(k)] == 0) continue;
+    array += (array.empty() ? "" : ",") + std::to_string(k);
+    ++to_run;
+    samples_missing += missing[static_cast<std::size_t>(k)];
+  }
+  const std::string moreau = fs::read_symlink("/proc/self/exe").string();
+  fs::create_directories(dir / "slurm");
+  const fs::path script = dir / "slurm" / "campaign.sbatch";
+  {
+    std::ofstream out(script, std::ios::trunc);
+    out << "#!/bin/bash\n"
+        << "# Written by moreau campaign --slurm: task K of the array runs block K of " << tasks << " (docs/campaigns.md).\n"
+        << "#SBATCH --job-name=moreau-" << spec.name << "\n"
+        << "#SBATCH --output=" << (dir / "slurm" / "task-%A_%a.out").string() << "\n"
+        << "#SBATCH --cpus-per-task=" << opt.cpus_per_task << "\n"
+        << "#SBATCH --requeue\n"
+        << "set -euo pipefail\n"
+        << "exec " << shell_quote(moreau) << " campaign " << shell_quote((dir / "campaign.json").string()) << " --out " << shell_quote(dir.string())
+        << " --task \"${SLURM_ARRAY_TASK_ID}/" << tasks << "\" --quiet\n";
+    if (!out) throw std::runtime_error("cannot write '" + script.string() + "'");
+  }
+  std::vector<std::string> common;
+  if (!opt.account.empty()) common.push_back("--account=" + opt.account);
+  if (!opt.partition.empty()) common.push_back("--partition=" + opt.partition);
+  if (!opt.time_limit.empty()) common.push_back("--time=" + opt.time_limit);
+  std::string array_job;
+  if (to_run > 0) {
+    std::vector<std::string> argv = {"sbatch", "--parsable", "--array=" + array};
+    argv.insert(argv.end(), common.begin(), common.end());
+    argv.push_back(script.string());
+    const auto [rc, out] = run_capture(argv);
+    if (rc != 0) throw std::runtime_error("sbatch failed (exit " + std::to_string(rc) + ") for the job array");
+    array_job = out.substr(0, out.find_first_of(";\n"));
+  }
+  std::vector<std::string> argv = {"sbatch", "--parsable", "--job-name=moreau-" + spec.name + "-collect",
+                                   "--output=" + (dir / "slurm" / "collect-%j.out").string()};
+  if (!array_job.empty()) argv.push_back("--dependency=afterok:" + array_job);
+  argv.insert(argv.end(), common.begin(), common.end());
+  argv.push_back("--wrap=exec " + shell_quote(moreau) + " campaign --collect " + shell_quote(dir.string()));
+  const auto [rc, out] = run_capture(argv);
+  if (rc != 0) throw std::runtime_error("sbatch failed (exit " + std::to_string(rc) + ") for the collect job");
+  const std::string collect_job = out.substr(0, out.find_first_of(";\n"));
+  if (to_run > 0)
+    std::printf("moreau campaign: submitted job array %s: %lld of %lld tasks (%lld samples missing of %lld), and collect job %s after it\n",
+                array_job.c_str(), static_cast<long long>(to_run), static_cast<long long>(tasks), static_cast<long long>(samples_missing),
+                static_cast<long long>(spec.samples), collect_job.c_str());
+  else
+    std::printf("moreau campaign: every sample is present; submitted collect job %s\n", collect_job.c_str());
+  std::printf("moreau campaign: results in %s (task logs in %s); run the same command again to resubmit only missing samples\n",
+              dir.string().c_str(), (dir / "slurm").string().c_str());
+  return 0;
+}
 
 // BEGIN:END (END exclusive; either may be left out).
 std::pair<std::int64_t, std::int64_t> parse_range(const std::string& text, std::int64_t samples) {
@@ -54,11 +189,19 @@ std::pair<std::int64_t, std::int64_t> parse_range(const std::string& text, std::
 
 int run(const CampaignOptions& opt) {
   const scene::CampaignSpec spec = scene::CampaignSpec::from_file(opt.spec_path);
-  const auto [begin, end] = parse_range(opt.range, spec.samples);
+  if (!opt.range.empty() && !opt.task.empty()) throw std::runtime_error("--range and --task exclude each other");
+  std::int64_t begin = 0, end = spec.samples;
+  if (!opt.task.empty()) {
+    const auto [k, t] = parse_task(opt.task);
+    std::tie(begin, end) = scene::task_range(spec.samples, k, t);
+  } else {
+    std::tie(begin, end) = parse_range(opt.range, spec.samples);
+  }
   scene::CampaignRunOptions run;
   run.begin = begin;
   run.end = end;
-  run.workers = opt.jobs > 0 ? opt.jobs : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  run.part = !opt.task.empty();
+  run.workers = worker_count(opt.jobs);
   run.stop = &g_stop;
   const bool tty = !opt.quiet && isatty(STDERR_FILENO);
   const auto start = std::chrono::steady_clock::now();
@@ -111,6 +254,13 @@ void register_campaign_command(CLI::App& app, Actions& actions) {
   cmd->add_option("--range", opt->range, "Only samples BEGIN:END (END exclusive), e.g. one task's share");
   cmd->add_option("--collect", opt->collect_dir, "Check that every sample of DIR is present once and write its summary");
   cmd->add_flag("--quiet", opt->quiet, "No progress bar");
+  cmd->add_option("--task", opt->task, "Only block K of T (K/T): one task of a split campaign, writing its own part file");
+  cmd->add_flag("--slurm", opt->slurm, "Submit the campaign as a Slurm job array (sbatch) with a dependent collect job");
+  cmd->add_option("--tasks", opt->tasks, "With --slurm: the number of array tasks (contiguous blocks of samples)")->capture_default_str();
+  cmd->add_option("--cpus-per-task", opt->cpus_per_task, "With --slurm: CPUs per task (its worker threads)")->capture_default_str();
+  cmd->add_option("--account", opt->account, "With --slurm: passed to sbatch");
+  cmd->add_option("--partition", opt->partition, "With --slurm: passed to sbatch");
+  cmd->add_option("--time", opt->time_limit, "With --slurm: passed to sbatch (a task's time limit)");
   actions[cmd] = [opt]() -> int {
     try {
       if (!opt->collect_dir.empty()) {
@@ -119,7 +269,7 @@ void register_campaign_command(CLI::App& app, Actions& actions) {
         return 0;
       }
       if (opt->spec_path.empty() || opt->out_dir.empty()) throw std::runtime_error("a campaign needs SPEC and --out DIR (or --collect DIR)");
-      return run(*opt);
+      return opt->slurm ? submit_to_slurm(*opt) : run(*opt);
     } catch (const scene::SceneError& e) {
       std::cerr << "moreau campaign: " << opt->spec_path << ": " << e.what() << "\n";
       return 2;

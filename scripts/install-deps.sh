@@ -24,7 +24,8 @@ packages=(
   liblcm-dev liblcm-bin libglib2.0-dev  # live state (lcm.pc needs glib-2.0 and gthread-2.0)
   libosmesa6-dev libfreetype-dev libpng-dev fonts-dejavu-core  # figures
   libcpp-httplib-dev zlib1g-dev      # server (zlib: the hostile-client test makes gzip bodies)
-  libboost-dev                       # Boost.Odeint (rosenbrock4), the stiff peer of studies
+  libboost-dev                       # Boost.Odeint (rosenbrock4), the stiff peer of studies; Boost.Random's Sobol
+                                     # sequence and Boost.Math's normal quantile for campaigns
   liburdfdom-dev                     # robots from URDF (the URDF module)
   liborocos-kdl-dev                  # tests: KDL, the independent reference for the rigid-body algorithms
   libgtest-dev libgmock-dev libbenchmark-dev  # tests, benchmarks
@@ -32,6 +33,7 @@ packages=(
   python3                            # scripts/check-scene-results.py (shipped scenes against references)
   python3-jsonschema                 # tests/check_openapi.py (server/openapi.json against the OpenAPI 3.1 schema)
   python3-numpy                      # tests/python_client_test.py (the Python client returns numpy arrays when it can)
+  slurmctld slurmd slurm-client munge  # tests/slurm/: a campaign through a real single-node Slurm cluster
 )
 if $browser_test; then packages+=(chromium); fi
 

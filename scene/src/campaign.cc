@@ -670,11 +670,18 @@ namespace {
 
 constexpr std::size_t kMaxRecordLine = std::size_t{64} << 20;
 
-// Calls `each` with every record of samples.jsonl, read one bounded line at a time (a million records
-// never sit in memory together). A last line without its newline (a run killed while writing it) is cut
-// off the file when `repair` (so that the next record starts a line of its own), else an error.
+// What to do with a last line that has no '\n' (a writer killed in the middle of a record, or one
+// still writing it).
+enum class CutLine {
+  kRepair,  // cut it off the file (a file only this process writes), so the next record starts a line
+  kIgnore,  // skip it (another task's file, perhaps being written)
+  kError,   // refuse the file, naming it and the line
+};
+
+// Calls `each` with every record of a records file, read one bounded line at a time (a million records
+// never sit in memory together).
 template <class Each>
-void for_each_record(const fs::path& file, bool repair, Each each) {
+void for_each_record(const fs::path& file, CutLine cut, Each each) {
   if (!fs::exists(file)) return;
   std::uintmax_t good_end = 0;
   bool partial = false;
@@ -686,7 +693,7 @@ void for_each_record(const fs::path& file, bool repair, Each each) {
       const std::string where = "'" + file.string() + "' line " + std::to_string(line_no);
       if (!read_line(in, line, kMaxRecordLine, where, "64 MiB")) break;
       if (in.eof()) {  // the input ended before this line's '\n'
-        if (!repair) throw std::runtime_error(where + " is cut short (a task killed while writing it?)");
+        if (cut == CutLine::kError) throw std::runtime_error(where + " is cut short (a task killed while writing it?)");
         partial = true;
         break;
       }
@@ -701,7 +708,26 @@ void for_each_record(const fs::path& file, bool repair, Each each) {
       each(std::move(r));
     }
   }
-  if (partial) fs::resize_file(file, good_end);
+  if (partial && cut == CutLine::kRepair) fs::resize_file(file, good_end);
+}
+
+// The records files of a campaign directory: samples.jsonl (a run on one machine) and the parts of
+// ranges run as separate tasks, parts/<begin>-<end>.jsonl (complete) or .jsonl.partial (running, or
+// stopped: its complete lines are records like any other).
+std::vector<fs::path> record_files(const fs::path& dir) {
+  std::vector<fs::path> files;
+  if (fs::exists(dir / "samples.jsonl")) files.push_back(dir / "samples.jsonl");
+  if (fs::is_directory(dir / "parts")) {
+    std::vector<fs::path> parts;
+    for (const auto& e : fs::directory_iterator(dir / "parts")) {
+      const std::string name = e.path().filename().string();
+      auto ends_with = [&](const std::string& suffix) { return name.size() > suffix.size() && name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0; };
+      if (ends_with(".jsonl") || ends_with(".jsonl.partial")) parts.push_back(e.path());
+    }
+    std::sort(parts.begin(), parts.end());
+    files.insert(files.end(), parts.begin(), parts.end());
+  }
+  return files;
 }
 
 std::string csv_cell(const json& j) {
@@ -773,22 +799,28 @@ void write_summary(const fs::path& dir, const json& summary) {
 
 namespace {
 
-// Every record of the directory, each index once and inside the campaign, as summary rows; the CSV
-// rewritten from them when `csv` is given. `missing` gets the indices not present.
-std::vector<SampleRow> load_rows(const CampaignSpec& spec, const fs::path& dir, bool repair, std::vector<bool>& present, std::ofstream* csv, int dof) {
-  const fs::path jsonl = dir / "samples.jsonl";
+// Every record of the directory, each index once and inside the campaign, as summary rows (and as
+// rows of `csv` when given); present[i] says whether sample i has a record. `own` (a file this process
+// writes) has a cut last line repaired; the others' cut lines are handled as `others` says.
+std::vector<SampleRow> load_rows(const CampaignSpec& spec, const fs::path& dir, const fs::path& own, CutLine others, std::vector<bool>& present,
+                                 std::ofstream* csv, int dof) {
   present.assign(static_cast<std::size_t>(spec.samples), false);
   std::vector<SampleRow> rows;
-  for_each_record(jsonl, repair, [&](json&& r) {
-    const auto i = r["index"].get<std::int64_t>();
-    if (i < 0 || i >= spec.samples)
-      throw std::runtime_error("'" + jsonl.string() + "' holds sample " + std::to_string(i) + ", outside the campaign's " +
-                               std::to_string(spec.samples) + " samples");
-    if (present[static_cast<std::size_t>(i)]) throw std::runtime_error("'" + jsonl.string() + "' holds sample " + std::to_string(i) + " twice");
-    present[static_cast<std::size_t>(i)] = true;
-    if (csv) *csv << csv_row(spec, r, dof);
-    rows.push_back(row_of(spec, r));
-  });
+  std::vector<fs::path> files = record_files(dir);
+  if (!own.empty() && std::find(files.begin(), files.end(), own) == files.end() && fs::exists(own)) files.push_back(own);
+  for (const fs::path& file : files) {
+    for_each_record(file, file == own ? CutLine::kRepair : others, [&](json&& r) {
+      const auto i = r["index"].get<std::int64_t>();
+      if (i < 0 || i >= spec.samples)
+        throw std::runtime_error("'" + file.string() + "' holds sample " + std::to_string(i) + ", outside the campaign's " +
+                                 std::to_string(spec.samples) + " samples");
+      if (present[static_cast<std::size_t>(i)])
+        throw std::runtime_error("sample " + std::to_string(i) + " is present twice (the second time in '" + file.string() + "')");
+      present[static_cast<std::size_t>(i)] = true;
+      if (csv) *csv << csv_row(spec, r, dof);
+      rows.push_back(row_of(spec, r));
+    });
+  }
   return rows;
 }
 
@@ -801,25 +833,46 @@ json summarize_and_write(const CampaignSpec& spec, const fs::path& dir, std::vec
 
 }  // namespace
 
+void claim_campaign_directory(const CampaignSpec& spec, const std::string& dir) { claim_directory(spec, dir); }
+
+std::string range_part_name(std::int64_t begin, std::int64_t end) { return std::to_string(begin) + "-" + std::to_string(end); }
+
 CampaignRunResult run_campaign(const CampaignSpec& spec, const std::string& dir_name, const CampaignRunOptions& options) {
   const fs::path dir = dir_name;
   claim_directory(spec, dir);
   const int dof = Simulation::from_json(spec.scene).dof();
-  const fs::path jsonl = dir / "samples.jsonl", csv = dir / "samples.csv";
-  std::vector<bool> done;
-  // The table is rewritten from the records: it may have been cut at another point than they were.
-  std::vector<SampleRow> rows;
-  {
-    std::ofstream table(csv, std::ios::trunc);
-    table << csv_header(spec, dof);
-    rows = load_rows(spec, dir, /*repair=*/true, done, &table, dof);
-    if (!table) throw std::runtime_error("cannot write '" + csv.string() + "'");
-  }
-  std::ofstream out_jsonl(jsonl, std::ios::app | std::ios::binary), out_csv(csv, std::ios::app);
-  if (!out_jsonl || !out_csv) throw std::runtime_error("cannot write to '" + dir.string() + "'");
-
   const std::int64_t begin = std::clamp<std::int64_t>(options.begin, 0, spec.samples);
   const std::int64_t end = options.end < 0 ? spec.samples : std::clamp<std::int64_t>(options.end, begin, spec.samples);
+  // A task of a split campaign writes its own part file, renamed from .partial once its range is done;
+  // a run of the whole campaign writes samples.jsonl and the table beside it.
+  const bool task = options.part;
+  fs::path own = dir / "samples.jsonl", own_done;
+  if (task) {
+    fs::create_directories(dir / "parts");
+    own_done = dir / "parts" / (range_part_name(begin, end) + ".jsonl");
+    own = own_done;
+    own += ".partial";
+  }
+  std::vector<bool> done;
+  std::vector<SampleRow> rows;
+  std::ofstream out_csv;
+  if (task) {
+    rows = load_rows(spec, dir, own, CutLine::kIgnore, done, nullptr, dof);
+  } else {
+    // The table is rewritten from the records: it may have been cut at another point than they were.
+    const fs::path csv = dir / "samples.csv";
+    {
+      std::ofstream table(csv, std::ios::trunc);
+      table << csv_header(spec, dof);
+      rows = load_rows(spec, dir, own, CutLine::kIgnore, done, &table, dof);
+      if (!table) throw std::runtime_error("cannot write '" + csv.string() + "'");
+    }
+    out_csv.open(csv, std::ios::app);
+    if (!out_csv) throw std::runtime_error("cannot write '" + csv.string() + "'");
+  }
+  std::ofstream out_jsonl(own, std::ios::app | std::ios::binary);
+  if (!out_jsonl) throw std::runtime_error("cannot write '" + own.string() + "'");
+
   CampaignRunResult result;
   for (std::int64_t i = begin; i < end; ++i) result.skipped += done[static_cast<std::size_t>(i)];
 
@@ -834,16 +887,18 @@ CampaignRunResult run_campaign(const CampaignSpec& spec, const std::string& dir_
       while (i < end && done[static_cast<std::size_t>(i)]) i = next.fetch_add(1);  // done[] of a skipped sample never changes
       if (i >= end) return;
       json r = run_campaign_sample(spec, design, i);
-      const std::string line = r.dump() + '\n', row = csv_row(spec, r, dof);
+      const std::string line = r.dump() + '\n', row = task ? std::string() : csv_row(spec, r, dof);
       SampleRow summary_row = row_of(spec, r);
       std::lock_guard lock(write_mu);
       if (error) return;
       // The record, then its row: the records are the truth (the table is rebuilt from them).
       out_jsonl << line;
       out_jsonl.flush();
-      out_csv << row;
-      out_csv.flush();
-      if (!out_jsonl || !out_csv) {
+      if (!task) {
+        out_csv << row;
+        out_csv.flush();
+      }
+      if (!out_jsonl || (!task && !out_csv)) {
         error = std::make_exception_ptr(std::runtime_error("writing to '" + dir.string() + "' failed (disk full?)"));
         return;
       }
@@ -860,11 +915,35 @@ CampaignRunResult run_campaign(const CampaignSpec& spec, const std::string& dir_
   for (auto& t : threads) t.join();
   if (error) std::rethrow_exception(error);
   result.stopped = result.ran + result.skipped < end - begin;
-  if (static_cast<std::int64_t>(rows.size()) == spec.samples) {
+  out_jsonl.close();
+  if (task) {
+    // The range is complete: the part appears under its final name at once (rename is atomic).
+    if (!result.stopped) fs::rename(own, own_done);
+  } else if (static_cast<std::int64_t>(rows.size()) == spec.samples) {
     summarize_and_write(spec, dir, rows);
     result.summarized = true;
   }
   return result;
+}
+
+std::pair<std::int64_t, std::int64_t> task_range(std::int64_t samples, std::int64_t task, std::int64_t tasks) {
+  // Contiguous blocks whose sizes differ by at most one; computed in 128 bits (samples * task may
+  // overflow 64 bits for 10^7 samples and 10^12 tasks; tasks are limited far below).
+  const auto edge = [&](std::int64_t k) {
+    return static_cast<std::int64_t>(static_cast<__int128>(samples) * k / tasks);
+  };
+  return {edge(task), edge(task + 1)};
+}
+
+std::vector<std::int64_t> missing_per_task(const std::string& dir_name, const CampaignSpec& spec, std::int64_t tasks) {
+  std::vector<bool> present;
+  load_rows(spec, dir_name, fs::path(), CutLine::kIgnore, present, nullptr, 0);
+  std::vector<std::int64_t> missing(static_cast<std::size_t>(tasks), 0);
+  for (std::int64_t k = 0; k < tasks; ++k) {
+    const auto [b, e] = task_range(spec.samples, k, tasks);
+    for (std::int64_t i = b; i < e; ++i) missing[static_cast<std::size_t>(k)] += !present[static_cast<std::size_t>(i)];
+  }
+  return missing;
 }
 
 json collect_campaign(const std::string& dir_name) {
@@ -872,8 +951,19 @@ json collect_campaign(const std::string& dir_name) {
   const fs::path spec_file = dir / "campaign.json";
   if (!fs::exists(spec_file)) throw std::runtime_error("'" + dir.string() + "' holds no campaign.json: not a campaign directory");
   const CampaignSpec spec = CampaignSpec::from_json(read_scene_file(spec_file.string()), dir.string());
+  // The table of every record, rebuilt (a split campaign's tasks write only their parts).
+  const fs::path csv = dir / "samples.csv", csv_tmp = dir / "samples.csv.tmp";
+  const int dof = Simulation::from_json(spec.scene).dof();
   std::vector<bool> present;
-  std::vector<SampleRow> rows = load_rows(spec, dir, /*repair=*/false, present, nullptr, 0);
+  std::vector<SampleRow> rows;
+  {
+    std::ofstream table(csv_tmp, std::ios::trunc);
+    table << csv_header(spec, dof);
+    rows = load_rows(spec, dir, fs::path(), CutLine::kError, present, &table, dof);
+    table.close();
+    if (!table) throw std::runtime_error("cannot write '" + csv_tmp.string() + "'");
+  }
+  fs::rename(csv_tmp, csv);
   std::int64_t missing = 0, first_missing = -1;
   for (std::int64_t i = 0; i < spec.samples; ++i)
     if (!present[static_cast<std::size_t>(i)] && missing++ == 0) first_missing = i;

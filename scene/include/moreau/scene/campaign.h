@@ -10,7 +10,8 @@
 //
 // Files of a campaign directory:
 //   campaign.json       the spec as run (a directory holds one campaign: another spec is refused)
-//   samples.jsonl       one record per finished sample, in the order they finished
+//   samples.jsonl       one record per finished sample, in the order they finished (a run on one machine)
+//   parts/B-E.jsonl     the same for the samples B to E-1 of a task (.partial while it runs)
 //   samples.csv         the same records as a table
 //   summary.json/.txt   once every sample is present (run_campaign, or collect_campaign)
 // A stopped run leaves samples.jsonl and samples.csv as they were after the last finished sample; the
@@ -22,6 +23,7 @@
 #include <functional>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -100,6 +102,11 @@ std::string format_campaign_summary(const nlohmann::json& summary);
 struct CampaignRunOptions {
   int workers = 1;
   std::int64_t begin = 0, end = -1;        // the index range [begin, end) (end < 0: every sample)
+  // A task of a split campaign (a Slurm array task, a Kubernetes pod): its records go to its own part
+  // file, parts/<begin>-<end>.jsonl.partial, renamed to parts/<begin>-<end>.jsonl when the range is done,
+  // and the summary is left to collect_campaign. Otherwise: samples.jsonl and samples.csv, and the summary
+  // once every sample is present.
+  bool part = false;
   const std::atomic<bool>* stop = nullptr;  // set (e.g. by SIGINT) to stop after the samples running now
   std::function<void(std::int64_t done, std::int64_t total)> progress;  // after each sample, from one thread
 };
@@ -115,6 +122,16 @@ struct CampaignRunResult {
 // it finishes, and writes the summary when every sample is present. Throws std::runtime_error (a
 // directory that holds another campaign, an unreadable record) naming the file.
 CampaignRunResult run_campaign(const CampaignSpec& spec, const std::string& dir, const CampaignRunOptions& options);
+
+// Makes `dir` the campaign's directory: writes campaign.json, or checks that the one there is this spec's
+// (else std::runtime_error: the directory holds a different campaign).
+void claim_campaign_directory(const CampaignSpec& spec, const std::string& dir);
+
+// Task k of `tasks` takes the contiguous block [k N / tasks, (k + 1) N / tasks) of the N samples.
+std::pair<std::int64_t, std::int64_t> task_range(std::int64_t samples, std::int64_t task, std::int64_t tasks);
+// How many samples of each task's block have no record in the directory yet (a part cut short by a
+// killed task counts its complete records).
+std::vector<std::int64_t> missing_per_task(const std::string& dir, const CampaignSpec& spec, std::int64_t tasks);
 
 // Reads every record of a campaign directory, checks that each sample is present exactly once, writes
 // summary.json and summary.txt and returns the summary. Throws std::runtime_error naming what is missing,
