@@ -21,7 +21,10 @@
 #include <thread>
 
 #include "commands.h"
+#include "moreau/render/render.h"
 #include "moreau/scene/campaign.h"
+#include "moreau/scene/campaign_figures.h"
+#include "moreau/scene/simulation.h"
 #include "moreau/scene/scene.h"
 
 namespace moreau::cli {
@@ -164,6 +167,21 @@ int submit_to_slurm(const CampaignOptions& opt) {
   return 0;
 }
 
+// DIR/figures/<name>.png for a campaign whose every sample is present (campaign_figures.h); the paths
+// written, one per line, on stderr.
+void write_figures(const std::string& dir_name) {
+  const fs::path dir = dir_name;
+  const scene::CampaignSpec spec = scene::CampaignSpec::from_json(scene::read_scene_file((dir / "campaign.json").string()), dir.string());
+  const auto outcomes = scene::read_campaign_outcomes(spec, dir.string());
+  const double t_end = scene::Simulation::from_json(spec.scene).t_end();
+  fs::create_directories(dir / "figures");
+  for (const auto& [name, figure] : scene::campaign_figures(spec, outcomes, t_end)) {
+    const fs::path path = dir / "figures" / (name + ".png");
+    render::render_png(figure, path.string());
+    std::fprintf(stderr, "moreau campaign: figure %s\n", path.string().c_str());
+  }
+}
+
 // BEGIN:END (END exclusive; either may be left out).
 std::pair<std::int64_t, std::int64_t> parse_range(const std::string& text, std::int64_t samples) {
   if (text.empty()) return {0, samples};
@@ -234,6 +252,7 @@ int run(const CampaignOptions& opt) {
     return 130;
   }
   if (r.summarized) {
+    write_figures(opt.out_dir);
     std::ifstream summary(opt.out_dir + "/summary.txt");
     std::cout << summary.rdbuf();
   } else {
@@ -265,6 +284,7 @@ void register_campaign_command(CLI::App& app, Actions& actions) {
     try {
       if (!opt->collect_dir.empty()) {
         const nlohmann::json summary = scene::collect_campaign(opt->collect_dir);
+        write_figures(opt->collect_dir);
         std::cout << scene::format_campaign_summary(summary);
         return 0;
       }

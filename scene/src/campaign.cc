@@ -1,5 +1,7 @@
 #include "moreau/scene/campaign.h"
 
+#include <unistd.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -9,6 +11,7 @@
 #include <map>
 #include <mutex>
 #include <numeric>
+#include <random>
 #include <set>
 #include <sstream>
 #include <thread>
@@ -171,7 +174,7 @@ json InputDistribution::at(double u) const {
 
 CampaignSpec CampaignSpec::from_json(const json& spec, const std::string& base_dir) {
   if (!spec.is_object()) throw SceneError("/", "a campaign spec is a JSON object");
-  only_fields(spec, "", {"name", "description", "scene", "inputs", "sampler", "seed", "samples", "target"});
+  only_fields(spec, "", {"name", "description", "scene", "inputs", "sampler", "seed", "samples", "target", "full_report", "map"});
   CampaignSpec s;
   s.document = spec;
   s.name = spec.value("name", "campaign");
@@ -270,6 +273,30 @@ CampaignSpec CampaignSpec::from_json(const json& spec, const std::string& base_d
                                        " samples (use sobol or monte-carlo)");
   }
 
+  if (spec.contains("map")) {
+    const json& m = spec["map"];
+    if (!m.is_array() || m.size() != 2) throw SceneError("/map", "expected the paths of two inputs (the axes of the success map)");
+    for (std::size_t k = 0; k < 2; ++k) {
+      const std::string ptr = "/map/" + std::to_string(k);
+      if (!m[k].is_string()) throw SceneError(ptr, "expected the path of an input");
+      const std::string path = as_pointer(m[k].get<std::string>());
+      const auto it = std::find_if(s.inputs.begin(), s.inputs.end(), [&](const CampaignInput& in) { return in.path == path; });
+      if (it == s.inputs.end()) throw SceneError(ptr, "'" + m[k].get<std::string>() + "' is not one of the inputs");
+      if (!it->distribution.numeric()) throw SceneError(ptr, "'" + path + "' takes values that are not numbers");
+      s.map_inputs[k] = static_cast<int>(it - s.inputs.begin());
+    }
+    if (s.map_inputs[0] == s.map_inputs[1]) throw SceneError("/map/1", "the two axes are the same input");
+  } else {
+    // The first two numeric inputs, if there are two.
+    int found = 0;
+    for (std::size_t k = 0; k < s.inputs.size() && found < 2; ++k)
+      if (s.inputs[k].distribution.numeric()) s.map_inputs[found++] = static_cast<int>(k);
+    if (found < 2) s.map_inputs = {-1, -1};
+  }
+  if (spec.contains("full_report")) {
+    if (!spec["full_report"].is_boolean()) throw SceneError("/full_report", "expected true or false");
+    s.full_report = spec["full_report"].get<bool>();
+  }
   if (spec.contains("target")) {
     const json& t = spec["target"];
     if (!t.is_object()) throw SceneError("/target", "expected {\"q\": [...], \"tolerance\": ...}");
@@ -417,7 +444,7 @@ json run_campaign_sample(const CampaignSpec& spec, const CampaignDesign& design,
                         (spec.target_q.empty() || (std::isfinite(distance) && distance <= spec.target_tolerance));
     record["message"] = summary.message;
     record["error"] = nullptr;
-    record["report"] = sim.report_json(summary, diagnostics);
+    if (spec.full_report) record["report"] = sim.report_json(summary, diagnostics);
   } catch (const SceneError& e) {
     record["status"] = "invalid";
     record["success"] = false;
@@ -502,18 +529,8 @@ double as_number(const json& j) { return j.is_number() ? j.get<double>() : std::
 
 namespace {
 
-// What the summary needs of one record: a few numbers, so that a million samples take tens of megabytes
-// (the records themselves stay on disk).
-struct SampleRow {
-  std::int64_t index;
-  int failure_class;  // 3 invalid, 2 failed run, 1 did not succeed, 0 succeeded
-  bool success, converged, hypothesis_failed;
-  double converged_time, target_distance, max_abs_q;  // NaN: none
-  std::vector<double> inputs;                         // NaN: not a number
-};
-
-SampleRow row_of(const CampaignSpec& spec, const json& r) {
-  SampleRow row;
+CampaignOutcome row_of(const CampaignSpec& spec, const json& r) {
+  CampaignOutcome row;
   row.index = r["index"].get<std::int64_t>();
   const std::string status = r.value("status", "");
   row.success = r.value("success", false);
@@ -529,11 +546,11 @@ SampleRow row_of(const CampaignSpec& spec, const json& r) {
   return row;
 }
 
-json summarize_rows(const CampaignSpec& spec, const std::vector<SampleRow>& rows) {
+json summarize_rows(const CampaignSpec& spec, const std::vector<CampaignOutcome>& rows) {
   const auto n = static_cast<std::int64_t>(rows.size());
   std::int64_t successes = 0, converged = 0, invalid = 0, failed = 0, hypothesis = 0;
   std::vector<double> conv_times, errors;
-  for (const SampleRow& r : rows) {
+  for (const CampaignOutcome& r : rows) {
     successes += r.success;
     converged += r.converged;
     invalid += r.failure_class == 3;
@@ -561,7 +578,7 @@ json summarize_rows(const CampaignSpec& spec, const std::vector<SampleRow>& rows
   // to the target, then the latest convergence; ties by index.
   std::vector<std::size_t> order(rows.size());
   std::iota(order.begin(), order.end(), std::size_t{0});
-  auto badness = [&](const SampleRow& r) {
+  auto badness = [&](const CampaignOutcome& r) {
     return std::make_tuple(r.failure_class, std::isfinite(r.target_distance) ? r.target_distance : 0.0,
                            std::isfinite(r.converged_time) ? r.converged_time : 0.0);
   };
@@ -572,7 +589,7 @@ json summarize_rows(const CampaignSpec& spec, const std::vector<SampleRow>& rows
   });
   json worst = json::array();
   for (std::size_t k = 0; k < worst_count; ++k) {
-    const SampleRow& r = rows[order[k]];
+    const CampaignOutcome& r = rows[order[k]];
     json inputs = json::object();
     for (std::size_t d = 0; d < spec.inputs.size(); ++d) inputs[spec.inputs[d].path] = number_or_null(r.inputs[d]);
     worst.push_back({{"index", r.index},
@@ -587,17 +604,17 @@ json summarize_rows(const CampaignSpec& spec, const std::vector<SampleRow>& rows
   // First-order sensitivity: Spearman's rank correlation of each outcome with each numeric input, over
   // the samples where both are numbers.
   json sens = json::array();
-  const std::vector<std::pair<const char*, double (*)(const SampleRow&)>> outcomes = {
-      {"success", [](const SampleRow& r) { return r.success ? 1.0 : 0.0; }},
-      {"converged_time", [](const SampleRow& r) { return r.converged_time; }},
-      {"target_distance", [](const SampleRow& r) { return r.target_distance; }},
-      {"max_abs_q", [](const SampleRow& r) { return r.max_abs_q; }}};
+  const std::vector<std::pair<const char*, double (*)(const CampaignOutcome&)>> outcomes = {
+      {"success", [](const CampaignOutcome& r) { return r.success ? 1.0 : 0.0; }},
+      {"converged_time", [](const CampaignOutcome& r) { return r.converged_time; }},
+      {"target_distance", [](const CampaignOutcome& r) { return r.target_distance; }},
+      {"max_abs_q", [](const CampaignOutcome& r) { return r.max_abs_q; }}};
   for (std::size_t d = 0; d < spec.inputs.size(); ++d) {
     if (!spec.inputs[d].distribution.numeric()) continue;
     json row = {{"input", spec.inputs[d].path}};
     for (const auto& [name, get] : outcomes) {
       std::vector<double> x, y;
-      for (const SampleRow& r : rows) {
+      for (const CampaignOutcome& r : rows) {
         const double xi = r.inputs[d], yi = get(r);
         if (std::isfinite(xi) && std::isfinite(yi)) {
           x.push_back(xi);
@@ -617,10 +634,10 @@ json summarize_rows(const CampaignSpec& spec, const std::vector<SampleRow>& rows
 }  // namespace
 
 json summarize_campaign(const CampaignSpec& spec, const std::vector<json>& records) {
-  std::vector<SampleRow> rows;
+  std::vector<CampaignOutcome> rows;
   rows.reserve(records.size());
   for (const json& r : records) rows.push_back(row_of(spec, r));
-  std::sort(rows.begin(), rows.end(), [](const SampleRow& a, const SampleRow& b) { return a.index < b.index; });
+  std::sort(rows.begin(), rows.end(), [](const CampaignOutcome& a, const CampaignOutcome& b) { return a.index < b.index; });
   return summarize_rows(spec, rows);
 }
 
@@ -778,7 +795,9 @@ void claim_directory(const CampaignSpec& spec, const fs::path& dir) {
       throw std::runtime_error("'" + dir.string() + "' holds a different campaign (its campaign.json differs from this spec): use another directory");
     return;
   }
-  const fs::path tmp = dir / "campaign.json.tmp";
+  // A name of this process's own: the tasks of a split campaign may all claim the directory at once (they
+  // write the same text, and rename is atomic).
+  const fs::path tmp = dir / ("campaign.json.tmp." + std::to_string(::getpid()) + "." + std::to_string(std::random_device{}()));
   std::ofstream(tmp) << spec.document.dump(2) << "\n";
   fs::rename(tmp, file);
 }
@@ -786,7 +805,7 @@ void claim_directory(const CampaignSpec& spec, const fs::path& dir) {
 void write_summary(const fs::path& dir, const json& summary) {
   for (const auto& [name, text] : {std::pair<const char*, std::string>{"summary.json", summary.dump(2) + "\n"},
                                    std::pair<const char*, std::string>{"summary.txt", format_campaign_summary(summary)}}) {
-    const fs::path tmp = dir / (std::string(name) + ".tmp");
+    const fs::path tmp = dir / (std::string(name) + ".tmp." + std::to_string(::getpid()));
     std::ofstream out(tmp, std::ios::trunc);
     out << text;
     out.close();
@@ -802,10 +821,10 @@ namespace {
 // Every record of the directory, each index once and inside the campaign, as summary rows (and as
 // rows of `csv` when given); present[i] says whether sample i has a record. `own` (a file this process
 // writes) has a cut last line repaired; the others' cut lines are handled as `others` says.
-std::vector<SampleRow> load_rows(const CampaignSpec& spec, const fs::path& dir, const fs::path& own, CutLine others, std::vector<bool>& present,
+std::vector<CampaignOutcome> load_rows(const CampaignSpec& spec, const fs::path& dir, const fs::path& own, CutLine others, std::vector<bool>& present,
                                  std::ofstream* csv, int dof) {
   present.assign(static_cast<std::size_t>(spec.samples), false);
-  std::vector<SampleRow> rows;
+  std::vector<CampaignOutcome> rows;
   std::vector<fs::path> files = record_files(dir);
   if (!own.empty() && std::find(files.begin(), files.end(), own) == files.end() && fs::exists(own)) files.push_back(own);
   for (const fs::path& file : files) {
@@ -824,8 +843,8 @@ std::vector<SampleRow> load_rows(const CampaignSpec& spec, const fs::path& dir, 
   return rows;
 }
 
-json summarize_and_write(const CampaignSpec& spec, const fs::path& dir, std::vector<SampleRow>& rows) {
-  std::sort(rows.begin(), rows.end(), [](const SampleRow& a, const SampleRow& b) { return a.index < b.index; });
+json summarize_and_write(const CampaignSpec& spec, const fs::path& dir, std::vector<CampaignOutcome>& rows) {
+  std::sort(rows.begin(), rows.end(), [](const CampaignOutcome& a, const CampaignOutcome& b) { return a.index < b.index; });
   json summary = summarize_rows(spec, rows);
   write_summary(dir, summary);
   return summary;
@@ -854,17 +873,17 @@ CampaignRunResult run_campaign(const CampaignSpec& spec, const std::string& dir_
     own += ".partial";
   }
   std::vector<bool> done;
-  std::vector<SampleRow> rows;
+  std::int64_t present = 0;  // samples with a record before this run
   std::ofstream out_csv;
   if (task) {
-    rows = load_rows(spec, dir, own, CutLine::kIgnore, done, nullptr, dof);
+    present = static_cast<std::int64_t>(load_rows(spec, dir, own, CutLine::kIgnore, done, nullptr, dof).size());
   } else {
     // The table is rewritten from the records: it may have been cut at another point than they were.
     const fs::path csv = dir / "samples.csv";
     {
       std::ofstream table(csv, std::ios::trunc);
       table << csv_header(spec, dof);
-      rows = load_rows(spec, dir, own, CutLine::kIgnore, done, &table, dof);
+      present = static_cast<std::int64_t>(load_rows(spec, dir, own, CutLine::kIgnore, done, &table, dof).size());
       if (!table) throw std::runtime_error("cannot write '" + csv.string() + "'");
     }
     out_csv.open(csv, std::ios::app);
@@ -888,7 +907,7 @@ CampaignRunResult run_campaign(const CampaignSpec& spec, const std::string& dir_
       if (i >= end) return;
       json r = run_campaign_sample(spec, design, i);
       const std::string line = r.dump() + '\n', row = task ? std::string() : csv_row(spec, r, dof);
-      SampleRow summary_row = row_of(spec, r);
+      r = json();  // nothing of a finished sample stays in memory: it is on disk
       std::lock_guard lock(write_mu);
       if (error) return;
       // The record, then its row: the records are the truth (the table is rebuilt from them).
@@ -902,7 +921,6 @@ CampaignRunResult run_campaign(const CampaignSpec& spec, const std::string& dir_
         error = std::make_exception_ptr(std::runtime_error("writing to '" + dir.string() + "' failed (disk full?)"));
         return;
       }
-      rows.push_back(std::move(summary_row));
       ++result.ran;
       if (options.progress) options.progress(++finished, end - begin);
     }
@@ -919,7 +937,10 @@ CampaignRunResult run_campaign(const CampaignSpec& spec, const std::string& dir_
   if (task) {
     // The range is complete: the part appears under its final name at once (rename is atomic).
     if (!result.stopped) fs::rename(own, own_done);
-  } else if (static_cast<std::int64_t>(rows.size()) == spec.samples) {
+  } else if (present + result.ran == spec.samples) {
+    // Every sample is present: the summary's rows are read back from the records (while samples run,
+    // memory does not grow with them).
+    std::vector<CampaignOutcome> rows = load_rows(spec, dir, fs::path(), CutLine::kError, done, nullptr, dof);
     summarize_and_write(spec, dir, rows);
     result.summarized = true;
   }
@@ -946,6 +967,13 @@ std::vector<std::int64_t> missing_per_task(const std::string& dir_name, const Ca
   return missing;
 }
 
+std::vector<CampaignOutcome> read_campaign_outcomes(const CampaignSpec& spec, const std::string& dir) {
+  std::vector<bool> present;
+  std::vector<CampaignOutcome> rows = load_rows(spec, dir, fs::path(), CutLine::kError, present, nullptr, 0);
+  std::sort(rows.begin(), rows.end(), [](const CampaignOutcome& a, const CampaignOutcome& b) { return a.index < b.index; });
+  return rows;
+}
+
 json collect_campaign(const std::string& dir_name) {
   const fs::path dir = dir_name;
   const fs::path spec_file = dir / "campaign.json";
@@ -955,7 +983,7 @@ json collect_campaign(const std::string& dir_name) {
   const fs::path csv = dir / "samples.csv", csv_tmp = dir / "samples.csv.tmp";
   const int dof = Simulation::from_json(spec.scene).dof();
   std::vector<bool> present;
-  std::vector<SampleRow> rows;
+  std::vector<CampaignOutcome> rows;
   {
     std::ofstream table(csv_tmp, std::ios::trunc);
     table << csv_header(spec, dof);

@@ -18,6 +18,7 @@
 // next run skips what is there (a line cut short by a kill is dropped and recomputed).
 #pragma once
 
+#include <array>
 #include <atomic>
 #include <cstdint>
 #include <functional>
@@ -71,6 +72,12 @@ struct CampaignSpec {
   // its final q lies within `tolerance` (Euclidean distance) of target_q.
   std::vector<double> target_q;
   double target_tolerance = 0.0;
+  // The two inputs (indices into `inputs`) whose plane the success map shows: the spec's "map", else the
+  // first two numeric inputs; -1 when there are not two.
+  std::array<int, 2> map_inputs{-1, -1};
+  // Whether each record carries the run's whole report (about 4 kB for the manipulator); false keeps the
+  // records to their outcomes (about 300 bytes), for campaigns of millions of samples.
+  bool full_report = true;
   nlohmann::json document;  // the spec as given, with the scene inlined: what campaign.json stores
 
   // Validates a spec. `base_dir` resolves a scene given as a file path. Throws SceneError naming the
@@ -89,6 +96,16 @@ class CampaignDesign {
  private:
   const CampaignSpec& spec_;
   std::vector<std::vector<std::uint32_t>> strata_;  // Latin hypercube: the stratum of sample i per input
+};
+
+// What the summary and the figures use of one record: a few numbers, so that a million samples take
+// tens of megabytes (the records themselves stay on disk).
+struct CampaignOutcome {
+  std::int64_t index = 0;
+  int failure_class = 0;  // 3 invalid, 2 failed run, 1 did not succeed, 0 succeeded
+  bool success = false, converged = false, hypothesis_failed = false;
+  double converged_time = 0, target_distance = 0, max_abs_q = 0;  // NaN: none
+  std::vector<double> inputs;                                    // per input; NaN: not a number
 };
 
 // Runs sample i and returns its record (never throws for a bad sample: an invalid scene or a failed run
@@ -132,6 +149,9 @@ std::pair<std::int64_t, std::int64_t> task_range(std::int64_t samples, std::int6
 // How many samples of each task's block have no record in the directory yet (a part cut short by a
 // killed task counts its complete records).
 std::vector<std::int64_t> missing_per_task(const std::string& dir, const CampaignSpec& spec, std::int64_t tasks);
+
+// The outcomes of every record in a campaign directory, by index (a cut record is an error).
+std::vector<CampaignOutcome> read_campaign_outcomes(const CampaignSpec& spec, const std::string& dir);
 
 // Reads every record of a campaign directory, checks that each sample is present exactly once, writes
 // summary.json and summary.txt and returns the summary. Throws std::runtime_error naming what is missing,
