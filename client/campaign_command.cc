@@ -218,7 +218,9 @@ int run(const CampaignOptions& opt) {
   scene::CampaignRunOptions run;
   run.begin = begin;
   run.end = end;
-  run.part = !opt.task.empty();
+  // A share of the samples (--task, --range) writes its own part file, so that shares may run at once
+  // into one directory; --collect then writes the summary.
+  run.part = !opt.task.empty() || !opt.range.empty();
   run.workers = worker_count(opt.jobs);
   run.stop = &g_stop;
   const bool tty = !opt.quiet && isatty(STDERR_FILENO);
@@ -270,7 +272,7 @@ void register_campaign_command(CLI::App& app, Actions& actions) {
   cmd->add_option("spec", opt->spec_path, "Campaign spec (JSON)");
   cmd->add_option("--out", opt->out_dir, "Directory of the campaign's results (resumable: run again to go on)");
   cmd->add_option("-j,--jobs", opt->jobs, "Worker threads (default: every core)");
-  cmd->add_option("--range", opt->range, "Only samples BEGIN:END (END exclusive), e.g. one task's share");
+  cmd->add_option("--range", opt->range, "Only samples BEGIN:END (END exclusive), written to a part file of their own (then --collect)");
   cmd->add_option("--collect", opt->collect_dir, "Check that every sample of DIR is present once and write its summary");
   cmd->add_flag("--quiet", opt->quiet, "No progress bar");
   cmd->add_option("--task", opt->task, "Only block K of T (K/T): one task of a split campaign, writing its own part file");

@@ -8,11 +8,16 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <fcntl.h>
+#include <sys/file.h>
+#include <unistd.h>
+
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
 #include <set>
+#include <sstream>
 
 #include "moreau/scene/scene.h"
 #include "support/scratch_dir.h"
@@ -216,6 +221,8 @@ TEST(CampaignSpec, EveryBadFieldIsNamed) {
       {"map of a non-input", [](json& s) { s["map"] = {"/parameters/f", "/parameters/m"}; }, "/map/1", "not one of the inputs"},
       {"map of one input twice", [](json& s) { s["map"] = {"/parameters/f", "parameters.f"}; }, "/map/1", "same input"},
       {"full_report not a boolean", [](json& s) { s["full_report"] = "no"; }, "/full_report", "true or false"},
+      {"name not a string", [](json& s) { s["name"] = 5; }, "/name", "expected a string"},
+      {"overlapping inputs", [](json& s) { s["inputs"][1]["path"] = "/parameters"; }, "/inputs/1/path", "overlap"},
   };
   for (const Case& c : cases) {
     SCOPED_TRACE(c.what);
@@ -233,9 +240,18 @@ TEST(CampaignSpec, EveryBadFieldIsNamed) {
 
 // ---- the campaign directory ----
 
+// Every record of a campaign directory (samples.jsonl and the parts), by index.
 std::map<std::int64_t, json> records_of(const fs::path& dir) {
   std::map<std::int64_t, json> r;
-  std::ifstream in(dir / "samples.jsonl");
+  std::vector<fs::path> files = {dir / "samples.jsonl"};
+  if (fs::is_directory(dir / "parts"))
+    for (const auto& e : fs::directory_iterator(dir / "parts")) files.push_back(e.path());
+  std::string all;
+  for (const auto& f : files) {
+    std::ifstream in(f);
+    all.append(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  }
+  std::istringstream in(all);
   for (std::string line; std::getline(in, line);) {
     json j = json::parse(line);
     const auto i = j["index"].get<std::int64_t>();
@@ -257,18 +273,36 @@ TEST(CampaignRun, TheSameRecordsHoweverTheSamplesAreSplit) {
   const CampaignRunResult r1 = run_campaign(s, one.string(), all);
   EXPECT_EQ(r1.ran, 60);
   EXPECT_TRUE(r1.summarized);
-  // Three ranges, one worker, out of order.
+  // Three ranges as tasks (each its own part file), one worker, out of order, then collected.
   for (auto [b, e] : {std::pair{40, 60}, std::pair{0, 15}, std::pair{15, 40}}) {
     CampaignRunOptions part;
     part.begin = b;
     part.end = e;
+    part.part = true;
     const CampaignRunResult r = run_campaign(s, two.string(), part);
     EXPECT_EQ(r.ran, e - b);
+    EXPECT_FALSE(r.summarized);
+    EXPECT_TRUE(fs::exists(two / "parts" / (std::to_string(b) + "-" + std::to_string(e) + ".jsonl")));
   }
+  const json collected = collect_campaign(two.string());
   const auto a = records_of(one), b = records_of(two);
   ASSERT_EQ(a.size(), 60u);
   EXPECT_EQ(a, b);
-  EXPECT_EQ(read_scene_file((one / "summary.json").string()), read_scene_file((two / "summary.json").string()));
+  EXPECT_EQ(read_scene_file((one / "summary.json").string()), collected);
+  // A task run again on its complete block (a requeue, a resubmission) computes nothing and leaves its
+  // part as it was.
+  const fs::path part = two / "parts" / "15-40.jsonl";
+  const auto size = fs::file_size(part);
+  CampaignRunOptions again;
+  again.begin = 15;
+  again.end = 40;
+  again.part = true;
+  const CampaignRunResult r3 = run_campaign(s, two.string(), again);
+  EXPECT_EQ(r3.ran, 0);
+  EXPECT_EQ(r3.skipped, 25);
+  EXPECT_EQ(fs::file_size(part), size);
+  EXPECT_FALSE(fs::exists(two / "parts" / "15-40.jsonl.partial"));
+  EXPECT_EQ(records_of(two), a);
   // The relay rests at t* = m v0 / (a - f) (m = 1.5, a = 2): success exactly when t* <= 1 - window.
   for (const auto& [i, r] : a) {
     const double f = r["inputs"]["/parameters/f"], v0 = r["inputs"]["/parameters/v0"];
@@ -338,7 +372,32 @@ TEST(CampaignRun, AStopAndAKilledWriteResumeWithoutLossOrDuplicates) {
     std::getline(in, first);
     std::ofstream(dir / "samples.jsonl", std::ios::app) << first << "\n";
   }
-  EXPECT_THROW(collect_campaign(dir.string()), std::runtime_error);
+  try {
+    collect_campaign(dir.string());
+    ADD_FAILURE() << "a duplicated record was accepted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_THAT(e.what(), HasSubstr("is present twice"));
+  }
+  // Two writers of one records file: the second is refused while the first holds it.
+  {
+    const fs::path busy = fresh_dir("busy");
+    CampaignRunOptions task;
+    task.begin = 0;
+    task.end = 10;
+    task.part = true;
+    fs::create_directories(busy / "parts");
+    const int fd = ::open((busy / "parts" / "0-10.jsonl.partial").c_str(), O_WRONLY | O_CREAT, 0644);
+    ASSERT_GE(fd, 0);
+    ASSERT_EQ(::flock(fd, LOCK_EX), 0);
+    try {
+      run_campaign(s, busy.string(), task);
+      ADD_FAILURE() << "a second writer was let in";
+    } catch (const std::runtime_error& e) {
+      EXPECT_THAT(e.what(), HasSubstr("is being written by another process"));
+    }
+    ::close(fd);
+    EXPECT_EQ(run_campaign(s, busy.string(), task).ran, 10);
+  }
   // A different campaign in the same directory is refused, and nothing there changes.
   json other = relay_spec("sobol", 51);
   try {
@@ -360,7 +419,8 @@ std::size_t resident_bytes() {
 
 // Records go to disk as samples finish and nothing of a finished sample stays in memory: over 100,000
 // samples (of 10 steps each, records without the full report) resident memory after the first 10,000
-// grows by less than 4 MB (keeping even 40 bytes per sample would exceed it; a record is about 300).
+// grows by less than 4 MB (keeping about 50 bytes or more per sample would exceed it; a record is about
+// 300).
 TEST(CampaignRun, MemoryStaysFlatOverAHundredThousandSamples) {
   json spec = relay_spec("monte-carlo", 100000);
   spec["scene"]["integrator"]["t_end"] = 0.01;

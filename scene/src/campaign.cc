@@ -1,6 +1,11 @@
 #include "moreau/scene/campaign.h"
 
+#include <fcntl.h>
+#include <sys/file.h>
 #include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
 
 #include <algorithm>
 #include <chrono>
@@ -100,9 +105,14 @@ InputDistribution parse_distribution(const json& d, const std::string& ptr) {
     if (!(r.stddev > 0.0)) throw SceneError(ptr + "/std", "the standard deviation must be positive");
     bounds(false);
     // Phi(b) - Phi(a) must not vanish: bounds many deviations away from the mean leave nothing to draw.
-    const boost::math::normal n(r.mean, r.stddev);
-    if (!(boost::math::cdf(n, r.high) - boost::math::cdf(n, r.low) > 1e-12))
-      throw SceneError(ptr + "/low", "the bounds hold no probability of this normal (they lie far in one tail)");
+    double mass = 0.0;
+    try {
+      const boost::math::normal n(r.mean, r.stddev);
+      mass = boost::math::cdf(n, r.high) - boost::math::cdf(n, r.low);
+    } catch (const std::exception&) {
+      throw SceneError(ptr, "mean, std and bounds out of the range a normal distribution can be evaluated in");
+    }
+    if (!(mass > 1e-12)) throw SceneError(ptr + "/low", "the bounds hold no probability of this normal (they lie far in one tail)");
   } else if (t == "discrete" || t == "grid") {
     r.kind = t == "grid" ? InputDistribution::Kind::kGrid : InputDistribution::Kind::kDiscrete;
     if (d.contains("values")) {
@@ -177,8 +187,8 @@ CampaignSpec CampaignSpec::from_json(const json& spec, const std::string& base_d
   only_fields(spec, "", {"name", "description", "scene", "inputs", "sampler", "seed", "samples", "target", "full_report", "map"});
   CampaignSpec s;
   s.document = spec;
-  s.name = spec.value("name", "campaign");
   if (spec.contains("name") && !spec["name"].is_string()) throw SceneError("/name", "expected a string");
+  s.name = spec.value("name", "campaign");
   // The scene: inline, or a file relative to the spec's directory.
   const json& scene = member(spec, "", "scene");
   if (scene.is_string()) {
@@ -207,6 +217,7 @@ CampaignSpec CampaignSpec::from_json(const json& spec, const std::string& base_d
   if (inputs.size() > static_cast<std::size_t>(kMaxCampaignInputs))
     throw SceneError("/inputs", "more than " + std::to_string(kMaxCampaignInputs) + " inputs");
   std::set<std::string> seen;
+  std::size_t total_values = 0;
   for (std::size_t k = 0; k < inputs.size(); ++k) {
     const std::string ptr = "/inputs/" + std::to_string(k);
     const json& in = inputs[k];
@@ -224,7 +235,19 @@ CampaignSpec CampaignSpec::from_json(const json& spec, const std::string& base_d
     }
     if (!s.scene.contains(jp)) throw SceneError(ptr + "/path", "the scene has nothing at '" + ci.path + "'");
     if (!seen.insert(ci.path).second) throw SceneError(ptr + "/path", "'" + ci.path + "' is already an input");
+    for (const CampaignInput& other : s.inputs) {
+      // One input inside another (/parameters and /parameters/m1) would overwrite it.
+      const std::string& a = other.path.size() < ci.path.size() ? other.path : ci.path;
+      const std::string& b = other.path.size() < ci.path.size() ? ci.path : other.path;
+      if (b.compare(0, a.size(), a) == 0 && b.size() > a.size() && b[a.size()] == '/')
+        throw SceneError(ptr + "/path", "'" + ci.path + "' and the input '" + other.path + "' overlap (one holds the other)");
+    }
     ci.distribution = parse_distribution(member(in, ptr, "distribution"), ptr + "/distribution");
+    // The values of discrete inputs and grids are held in memory: a few kilobytes of spec must not ask
+    // for gigabytes.
+    total_values += ci.distribution.values.size();
+    if (total_values > 1'000'000)
+      throw SceneError(ptr + "/distribution", "the inputs' discrete values and grid points number more than 1000000 in all");
     s.inputs.push_back(std::move(ci));
   }
 
@@ -268,6 +291,9 @@ CampaignSpec CampaignSpec::from_json(const json& spec, const std::string& base_d
     s.samples = n.get<std::int64_t>();
     if (s.samples > kMaxCampaignSamples)
       throw SceneError("/samples", "more than the limit of " + std::to_string(kMaxCampaignSamples) + " samples");
+    if (s.sampler == Sampler::kLatinHypercube && s.samples * static_cast<std::int64_t>(s.inputs.size()) > 8 * kMaxLatinHypercubeSamples)
+      throw SceneError("/samples", "a Latin hypercube keeps 4 bytes per sample and input: at most " +
+                                       std::to_string(8 * kMaxLatinHypercubeSamples) + " samples times inputs (use sobol or monte-carlo)");
     if (s.sampler == Sampler::kLatinHypercube && s.samples > kMaxLatinHypercubeSamples)
       throw SceneError("/samples", "a Latin hypercube of more than " + std::to_string(kMaxLatinHypercubeSamples) +
                                        " samples (use sobol or monte-carlo)");
@@ -410,13 +436,11 @@ json run_campaign_sample(const CampaignSpec& spec, const CampaignDesign& design,
   json record = {{"index", i}};
   const std::vector<json> values = design.values(i);
   json inputs = json::object();
-  json doc = spec.scene;
-  for (std::size_t k = 0; k < values.size(); ++k) {
-    inputs[spec.inputs[k].path] = values[k];
-    doc[json::json_pointer(spec.inputs[k].path)] = values[k];
-  }
+  for (std::size_t k = 0; k < values.size(); ++k) inputs[spec.inputs[k].path] = values[k];
   record["inputs"] = inputs;
   try {
+    json doc = spec.scene;
+    for (std::size_t k = 0; k < values.size(); ++k) doc[json::json_pointer(spec.inputs[k].path)] = values[k];
     const Simulation sim = Simulation::from_json(doc).with_limits(RunLimits{std::nullopt, 1});
     ExtremaTracker extrema;
     RunDiagnostics diagnostics;
@@ -427,8 +451,11 @@ json run_campaign_sample(const CampaignSpec& spec, const CampaignDesign& design,
     record["converged_time"] = summary.converged_time ? json(*summary.converged_time) : json(nullptr);
     record["final_q"] = numbers(summary.q_final);
     record["final_v"] = numbers(summary.v_final);
-    double distance = 0.0;
+    // No target: nothing to check. A final state of another size than the target's (a sample that
+    // changed the system) is not within it.
+    double distance = spec.target_q.empty() ? 0.0 : std::nan("");
     if (!spec.target_q.empty() && summary.q_final.size() == spec.target_q.size()) {
+      distance = 0.0;
       for (std::size_t k = 0; k < spec.target_q.size(); ++k) distance += std::pow(summary.q_final[k] - spec.target_q[k], 2);
       distance = std::sqrt(distance);
       record["target_distance"] = number_or_null(distance);
@@ -449,6 +476,11 @@ json run_campaign_sample(const CampaignSpec& spec, const CampaignDesign& design,
     record["status"] = "invalid";
     record["success"] = false;
     record["error"] = {{"pointer", e.pointer()}, {"reason", e.reason()}};
+  } catch (const std::exception& e) {
+    // Anything else a sample's values provoke is that sample's failure, not the campaign's.
+    record["status"] = "invalid";
+    record["success"] = false;
+    record["error"] = {{"pointer", "/"}, {"reason", std::string("the sample could not be run: ") + e.what()}};
   }
   record["wall_seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return record;
@@ -755,6 +787,7 @@ std::string csv_cell(const json& j) {
     return out + "\"";
   }
   if (j.is_boolean()) return j.get<bool>() ? "1" : "0";
+  if (j.is_structured()) return csv_cell(json(j.dump()));  // a discrete value that is an array or object: quoted
   return j.dump();
 }
 
@@ -768,15 +801,19 @@ std::string csv_header(const CampaignSpec& spec, int dof) {
 
 std::string csv_row(const CampaignSpec& spec, const json& r, int dof) {
   std::string row = std::to_string(r["index"].get<std::int64_t>());
-  for (const auto& in : spec.inputs) row += "," + csv_cell(r["inputs"][in.path]);
+  const json inputs = r.contains("inputs") && r["inputs"].is_object() ? r["inputs"] : json::object();
+  for (const auto& in : spec.inputs) row += "," + (inputs.contains(in.path) ? csv_cell(inputs[in.path]) : std::string());
   for (const char* key : {"status", "success", "converged", "converged_time", "target_distance", "max_abs_q", "max_energy", "steps", "wall_seconds",
                           "hypothesis_failed"})
     row += "," + (r.contains(key) ? csv_cell(r[key]) : std::string());
-  row += "," + (r.contains("error") && r["error"].is_object()
-                    ? csv_cell(json(r["error"]["pointer"].get<std::string>() + ": " + r["error"]["reason"].get<std::string>()))
-                    : std::string());
-  for (int i = 0; i < dof; ++i)
-    row += "," + (r.contains("final_q") && static_cast<int>(r["final_q"].size()) > i ? csv_cell(r["final_q"][i]) : std::string());
+  if (r.contains("error") && r["error"].is_object()) {
+    const json& e = r["error"];
+    row += "," + csv_cell(json(e.value("pointer", std::string("/")) + ": " + e.value("reason", std::string())));
+  } else {
+    row += ",";
+  }
+  const bool has_q = r.contains("final_q") && r["final_q"].is_array();
+  for (int i = 0; i < dof; ++i) row += "," + (has_q && static_cast<int>(r["final_q"].size()) > i ? csv_cell(r["final_q"][i]) : std::string());
   return row + "\n";
 }
 
@@ -798,7 +835,16 @@ void claim_directory(const CampaignSpec& spec, const fs::path& dir) {
   // A name of this process's own: the tasks of a split campaign may all claim the directory at once (they
   // write the same text, and rename is atomic).
   const fs::path tmp = dir / ("campaign.json.tmp." + std::to_string(::getpid()) + "." + std::to_string(std::random_device{}()));
-  std::ofstream(tmp) << spec.document.dump(2) << "\n";
+  {
+    std::ofstream out(tmp, std::ios::trunc);
+    out << spec.document.dump(2) << "\n";
+    out.close();
+    if (!out) {
+      std::error_code ignored;
+      fs::remove(tmp, ignored);
+      throw std::runtime_error("cannot write '" + tmp.string() + "' (disk full?)");
+    }
+  }
   fs::rename(tmp, file);
 }
 
@@ -874,6 +920,29 @@ CampaignRunResult run_campaign(const CampaignSpec& spec, const std::string& dir_
   }
   std::vector<bool> done;
   std::int64_t present = 0;  // samples with a record before this run
+  CampaignRunResult result;
+  if (task) {
+    // A block that is complete is left as it is: nothing is opened, created or renamed.
+    load_rows(spec, dir, fs::path(), CutLine::kIgnore, done, nullptr, dof);
+    bool complete = true;
+    for (std::int64_t i = begin; i < end && complete; ++i) complete = done[static_cast<std::size_t>(i)];
+    if (complete) {
+      result.skipped = end - begin;
+      return result;
+    }
+  }
+  // One writer per records file: a second process on the same file (two tasks given the same block, a
+  // requeued task whose first run still writes, two runs of the whole campaign in one directory) is
+  // refused, not mixed in. Taken before the file is read, so that its cut last line is repaired by its
+  // one writer.
+  const int lock_fd = ::open(own.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
+  if (lock_fd < 0) throw std::runtime_error("cannot write '" + own.string() + "'");
+  struct Unlock {
+    int fd;
+    ~Unlock() { ::close(fd); }  // closing releases the lock
+  } unlock{lock_fd};
+  if (::flock(lock_fd, LOCK_EX | LOCK_NB) != 0)
+    throw std::runtime_error("'" + own.string() + "' is being written by another process (the same samples run twice at once?)");
   std::ofstream out_csv;
   if (task) {
     present = static_cast<std::int64_t>(load_rows(spec, dir, own, CutLine::kIgnore, done, nullptr, dof).size());
@@ -889,19 +958,19 @@ CampaignRunResult run_campaign(const CampaignSpec& spec, const std::string& dir_
     out_csv.open(csv, std::ios::app);
     if (!out_csv) throw std::runtime_error("cannot write '" + csv.string() + "'");
   }
+  result.skipped = 0;
+  for (std::int64_t i = begin; i < end; ++i) result.skipped += done[static_cast<std::size_t>(i)];
   std::ofstream out_jsonl(own, std::ios::app | std::ios::binary);
   if (!out_jsonl) throw std::runtime_error("cannot write '" + own.string() + "'");
-
-  CampaignRunResult result;
-  for (std::int64_t i = begin; i < end; ++i) result.skipped += done[static_cast<std::size_t>(i)];
 
   const CampaignDesign design(spec);
   std::atomic<std::int64_t> next{begin};
   std::mutex write_mu;
   std::exception_ptr error;
   std::int64_t finished = result.skipped;
-  auto worker = [&] {
-    while (!(options.stop && options.stop->load())) {
+  std::atomic<bool> failed{false};
+  auto work = [&] {
+    while (!(options.stop && options.stop->load()) && !failed.load()) {
       std::int64_t i = next.fetch_add(1);
       while (i < end && done[static_cast<std::size_t>(i)]) i = next.fetch_add(1);  // done[] of a skipped sample never changes
       if (i >= end) return;
@@ -919,24 +988,49 @@ CampaignRunResult run_campaign(const CampaignSpec& spec, const std::string& dir_
       }
       if (!out_jsonl || (!task && !out_csv)) {
         error = std::make_exception_ptr(std::runtime_error("writing to '" + dir.string() + "' failed (disk full?)"));
+        failed = true;
         return;
       }
       ++result.ran;
       if (options.progress) options.progress(++finished, end - begin);
     }
   };
+  // An exception in a worker (out of memory, a failing progress callback) ends the run with it, never
+  // std::terminate.
+  auto worker = [&] {
+    try {
+      work();
+    } catch (...) {
+      std::lock_guard lock(write_mu);
+      if (!error) error = std::current_exception();
+      failed = true;
+    }
+  };
   const std::int64_t todo = (end - begin) - result.skipped;
-  const int workers = static_cast<int>(std::clamp<std::int64_t>(options.workers, 1, std::max<std::int64_t>(1, todo)));
-  std::vector<std::thread> threads;
-  for (int t = 1; t < workers; ++t) threads.emplace_back(worker);
-  worker();
-  for (auto& t : threads) t.join();
+  const int workers = static_cast<int>(std::clamp<std::int64_t>(options.workers, 1, std::min<std::int64_t>(kMaxCampaignWorkers, std::max<std::int64_t>(1, todo))));
+  {
+    struct Joiner {
+      std::vector<std::thread> threads;
+      ~Joiner() {
+        for (auto& t : threads)
+          if (t.joinable()) t.join();
+      }
+    } pool;
+    for (int t = 1; t < workers; ++t) pool.threads.emplace_back(worker);
+    worker();
+  }
   if (error) std::rethrow_exception(error);
   result.stopped = result.ran + result.skipped < end - begin;
   out_jsonl.close();
   if (task) {
-    // The range is complete: the part appears under its final name at once (rename is atomic).
-    if (!result.stopped) fs::rename(own, own_done);
+    // The range is complete: the part appears under its final name at once (a hard link is atomic and,
+    // unlike rename, never replaces a complete part that is already there).
+    if (!result.stopped) {
+      if (::link(own.c_str(), own_done.c_str()) != 0)
+        throw std::runtime_error("cannot name the complete part '" + own_done.string() + "': " + std::strerror(errno) +
+                                 " (its records stay in '" + own.string() + "')");
+      fs::remove(own);
+    }
   } else if (present + result.ran == spec.samples) {
     // Every sample is present: the summary's rows are read back from the records (while samples run,
     // memory does not grow with them).
@@ -948,11 +1042,11 @@ CampaignRunResult run_campaign(const CampaignSpec& spec, const std::string& dir_
 }
 
 std::pair<std::int64_t, std::int64_t> task_range(std::int64_t samples, std::int64_t task, std::int64_t tasks) {
-  // Contiguous blocks whose sizes differ by at most one; computed in 128 bits (samples * task may
-  // overflow 64 bits for 10^7 samples and 10^12 tasks; tasks are limited far below).
-  const auto edge = [&](std::int64_t k) {
-    return static_cast<std::int64_t>(static_cast<__int128>(samples) * k / tasks);
-  };
+  // Contiguous blocks whose sizes differ by at most one. samples * k stays far inside 64 bits: at most
+  // kMaxCampaignSamples (10^7) times k < tasks, and tasks is clamped to the samples.
+  tasks = std::clamp<std::int64_t>(tasks, 1, std::max<std::int64_t>(1, samples));
+  task = std::clamp<std::int64_t>(task, 0, tasks - 1);
+  const auto edge = [&](std::int64_t k) { return samples * k / tasks; };
   return {edge(task), edge(task + 1)};
 }
 

@@ -58,6 +58,8 @@ inline constexpr std::int64_t kMaxCampaignSamples = 10'000'000;
 // The Latin hypercube keeps one permutation of the samples per input in memory (4 bytes per sample and
 // input): it is limited to this many samples.
 inline constexpr std::int64_t kMaxLatinHypercubeSamples = 2'000'000;
+// Worker threads of one run at most.
+inline constexpr int kMaxCampaignWorkers = 1024;
 // Uncertain inputs at most (Sobol's table has more; a campaign over more inputs is not a robustness check).
 inline constexpr int kMaxCampaignInputs = 64;
 
