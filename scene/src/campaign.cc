@@ -817,8 +817,11 @@ std::string csv_row(const CampaignSpec& spec, const json& r, int dof) {
   return row + "\n";
 }
 
+}  // namespace
+
 // campaign.json: the spec as given (scene inlined). A directory with another campaign's spec is refused.
-void claim_directory(const CampaignSpec& spec, const fs::path& dir) {
+void claim_campaign_directory(const CampaignSpec& spec, const std::string& dir_name) {
+  const fs::path dir = dir_name;
   fs::create_directories(dir);
   const fs::path file = dir / "campaign.json";
   if (fs::exists(file)) {
@@ -847,6 +850,8 @@ void claim_directory(const CampaignSpec& spec, const fs::path& dir) {
   }
   fs::rename(tmp, file);
 }
+
+namespace {
 
 void write_summary(const fs::path& dir, const json& summary) {
   for (const auto& [name, text] : {std::pair<const char*, std::string>{"summary.json", summary.dump(2) + "\n"},
@@ -898,13 +903,11 @@ json summarize_and_write(const CampaignSpec& spec, const fs::path& dir, std::vec
 
 }  // namespace
 
-void claim_campaign_directory(const CampaignSpec& spec, const std::string& dir) { claim_directory(spec, dir); }
-
 std::string range_part_name(std::int64_t begin, std::int64_t end) { return std::to_string(begin) + "-" + std::to_string(end); }
 
 CampaignRunResult run_campaign(const CampaignSpec& spec, const std::string& dir_name, const CampaignRunOptions& options) {
   const fs::path dir = dir_name;
-  claim_directory(spec, dir);
+  claim_campaign_directory(spec, dir.string());
   const int dof = Simulation::from_json(spec.scene).dof();
   const std::int64_t begin = std::clamp<std::int64_t>(options.begin, 0, spec.samples);
   const std::int64_t end = options.end < 0 ? spec.samples : std::clamp<std::int64_t>(options.end, begin, spec.samples);
