@@ -44,6 +44,27 @@ void BM_CampaignIntegrationOnly_manipulator_T3(benchmark::State& state) {
 }
 BENCHMARK(BM_CampaignIntegrationOnly_manipulator_T3)->Unit(benchmark::kMicrosecond);
 
+// The integration alone over the same samples as BM_CampaignSample (each sample's scene compiled before
+// the loop): the sample's time less this one is the per-sample overhead.
+void BM_CampaignIntegrationOfTheSamples_manipulator_T3(benchmark::State& state) {
+  const auto spec = manipulator_spec();
+  const moreau::scene::CampaignDesign design(spec);
+  std::vector<moreau::scene::Simulation> sims;
+  for (std::int64_t i = 0; i < 1024; ++i) {
+    json doc = spec.scene;
+    const auto values = design.values(i);
+    for (std::size_t k = 0; k < values.size(); ++k) doc[json::json_pointer(spec.inputs[k].path)] = values[k];
+    sims.push_back(moreau::scene::Simulation::from_json(doc).with_limits(moreau::scene::RunLimits{std::nullopt, 1}));
+  }
+  struct Nothing : moreau::RunObserver {
+    void on_sample(const moreau::Sample&) override {}
+  } observer;
+  moreau::scene::RunDiagnostics diagnostics;
+  std::size_t i = 0;
+  for (auto _ : state) benchmark::DoNotOptimize(sims[i++ % sims.size()].run(&observer, &diagnostics).steps);
+}
+BENCHMARK(BM_CampaignIntegrationOfTheSamples_manipulator_T3)->Unit(benchmark::kMicrosecond);
+
 // Compiling the scene alone (what each sample does before it runs).
 void BM_CampaignCompileOnly_manipulator(benchmark::State& state) {
   const auto spec = manipulator_spec();

@@ -178,9 +178,11 @@ def check_answer(doc, what, op, status, ctype, body):
                  (what, status, "/".join(map(str, e.absolute_path)), e.message[:300]))
 
 
-def concrete(path, job_id, study_id):
+def concrete(path, job_id, study_id, campaign_id=None):
     if path.startswith("/v1/studies/"):
         path = path.replace("{id}", study_id)
+    if path.startswith("/v1/campaigns/"):
+        path = path.replace("{id}", campaign_id or job_id)
     return path.replace("{id}", job_id).replace("{name}", "manipulator")
 
 
@@ -196,7 +198,12 @@ def check_live(doc, doc_text, server_bin, scenes):
         job_body = {"scene": "manipulator", "overrides": ["integrator.t_end=0.5"]}
         study_body = {"scene": "manipulator", "overrides": ["integrator.t_end=0.5"],
                       "study": {"h": "1e-2,1e-3", "schemes": ["abl"], "repeats": 1}}
-        for name, body_, schema_path in (("job", job_body, "/v1/jobs"), ("study", study_body, "/v1/studies")):
+        campaign_body = {"scene": "manipulator-fig6.4", "overrides": ["integrator.t_end=3"],
+                         "campaign": {"inputs": [{"path": "/parameters/m2", "distribution": {"type": "uniform", "low": 0.8, "high": 1.2}},
+                                                 {"path": "/initial/q/0", "distribution": {"type": "uniform", "low": 2, "high": 4}}],
+                                      "sampler": "sobol", "samples": 8, "seed": 1}}
+        for name, body_, schema_path in (("job", job_body, "/v1/jobs"), ("study", study_body, "/v1/studies"),
+                                         ("campaign", campaign_body, "/v1/campaigns")):
             schema = ops[(schema_path, "post")]["requestBody"]["content"]["application/json"]["schema"]
             for e in list(validator_for(doc, schema).iter_errors(body_))[:1]:
                 fail("the test's %s request does not match the documented schema: %s" % (name, e.message))
@@ -206,23 +213,27 @@ def check_live(doc, doc_text, server_bin, scenes):
         status, ctype, body = request_3(base, "POST", "/v1/studies", study_body)
         check_answer(doc, "POST /v1/studies", ops[("/v1/studies", "post")], status, ctype, body)
         study_id = json.loads(body)["id"]
-        for kind, i in (("jobs", job_id), ("studies", study_id)):
+        status, ctype, body = request_3(base, "POST", "/v1/campaigns", campaign_body)
+        check_answer(doc, "POST /v1/campaigns", ops[("/v1/campaigns", "post")], status, ctype, body)
+        campaign_id = json.loads(body)["id"]
+        for kind, i in (("jobs", job_id), ("studies", study_id), ("campaigns", campaign_id)):
             status, _, body = request_3(base, "GET", "/v1/%s/%s?wait=60" % (kind, i))
             if status != 200 or json.loads(body)["state"] != "done":
                 fail("the %s %s did not finish: %s" % (kind, i, body[:300]))
 
         absent = "0123456789abcdef0123456789abcdef"
-        posts = {"/v1/jobs": job_body, "/v1/studies": study_body}
+        posts = {"/v1/jobs": job_body, "/v1/studies": study_body, "/v1/campaigns": campaign_body}
         # Cancelling comes last: it does not change a finished job, but order it after the reads anyway.
         for path, method, op in sorted(operations(doc), key=lambda x: x[1] == "delete"):
             M = method.upper()
-            url = concrete(path, job_id, study_id)
+            url = concrete(path, job_id, study_id, campaign_id)
             body_ = posts.get(path) if M == "POST" else None
             cases = [("", url)]
             query = [p for p in op.get("parameters", []) if p["in"] == "query"]
             if query:
                 # A cursor must name a listed job or study: the finished one of that collection.
-                cursor = study_id if path.startswith("/v1/studies") else job_id
+                cursor = (study_id if path.startswith("/v1/studies") else campaign_id if path.startswith("/v1/campaigns")
+                          else job_id)
                 cases.append(("every query parameter", url + "?" + "&".join(
                     "%s=%s" % (p["name"], cursor if p["name"] == "before" else example_value(doc, p)) for p in query)))
             cases.append(("an unknown query parameter", url + "?no_such_parameter=1"))

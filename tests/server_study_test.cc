@@ -24,18 +24,6 @@ namespace fs = std::filesystem;
 
 httplib::Result post_study(httplib::Client& c, const json& body) { return c.Post("/v1/studies", body.dump(), "application/json"); }
 
-json wait_study(httplib::Client& c, const std::string& id, double seconds = 60) {
-  const auto deadline = Clock::now() + std::chrono::duration<double>(seconds);
-  while (true) {
-    auto r = c.Get("/v1/studies/" + id + "?wait=5");
-    if (!r || r->status != 200) throw std::runtime_error("GET study failed");
-    json j = json::parse(r->body);
-    const std::string s = j["state"];
-    if (s == "done" || s == "failed" || s == "cancelled") return j;
-    if (Clock::now() > deadline) throw std::runtime_error("study did not finish in time");
-  }
-}
-
 // Width and height from a PNG's IHDR chunk (bytes 16..23, big-endian).
 std::pair<std::uint32_t, std::uint32_t> png_size(const std::string& png) {
   EXPECT_GE(png.size(), 24u);
@@ -61,7 +49,7 @@ TEST(ServerStudy, TableEqualsTheLibraryStudyAndFiguresAreDrawn) {
   EXPECT_EQ(r->get_header_value("Location"), "/v1/studies/" + id);
   EXPECT_EQ(accepted["progress"]["rows_total"], 6);
 
-  const json final = wait_study(*c, id);
+  const json final = wait_final_study(*c, id, 60);
   ASSERT_EQ(final["state"], "done") << final.dump();
   EXPECT_EQ(final["progress"]["rows"], 6);
   EXPECT_EQ(final["result"]["reference"], "exact solution");
@@ -249,7 +237,7 @@ TEST(ServerStudy, AFinishedStudyIsServedAgainAfterARestart) {
     auto r = post_study(*c, {{"scene", "damped-relay"}, {"study", kSettings}});
     ASSERT_EQ(r->status, 202);
     id = json::parse(r->body)["id"];
-    ASSERT_EQ(wait_study(*c, id)["state"], "done");
+    ASSERT_EQ(wait_final_study(*c, id, 60)["state"], "done");
     table = c->Get("/v1/studies/" + id + "/table")->body;
     csv = c->Get("/v1/studies/" + id + "/table?format=csv")->body;
     data = first.release_data();

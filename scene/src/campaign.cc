@@ -431,7 +431,7 @@ json numbers(const std::vector<double>& v) {
 
 }  // namespace
 
-json run_campaign_sample(const CampaignSpec& spec, const CampaignDesign& design, std::int64_t i) {
+json run_campaign_sample(const CampaignSpec& spec, const CampaignDesign& design, std::int64_t i, std::optional<std::int64_t> max_steps) {
   const auto start = std::chrono::steady_clock::now();
   json record = {{"index", i}};
   const std::vector<json> values = design.values(i);
@@ -441,7 +441,7 @@ json run_campaign_sample(const CampaignSpec& spec, const CampaignDesign& design,
   try {
     json doc = spec.scene;
     for (std::size_t k = 0; k < values.size(); ++k) doc[json::json_pointer(spec.inputs[k].path)] = values[k];
-    const Simulation sim = Simulation::from_json(doc).with_limits(RunLimits{std::nullopt, 1});
+    const Simulation sim = Simulation::from_json(doc).with_limits(RunLimits{max_steps, 1});
     ExtremaTracker extrema;
     RunDiagnostics diagnostics;
     const RunSummary summary = sim.run(&extrema, &diagnostics);
@@ -971,17 +971,25 @@ CampaignRunResult run_campaign(const CampaignSpec& spec, const std::string& dir_
   std::mutex write_mu;
   std::exception_ptr error;
   std::int64_t finished = result.skipped;
+  std::int64_t written_bytes = 0;
   std::atomic<bool> failed{false};
   auto work = [&] {
     while (!(options.stop && options.stop->load()) && !failed.load()) {
       std::int64_t i = next.fetch_add(1);
       while (i < end && done[static_cast<std::size_t>(i)]) i = next.fetch_add(1);  // done[] of a skipped sample never changes
       if (i >= end) return;
-      json r = run_campaign_sample(spec, design, i);
+      json r = run_campaign_sample(spec, design, i, options.max_steps);
       const std::string line = r.dump() + '\n', row = task ? std::string() : csv_row(spec, r, dof);
       r = json();  // nothing of a finished sample stays in memory: it is on disk
       std::lock_guard lock(write_mu);
       if (error) return;
+      written_bytes += static_cast<std::int64_t>(line.size() + row.size());
+      if (options.max_bytes > 0 && written_bytes > options.max_bytes) {
+        error = std::make_exception_ptr(std::runtime_error("the records reached the limit of " + std::to_string(options.max_bytes) +
+                                                           " bytes at sample " + std::to_string(i)));
+        failed = true;
+        return;
+      }
       // The record, then its row: the records are the truth (the table is rebuilt from them).
       out_jsonl << line;
       out_jsonl.flush();

@@ -6,9 +6,11 @@
 
 #include <nlohmann/json.hpp>
 
+#include "moreau/scene/campaign.h"
 #include "moreau/scene/study.h"
 
 #ifdef MOREAU_SERVER_HAVE_RENDER
+#include "moreau/scene/campaign_figures.h"
 #include "moreau/render/figures.h"
 #include "moreau/render/render.h"
 #include "moreau/scene/figures.h"
@@ -71,9 +73,25 @@ std::string study_figure_image(std::string_view kind, const std::string& result_
   return encode(scene::study_figure(std::string(kind), result, opt), format);
 }
 
+std::string campaign_figure_image(std::string_view kind, const scene::CampaignSpec& spec, const std::string& dir, double t_end, int width,
+                                  int height, FigureFormat format) {
+  for (auto& [name, fig] : scene::campaign_figures(spec, scene::read_campaign_outcomes(spec, dir), t_end)) {
+    if (name != kind) continue;
+    fig.width_px = width;
+    fig.height_px = height;
+    return encode(fig, format);
+  }
+  throw std::runtime_error(kind == "success-map" ? "this campaign has no success map: it needs two numeric inputs"
+                                                 : "this campaign has no " + std::string(kind) + " figure (no sample converged, or no numeric input)");
+}
+
 #else
 
 bool figures_available() { return false; }
+
+std::string campaign_figure_image(std::string_view, const scene::CampaignSpec&, const std::string&, double, int, int, FigureFormat) {
+  throw std::runtime_error("this server was built without render/: figures are not available");
+}
 
 std::string study_figure_image(std::string_view, const std::string&, int, int, FigureFormat) {
   throw std::runtime_error("this server was built without render/: figures are not available");

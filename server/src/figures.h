@@ -8,6 +8,7 @@
 
 namespace moreau::scene {
 class Simulation;
+struct CampaignSpec;
 }
 
 namespace moreau::server {
@@ -30,5 +31,11 @@ std::string figure_image(std::string_view kind, std::string_view csv, std::optio
 // The image of a study's "work" or "order" figure, from its stored result.json (as `moreau study --work`
 // / `--order` draw them). Throws std::runtime_error or std::invalid_argument with a clear message.
 std::string study_figure_image(std::string_view kind, const std::string& result_json, int width, int height, FigureFormat format);
+
+// The image of a finished campaign's figure "convergence-cdf", "inputs" or "success-map"
+// (campaign_figures.h), from the records in its directory. Throws std::runtime_error with a clear message,
+// also when the campaign has no such figure (no sample converged; fewer than two numeric inputs).
+std::string campaign_figure_image(std::string_view kind, const scene::CampaignSpec& spec, const std::string& dir, double t_end, int width,
+                                  int height, FigureFormat format);
 
 }  // namespace moreau::server

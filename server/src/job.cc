@@ -45,15 +45,41 @@ const char* to_string(JobState s) {
   return "?";
 }
 
+const char* kind_name(JobKind k) {
+  switch (k) {
+    case JobKind::kRun: return "run";
+    case JobKind::kStudy: return "study";
+    case JobKind::kCampaign: return "campaign";
+  }
+  return "?";
+}
+
+std::string kind_url(JobKind k) {
+  switch (k) {
+    case JobKind::kRun: return "/v1/jobs/";
+    case JobKind::kStudy: return "/v1/studies/";
+    case JobKind::kCampaign: return "/v1/campaigns/";
+  }
+  return "/v1/jobs/";
+}
+
 bool is_final(JobState s) { return s == JobState::kDone || s == JobState::kFailed || s == JobState::kCancelled; }
+
+namespace {
+// "success-map" -> "success_map_figure": link names are identifiers.
+std::string figure_link_name(std::string kind) {
+  std::replace(kind.begin(), kind.end(), '-', '_');
+  return kind + "_figure";
+}
+}  // namespace
 
 json job_json(const Job& job, const json* report) {
   std::unique_lock lock(job.mu);
   const bool study = job.kind == JobKind::kStudy;
   json j;
   j["id"] = job.id;
-  j["kind"] = study ? "study" : "run";
-  j["url"] = (study ? "/v1/studies/" : "/v1/jobs/") + job.id;
+  j["kind"] = kind_name(job.kind);
+  j["url"] = kind_url(job.kind) + job.id;
   j["scene"] = job.scene_name;
   j["state"] = to_string(job.state);
   if (!job.reason.empty()) j["reason"] = job.reason;
@@ -75,6 +101,21 @@ json job_json(const Job& job, const json* report) {
       links["csv"] = url + "/table?format=csv";
       links["work_figure"] = url + "/figure?kind=work";
       links["order_figure"] = url + "/figure?kind=order";
+    }
+  } else if (job.kind == JobKind::kCampaign) {
+    const std::int64_t done = job.state == JobState::kDone ? job.rows_total : job.rows_done.load();
+    j["progress"] = {{"samples", done},
+                     {"samples_total", job.rows_total},
+                     {"fraction", job.rows_total > 0 ? static_cast<double>(done) / static_cast<double>(job.rows_total) : 0.0}};
+    // The records of the samples that finished are kept whatever the end (cancelled, failed, stopped).
+    if (job.has_trajectory && final) {
+      links["samples"] = url + "/samples?format=csv";
+      links["records"] = url + "/samples?format=jsonl";
+    }
+    if (job.has_report && final) {
+      links["summary"] = url + "/summary";
+      links["summary_text"] = url + "/summary?format=text";
+      for (const char* kind : {"convergence-cdf", "inputs", "success-map"}) links[figure_link_name(kind)] = url + "/figure?kind=" + kind;
     }
   } else {
     double t = job.t_now.load();
@@ -105,13 +146,13 @@ json job_json(const Job& job, const json* report) {
                    {"realtime", job.stream.realtime}};
   }
   lock.unlock();
-  if (report) j[study ? "result" : "report"] = *report;
+  if (report) j[study ? "result" : job.kind == JobKind::kCampaign ? "summary" : "report"] = *report;
   return j;
 }
 
 json job_record(const Job& job, JobState state, const std::string& reason, double started, double finished) {
   json r = {{"id", job.id},
-            {"kind", job.kind == JobKind::kStudy ? "study" : "run"},
+            {"kind", kind_name(job.kind)},
             {"scene", job.scene_name},
             {"state", to_string(state)},
             {"created", job.created},
@@ -120,7 +161,7 @@ json job_record(const Job& job, JobState state, const std::string& reason, doubl
             {"t0", job.t0},
             {"t_end", job.t_end},
             {"planned_steps", job.planned_steps}};
-  if (job.kind == JobKind::kStudy) r["rows_total"] = job.rows_total;
+  if (job.kind != JobKind::kRun) r["rows_total"] = job.rows_total;
   if (!reason.empty()) r["reason"] = reason;
   // Where a run got to, so that a restarted server shows the progress it had.
   if (is_final(state)) {

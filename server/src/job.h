@@ -1,4 +1,4 @@
-// A job (a run or a study submitted to the server): what it is, its state and events, and its record
+// A job (a run, a study or a campaign submitted to the server): what it is, its state and events, and its record
 // and JSON as the API shows them. job_store.h keeps the jobs and their files; job_runner.h runs them.
 #pragma once
 
@@ -15,6 +15,7 @@
 #include <nlohmann/json.hpp>
 
 #include "lcm_stream.h"
+#include "moreau/scene/campaign.h"
 #include "moreau/scene/simulation.h"
 #include "moreau/scene/study.h"
 #include "moreau/server/server_config.h"
@@ -24,8 +25,12 @@ namespace moreau::server {
 // kCancelling: a running job asked to stop (DELETE); it becomes kCancelled when its run has stopped
 // and what it computed is stored.
 enum class JobState { kQueued, kRunning, kCancelling, kDone, kFailed, kCancelled };
-enum class JobKind { kRun, kStudy };
+enum class JobKind { kRun, kStudy, kCampaign };
 const char* to_string(JobState s);
+// "run", "study", "campaign": the kind as the API and the job records name it.
+const char* kind_name(JobKind k);
+// Where the API serves jobs of this kind: "/v1/jobs/", "/v1/studies/", "/v1/campaigns/".
+std::string kind_url(JobKind k);
 bool is_final(JobState s);
 
 // A server-sent event: "id: <id>\nevent: <name>\ndata: <data>\n\n".
@@ -55,8 +60,11 @@ struct Job {
   // Studies: the compiled scene and the settings, and the rows of the table done so far.
   std::optional<scene::LagrangianScene> study_scene;
   scene::StudySettings study;
-  std::int64_t rows_total = 0;
+  std::int64_t rows_total = 0;  // a study's rows; a campaign's samples
   std::atomic<std::int64_t> rows_done{0};
+  // Campaigns: the validated spec (its scene inlined). The campaign's directory (campaign.h) is the job's:
+  // campaign.json, samples.jsonl, samples.csv, summary.json and summary.txt beside job.json.
+  std::optional<scene::CampaignSpec> campaign;
 
   std::atomic<bool> cancel{false};            // the run stops at its next check (every 256 steps: within 50 ms)
   std::atomic<bool> shutdown{false};          // ... because the server is stopping
@@ -85,7 +93,8 @@ struct Job {
 inline constexpr std::uint64_t kEventIdGapAfterRestart = std::uint64_t{1} << 32;
 
 // The job as GET /v1/jobs/{id} shows it (with the report when `report` is given); a study as
-// GET /v1/studies/{id} shows it (with its result as "result").
+// GET /v1/studies/{id} shows it (with its result as "result"); a campaign as GET /v1/campaigns/{id} shows
+// it (with its summary as "summary").
 nlohmann::json job_json(const Job& job, const nlohmann::json* report);
 
 // The record of `job` (DATA/jobs/<id>/job.json) as it would be in `state`; job.mu must be held.

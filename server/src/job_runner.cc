@@ -48,6 +48,7 @@ void JobRunner::stop() {
   for (auto& job : queued) {
     job->sim.reset();
     job->study_scene.reset();
+    job->campaign.reset();
     set_state(*job, JobState::kFailed, kReasonStoppedQueued);
   }
   auto wake = [](Job& job) {
@@ -74,7 +75,7 @@ void JobRunner::stop() {
   for (auto& job : all) wake(*job);
 }
 
-JobRunner::Submit JobRunner::submit(const std::shared_ptr<Job>& job, const json& scene_doc, int* retry_after, const json* study_doc) {
+JobRunner::Submit JobRunner::submit(const std::shared_ptr<Job>& job, const json& scene_doc, int* retry_after, const json* spec_doc) {
   {
     std::lock_guard lock(mu_);
     if (stopping_) return Submit::kStopping;
@@ -88,7 +89,7 @@ JobRunner::Submit JobRunner::submit(const std::shared_ptr<Job>& job, const json&
     }
   }
   // Accepted means stored: the scene and the record are on disk before the 202 (507 when they cannot be).
-  store_.write_new(*job, scene_doc, study_doc);
+  store_.write_new(*job, scene_doc, spec_doc);
   push_event(*job, "state", {{"id", job->id}, {"state", "queued"}});
   {
     std::lock_guard lock(mu_);
@@ -162,6 +163,7 @@ JobRunner::Cancel JobRunner::cancel(const std::shared_ptr<Job>& job) {
   if (was_queued) {
     job->sim.reset();
     job->study_scene.reset();
+    job->campaign.reset();
     job->cancel_requested = true;
     set_state(*job, JobState::kCancelled, "cancelled before it ran");
     return Cancel::kCancelled;
@@ -215,6 +217,7 @@ void JobRunner::worker_loop() {
       std::cerr << "moreau-server: job " << job->id << " failed: " << e.what() << "\n";
       job->sim.reset();
       job->study_scene.reset();
+      job->campaign.reset();
       set_state(*job, JobState::kFailed, std::string("internal error: ") + e.what());
     }
     --busy_;
@@ -226,6 +229,7 @@ void JobRunner::run(const std::shared_ptr<Job>& job) {
   if (job->cancel) {
     job->sim.reset();
     job->study_scene.reset();
+    job->campaign.reset();
     if (job->shutdown && !job->cancel_requested)
       set_state(*job, JobState::kFailed, kReasonStoppedQueued);
     else
@@ -237,6 +241,7 @@ void JobRunner::run(const std::shared_ptr<Job>& job) {
   commit->job = job;
   commit->wall_start = wall_start;
   if (job->kind == JobKind::kStudy) return run_study(job, std::move(commit));
+  if (job->kind == JobKind::kCampaign) return run_campaign(job, std::move(commit));
   commit->files = {"trajectory.csv", "report.json"};
   const scene::Simulation& sim = *job->sim;
 
@@ -370,6 +375,51 @@ void JobRunner::run_study(const std::shared_ptr<Job>& job, std::unique_ptr<Commi
   enqueue_commit(std::move(commit));
 }
 
+void JobRunner::run_campaign(const std::shared_ptr<Job>& job, std::unique_ptr<Commit> commit) {
+  const scene::CampaignSpec spec = std::move(*job->campaign);
+  job->campaign.reset();
+  scene::CampaignRunOptions options;
+  options.workers = config_.campaign_threads > 0 ? config_.campaign_threads : std::max<int>(1, static_cast<int>(workers_.size()));
+  options.stop = &job->cancel;
+  options.max_steps = config_.max_steps;
+  options.max_bytes = config_.max_result_bytes;
+  // Progress at most ten times a second (and at the last sample): the event stream's bound keeps the
+  // latest progress events, and a client needs no more.
+  Clock::time_point last_event{};
+  options.progress = [&](std::int64_t done, std::int64_t total) {
+    job->rows_done = done;
+    const auto now = Clock::now();
+    if (done < total && now - last_event < std::chrono::milliseconds(100)) return;
+    last_event = now;
+    push_event(*job, "progress", {{"samples", done}, {"samples_total", total}});
+  };
+  const auto t_start = Clock::now();
+  try {
+    const scene::CampaignRunResult result = scene::run_campaign(spec, job->dir.string(), options);
+    const std::int64_t have = job->rows_done.load();
+    if (result.summarized) {
+      commit->state = JobState::kDone;
+    } else if (job->shutdown && !job->cancel_requested) {
+      commit->state = JobState::kFailed;
+      commit->reason = std::string(kReasonStoppedRunning) + " (" + std::to_string(have) + " of " + std::to_string(spec.samples) +
+                       " samples finished; their records are kept)";
+    } else if (result.stopped) {
+      commit->state = JobState::kCancelled;
+      commit->reason = "cancelled by request (" + std::to_string(have) + " of " + std::to_string(spec.samples) +
+                       " samples finished; their records are kept)";
+    } else {
+      commit->state = JobState::kFailed;
+      commit->reason = "the campaign ended without every sample (" + std::to_string(have) + " of " + std::to_string(spec.samples) + ")";
+    }
+  } catch (const std::exception& e) {
+    commit->state = JobState::kFailed;
+    commit->reason = std::string("the campaign could not be run: ") + e.what();
+  }
+  commit->integrate_seconds = seconds_since(t_start);
+  commit->files_in_place = {"samples.jsonl", "samples.csv", "summary.json", "summary.txt"};
+  enqueue_commit(std::move(commit));
+}
+
 void JobRunner::fail_to_store(Job& job, const std::string& what) {
   // A full or failing disk: the partial results would go on holding the space, and are of no use.
   std::error_code ec;
@@ -410,12 +460,25 @@ void JobRunner::commit(Commit& c) {
     fsync_path(tmp);
     fs::rename(tmp, target);
   }
+  // A campaign's files were written in place as its samples finished: made durable here.
+  bool has_summary = false, has_records = false;
+  for (const char* name : c.files_in_place) {
+    std::error_code ec;
+    if (!fs::exists(job.dir / name, ec)) continue;
+    fsync_path(job.dir / name);
+    has_summary = has_summary || std::string_view(name) == "summary.json";
+    has_records = has_records || std::string_view(name) == "samples.jsonl";
+  }
   // The renames themselves survive a power loss once the directory is synced.
-  if (!c.files.empty()) fsync_path(job.dir);
+  if (!c.files.empty() || !c.files_in_place.empty()) fsync_path(job.dir);
   if (!c.files.empty()) {
     std::lock_guard lock(job.mu);
     job.has_report = true;
     job.has_trajectory = true;
+  } else if (!c.files_in_place.empty()) {
+    std::lock_guard lock(job.mu);
+    job.has_report = has_summary;
+    job.has_trajectory = has_records;
   }
   job.t_now = summary.t_final;
   job.step_now = summary.steps;

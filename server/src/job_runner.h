@@ -58,10 +58,10 @@ class JobRunner {
   std::shared_ptr<Job> make_job() const { return store_.make_job(); }
 
   enum class Submit { kQueued, kQueueFull, kStopping };
-  // Writes the job's records (scene.json, job.json; study.json for a study) and queues it. On kQueueFull, *retry_after is a
-  // suggested wait in seconds.
+  // Writes the job's records (scene.json, job.json; study.json for a study, campaign.json for a campaign)
+  // and queues it. On kQueueFull, *retry_after is a suggested wait in seconds.
   Submit submit(const std::shared_ptr<Job>& job, const nlohmann::json& scene_doc, int* retry_after,
-                const nlohmann::json* study_doc = nullptr);
+                const nlohmann::json* spec_doc = nullptr);
 
   std::shared_ptr<Job> find(const std::string& id) const { return store_.find(id); }
   std::vector<std::shared_ptr<Job>> list() const { return store_.list(); }
@@ -89,6 +89,8 @@ class JobRunner {
     std::shared_ptr<Job> job;
     std::shared_ptr<JobStream> stream;
     std::vector<const char*> files;  // renamed from NAME.tmp in this order; the last one commits the job
+    // Written in place by the run (a campaign's records and summary, campaign.h): made durable, not renamed.
+    std::vector<const char*> files_in_place;
     RunSummary summary;
     JobState state = JobState::kDone;
     std::string reason;
@@ -104,6 +106,7 @@ class JobRunner {
   void worker_loop();
   void run(const std::shared_ptr<Job>& job);
   void run_study(const std::shared_ptr<Job>& job, std::unique_ptr<Commit> commit);
+  void run_campaign(const std::shared_ptr<Job>& job, std::unique_ptr<Commit> commit);
   void enqueue_commit(std::unique_ptr<Commit> commit);
   void committer_loop();
   void commit(Commit& c);

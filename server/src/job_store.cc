@@ -29,11 +29,14 @@ std::shared_ptr<Job> JobStore::make_job() const {
   return job;
 }
 
-void JobStore::write_new(const Job& job, const json& scene_doc, const json* study_doc) const {
+void JobStore::write_new(const Job& job, const json& scene_doc, const json* spec_doc) const {
   try {
     fs::create_directories(job.dir);
     write_file_atomic(job.dir / "scene.json", scene_doc.dump(2) + "\n", Durability::kFsync);
-    if (study_doc) write_file_atomic(job.dir / "study.json", study_doc->dump(2) + "\n", Durability::kFsync);
+    if (spec_doc) {
+      const char* name = job.kind == JobKind::kCampaign ? "campaign.json" : "study.json";
+      write_file_atomic(job.dir / name, spec_doc->dump(2) + "\n", Durability::kFsync);
+    }
     json record;
     {
       std::lock_guard lock(job.mu);
@@ -90,7 +93,8 @@ void JobStore::recover() {
       std::cerr << "moreau-server: skipping " << job->dir << ": no readable job.json\n";
       continue;
     }
-    job->kind = record.value("kind", "run") == "study" ? JobKind::kStudy : JobKind::kRun;
+    const std::string kind = record.value("kind", "run");
+    job->kind = kind == "study" ? JobKind::kStudy : kind == "campaign" ? JobKind::kCampaign : JobKind::kRun;
     job->rows_total = record.value("rows_total", std::int64_t{0});
     job->scene_name = record.value("scene", "");
     job->created = record.value("created", 0.0);
@@ -116,9 +120,9 @@ void JobStore::recover() {
       job->stream.realtime = record["stream"].value("realtime", false);
       set_channels(job->stream, job->id);
     }
-    const bool study = job->kind == JobKind::kStudy;
-    job->has_report = fs::exists(job->dir / (study ? "result.json" : "report.json"), ec);
-    job->has_trajectory = fs::exists(job->dir / (study ? "table.csv" : "trajectory.csv"), ec);
+    const bool study = job->kind == JobKind::kStudy, campaign = job->kind == JobKind::kCampaign;
+    job->has_report = fs::exists(job->dir / (study ? "result.json" : campaign ? "summary.json" : "report.json"), ec);
+    job->has_trajectory = fs::exists(job->dir / (study ? "table.csv" : campaign ? "samples.jsonl" : "trajectory.csv"), ec);
     const std::optional<JobState> recorded = parse_state(record.value("state", ""));
     // Event ids continue (a Last-Event-ID from before the restart resumes exactly): a final record's state
     // event took the record's event_id, and is replayed with it; a job that was not final may have sent
@@ -130,8 +134,9 @@ void JobStore::recover() {
     bool rewrite = false;
     if (recorded && is_final(*recorded)) {
       job->state = *recorded;
-    } else if (job->has_report && study) {
-      // The study's result was committed (only completed studies write one), the record not updated.
+    } else if (job->has_report && (study || campaign)) {
+      // The study's result (or the campaign's summary) was committed (only a complete one is written), the
+      // record not updated.
       job->state = JobState::kDone;
       rewrite = true;
     } else if (job->has_report) {
@@ -152,6 +157,8 @@ void JobStore::recover() {
     } else {
       job->state = JobState::kFailed;
       job->reason = recorded == JobState::kQueued ? kReasonRestartedQueued : kReasonRestartedRunning;
+      if (campaign && job->has_trajectory)
+        job->reason += " (the records of the samples that had finished are kept: GET " + kind_url(job->kind) + job->id + "/samples)";
       rewrite = true;
     }
     if (job->finished == 0 && rewrite) job->finished = unix_now();

@@ -45,9 +45,10 @@ class JobStore {
 
   // A fresh job with a random id and its directory path (not yet created).
   std::shared_ptr<Job> make_job() const;
-  // Accepted means stored: the scene (and a study's settings) and the record are on disk, fsync'ed with
-  // the directory. A write that fails (a full disk, say) leaves nothing and throws.
-  void write_new(const Job& job, const nlohmann::json& scene_doc, const nlohmann::json* study_doc) const;
+  // Accepted means stored: the scene (and a study's settings as study.json, a campaign's spec as
+  // campaign.json) and the record are on disk, fsync'ed with the directory. A write that fails (a full
+  // disk, say) leaves nothing and throws.
+  void write_new(const Job& job, const nlohmann::json& scene_doc, const nlohmann::json* spec_doc) const;
   // Makes the job visible to find() and list().
   void add(const std::shared_ptr<Job>& job);
   std::shared_ptr<Job> find(const std::string& id) const;

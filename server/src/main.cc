@@ -86,6 +86,15 @@ int main(int argc, char** argv) {
   app.add_flag("--allow-unauthenticated-remote", cfg.allow_unauthenticated_remote, "Allow a non-loopback --host without a token");
   app.add_option("--max-body", cfg.max_body_bytes, "Largest request body, bytes (larger: 413)")->capture_default_str();
   app.add_option("--max-steps", cfg.max_steps, "Integration steps per job at most")->capture_default_str()->check(CLI::PositiveNumber);
+  app.add_option("--max-campaign-samples", cfg.max_campaign_samples, "Samples of one campaign at most (POST /v1/campaigns)")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  app.add_option("--max-campaign-steps", cfg.max_campaign_steps, "Integration steps of all of one campaign's samples at most")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  app.add_option("--campaign-threads", cfg.campaign_threads, "Threads one campaign runs its samples on (0: as many as --workers)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
   app.add_option("--max-samples", cfg.max_samples, "Trajectory rows per job at most")
       ->capture_default_str()
       ->check(CLI::Range(std::int64_t{3}, std::int64_t{1} << 40));

@@ -7,6 +7,7 @@
 #include <condition_variable>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <map>
 #include <numeric>
@@ -23,6 +24,7 @@
 #include "figures.h"
 #include "job_runner.h"
 #include "lcm_stream.h"
+#include "moreau/scene/campaign.h"
 #include "moreau/scene/scene.h"
 #include "moreau/scene/simulation.h"
 #include "conditional.h"
@@ -165,6 +167,11 @@ const RouteInfo* route_for(const std::string& path) {
       {"/v1/studies/*/events", "GET, HEAD, OPTIONS", kNone},
       {"/v1/studies/*/table", "GET, HEAD, OPTIONS", {"format"}},
       {"/v1/studies/*/figure", "GET, HEAD, OPTIONS", kFigure},
+      {"/v1/campaigns", "GET, HEAD, POST, OPTIONS", kList},
+      {"/v1/campaigns/*", "GET, HEAD, DELETE, OPTIONS", kWait, kPurge},
+      {"/v1/campaigns/*/events", "GET, HEAD, OPTIONS", kNone},
+      {"/v1/campaigns/*/summary|samples", "GET, HEAD, OPTIONS", {"format"}},
+      {"/v1/campaigns/*/figure", "GET, HEAD, OPTIONS", kFigure},
   };
   for (const RouteInfo& r : routes)
     if (path_matches(path, r.pattern)) return &r;
@@ -415,12 +422,16 @@ class Server::Impl {
   std::optional<std::string> read_body(const Request& req, Response& res, const httplib::ContentReader& reader);
   void post_job(const Request& req, Response& res, const std::string& body);
   void post_study(const Request& req, Response& res, const std::string& body);
+  void post_campaign(const Request& req, Response& res, const std::string& body);
   void get_job(const Request& req, Response& res, JobKind kind);
   void list_jobs(const Request& req, Response& res, JobKind kind);
   void delete_job(const Request& req, Response& res, JobKind kind);
   void job_events(const Request& req, Response& res, JobKind kind);
   void study_table(const Request& req, Response& res);
   void study_figure(const Request& req, Response& res);
+  void campaign_summary(const Request& req, Response& res);
+  void campaign_samples(const Request& req, Response& res);
+  void campaign_figure(const Request& req, Response& res);
   // The scene document of a request body: "scene" (an object, or the name of a shipped scene) with
   // "overrides" applied. Throws BadRequest or scene::SceneError.
   json request_scene(const json& body) const;
@@ -440,8 +451,8 @@ class Server::Impl {
     if (job && is_deleted(*job)) job = nullptr;
     if (!job) {
       // Says which id was not found, or why it cannot be an id (quoted, bounded; JSON escapes it).
-      const char* what = kind == JobKind::kStudy ? "study" : "job";
-      const std::string post = kind == JobKind::kStudy ? "POST /v1/studies" : "POST /v1/jobs";
+      const std::string what = kind == JobKind::kRun ? "job" : kind_name(kind);
+      const std::string post = "POST " + kind_url(kind).substr(0, kind_url(kind).size() - 1);
       send_error(res, 404, std::string("no such ") + what, "",
                  is_job_id(id) ? std::string("no ") + what + " " + id + " on this server (finished ones are deleted when purged, or beyond --keep-jobs)"
                                : "'" + id.substr(0, 64) + "' is not a " + what + " id: " + what +
@@ -591,7 +602,8 @@ class Server::Impl {
 
   // The committed report of a run (report.json) or result of a study (result.json).
   std::optional<json> read_report(const Job& job) {
-    auto text = job_file(job, &Job::has_report, job.kind == JobKind::kStudy ? "result.json" : "report.json");
+    auto text = job_file(job, &Job::has_report,
+                         job.kind == JobKind::kStudy ? "result.json" : job.kind == JobKind::kCampaign ? "summary.json" : "report.json");
     if (!text) return std::nullopt;
     json j = json::parse(*text, nullptr, false);
     if (j.is_discarded()) return std::nullopt;
@@ -741,6 +753,9 @@ void Server::Impl::setup_routes() {
   http_.Post("/v1/studies", [this](const Request& req, Response& res, const httplib::ContentReader& reader) {
     if (auto body = read_body(req, res, reader)) post_study(req, res, *body);
   });
+  http_.Post("/v1/campaigns", [this](const Request& req, Response& res, const httplib::ContentReader& reader) {
+    if (auto body = read_body(req, res, reader)) post_campaign(req, res, *body);
+  });
   // Any other POST: answered without reading its body (the connection then closes).
   http_.Post(".*", [this](const Request& req, Response& res, const httplib::ContentReader&) {
     close_connection_after(res);
@@ -753,6 +768,13 @@ void Server::Impl::setup_routes() {
   http_.Get(R"(/v1/studies/([^/]+)/events)", [this](const Request& req, Response& res) { job_events(req, res, JobKind::kStudy); });
   http_.Get(R"(/v1/studies/([^/]+)/table)", [this](const Request& req, Response& res) { study_table(req, res); });
   http_.Get(R"(/v1/studies/([^/]+)/figure)", [this](const Request& req, Response& res) { study_figure(req, res); });
+  http_.Get("/v1/campaigns", [this](const Request& req, Response& res) { list_jobs(req, res, JobKind::kCampaign); });
+  http_.Get(R"(/v1/campaigns/([^/]+))", [this](const Request& req, Response& res) { get_job(req, res, JobKind::kCampaign); });
+  http_.Delete(R"(/v1/campaigns/([^/]+))", [this](const Request& req, Response& res) { delete_job(req, res, JobKind::kCampaign); });
+  http_.Get(R"(/v1/campaigns/([^/]+)/events)", [this](const Request& req, Response& res) { job_events(req, res, JobKind::kCampaign); });
+  http_.Get(R"(/v1/campaigns/([^/]+)/summary)", [this](const Request& req, Response& res) { campaign_summary(req, res); });
+  http_.Get(R"(/v1/campaigns/([^/]+)/samples)", [this](const Request& req, Response& res) { campaign_samples(req, res); });
+  http_.Get(R"(/v1/campaigns/([^/]+)/figure)", [this](const Request& req, Response& res) { campaign_figure(req, res); });
 }
 
 namespace {
@@ -1161,6 +1183,154 @@ void Server::Impl::post_study(const Request&, Response& res, const std::string& 
   });
 }
 
+// A campaign's records on disk, at most: a bound on one record (its inputs, outcomes and final state;
+// with full_report, the run's report too) times the samples, for the refusal at submission.
+// run_campaign holds the run to the limit itself (CampaignRunOptions::max_bytes), whatever a record takes.
+std::int64_t campaign_bytes_bound(const scene::CampaignSpec& spec, int dof) {
+  std::int64_t per_record = 1024 + 64 * (2 * dof + static_cast<std::int64_t>(spec.inputs.size()));
+  for (const auto& in : spec.inputs) per_record += 2 * static_cast<std::int64_t>(in.path.size());
+  if (spec.full_report) per_record += 16384 + 1024 * dof;
+  return per_record * spec.samples;
+}
+
+void Server::Impl::post_campaign(const Request&, Response& res, const std::string& text) {
+  answer_bad_requests(res, [&] {
+    const json body = post_body(text, {"scene", "overrides", "campaign"}, "{scene, overrides?, campaign}");
+    const json doc = request_scene(body);
+    if (!body.contains("campaign"))
+      throw BadRequest{400, "invalid request", "/campaign",
+                       "missing required field 'campaign' (the uncertain inputs, the sampler and the samples: docs/campaigns.md)", "request"};
+    const json& fields = body["campaign"];
+    if (!fields.is_object())
+      throw BadRequest{400, "invalid request", "/campaign", "expected an object {inputs, samples, sampler?, seed?, target?, map?, full_report?}",
+                       "request"};
+    // The scene is the request's own (an object, or a shipped scene's name, with overrides): a path in the
+    // spec would be a file on this machine.
+    if (fields.contains("scene"))
+      throw BadRequest{400, "invalid request", "/campaign/scene",
+                       "the scene is the request's 'scene' (an object, or the name of a shipped scene), not a field of 'campaign'", "request"};
+    const scene::Simulation sim = scene::Simulation::from_json(doc);  // its errors: 400 invalid scene, at the scene's field
+    json spec_doc = fields;
+    spec_doc["scene"] = doc;
+    scene::CampaignSpec spec;
+    try {
+      spec = scene::CampaignSpec::from_json(spec_doc, "");
+    } catch (const scene::SceneError& e) {
+      throw BadRequest{400, "invalid request", "/campaign" + (e.pointer() == "/" ? std::string() : e.pointer()), e.reason(), "request"};
+    }
+    // Limits: the samples, the steps of each (a job's limit) and of all, the bytes of the records.
+    if (spec.samples > cfg_.max_campaign_samples)
+      throw BadRequest{400, "invalid request", "/campaign/samples",
+                       std::to_string(spec.samples) + " samples; this server runs at most " + std::to_string(cfg_.max_campaign_samples) +
+                           " per campaign (run larger ones with moreau campaign, on one machine or a Slurm cluster)",
+                       "request"};
+    const std::int64_t planned = sim.planned_steps();
+    if (planned > cfg_.max_steps)
+      throw BadRequest{400, "invalid scene", "/integrator/h",
+                       "h = " + fmt_g(sim.h()) + " over [" + fmt_g(sim.t0()) + ", " + fmt_g(sim.t_end()) + "] needs " + std::to_string(planned) +
+                           " steps per sample; this server runs at most " + std::to_string(cfg_.max_steps) + " steps per run",
+                       "scene"};
+    if (planned > cfg_.max_campaign_steps / spec.samples)
+      throw BadRequest{400, "invalid request", "/campaign/samples",
+                       std::to_string(spec.samples) + " samples of " + std::to_string(planned) + " steps each; this server runs at most " +
+                           std::to_string(cfg_.max_campaign_steps) + " steps per campaign",
+                       "request"};
+    const std::int64_t bytes = campaign_bytes_bound(spec, sim.dof());
+    if (bytes > cfg_.max_result_bytes)
+      throw BadRequest{422, "result too large", spec.full_report ? "/campaign/full_report" : "/campaign/samples",
+                       "the records could take about " + std::to_string(bytes) + " bytes; this server stores at most " +
+                           std::to_string(cfg_.max_result_bytes) + " per campaign" +
+                           (spec.full_report ? ": set full_report to false (each record then holds the outcomes without the run's report)"
+                                             : ": run fewer samples"),
+                       "request"};
+
+    auto job = jobs_.make_job();
+    job->kind = JobKind::kCampaign;
+    job->scene_name = sim.name().empty() ? "scene" : sim.name();
+    job->t0 = sim.t0();
+    job->t_end = sim.t_end();
+    job->planned_steps = planned * spec.samples;
+    job->rows_total = spec.samples;
+    const json stored = spec.document;
+    job->campaign.emplace(std::move(spec));
+    queue_and_answer(job, doc, &stored, res);
+  });
+}
+
+void Server::Impl::campaign_summary(const Request& req, Response& res) {
+  auto job = job_for(req, res, JobKind::kCampaign);
+  if (!job) return;
+  const std::string format = req.has_param("format") ? req.get_param_value("format") : "json";
+  if (format != "json" && format != "text") return send_error(res, 400, "bad query", "", "format must be json or text");
+  bool deleted = false;
+  auto text = job_file(*job, &Job::has_report, format == "text" ? "summary.txt" : "summary.json", &deleted);
+  if (deleted) return send_deleted(res);
+  if (!text)
+    return send_error(res, 409, "no summary yet", "",
+                      std::string("the campaign is ") + to_string(state_of(*job)) + "; the summary is served once every sample is done");
+  if (not_modified(req, res, strong_etag(*text))) return;
+  res.status = 200;
+  res.set_content(std::move(*text), format == "text" ? "text/plain; charset=utf-8" : "application/json");
+}
+
+void Server::Impl::campaign_samples(const Request& req, Response& res) {
+  auto job = job_for(req, res, JobKind::kCampaign);
+  if (!job) return;
+  const std::string format = req.has_param("format") ? req.get_param_value("format") : "csv";
+  if (format != "csv" && format != "jsonl") return send_error(res, 400, "bad query", "", "format must be csv or jsonl");
+  // Opened under the files lock, then sent piece by piece as the client takes it (bounded memory for
+  // any size), from the open file even if the campaign is deleted meanwhile.
+  auto in = std::make_shared<std::ifstream>();
+  {
+    std::shared_lock files(job->files_mu);
+    if (job->deleted) return send_deleted(res);
+    if (!final_with(*job, &Job::has_trajectory))
+      return send_error(res, 409, "no samples yet", "",
+                        std::string("the campaign is ") + to_string(state_of(*job)) +
+                            "; its records are served once it has ended (GET it for its progress, or follow /events)");
+    in->open(job->dir / (format == "csv" ? "samples.csv" : "samples.jsonl"), std::ios::binary);
+    if (!*in) return send_error(res, 500, "stored samples unreadable");
+  }
+  res.status = 200;
+  res.set_header("Content-Disposition", "attachment; filename=\"campaign-" + job->id + (format == "csv" ? ".csv\"" : ".jsonl\""));
+  res.set_chunked_content_provider(format == "csv" ? "text/csv" : "application/jsonl", [in](std::size_t, httplib::DataSink& sink) {
+    char buffer[1 << 16];
+    in->read(buffer, sizeof buffer);
+    const auto n = static_cast<std::size_t>(in->gcount());
+    if (n > 0 && !sink.write(buffer, n)) return false;
+    if (!*in) sink.done();
+    return true;
+  });
+}
+
+void Server::Impl::campaign_figure(const Request& req, Response& res) {
+  auto job = job_for(req, res, JobKind::kCampaign);
+  if (!job) return;
+  const std::string kind = req.has_param("kind") ? req.get_param_value("kind") : "convergence-cdf";
+  if (kind != "convergence-cdf" && kind != "inputs" && kind != "success-map")
+    return send_error(res, 400, "bad query", "", "kind must be convergence-cdf, inputs or success-map");
+  const auto figure = figure_request(req, res);
+  if (!figure) return;
+  if (!final_with(*job, &Job::has_report)) {
+    return send_error(res, 409, "no summary yet", "",
+                      std::string("the campaign is ") + to_string(state_of(*job)) + "; figures are drawn once every sample is done");
+  }
+  send_figure(req, res, *job, job->dir / ("figure-" + kind), *figure, [&] {
+    bool deleted = false;
+    auto spec_text = job_file(*job, &Job::has_report, "campaign.json", &deleted);
+    if (deleted) throw JobDeleted{};
+    if (!spec_text) throw StoredFileUnreadable{"stored campaign spec unreadable"};
+    const json spec_doc = json::parse(*spec_text, nullptr, false);
+    if (!spec_doc.is_object() || !spec_doc.contains("scene") || !spec_doc["scene"].is_object())
+      throw StoredFileUnreadable{"stored campaign spec unreadable"};
+    // Read under the files lock: the records are read whole (a few numbers per sample are kept).
+    std::shared_lock files(job->files_mu);
+    if (job->deleted) throw JobDeleted{};
+    return campaign_figure_image(kind, scene::CampaignSpec::from_json(spec_doc, ""), job->dir.string(), job->t_end, figure->size.first,
+                                 figure->size.second, figure->format);
+  });
+}
+
 void Server::Impl::get_job(const Request& req, Response& res, JobKind kind) {
   auto job = job_for(req, res, kind);
   if (!job) return;
@@ -1192,7 +1362,7 @@ void Server::Impl::list_jobs(const Request& req, Response& res, JobKind kind) {
   } catch (const std::exception& e) {
     return send_error(res, 400, "bad query", "", e.what());
   }
-  const char* plural = kind == JobKind::kStudy ? "studies" : "jobs";
+  const char* plural = kind == JobKind::kStudy ? "studies" : kind == JobKind::kCampaign ? "campaigns" : "jobs";
   // The cursor: only jobs created before this one (the "next" link of a page names the oldest of it).
   const std::string before = req.has_param("before") ? req.get_param_value("before") : "";
   const auto all = jobs_.list();  // by creation
@@ -1201,7 +1371,7 @@ void Server::Impl::list_jobs(const Request& req, Response& res, JobKind kind) {
     end = std::find_if(all.begin(), all.end(), [&](const auto& job) { return job->id == before && job->kind == kind; });
     if (end == all.end() || is_deleted(**end))
       return send_error(res, 400, "bad query", "",
-                        "query parameter 'before' names no " + std::string(kind == JobKind::kStudy ? "study" : "job") +
+                        "query parameter 'before' names no " + std::string(kind == JobKind::kRun ? "job" : kind_name(kind)) +
                             " on this server (a cursor is the id of a listed one; it may have been deleted since: list again)");
   }
   std::vector<std::shared_ptr<Job>> picked;
@@ -1233,7 +1403,7 @@ void Server::Impl::list_jobs(const Request& req, Response& res, JobKind kind) {
 void Server::Impl::delete_job(const Request& req, Response& res, JobKind kind) {
   auto job = job_for(req, res, kind);
   if (!job) return;
-  const char* what = kind == JobKind::kStudy ? "study" : "job";
+  const char* what = kind == JobKind::kRun ? "job" : kind_name(kind);
   // ?purge=true deletes a final job with its records and results; without it DELETE cancels, and never
   // deletes results (a cancel that races the run's end must not lose them).
   if (req.has_param("purge")) {

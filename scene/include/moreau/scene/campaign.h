@@ -111,8 +111,10 @@ struct CampaignOutcome {
 };
 
 // Runs sample i and returns its record (never throws for a bad sample: an invalid scene or a failed run
-// is recorded as such, with the field and the reason).
-nlohmann::json run_campaign_sample(const CampaignSpec& spec, const CampaignDesign& design, std::int64_t i);
+// is recorded as such, with the field and the reason). `max_steps` is a caller's step limit on each run
+// (a server's): a sample that needs more fails at it, and is recorded as failed.
+nlohmann::json run_campaign_sample(const CampaignSpec& spec, const CampaignDesign& design, std::int64_t i,
+                                   std::optional<std::int64_t> max_steps = std::nullopt);
 
 // The summary of a campaign's records (all of them, each index once).
 nlohmann::json summarize_campaign(const CampaignSpec& spec, const std::vector<nlohmann::json>& records);
@@ -127,6 +129,10 @@ struct CampaignRunOptions {
   // once every sample is present.
   bool part = false;
   const std::atomic<bool>* stop = nullptr;  // set (e.g. by SIGINT) to stop after the samples running now
+  std::optional<std::int64_t> max_steps;    // per sample (run_campaign_sample)
+  // The bytes this run may add to the records and the table (0: no limit); a record that would pass it
+  // ends the run with std::runtime_error, the records before it kept.
+  std::int64_t max_bytes = 0;
   std::function<void(std::int64_t done, std::int64_t total)> progress;  // after each sample, from one thread
 };
 

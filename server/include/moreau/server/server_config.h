@@ -48,6 +48,13 @@ struct ServerConfig {
   std::int64_t max_figure_source_bytes = std::int64_t{256} << 20;
   std::int64_t max_steps = 100'000'000;  // integration steps per job
   std::int64_t max_samples = 2'000'000;  // trajectory rows per job
+  // Campaigns (POST /v1/campaigns): samples of one campaign at most, integration steps of all its samples
+  // at most (each sample is also held to max_steps), and the threads one campaign runs its samples on
+  // (0: as many as workers). A campaign is one job of the queue: it takes one worker's place and runs its
+  // samples on its own threads.
+  std::int64_t max_campaign_samples = 100'000;
+  std::int64_t max_campaign_steps = 10'000'000'000;
+  int campaign_threads = 0;
   int keep_alive_seconds = 5;            // idle keep-alive connections are closed after this
   // Requests served on one connection before it is closed: a busy keep-alive connection then goes back
   // behind the connections waiting for a thread, so that more clients than threads all get served.
