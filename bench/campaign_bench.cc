@@ -13,12 +13,13 @@ namespace {
 
 using json = nlohmann::json;
 
-moreau::scene::CampaignSpec manipulator_spec() {
+moreau::scene::CampaignSpec manipulator_spec(bool full_report = true) {
   json spec = moreau::scene::read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/campaigns/manipulator-robust.json");
   json scene = moreau::scene::read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/manipulator-fig6.4.json");
   scene["integrator"]["t_end"] = 3.0;
   spec["scene"] = scene;
   spec["samples"] = 1 << 20;
+  spec["full_report"] = full_report;
   return moreau::scene::CampaignSpec::from_json(spec, "");
 }
 
@@ -27,10 +28,22 @@ void BM_CampaignSample_manipulator_T3(benchmark::State& state) {
   const auto spec = manipulator_spec();
   const moreau::scene::CampaignDesign design(spec);
   std::int64_t i = 0;
-  for (auto _ : state) benchmark::DoNotOptimize(moreau::scene::run_campaign_sample(spec, design, i++).dump());
+  moreau::scene::CampaignSampleRunner runner(spec, design);
+  for (auto _ : state) benchmark::DoNotOptimize(runner.run(i++).dump());
   state.counters["samples_per_second"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
 }
 BENCHMARK(BM_CampaignSample_manipulator_T3)->Unit(benchmark::kMicrosecond);
+
+// The same with records of the outcomes alone (full_report false): what campaigns of millions write.
+void BM_CampaignSampleOutcomes_manipulator_T3(benchmark::State& state) {
+  const auto spec = manipulator_spec(false);
+  const moreau::scene::CampaignDesign design(spec);
+  std::int64_t i = 0;
+  moreau::scene::CampaignSampleRunner runner(spec, design);
+  for (auto _ : state) benchmark::DoNotOptimize(runner.run(i++).dump());
+  state.counters["samples_per_second"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+}
+BENCHMARK(BM_CampaignSampleOutcomes_manipulator_T3)->Unit(benchmark::kMicrosecond);
 
 // The integration alone (the scene compiled once, outside the loop, every state seen as in a sample).
 void BM_CampaignIntegrationOnly_manipulator_T3(benchmark::State& state) {

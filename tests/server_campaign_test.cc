@@ -245,7 +245,7 @@ void expect_kept_records(httplib::Client& c, const std::string& id, std::int64_t
   spec_doc["scene"] = scene;
   const auto spec = moreau::scene::CampaignSpec::from_json(spec_doc, "");
   const moreau::scene::CampaignDesign design(spec);
-  json alone = moreau::scene::run_campaign_sample(spec, design, records.begin()->first);
+  json alone = moreau::scene::CampaignSampleRunner(spec, design).run(records.begin()->first);
   alone.erase("wall_seconds");
   EXPECT_EQ(records.begin()->second, alone) << "sample " << records.begin()->first;
 }

@@ -431,17 +431,22 @@ json numbers(const std::vector<double>& v) {
 
 }  // namespace
 
-json run_campaign_sample(const CampaignSpec& spec, const CampaignDesign& design, std::int64_t i, std::optional<std::int64_t> max_steps) {
+CampaignSampleRunner::CampaignSampleRunner(const CampaignSpec& spec, const CampaignDesign& design, std::optional<std::int64_t> max_steps)
+    : spec_(spec), design_(design), max_steps_(max_steps), doc_(spec.scene) {
+  for (const CampaignInput& in : spec.inputs) paths_.emplace_back(in.path);
+}
+
+json CampaignSampleRunner::run(std::int64_t i) {
   const auto start = std::chrono::steady_clock::now();
+  const CampaignSpec& spec = spec_;
   json record = {{"index", i}};
-  const std::vector<json> values = design.values(i);
+  const std::vector<json> values = design_.values(i);
   json inputs = json::object();
   for (std::size_t k = 0; k < values.size(); ++k) inputs[spec.inputs[k].path] = values[k];
-  record["inputs"] = inputs;
+  record["inputs"] = std::move(inputs);
   try {
-    json doc = spec.scene;
-    for (std::size_t k = 0; k < values.size(); ++k) doc[json::json_pointer(spec.inputs[k].path)] = values[k];
-    const Simulation sim = Simulation::from_json(doc).with_limits(RunLimits{max_steps, 1});
+    for (std::size_t k = 0; k < values.size(); ++k) doc_[paths_[k]] = values[k];
+    const Simulation sim = Simulation::from_json(doc_).with_limits(RunLimits{max_steps_, 1});
     ExtremaTracker extrema;
     RunDiagnostics diagnostics;
     const RunSummary summary = sim.run(&extrema, &diagnostics);
@@ -974,11 +979,12 @@ CampaignRunResult run_campaign(const CampaignSpec& spec, const std::string& dir_
   std::int64_t written_bytes = 0;
   std::atomic<bool> failed{false};
   auto work = [&] {
+    CampaignSampleRunner runner(spec, design, options.max_steps);
     while (!(options.stop && options.stop->load()) && !failed.load()) {
       std::int64_t i = next.fetch_add(1);
       while (i < end && done[static_cast<std::size_t>(i)]) i = next.fetch_add(1);  // done[] of a skipped sample never changes
       if (i >= end) return;
-      json r = run_campaign_sample(spec, design, i, options.max_steps);
+      json r = runner.run(i);
       const std::string line = r.dump() + '\n', row = task ? std::string() : csv_row(spec, r, dof);
       r = json();  // nothing of a finished sample stays in memory: it is on disk
       std::lock_guard lock(write_mu);

@@ -110,11 +110,27 @@ struct CampaignOutcome {
   std::vector<double> inputs;                                    // per input; NaN: not a number
 };
 
-// Runs sample i and returns its record (never throws for a bad sample: an invalid scene or a failed run
-// is recorded as such, with the field and the reason). `max_steps` is a caller's step limit on each run
-// (a server's): a sample that needs more fails at it, and is recorded as failed.
-nlohmann::json run_campaign_sample(const CampaignSpec& spec, const CampaignDesign& design, std::int64_t i,
-                                   std::optional<std::int64_t> max_steps = std::nullopt);
+// Runs the samples of one campaign, one at a time (one runner per worker thread). It holds a copy of the
+// scene document into which each sample's values are written: every sample writes every input's path
+// (distinct and not nested, CampaignSpec checks), so nothing of the sample before remains, and no sample
+// copies the scene. The document is then compiled afresh (the scene's parameters are folded into its
+// expressions when it is compiled, so a sample's values cannot be written into a compiled scene).
+class CampaignSampleRunner {
+ public:
+  // `max_steps`: a caller's step limit on each run (a server's); a sample that needs more fails at it
+  // and is recorded as failed.
+  CampaignSampleRunner(const CampaignSpec& spec, const CampaignDesign& design, std::optional<std::int64_t> max_steps = std::nullopt);
+  // Sample i's record. Never throws for a bad sample: an invalid scene or a failed run is recorded as
+  // such, with the field and the reason.
+  nlohmann::json run(std::int64_t i);
+
+ private:
+  const CampaignSpec& spec_;
+  const CampaignDesign& design_;
+  std::optional<std::int64_t> max_steps_;
+  nlohmann::json doc_;
+  std::vector<nlohmann::json::json_pointer> paths_;
+};
 
 // The summary of a campaign's records (all of them, each index once).
 nlohmann::json summarize_campaign(const CampaignSpec& spec, const std::vector<nlohmann::json>& records);
@@ -129,7 +145,7 @@ struct CampaignRunOptions {
   // once every sample is present.
   bool part = false;
   const std::atomic<bool>* stop = nullptr;  // set (e.g. by SIGINT) to stop after the samples running now
-  std::optional<std::int64_t> max_steps;    // per sample (run_campaign_sample)
+  std::optional<std::int64_t> max_steps;    // per sample (CampaignSampleRunner)
   // The bytes this run may add to the records and the table (0: no limit); a record that would pass it
   // ends the run with std::runtime_error, the records before it kept.
   std::int64_t max_bytes = 0;
