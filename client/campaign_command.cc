@@ -1,11 +1,15 @@
 // moreau campaign SPEC --out DIR [-j N] [--range BEGIN:END] : runs a robustness campaign (or its share);
+// moreau campaign --scene SCENE --vary PATH=VALUES... [--set PATH=VALUE]... --out DIR : a parameter sweep,
+//   which is the grid campaign over the --vary lists (written as DIR/campaign.json, then run as any spec);
 // moreau campaign --collect DIR : checks that every sample is present once and writes the summary.
 // The spec, the files and the statistics: scene/include/moreau/scene/campaign.h and docs/campaigns.md.
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
+#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <sstream>
@@ -37,6 +41,9 @@ extern "C" void on_interrupt(int) { g_stop.store(true); }
 
 struct CampaignOptions {
   std::string spec_path, out_dir, collect_dir, range, task;
+  // A sweep: the scene, its --vary lists and --set overrides (in place of SPEC).
+  std::string scene_path;
+  std::vector<std::string> vary, overrides;
   int jobs = 0;
   bool quiet = false;
   // --slurm: a job array of `tasks` tasks and a dependent collect job, with sbatch's own options passed on.
@@ -182,6 +189,84 @@ void write_figures(const std::string& dir_name) {
   }
 }
 
+// One --vary list as a grid input's distribution: FIRST:LAST:COUNT (COUNT evenly spaced numbers, the
+// grid's own {low, high, count}), or v1,v2,... (each a JSON value, else a string; separated by ';'
+// instead when a value holds commas, as arrays do: [0,1];[1,0]).
+nlohmann::json grid_distribution(const std::string& vary) {
+  const std::size_t eq = vary.find('=');
+  if (eq == std::string::npos || eq == 0) throw std::runtime_error("--vary '" + vary + "' is not PATH=VALUES");
+  const std::string path = vary.substr(0, eq), list = vary.substr(eq + 1);
+  auto number = [&](const std::string& text) {
+    char* end = nullptr;
+    const double v = std::strtod(text.c_str(), &end);
+    if (text.empty() || end != text.c_str() + text.size()) throw std::runtime_error("--vary " + path + ": '" + text + "' is not a number");
+    if (!std::isfinite(v)) throw std::runtime_error("--vary " + path + ": '" + text + "' is not a finite number");
+    return v;
+  };
+  const char sep = list.find(';') != std::string::npos ? ';' : ',';
+  if (sep == ',' && std::count(list.begin(), list.end(), ':') == 2 && list.find('[') == std::string::npos) {
+    std::stringstream ss(list);
+    std::string a, b, c;
+    std::getline(ss, a, ':');
+    std::getline(ss, b, ':');
+    std::getline(ss, c, ':');
+    const double low = number(a), high = number(b);
+    char* end = nullptr;
+    const long count = std::strtol(c.c_str(), &end, 10);
+    if (c.empty() || *end != '\0' || count < 1 || count > 1'000'000)
+      throw std::runtime_error("--vary " + path + ": COUNT must be a whole number in [1, 1000000], got '" + c + "'");
+    if (count == 1) return {{"type", "grid"}, {"values", {low}}};
+    return {{"type", "grid"}, {"low", low}, {"high", high}, {"count", count}};
+  }
+  nlohmann::json values = nlohmann::json::array();
+  std::stringstream ss(list);
+  for (std::string item; std::getline(ss, item, sep);) {
+    if (item.empty()) continue;
+    nlohmann::json v = nlohmann::json::parse(item, nullptr, false);
+    if (v.is_discarded()) {
+      // Not JSON: a number that overflows, or a string (an expression, a name).
+      char* end = nullptr;
+      std::strtod(item.c_str(), &end);
+      if (end == item.c_str() + item.size()) number(item);
+      v = item;
+    }
+    values.push_back(std::move(v));
+  }
+  if (values.empty()) throw std::runtime_error("--vary " + path + ": no values");
+  return {{"type", "grid"}, {"values", std::move(values)}};
+}
+
+// A sweep's spec: the grid campaign over the --vary lists, its scene read from --scene with --set applied
+// and inlined, written into the output directory (claimed there: another campaign is refused). Returns
+// the path of that campaign.json, which the run then reads as any spec.
+std::string write_grid_spec(const CampaignOptions& opt) {
+  if (opt.vary.empty()) throw std::runtime_error("--scene needs at least one --vary PATH=VALUES");
+  nlohmann::json scene = scene::read_scene_file(opt.scene_path);
+  for (const std::string& o : opt.overrides) scene::apply_override(scene, o);
+  nlohmann::json doc = {{"name", fs::path(opt.scene_path).stem().string() + "-sweep"},
+                        {"description", "a parameter sweep of " + opt.scene_path + ": the grid over the --vary lists"},
+                        {"scene", std::move(scene)},
+                        {"inputs", nlohmann::json::array()},
+                        {"sampler", "grid"}};
+  for (const std::string& v : opt.vary) doc["inputs"].push_back({{"path", v.substr(0, v.find('='))}, {"distribution", grid_distribution(v)}});
+  scene::CampaignSpec spec;
+  try {
+    spec = scene::CampaignSpec::from_json(doc, fs::path(opt.scene_path).parent_path().string());
+  } catch (const scene::SceneError& e) {
+    // Pointers into the spec this command wrote name what the user gave instead: a --vary, or the scene.
+    const std::string& p = e.pointer();
+    if (p.rfind("/inputs/", 0) == 0) {
+      const std::size_t k = std::stoul(p.substr(8));
+      throw std::runtime_error("--vary " + opt.vary[k] + ": " + e.reason());
+    }
+    if (p == "/inputs" || p == "/samples") throw std::runtime_error("--vary: " + e.reason());
+    if (p.rfind("/scene", 0) == 0) throw scene::SceneError(p.size() > 6 ? p.substr(6) : "/", e.reason());
+    throw;
+  }
+  scene::claim_campaign_directory(spec, opt.out_dir);
+  return (fs::path(opt.out_dir) / "campaign.json").string();
+}
+
 // BEGIN:END (END exclusive; either may be left out).
 std::pair<std::int64_t, std::int64_t> parse_range(const std::string& text, std::int64_t samples) {
   if (text.empty()) return {0, samples};
@@ -270,6 +355,9 @@ void register_campaign_command(CLI::App& app, Actions& actions) {
   auto opt = std::make_shared<CampaignOptions>();
   auto* cmd = app.add_subcommand("campaign", "Run a robustness campaign: a scene over sampled uncertain inputs, with a verdict (docs/campaigns.md)");
   cmd->add_option("spec", opt->spec_path, "Campaign spec (JSON)");
+  cmd->add_option("--scene", opt->scene_path, "A parameter sweep of this scene: the grid campaign over the --vary lists (in place of SPEC)");
+  cmd->add_option("--vary", opt->vary, "With --scene: PATH=v1,v2,... or PATH=FIRST:LAST:COUNT (repeatable; the last varies fastest)");
+  cmd->add_option("--set", opt->overrides, "With --scene: PATH=VALUE applied to the scene first (repeatable)");
   cmd->add_option("--out", opt->out_dir, "Directory of the campaign's results (resumable: run again to go on)");
   cmd->add_option("-j,--jobs", opt->jobs, "Worker threads (default: every core)");
   cmd->add_option("--range", opt->range, "Only samples BEGIN:END (END exclusive), written to a part file of their own (then --collect)");
@@ -290,10 +378,17 @@ void register_campaign_command(CLI::App& app, Actions& actions) {
         std::cout << scene::format_campaign_summary(summary);
         return 0;
       }
+      if (!opt->scene_path.empty()) {
+        if (!opt->spec_path.empty()) throw std::runtime_error("give SPEC or --scene (a sweep), not both");
+        if (opt->out_dir.empty()) throw std::runtime_error("a sweep needs --out DIR");
+        opt->spec_path = write_grid_spec(*opt);
+      } else if (!opt->vary.empty() || !opt->overrides.empty()) {
+        throw std::runtime_error("--vary and --set go with --scene SCENE (a spec names its inputs itself)");
+      }
       if (opt->spec_path.empty() || opt->out_dir.empty()) throw std::runtime_error("a campaign needs SPEC and --out DIR (or --collect DIR)");
       return opt->slurm ? submit_to_slurm(*opt) : run(*opt);
     } catch (const scene::SceneError& e) {
-      std::cerr << "moreau campaign: " << opt->spec_path << ": " << e.what() << "\n";
+      std::cerr << "moreau campaign: " << (opt->scene_path.empty() ? opt->spec_path : opt->scene_path) << ": " << e.what() << "\n";
       return 2;
     } catch (const std::exception& e) {
       std::cerr << "moreau campaign: " << e.what() << "\n";

@@ -19,7 +19,6 @@ void register_run_command(CLI::App& app, Actions& actions);
 void register_plot_command(CLI::App& app, Actions& actions);
 void register_study_command(CLI::App& app, Actions& actions);
 void register_stress_command(CLI::App& app, Actions& actions);
-void register_sweep_command(CLI::App& app, Actions& actions);
 void register_campaign_command(CLI::App& app, Actions& actions);
 void register_inspect_command(CLI::App& app, Actions& actions);
 // moreau submit, status, result, figure, cancel, jobs, scenes (remote_commands.cc); moreau watch

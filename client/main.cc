@@ -55,8 +55,7 @@ int main(int argc, char** argv) {
   constexpr std::pair<std::string_view, Register> kLocalCommands[] = {
       {"run", moreau::cli::register_run_command},       {"plot", moreau::cli::register_plot_command},
       {"study", moreau::cli::register_study_command},   {"stress", moreau::cli::register_stress_command},
-      {"sweep", moreau::cli::register_sweep_command},   {"inspect", moreau::cli::register_inspect_command},
-      {"campaign", moreau::cli::register_campaign_command}};
+      {"inspect", moreau::cli::register_inspect_command}, {"campaign", moreau::cli::register_campaign_command}};
   // Only the command named first is registered when there is one: building every command's options is a
   // visible share of a short run's start-up (README, "Performance"). --help, --version, a mistyped name:
   // all of them, so that help and errors list every command.

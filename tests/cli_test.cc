@@ -12,6 +12,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <sstream>
 #include <string>
 #include <csignal>
@@ -260,34 +261,55 @@ TEST(Cli, CampaignRunsStopsOnCtrlCAndResumes) {
   EXPECT_NE(resumed.out.find(collected.out), std::string::npos) << "the same summary\n" << collected.out << "\n" << resumed.out;
 }
 
-// A sweep split over three shards and merged gives every point once; a missing shard is an error.
-TEST(Cli, SweepShardsAndMerge) {
+// A parameter sweep is the grid campaign over its --vary lists: split over three tasks and collected, it
+// has every point of the grid once (the last list varying fastest), each with the values a single run
+// given the same overrides has, and the same final state; a missing part is an error.
+TEST(Cli, SweepIsAGridCampaignOverTasks) {
   const std::string dir = moreau::test_support::scratch_dir() + "/sweep";
   std::filesystem::remove_all(dir);
+  const std::string sweep =
+      "campaign --scene " + kScene + " --vary parameters.g=0:9.81:4 --vary 'initial.v=[0,1];[1,0]' --set integrator.t_end=2 --out " + dir;
   for (int i = 0; i < 3; ++i) {
-    const Result r =
-        Moreau("sweep " + kScene + " --vary parameters.g=0:9.81:4 --vary 'initial.v=[0,1];[1,0]' --set integrator.t_end=2 --shard " +
-               std::to_string(i) + "/3 --out " + dir);
+    const Result r = Moreau(sweep + " --quiet --task " + std::to_string(i) + "/3");
     ASSERT_EQ(r.status, 0) << r.out;
   }
-  const std::string csv = dir + "/merged.csv";
-  Result m = Moreau("sweep --merge " + dir + " --csv " + csv);
-  ASSERT_EQ(m.status, 0) << m.out;
-  std::ifstream in(csv);
-  std::string line;
-  std::getline(in, line);
-  EXPECT_EQ(line.rfind("index,parameters.g,initial.v,status", 0), 0u) << line;
-  int rows = 0;
-  while (std::getline(in, line)) {
-    EXPECT_EQ(line.rfind(std::to_string(rows) + ",", 0), 0u) << line;
-    EXPECT_NE(line.find(",completed,"), std::string::npos) << line;
-    ++rows;
+  const Result collected = Moreau("campaign --collect " + dir);
+  ASSERT_EQ(collected.status, 0) << collected.out;
+  EXPECT_NE(collected.out.find("of 8 samples"), std::string::npos) << collected.out;
+  // The grid, independently: g in {0, 3.27, 6.54, 9.81}, v in {[0,1], [1,0]}; point p = 2 i + j.
+  const double g[] = {0.0, 9.81 / 3, 2 * 9.81 / 3, 9.81};
+  const nlohmann::json v[] = {{0, 1}, {1, 0}};
+  std::map<long long, nlohmann::json> records;
+  for (const auto& entry : std::filesystem::directory_iterator(dir + "/parts")) {
+    std::ifstream in(entry.path());
+    for (std::string line; std::getline(in, line);) {
+      nlohmann::json r = nlohmann::json::parse(line);
+      EXPECT_TRUE(records.emplace(r["index"].get<long long>(), r).second) << line;
+    }
   }
-  EXPECT_EQ(rows, 8);
-  std::filesystem::remove(dir + "/shard-1-of-3.jsonl");
-  m = Moreau("sweep --merge " + dir);
-  EXPECT_EQ(m.status, 2);
-  EXPECT_NE(m.out.find("shard 1/3 is missing"), std::string::npos) << m.out;
+  ASSERT_EQ(records.size(), 8u);
+  for (const auto& [p, r] : records) {
+    SCOPED_TRACE(p);
+    EXPECT_NEAR(r["inputs"]["/parameters/g"].get<double>(), g[p / 2], 1e-12);
+    EXPECT_EQ(r["inputs"]["/initial/v"], v[p % 2]);
+    EXPECT_EQ(r["status"], "completed");
+  }
+  // Point 5 (g = 6.54, v = [1, 0]) run alone with the same overrides ends in the same state.
+  const Result alone = Moreau("run " + kScene + " --set integrator.t_end=2 --set parameters.g=" +
+                              records[5]["inputs"]["/parameters/g"].dump() + " --set 'initial.v=[1,0]' --json");
+  ASSERT_EQ(alone.status, 0) << alone.out;
+  const nlohmann::json report = nlohmann::json::parse(alone.out.substr(alone.out.find('{')));
+  EXPECT_EQ(report["final"]["q"], records[5]["final_q"]);
+  EXPECT_EQ(report["final"]["v"], records[5]["final_v"]);
+  // The same sweep again is the same campaign (nothing to run); another one is refused.
+  EXPECT_EQ(Moreau(sweep + " --quiet").status, 0);
+  const Result other = Moreau("campaign --scene " + kScene + " --vary parameters.g=0:1:2 --out " + dir);
+  EXPECT_EQ(other.status, 2);
+  EXPECT_NE(other.out.find("holds a different campaign"), std::string::npos) << other.out;
+  std::filesystem::remove(dir + "/parts/" + std::filesystem::directory_iterator(dir + "/parts")->path().filename().string());
+  const Result missing = Moreau("campaign --collect " + dir);
+  EXPECT_EQ(missing.status, 2);
+  EXPECT_NE(missing.out.find("samples are missing"), std::string::npos) << missing.out;
 }
 }  // namespace
 
@@ -310,13 +332,13 @@ std::string BadInputDir() {
   static const std::string dir = [] {
     const std::string d = moreau::test_support::scratch_dir() + "/cli-bad-input";
     std::filesystem::remove_all(d);
-    std::filesystem::create_directories(d + "/shards");
+    std::filesystem::create_directories(d + "/records");
     std::ofstream(d + "/overflow.json") << "{\"name\": \"x\", \"integrator\": {\"t_end\": 1, \"h\": 1e999}}\n";
-    std::ofstream(d + "/shards/shard-0-of-1.jsonl")
-        << R"({"sweep": {"scene": "s.json", "points": 1, "shards": 1, "shard": 0, "vary": [], "set": []}})"
-        << "\n"
-        << R"({"index": 0, "overrides": [], "report": {"steps": 1e999}})"
-        << "\n";
+    std::ofstream(d + "/records/campaign.json")
+        << R"({"scene": ")" << MOREAU_SOURCE_DIR << R"(/scenes/damped-relay.json", "samples": 2,
+              "inputs": [{"path": "/parameters/m", "distribution": {"type": "uniform", "low": 1, "high": 3}}]})";
+    std::ofstream(d + "/records/samples.jsonl") << R"({"index": 0, "success": true})" << "\n"
+                                                << R"({"index": 1, "steps": 1e999})" << "\n";
     return d;
   }();
   return dir;
@@ -359,7 +381,7 @@ INSTANTIATE_TEST_SUITE_P(
         BadInput{"NumberOutOfRangeInAnOverride", "run {scenes}/manipulator.json --set 'initial.v=[0,1e999]'",
                  "/initial/v/1: ", "number out of range"},
         BadInput{"NumberOutOfRangeInAStudysScene", "study {tmp}/overflow.json", "/integrator/h: ", "number out of range"},
-        BadInput{"NumberOutOfRangeInASweepShard", "sweep --merge {tmp}/shards", "shard-0-of-1.jsonl line 2", "number out of range"},
+        BadInput{"NumberOutOfRangeInACampaignRecord", "campaign --collect {tmp}/records", "samples.jsonl' line 2", "number overflow"},
         // Size: endless or huge input is refused at the limit, not read to the end.
         BadInput{"SceneFromDevZero", "run /dev/zero", "/: ", "larger than 64 MiB"},
         BadInput{"StudySceneFromDevZero", "study /dev/zero", "/: ", "larger than 64 MiB"},
@@ -393,13 +415,17 @@ INSTANTIATE_TEST_SUITE_P(
                  "/exact/q/0: ", "not finite"},
         BadInput{"StudyTooManyEvalPoints", "study {scenes}/damped-relay.json --h 1e-2 --eval-points 1000000000",
                  "--eval-points: ", "100000"},
-        // Sweeps: values that are numbers, and a product of lists that fits.
-        BadInput{"SweepValueNotANumber", "sweep {scenes}/manipulator.json --vary integrator.h=abc:1:3 --out {tmp}/sweep",
+        // Sweeps (grid campaigns): values that are numbers, paths the scene has, and a grid that fits.
+        BadInput{"SweepValueNotANumber", "campaign --scene {scenes}/manipulator.json --vary integrator.h=abc:1:3 --out {tmp}/sweep",
                  "--vary integrator.h", "'abc' is not a number"},
-        BadInput{"SweepValueOutOfRange", "sweep {scenes}/manipulator.json --vary integrator.h=1e999:1:3 --out {tmp}/sweep",
+        BadInput{"SweepValueOutOfRange", "campaign --scene {scenes}/manipulator.json --vary integrator.h=1e999:1:3 --out {tmp}/sweep",
                  "--vary integrator.h", "not a finite number"},
+        BadInput{"SweepListValueOutOfRange", "campaign --scene {scenes}/manipulator.json --vary integrator.h=1e-3,1e999 --out {tmp}/sweep",
+                 "--vary integrator.h", "not a finite number"},
+        BadInput{"SweepUnknownPath", "campaign --scene {scenes}/manipulator.json --vary parameters.m9=1,2 --out {tmp}/sweep",
+                 "--vary parameters.m9=1,2", "the scene has nothing at '/parameters/m9'"},
         BadInput{"SweepTooManyPoints",
-                 "sweep {scenes}/manipulator.json --vary parameters.g=0:1:100000 --vary parameters.m1=1:2:100000 --vary "
+                 "campaign --scene {scenes}/manipulator.json --vary parameters.g=0:1:100000 --vary parameters.m1=1:2:100000 --vary "
                  "parameters.m2=1:2:100000 --vary parameters.b=1:2:100000 --out {tmp}/sweep",
                  "--vary", "more than 10000000 points"}),
     [](const auto& info) { return info.param.name; });

@@ -754,8 +754,8 @@ void for_each_record(const fs::path& file, CutLine cut, Each each) {
       json r;
       try {
         r = json::parse(line);
-      } catch (const json::exception&) {
-        throw std::runtime_error(where + " is not a sample record (not JSON)");
+      } catch (const json::exception& e) {
+        throw std::runtime_error(where + " is not a sample record (not JSON: " + e.what() + ")");
       }
       if (!r.is_object() || !r.contains("index") || !r["index"].is_number_integer()) throw std::runtime_error(where + " is not a sample record (no index)");
       good_end += line.size() + 1;
