@@ -445,5 +445,96 @@ TEST(CampaignRun, MemoryStaysFlatOverAHundredThousandSamples) {
   fs::remove_all(dir);
 }
 
+// ---- compiled once ----
+
+// A record without its wall times, the only fields two runs of one sample may differ in.
+json without_times(json r) {
+  r.erase("wall_seconds");
+  if (r.contains("report")) {
+    r["report"].erase("wall_seconds");
+    r["report"].erase("phase_seconds");
+  }
+  return r;
+}
+
+// Every sample of `spec`, bound to the scene compiled once and compiled in full from its document: the
+// same record (full report included), field for field and to the last bit.
+void expect_bound_equals_compiled(const json& spec_doc, bool compiles_once) {
+  const CampaignSpec spec = CampaignSpec::from_json(spec_doc, "");
+  const CampaignDesign design(spec);
+  CampaignSampleRunner once(spec, design), every(spec, design, std::nullopt, CampaignSampleRunner::Compile::kEverySample);
+  EXPECT_EQ(once.compiles_once(), compiles_once);
+  EXPECT_FALSE(every.compiles_once());
+  for (std::int64_t i = 0; i < spec.samples; ++i) {
+    SCOPED_TRACE(i);
+    EXPECT_EQ(without_times(once.run(i)), without_times(every.run(i)));
+  }
+  EXPECT_EQ(once.compiles_once(), compiles_once) << "the first bound sample differed from its full compile";
+}
+
+TEST(CampaignCompileOnce, TheShippedCampaignsSamplesAreThoseOfTheFullCompile) {
+  json spec = read_scene_file(source_path("campaigns/manipulator-robust.json"));
+  json scene = read_scene_file(source_path("scenes/manipulator-fig6.4.json"));
+  scene["integrator"]["t_end"] = 3.0;
+  spec["scene"] = scene;
+  spec["samples"] = 24;
+  expect_bound_equals_compiled(spec, true);
+}
+
+TEST(CampaignCompileOnce, SpecialValuesAndInvalidSamplesGoThroughTheFullCompile) {
+  // Masses at 1 and at 0 (the graph rewrites 1 * x and folds 0 * x), a negative mass (M not positive
+  // definite: an invalid sample, named as the full compile names it), and initial positions.
+  json scene = read_scene_file(source_path("scenes/manipulator-fig6.4.json"));
+  scene["integrator"]["t_end"] = 1.0;
+  json spec = {{"scene", scene},
+               {"inputs",
+                {{{"path", "/parameters/m1"}, {"distribution", {{"type", "discrete"}, {"values", {-0.5, 0.9, 1.0}}}}},
+                 {{"path", "/parameters/m2"}, {"distribution", {{"type", "discrete"}, {"values", {0.0, 1.0, 2.0}}}}},
+                 {{"path", "/initial/q/1"}, {"distribution", {{"type", "grid"}, {"low", -1}, {"high", 1}, {"count", 2}}}}}},
+               {"sampler", "grid"}};
+  expect_bound_equals_compiled(spec, true);
+  // V = k (x^2 + 1)^(p/2): k free, or p too. Whether x^p is smooth everywhere (Assumption 3.3 in the
+  // report) depends on p's value, so a free p makes the runner compile every sample.
+  json pow_scene = {
+      {"name", "pow-potential"},
+      {"parameters", {{"m", 1.0}, {"k", 0.5}, {"p", 3.0}}},
+      {"system",
+       {{"type", "lagrangian"},
+        {"coordinates", {"x"}},
+        {"mass", {{"m"}}},
+        {"potential", "k*(x^2 + 1)^(p/2)"},
+        {"controller", {{{"type", "quadratic"}, {"weights", {1}}}, {{"type", "abs"}, {"gains", {1}}}}}}},
+      {"initial", {{"q", {1.0}}, {"v", {0.5}}}},
+      {"integrator", {{"h", 1e-3}, {"t_end", 1.0}}}};
+  json pow_spec = {{"scene", pow_scene},
+                   {"inputs",
+                    {{{"path", "/parameters/p"}, {"distribution", {{"type", "discrete"}, {"values", {2.0, 3.0, 4.0, 2.5}}}}},
+                     {{"path", "/parameters/k"}, {"distribution", {{"type", "grid"}, {"low", 0.1}, {"high", 0.7}, {"count", 3}}}}}},
+                   {"sampler", "grid"}};
+  expect_bound_equals_compiled(pow_spec, false);
+  pow_spec["inputs"].erase(0);
+  expect_bound_equals_compiled(pow_spec, true);
+  pow_spec["scene"]["parameters"]["p"] = 4.0;  // the exponent 2: x^2 becomes x*x
+  expect_bound_equals_compiled(pow_spec, true);
+}
+
+TEST(CampaignCompileOnce, AParameterTheCompilerNeedsAsANumberIsCompiledForEverySample) {
+  // The damped relay's t_stop is computed from m, and its controller weight is c: neither can be free.
+  json scene = read_scene_file(source_path("scenes/damped-relay.json"));
+  scene.erase("exact");
+  for (const char* path : {"/parameters/m", "/parameters/c"}) {
+    SCOPED_TRACE(path);
+    json spec = {{"scene", scene},
+                 {"inputs", {{{"path", path}, {"distribution", {{"type", "uniform"}, {"low", 1}, {"high", 3}}}}}},
+                 {"samples", 6}};
+    expect_bound_equals_compiled(spec, false);
+  }
+  // An input that is neither a parameter nor an initial coordinate.
+  json spec = {{"scene", scene},
+               {"inputs", {{{"path", "/integrator/h"}, {"distribution", {{"type", "discrete"}, {"values", {1e-3, 2e-3}}}}}}},
+               {"sampler", "grid"}};
+  expect_bound_equals_compiled(spec, false);
+}
+
 }  // namespace
 }  // namespace moreau::scene

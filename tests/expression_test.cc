@@ -457,6 +457,78 @@ TEST_F(ExprTest, RobotManipulatorMassMatrix) {
 // ---------------------------------------------------------------------------------------------------------
 // Errors and limits.
 
+// Parameters bound into a tape (Tape::bind) against the reference: the same expressions with the
+// parameters folded in as constants, compiled afresh. Values and first derivatives in x must agree to the
+// bit at every point, for parameter values that trigger the builders' rewrites (1, -1, 2) and others.
+TEST(TapeBind, BoundParametersComputeWhatFoldedConstantsCompute) {
+  const std::vector<std::string> texts = {
+      "a + b",           "a*b*cos(x)",         "-a*b*sin(x)*y",      "a*x^2 + b*y",     "(a + b)*x / (b - 3)",
+      "x^a",             "a^2*sin(x)^2",       "exp(-a*x)*cos(b*y)", "sqrt(a*a + x*x)", "atan2(a*y, b + x)",
+      "min(a*x, b) - max(y, a)", "abs(a - x)*b", "a - a + b*x",        "sin(a)*cos(a)*x", "-(a*(-x))",
+      "2*a*b*cos(x)*y - 0.5*b^2*sin(y)"};
+  const std::vector<std::array<double, 2>> bindings = {{1.0, 0.5}, {-1.0, 2.0}, {2.0, -1.0}, {0.3, 1e-3}, {-7.25, 3.0}, {1e5, -2.5e-4}};
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(-3.0, 3.0);
+  for (const auto& ab : bindings) {
+    // The reference: a and b folded in.
+    Graph folded;
+    Graph::Resolver fold = [&](std::string_view name) -> std::optional<Node> {
+      if (name == "x") return folded.variable(0);
+      if (name == "y") return folded.variable(1);
+      if (name == "a") return folded.constant(ab[0]);
+      if (name == "b") return folded.constant(ab[1]);
+      return std::nullopt;
+    };
+    // Bound: a and b are parameters 0 and 1 (slots 2 and 3 of a tape with 2 inputs).
+    Graph free;
+    Graph::Resolver keep = [&](std::string_view name) -> std::optional<Node> {
+      if (name == "x") return free.variable(0);
+      if (name == "y") return free.variable(1);
+      if (name == "a") return free.variable(2);
+      if (name == "b") return free.variable(3);
+      return std::nullopt;
+    };
+    std::vector<Node> out_folded, out_free;
+    for (const auto& t : texts) {
+      const Node f = folded.parse(t, fold), k = free.parse(t, keep);
+      out_folded.insert(out_folded.end(), {f, folded.derivative(f, 0), folded.derivative(f, 1)});
+      out_free.insert(out_free.end(), {k, free.derivative(k, 0), free.derivative(k, 1)});
+    }
+    const Tape reference = Tape::compile(folded, out_folded, 2);
+    Tape bound = Tape::compile(free, out_free, 2, 2);
+    EXPECT_EQ(bound.num_params(), 2);
+    bound.bind(ab.data());
+    std::vector<double> want(out_folded.size()), got(out_free.size()), s1(reference.scratch_size()), s2(bound.scratch_size());
+    for (int p = 0; p < 50; ++p) {
+      const double slots[2] = {u(rng), u(rng)};
+      reference.eval(slots, want.data(), s1.data());
+      bound.eval(slots, got.data(), s2.data());
+      for (std::size_t j = 0; j < want.size(); ++j) {
+        SCOPED_TRACE(texts[j / 3] + (j % 3 ? " d/d" + std::string(j % 3 == 1 ? "x" : "y") : std::string()) + " with a = " +
+                     std::to_string(ab[0]) + ", b = " + std::to_string(ab[1]));
+        if (std::isnan(want[j])) {
+          EXPECT_TRUE(std::isnan(got[j]));
+        } else {
+          EXPECT_EQ(std::bit_cast<std::uint64_t>(got[j]), std::bit_cast<std::uint64_t>(want[j])) << got[j] << " vs " << want[j];
+        }
+      }
+    }
+  }
+  // Unbound parameters are NaN, not stale values.
+  Graph g;
+  const Node n = g.binary(Op::kMul, g.variable(0), g.variable(1));
+  Tape t = Tape::compile(g, {n}, 1, 1);
+  const double x = 2.0;
+  double out = 0.0;
+  std::vector<double> scratch(t.scratch_size());
+  t.eval(&x, &out, scratch.data());
+  EXPECT_TRUE(std::isnan(out));
+  const double p = 3.0;
+  t.bind(&p);
+  t.eval(&x, &out, scratch.data());
+  EXPECT_EQ(out, 6.0);
+}
+
 TEST_F(ExprTest, ErrorMessagesAndPositions) {
   struct Case {
     std::string text;

@@ -181,6 +181,28 @@ class ClientAgainstServer(unittest.TestCase):
         png = self.client.study_figure(study.id, kind="order")
         self.assertEqual(png[:8], b"\x89PNG\r\n\x1a\n")
 
+    def test_campaign(self):
+        spec = {"inputs": [{"path": "/parameters/m2", "distribution": {"type": "uniform", "low": 0.8, "high": 1.2}},
+                           {"path": "/initial/q/0", "distribution": {"type": "uniform", "low": 2, "high": 4}}],
+                "sampler": "sobol", "samples": 12, "seed": 3, "full_report": False}
+        seen = []
+        campaign = self.client.run_campaign("manipulator-fig6.4", spec, overrides=["integrator.t_end=3"], timeout=120,
+                                            progress=lambda c: seen.append(c.progress["samples"]))
+        self.assertEqual(campaign.state, "done")
+        self.assertEqual(campaign.kind, "campaign")
+        self.assertEqual(campaign.summary["samples"], 12)
+        records = self.client.campaign_samples(campaign.id)
+        self.assertEqual(sorted(r["index"] for r in records), list(range(12)))
+        # The summary counts what the records say.
+        self.assertEqual(campaign.summary["successes"], sum(1 for r in records if r["success"]))
+        self.assertEqual(len(list(csv.DictReader(io.StringIO(self.client.campaign_samples_csv(campaign.id))))), 12)
+        self.assertEqual(self.client.campaign_figure(campaign.id, kind="success-map")[:8], b"\x89PNG\r\n\x1a\n")
+        self.assertTrue(seen)
+        with self.assertRaises(MoreauError) as e:
+            self.client.submit_campaign("manipulator-fig6.4", dict(spec, samples=0))
+        self.assertEqual(e.exception.status, 400)
+        self.assertEqual(e.exception.pointer, "/campaign/samples")
+
     def test_cancel(self):
         job = self.client.submit("manipulator", overrides=["integrator.t_end=1e4", "output.every=1000"])
         cancelled = self.client.cancel(job.id)

@@ -46,9 +46,9 @@ class MoreauError(Exception):
 
 
 class Job:
-    """A job or a study as the server describes it. `raw` is the JSON object; the common fields are
-    attributes: id, kind ("run" or "study"), state, scene, progress, reason (or None), and report (a run's,
-    once final) or result (a study's, once done)."""
+    """A job, a study or a campaign as the server describes it. `raw` is the JSON object; the common fields
+    are attributes: id, kind ("run", "study" or "campaign"), state, scene, progress, reason (or None), and
+    report (a run's, once final), result (a study's, once done) or summary (a campaign's, once done)."""
 
     def __init__(self, raw):
         self.raw = raw
@@ -60,6 +60,7 @@ class Job:
         self.reason = raw.get("reason")
         self.report = raw.get("report")
         self.result = raw.get("result")
+        self.summary = raw.get("summary")
 
     @property
     def final(self):
@@ -266,6 +267,48 @@ class Client:
 
     def study_events(self, study_id, last_event_id=None):
         return self._events("/v1/studies/%s/events" % study_id, last_event_id)
+
+    # -- campaigns ------------------------------------------------------------------------------
+
+    def submit_campaign(self, scene, campaign, overrides=None):
+        """Queues a robustness campaign (docs/campaigns.md): `campaign` is a spec without its scene
+        ({"inputs": [...], "sampler": ..., "samples": ..., "seed": ..., "target": ..., ...}); `scene` a
+        shipped scene's name, a scene dict or a path to a scene file."""
+        body = {"scene": _scene_value(scene), "campaign": campaign}
+        if overrides is not None:
+            body["overrides"] = overrides
+        return Job(self._json("POST", "/v1/campaigns", body=body))
+
+    def campaign(self, campaign_id, wait=None):
+        """The campaign; its `summary` (success rate and interval, quantiles, worst samples, rank
+        correlations) once done, and `progress` {samples, samples_total, fraction}."""
+        return Job(self._json("GET", "/v1/campaigns/" + campaign_id, {"wait": wait}, timeout=(wait or 0) + self.timeout))
+
+    def wait_campaign(self, campaign_id, timeout=None, progress=None):
+        return self._wait("/v1/campaigns/", campaign_id, timeout, progress)
+
+    def run_campaign(self, scene, campaign, overrides=None, timeout=None, progress=None):
+        """submit_campaign() then wait: the finished campaign, with its `summary`."""
+        return _unless_failed(self.wait_campaign(self.submit_campaign(scene, campaign, overrides).id, timeout, progress))
+
+    def campaign_samples(self, campaign_id):
+        """The records of the samples that finished (also of a cancelled campaign), one dict per sample, in
+        the order they finished."""
+        text = self._bytes("/v1/campaigns/%s/samples" % campaign_id, {"format": "jsonl"}).decode("utf-8")
+        return [json.loads(line) for line in text.splitlines() if line]
+
+    def campaign_samples_csv(self, campaign_id):
+        return self._bytes("/v1/campaigns/%s/samples" % campaign_id, {"format": "csv"}).decode("utf-8")
+
+    def campaign_figure(self, campaign_id, kind="convergence-cdf", format="png", width=None, height=None, path=None):
+        """A figure of the campaign (kind: convergence-cdf, inputs, success-map) as PNG or SVG bytes."""
+        return self._figure("/v1/campaigns/%s/figure" % campaign_id, kind, format, width, height, path)
+
+    def cancel_campaign(self, campaign_id):
+        return Job(self._json("DELETE", "/v1/campaigns/" + campaign_id))
+
+    def campaign_events(self, campaign_id, last_event_id=None):
+        return self._events("/v1/campaigns/%s/events" % campaign_id, last_event_id)
 
     # -- helpers --------------------------------------------------------------------------------
 

@@ -431,61 +431,147 @@ json numbers(const std::vector<double>& v) {
 
 }  // namespace
 
-CampaignSampleRunner::CampaignSampleRunner(const CampaignSpec& spec, const CampaignDesign& design, std::optional<std::int64_t> max_steps)
+CampaignSampleRunner::CampaignSampleRunner(const CampaignSpec& spec, const CampaignDesign& design, std::optional<std::int64_t> max_steps,
+                                           Compile compile)
     : spec_(spec), design_(design), max_steps_(max_steps), doc_(spec.scene) {
   for (const CampaignInput& in : spec.inputs) paths_.emplace_back(in.path);
+  if (compile != Compile::kOnceWhenPossible || system_type(spec.scene) != "lagrangian") return;
+  // Where each input goes, if every one is a parameter or a coordinate of the initial state.
+  std::vector<std::string> free;
+  for (const json::json_pointer& path : paths_) {
+    const std::string parent = path.parent_pointer().to_string(), leaf = path.back();
+    const bool index = !leaf.empty() && leaf.size() < 4 && std::all_of(leaf.begin(), leaf.end(), [](char c) { return c >= '0' && c <= '9'; });
+    if (parent == "/parameters" && spec.scene.at(path).is_number()) {
+      targets_.push_back({Target::kParameter, static_cast<int>(free.size())});
+      free.push_back(leaf);
+    } else if ((parent == "/initial/q" || parent == "/initial/v") && index) {
+      targets_.push_back({parent == "/initial/q" ? Target::kInitialQ : Target::kInitialV, std::stoi(leaf)});
+    } else {
+      targets_.clear();
+      return;
+    }
+  }
+  try {
+    auto parametric = std::make_unique<ParametricLagrangianScene>(spec.scene, free);
+    const int n = parametric->nominal().n;
+    for (const Target& t : targets_)
+      if (t.kind != Target::kParameter && t.index >= n) return;
+    parametric_ = std::move(parametric);
+  } catch (const std::exception&) {
+    // A free parameter the compiler needs as a number (a gain, the step, another parameter), or any other
+    // reason: every sample is compiled in full, and says what is wrong with it if anything is.
+  }
 }
 
-json CampaignSampleRunner::run(std::int64_t i) {
-  const auto start = std::chrono::steady_clock::now();
+CampaignSampleRunner::~CampaignSampleRunner() = default;
+
+json CampaignSampleRunner::record_of(std::int64_t i, const std::vector<json>& values, const Simulation& sim) const {
   const CampaignSpec& spec = spec_;
   json record = {{"index", i}};
-  const std::vector<json> values = design_.values(i);
   json inputs = json::object();
   for (std::size_t k = 0; k < values.size(); ++k) inputs[spec.inputs[k].path] = values[k];
   record["inputs"] = std::move(inputs);
+  ExtremaTracker extrema;
+  RunDiagnostics diagnostics;
+  const RunSummary summary = sim.run(&extrema, &diagnostics);
+  const bool completed = summary.status == RunStatus::kCompleted;
+  record["status"] = to_string(summary.status);
+  record["converged"] = summary.converged_step.has_value();
+  record["converged_time"] = summary.converged_time ? json(*summary.converged_time) : json(nullptr);
+  record["final_q"] = numbers(summary.q_final);
+  record["final_v"] = numbers(summary.v_final);
+  // No target: nothing to check. A final state of another size than the target's (a sample that
+  // changed the system) is not within it.
+  double distance = spec.target_q.empty() ? 0.0 : std::nan("");
+  if (!spec.target_q.empty() && summary.q_final.size() == spec.target_q.size()) {
+    distance = 0.0;
+    for (std::size_t k = 0; k < spec.target_q.size(); ++k) distance += std::pow(summary.q_final[k] - spec.target_q[k], 2);
+    distance = std::sqrt(distance);
+    record["target_distance"] = number_or_null(distance);
+  } else {
+    record["target_distance"] = nullptr;
+  }
+  record["max_abs_q"] = number_or_null(extrema.max_abs_q);
+  record["max_energy"] = number_or_null(extrema.max_energy);
+  record["steps"] = summary.steps;
+  const std::string failure = completed ? sim.guarantees(summary).relied_on_failure() : std::string();
+  record["hypothesis_failed"] = failure.empty() ? json(nullptr) : json(failure);
+  record["success"] = completed && summary.converged_step.has_value() &&
+                      (spec.target_q.empty() || (std::isfinite(distance) && distance <= spec.target_tolerance));
+  record["message"] = summary.message;
+  record["error"] = nullptr;
+  if (spec.full_report) record["report"] = sim.report_json(summary, diagnostics);
+  return record;
+}
+
+json CampaignSampleRunner::run_compiled(std::int64_t i, const std::vector<json>& values) {
   try {
     for (std::size_t k = 0; k < values.size(); ++k) doc_[paths_[k]] = values[k];
-    const Simulation sim = Simulation::from_json(doc_).with_limits(RunLimits{max_steps_, 1});
-    ExtremaTracker extrema;
-    RunDiagnostics diagnostics;
-    const RunSummary summary = sim.run(&extrema, &diagnostics);
-    const bool completed = summary.status == RunStatus::kCompleted;
-    record["status"] = to_string(summary.status);
-    record["converged"] = summary.converged_step.has_value();
-    record["converged_time"] = summary.converged_time ? json(*summary.converged_time) : json(nullptr);
-    record["final_q"] = numbers(summary.q_final);
-    record["final_v"] = numbers(summary.v_final);
-    // No target: nothing to check. A final state of another size than the target's (a sample that
-    // changed the system) is not within it.
-    double distance = spec.target_q.empty() ? 0.0 : std::nan("");
-    if (!spec.target_q.empty() && summary.q_final.size() == spec.target_q.size()) {
-      distance = 0.0;
-      for (std::size_t k = 0; k < spec.target_q.size(); ++k) distance += std::pow(summary.q_final[k] - spec.target_q[k], 2);
-      distance = std::sqrt(distance);
-      record["target_distance"] = number_or_null(distance);
-    } else {
-      record["target_distance"] = nullptr;
-    }
-    record["max_abs_q"] = number_or_null(extrema.max_abs_q);
-    record["max_energy"] = number_or_null(extrema.max_energy);
-    record["steps"] = summary.steps;
-    const std::string failure = completed ? sim.guarantees(summary).relied_on_failure() : std::string();
-    record["hypothesis_failed"] = failure.empty() ? json(nullptr) : json(failure);
-    record["success"] = completed && summary.converged_step.has_value() &&
-                        (spec.target_q.empty() || (std::isfinite(distance) && distance <= spec.target_tolerance));
-    record["message"] = summary.message;
-    record["error"] = nullptr;
-    if (spec.full_report) record["report"] = sim.report_json(summary, diagnostics);
-  } catch (const SceneError& e) {
-    record["status"] = "invalid";
-    record["success"] = false;
-    record["error"] = {{"pointer", e.pointer()}, {"reason", e.reason()}};
+    return record_of(i, values, Simulation::from_json(doc_).with_limits(RunLimits{max_steps_, 1}));
   } catch (const std::exception& e) {
-    // Anything else a sample's values provoke is that sample's failure, not the campaign's.
+    json record = {{"index", i}};
+    json inputs = json::object();
+    for (std::size_t k = 0; k < values.size(); ++k) inputs[spec_.inputs[k].path] = values[k];
+    record["inputs"] = std::move(inputs);
     record["status"] = "invalid";
     record["success"] = false;
-    record["error"] = {{"pointer", "/"}, {"reason", std::string("the sample could not be run: ") + e.what()}};
+    // Anything else a sample's values provoke is that sample's failure, not the campaign's.
+    const auto* scene_error = dynamic_cast<const SceneError*>(&e);
+    record["error"] = scene_error ? json{{"pointer", scene_error->pointer()}, {"reason", scene_error->reason()}}
+                                  : json{{"pointer", "/"}, {"reason", std::string("the sample could not be run: ") + e.what()}};
+    return record;
+  }
+}
+
+std::optional<json> CampaignSampleRunner::run_bound(std::int64_t i, const std::vector<json>& values) {
+  const LagrangianScene& nominal = parametric_->nominal();
+  std::vector<double> params, q0 = nominal.q0, v0 = nominal.v0;
+  for (std::size_t k = 0; k < values.size(); ++k) {
+    if (!values[k].is_number()) return std::nullopt;
+    const double v = values[k].get<double>();
+    if (!std::isfinite(v)) return std::nullopt;
+    const Target& t = targets_[k];
+    if (t.kind == Target::kParameter) {
+      if (v == 0.0) return std::nullopt;  // the full compile folds 0 * x into a constant 0
+      params.push_back(v);
+    } else {
+      (t.kind == Target::kInitialQ ? q0 : v0)[static_cast<std::size_t>(t.index)] = v;
+    }
+  }
+  try {
+    return record_of(i, values, Simulation::from_scene(parametric_->bind(params, q0, v0)).with_limits(RunLimits{max_steps_, 1}));
+  } catch (const std::exception&) {
+    return std::nullopt;  // the full compile says what is wrong with this sample
+  }
+}
+
+namespace {
+// A record without what differs from one run of a sample to the next: wall times.
+json without_times(json r) {
+  r.erase("wall_seconds");
+  if (r.contains("report") && r["report"].is_object()) {
+    r["report"].erase("wall_seconds");
+    r["report"].erase("phase_seconds");
+  }
+  return r;
+}
+}  // namespace
+
+json CampaignSampleRunner::run(std::int64_t i) {
+  const auto start = std::chrono::steady_clock::now();
+  const std::vector<json> values = design_.values(i);
+  std::optional<json> bound;
+  if (parametric_) bound = run_bound(i, values);
+  json record;
+  if (bound && checked_) {
+    record = std::move(*bound);
+  } else {
+    record = run_compiled(i, values);
+    if (bound) {
+      // The first bound sample: the full compile must give the same record, else compile every sample.
+      checked_ = true;
+      if (without_times(*bound) != without_times(record)) parametric_.reset();
+    }
   }
   record["wall_seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return record;

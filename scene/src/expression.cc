@@ -4,6 +4,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <unordered_map>
 #include <utility>
 
@@ -836,8 +837,9 @@ Node Graph::derivative(Node f, int slot) {
 // -----------------------------------------------------------------------------------------------------------
 // Tape.
 
-Tape Tape::compile(const Graph& graph, const std::vector<Node>& outputs, int num_slots) {
+Tape Tape::compile(const Graph& graph, const std::vector<Node>& outputs, int num_slots, int num_params) {
   Tape tape;
+  tape.num_params_ = num_params;
   // Every node the outputs reach, children before parents, each once.
   std::vector<Node> order;
   {
@@ -850,20 +852,43 @@ Tape Tape::compile(const Graph& graph, const std::vector<Node>& outputs, int num
   std::vector<std::int32_t> reg(graph.size(), -1);
   auto reg_of = [&reg](Node n) { return n >= 0 ? reg[static_cast<std::size_t>(n)] : -1; };
 
-  // Leaves get the first registers and are filled in bulk by eval.
+  // Bound nodes: constants, parameters, and what depends on them alone (computed by bind()).
+  std::vector<char> bound(graph.size(), 0);
+  auto is_bound = [&bound](Node n) { return n < 0 || bound[static_cast<std::size_t>(n)]; };
   for (Node n : order) {
     const Graph::Entry& e = graph.entry(n);
-    if (e.op != Op::kConst) continue;
-    reg[static_cast<std::size_t>(n)] = static_cast<std::int32_t>(tape.constants_.size());
-    tape.constants_.push_back(e.value);
+    if (e.op == Op::kVar) {
+      if (e.slot >= num_slots + num_params) {
+        throw std::invalid_argument("expression uses input slot " + std::to_string(e.slot) + " but the tape has " +
+                                    std::to_string(num_slots) + " inputs and " + std::to_string(num_params) + " parameters");
+      }
+      bound[static_cast<std::size_t>(n)] = e.slot >= num_slots;
+    } else {
+      bound[static_cast<std::size_t>(n)] = e.op == Op::kConst || (is_bound(e.a) && is_bound(e.b) && is_bound(e.c) && is_bound(e.d));
+    }
+  }
+
+  // Leaves get the first registers and are filled in bulk by eval: constants, then (bound) parameters and
+  // the nodes of them alone, then the inputs.
+  const double unset = std::numeric_limits<double>::quiet_NaN();
+  for (Node n : order) {
+    const Graph::Entry& e = graph.entry(n);
+    if (!bound[static_cast<std::size_t>(n)]) continue;
+    const auto r = static_cast<std::int32_t>(tape.constants_.size());
+    reg[static_cast<std::size_t>(n)] = r;
+    if (e.op == Op::kConst) {
+      tape.constants_.push_back(e.value);
+    } else if (e.op == Op::kVar) {
+      tape.constants_.push_back(unset);
+      tape.param_regs_.emplace_back(r, e.slot - num_slots);
+    } else {
+      tape.constants_.push_back(unset);
+      tape.bind_code_.push_back(BoundInstr{e.op, reg_of(e.a), reg_of(e.b), reg_of(e.c), reg_of(e.d), r});
+    }
   }
   for (Node n : order) {
     const Graph::Entry& e = graph.entry(n);
-    if (e.op != Op::kVar) continue;
-    if (e.slot >= num_slots) {
-      throw std::invalid_argument("expression uses input slot " + std::to_string(e.slot) + " but the tape has " +
-                                  std::to_string(num_slots) + " inputs");
-    }
+    if (e.op != Op::kVar || bound[static_cast<std::size_t>(n)]) continue;
     reg[static_cast<std::size_t>(n)] = static_cast<std::int32_t>(tape.constants_.size() + tape.input_slots_.size());
     tape.input_slots_.push_back(e.slot);
   }
@@ -900,7 +925,24 @@ Tape Tape::compile(const Graph& graph, const std::vector<Node>& outputs, int num
   }
   for (Node out : outputs) tape.output_regs_.push_back(reg[static_cast<std::size_t>(out)]);
   tape.scratch_size_ = tape.first_instr_reg_ + tape.code_.size();
+  // x^p with p bound: the graph rewrites x^2 to x*x when the exponent is the constant 2, so bind() does
+  // the same when p is 2 (pow(x, 2) need not round as x*x does).
+  if (!tape.bind_code_.empty() || !tape.param_regs_.empty())
+    for (std::size_t i = 0; i < tape.code_.size(); ++i)
+      if (tape.code_[i].op == Op::kPow && tape.code_[i].b >= 0 && static_cast<std::size_t>(tape.code_[i].b) < tape.constants_.size())
+        tape.pow_of_bound_.push_back(static_cast<std::int32_t>(i));
   return tape;
+}
+
+void Tape::bind(const double* params) {
+  for (const auto& [r, k] : param_regs_) constants_[static_cast<std::size_t>(r)] = params[k];
+  const double* c = constants_.data();
+  auto at = [c](std::int32_t r) { return r >= 0 ? c[r] : 0.0; };
+  for (const BoundInstr& in : bind_code_) constants_[static_cast<std::size_t>(in.target)] = apply(in.op, at(in.a), at(in.b), at(in.c), at(in.d));
+  for (std::int32_t i : pow_of_bound_) {
+    Instr& in = code_[static_cast<std::size_t>(i)];
+    in.op = c[in.b] == 2.0 ? Op::kSquare : Op::kPow;
+  }
 }
 
 void Tape::eval(const double* slots, double* outputs, double* scratch) const {

@@ -7,7 +7,9 @@
 #include <cctype>
 #include <cmath>
 #include <map>
+#include <optional>
 #include <set>
+#include <stdexcept>
 
 #include "moreau/scene/urdf.h"
 #include "scene_reader.h"
@@ -26,6 +28,20 @@ class LagrangianCompiler : SceneReader {
  public:
   explicit LagrangianCompiler(const json& doc) : SceneReader(doc) {}
   LagrangianScene compile();
+  // ParametricLagrangianScene: the parameters left free and their values in the document.
+  void keep_free(std::vector<std::string> names, std::vector<double> values) {
+    free_params_ = std::move(names);
+    free_values_ = std::move(values);
+  }
+  // Whether some x^p in grad V + F has an exponent p that depends on a free parameter: whether x^p is
+  // smooth everywhere (Assumption 3.3, Graph::smooth_everywhere) depends on p's value then.
+  bool free_parameter_in_an_exponent() const {
+    return std::any_of(g_.begin(), g_.end(), [this](Node f) {
+      return graph_.any_reachable(f, [this](const expr::Graph::Entry& e) { return e.op == Op::kPow && !graph_.is_constant(e.b) && bound_only(e.b); });
+    });
+  }
+  // check_at_initial_state for a binding of the free parameters.
+  void check_binding(const LagrangianScene& scene, const std::vector<double>& values) { check_at_initial_state(scene, values.data()); }
 
  private:
   void coordinates(const json& system) {
@@ -261,6 +277,11 @@ class LagrangianCompiler : SceneReader {
     for (int i = 0; i < n_ * n_; ++i) scene.christoffel_c.push_back(graph_.to_string(C_[i]));
   }
 
+  // Whether `node` depends on the free parameters and constants alone (not on t, q or v).
+  bool bound_only(Node node) const {
+    return !graph_.any_reachable(node, [this](const expr::Graph::Entry& e) { return e.op == Op::kVar && e.slot < 1 + 2 * n_; });
+  }
+
   // The symmetric mass entry used everywhere: the upper triangle (the lower one is checked equal).
   Node sym(int i, int j) const { return i <= j ? M_[i * n_ + j] : M_[j * n_ + i]; }
   void forces(const json& system, LagrangianScene& scene) {
@@ -483,20 +504,24 @@ class LagrangianCompiler : SceneReader {
         for (int i = 0; i < n_; ++i)
           outs.push_back(expression(arr[i], ptr + "/" + std::to_string(i), kTime, "an exact solution (a function of t)"));
       }
-      scene.exact_tape = std::make_shared<expr::Tape>(expr::Tape::compile(graph_, outs, 1 + 2 * n_));
+      scene.exact_tape = std::make_shared<expr::Tape>(expr::Tape::compile(graph_, outs, 1 + 2 * n_, num_params()));
     }
     if (ex.contains("rest_time")) scene.exact_rest_time = constant(ex["rest_time"], "/exact/rest_time");
     if (ex.contains("rest_q")) scene.exact_rest_q = constant_vector(ex["rest_q"], "/exact/rest_q");
   }
 
   // Evaluates M, C, g at the initial state: finite, symmetric, positive definite.
-  void check_at_initial_state(const LagrangianScene& scene) {
+  // `params`: the free parameters' values (ParametricLagrangianScene), nullptr when there are none. The
+  // tapes are compiled at the first call and kept: a parametric scene checks each binding with them.
+  void check_at_initial_state(const LagrangianScene& scene, const double* params) {
     std::vector<Node> outs;
     for (int i = 0; i < n_ * n_; ++i) outs.push_back(M_[i]);
     for (int i = 0; i < n_; ++i) outs.push_back(g_[i]);
     for (int i = 0; i < n_ * n_; ++i) outs.push_back(C_[i]);
     if (potential_ >= 0) outs.push_back(potential_);
-    const expr::Tape tape = expr::Tape::compile(graph_, outs, 1 + 2 * n_);
+    if (!check_tape_) check_tape_ = expr::Tape::compile(graph_, outs, 1 + 2 * n_, num_params());
+    expr::Tape& tape = *check_tape_;
+    if (params) tape.bind(params);
     std::vector<double> slots(1 + 2 * n_), values(outs.size()), scratch(tape.scratch_size());
     auto eval_at = [&](const std::vector<double>& q, const std::vector<double>& v) {
       slots[0] = scene.settings.t0;
@@ -547,7 +572,9 @@ class LagrangianCompiler : SceneReader {
     if (!gaps_.empty()) {
       std::vector<Node> cons = gaps_;
       cons.insert(cons.end(), gap_gradients_.begin(), gap_gradients_.end());
-      const expr::Tape ct = expr::Tape::compile(graph_, cons, 1 + 2 * n_);
+      if (!gap_check_tape_) gap_check_tape_ = expr::Tape::compile(graph_, cons, 1 + 2 * n_, num_params());
+      expr::Tape& ct = *gap_check_tape_;
+      if (params) ct.bind(params);
       std::vector<double> cs(1 + 2 * n_, 0.0), cv(cons.size()), cscr(ct.scratch_size());
       for (int i = 0; i < n_; ++i) cs[1 + i] = scene.q0[i];
       ct.eval(cs.data(), cv.data(), cscr.data());
@@ -597,9 +624,17 @@ class LagrangianCompiler : SceneReader {
     const int nn = n_ * n_;
     c->constant_terms.assign(static_cast<std::size_t>(2 * nn + n_), 0.0);
     std::vector<Node> step_outputs, mass_outputs;
+    std::vector<Node> bound_outputs;
     auto place = [&](Node node, std::vector<int> targets, bool is_mass) {
       if (graph_.is_constant(node)) {
         for (int t : targets) c->constant_terms[t] = graph_.constant_value(node);
+        return;
+      }
+      // Free parameters and constants alone: a constant of each binding, set when it is bound (as the
+      // folded compile sets a constant here), so that the step tapes are those of the folded compile.
+      if (num_params() > 0 && bound_only(node)) {
+        bound_outputs.push_back(node);
+        c->bound_targets.push_back(std::move(targets));
         return;
       }
       step_outputs.push_back(node);
@@ -623,12 +658,16 @@ class LagrangianCompiler : SceneReader {
     for (const auto& targets : c->step_targets)
       for (int t : targets)
         if (t < 2 * nn) widen(t);
+    for (const auto& targets : c->bound_targets)  // whatever their values
+      for (int t : targets)
+        if (t < 2 * nn) widen(t);
+    c->bound_terms_tape = expr::Tape::compile(graph_, bound_outputs, 1 + 2 * n_, num_params());
     for (int t = 0; t < 2 * nn; ++t)
       if (c->constant_terms[t] != 0.0) widen(t);
     // grad V and F apart, the same nodes that g = grad V + F adds.
     std::vector<Node> split = gradient_;
     split.insert(split.end(), force_.begin(), force_.end());
-    c->split_force_tape = expr::Tape::compile(graph_, split, 1 + 2 * n_);
+    c->split_force_tape = expr::Tape::compile(graph_, split, 1 + 2 * n_, num_params());
     if (robot_) {
       c->robot = std::make_shared<const RigidBodyModel>(robot_->model);
       c->constant_mass = false;
@@ -637,17 +676,17 @@ class LagrangianCompiler : SceneReader {
       for (int j = 0; j < n_; ++j)
         for (int a = j; a >= 0; a = c->robot->bodies[static_cast<std::size_t>(a)].parent) c->bandwidth = std::max(c->bandwidth, j - a);
     }
-    c->step_tape = expr::Tape::compile(graph_, step_outputs, 1 + 2 * n_);
-    c->mass_tape = expr::Tape::compile(graph_, mass_outputs, 1 + 2 * n_);
+    c->step_tape = expr::Tape::compile(graph_, step_outputs, 1 + 2 * n_, num_params());
+    c->mass_tape = expr::Tape::compile(graph_, mass_outputs, 1 + 2 * n_, num_params());
     if (potential_ >= 0) {
       c->has_potential = true;
-      c->potential_tape = expr::Tape::compile(graph_, {potential_}, 1 + 2 * n_);
+      c->potential_tape = expr::Tape::compile(graph_, {potential_}, 1 + 2 * n_, num_params());
     }
     if (!gaps_.empty()) {
       std::vector<Node> cons = gaps_;
       cons.insert(cons.end(), gap_gradients_.begin(), gap_gradients_.end());
       c->num_constraints = static_cast<int>(gaps_.size());
-      c->constraint_tape = expr::Tape::compile(graph_, cons, 1 + 2 * n_);
+      c->constraint_tape = expr::Tape::compile(graph_, cons, 1 + 2 * n_, num_params());
     }
     return c;
   }
@@ -658,6 +697,8 @@ class LagrangianCompiler : SceneReader {
   Node potential_ = -1;
   bool constant_mass_ = true;
   std::vector<Node> gaps_, gap_gradients_;  // h_i(q) and dh_i/dq_j (row-major)
+  std::optional<expr::Tape> check_tape_, gap_check_tape_;  // check_at_initial_state's
+  std::vector<double> free_values_;  // the free parameters' values as the document gives them
   std::shared_ptr<UrdfRobot> robot_;        // a URDF system's robot (/system/urdf)
 };
 
@@ -695,7 +736,7 @@ LagrangianScene LagrangianCompiler::compile() {
   } else {
     mass_matrix(system["mass"]);
     for (int i = 0; i < n_ * n_; ++i)
-      if (!graph_.is_constant(M_[i])) constant_mass_ = false;
+      if (!graph_.is_constant(M_[i]) && !(num_params() > 0 && bound_only(M_[i]))) constant_mass_ = false;
     coriolis(system, scene);
   }
   forces(system, scene);
@@ -707,7 +748,7 @@ LagrangianScene LagrangianCompiler::compile() {
   integrator(scene);
   if (const auto every = output_every()) scene.output_every = *every;
   exact(scene);
-  check_at_initial_state(scene);
+  check_at_initial_state(scene, free_values_.empty() ? nullptr : free_values_.data());
   scene.compiled = build();
   scene.settings.bandwidth = scene.compiled->bandwidth;
   return scene;
@@ -718,6 +759,84 @@ LagrangianScene LagrangianCompiler::compile() {
 LagrangianScene load_scene(const nlohmann::json& doc) {
   LagrangianCompiler compiler(doc);
   return compile_scene([&] { return compiler.compile(); });
+}
+
+struct ParametricLagrangianScene::Impl {
+  explicit Impl(const nlohmann::json& d) : doc(d), compiler(doc) {}
+  const nlohmann::json doc;      // the compiler reads it by reference
+  LagrangianCompiler compiler;   // its graph and check tapes serve every binding
+  LagrangianScene nominal;       // tapes unbound
+  std::size_t num_free = 0;
+};
+
+ParametricLagrangianScene::ParametricLagrangianScene(const nlohmann::json& doc, std::vector<std::string> free)
+    : impl_(std::make_unique<Impl>(doc)) {
+  std::vector<double> values;
+  for (const std::string& name : free) {
+    const std::string ptr = "/parameters/" + json_pointer_token(name);
+    const nlohmann::json::json_pointer jp(ptr);
+    if (!doc.contains(jp) || !doc[jp].is_number() || !std::isfinite(doc[jp].get<double>()))
+      throw SceneError(ptr, "a free parameter must be a finite number in the scene");
+    values.push_back(doc[jp].get<double>());
+  }
+  impl_->num_free = free.size();
+  impl_->compiler.keep_free(std::move(free), values);
+  impl_->nominal = compile_scene([&] { return impl_->compiler.compile(); });
+  // The nominal scene's tapes stay unbound: bind() binds copies.
+  // What the compiler decides from the structure of the expressions must not depend on whether the free
+  // parameters are folded in: checked against the scene compiled at the document's values, and for the
+  // one decision that depends on a value (whether x^p is smooth everywhere, p a free parameter), refused.
+  const LagrangianScene folded = load_scene(doc);
+  const LagrangianScene& kept = impl_->nominal;
+  const bool same = folded.forces_smooth_everywhere == kept.forces_smooth_everywhere &&
+                    folded.force_depends_on_time == kept.force_depends_on_time && folded.has_force == kept.has_force &&
+                    folded.compiled->constant_mass == kept.compiled->constant_mass && folded.compiled->bandwidth == kept.compiled->bandwidth &&
+                    folded.settings.bandwidth == kept.settings.bandwidth && folded.scheme == kept.scheme;
+  if (!same || impl_->compiler.free_parameter_in_an_exponent())
+    throw SceneError("/parameters", "these parameters cannot be left free: what the compiler decides from the expressions' structure "
+                                    "(smoothness, time dependence, constant mass, band) would depend on their values");
+}
+
+ParametricLagrangianScene::~ParametricLagrangianScene() = default;
+ParametricLagrangianScene::ParametricLagrangianScene(ParametricLagrangianScene&&) noexcept = default;
+
+const LagrangianScene& ParametricLagrangianScene::nominal() const { return impl_->nominal; }
+
+LagrangianScene ParametricLagrangianScene::bind(const std::vector<double>& values, const std::vector<double>& q0, const std::vector<double>& v0) {
+  const LagrangianScene& base = impl_->nominal;
+  if (values.size() != impl_->num_free) throw std::invalid_argument("ParametricLagrangianScene::bind: one value per free parameter");
+  for (double v : values)
+    if (!std::isfinite(v) || v == 0.0) throw std::invalid_argument("ParametricLagrangianScene::bind: values must be finite and non-zero");
+  if (q0.size() != static_cast<std::size_t>(base.n) || v0.size() != static_cast<std::size_t>(base.n))
+    throw std::invalid_argument("ParametricLagrangianScene::bind: q0 and v0 need n entries");
+  LagrangianScene scene = base;
+  auto compiled = std::make_shared<CompiledLagrangian>(*base.compiled);
+  for (expr::Tape* tape : {&compiled->step_tape, &compiled->mass_tape, &compiled->potential_tape, &compiled->split_force_tape,
+                           &compiled->constraint_tape, &compiled->bound_terms_tape})
+    tape->bind(values.data());
+  // The entries of M, C and g of the parameters alone: constants of this binding.
+  if (!compiled->bound_targets.empty()) {
+    const expr::Tape& tape = compiled->bound_terms_tape;
+    std::vector<double> slots(static_cast<std::size_t>(1 + 2 * base.n), 0.0), out(tape.num_outputs()), scratch(tape.scratch_size());
+    tape.eval(slots.data(), out.data(), scratch.data());
+    for (std::size_t j = 0; j < out.size(); ++j)
+      for (int t : compiled->bound_targets[j]) compiled->constant_terms[static_cast<std::size_t>(t)] = out[j];
+  }
+  scene.compiled = std::move(compiled);
+  if (scene.exact_tape) {
+    auto exact = std::make_shared<expr::Tape>(*scene.exact_tape);
+    exact->bind(values.data());
+    scene.exact_tape = std::move(exact);
+  }
+  scene.q0 = q0;
+  scene.v0 = v0;
+  for (std::size_t i = 0; i < q0.size(); ++i)
+    if (!std::isfinite(q0[i]) || !std::isfinite(v0[i])) throw SceneError("/initial", "the initial state must be finite");
+  compile_scene([&] {
+    impl_->compiler.check_binding(scene, values);
+    return 0;
+  });
+  return scene;
 }
 
 }  // namespace moreau::scene

@@ -1,6 +1,7 @@
 // The parts of a scene document both compilers read: parameters, expressions, constants, step counts.
 #include "scene_reader.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "moreau/core/stepping_driver.h"
@@ -85,6 +86,12 @@ void SceneReader::check_all_parameters() {
 
 Node SceneReader::parameter(const std::string& name) {
   if (auto it = param_nodes_.find(name); it != param_nodes_.end()) return it->second;
+  if (auto it = std::find(free_params_.begin(), free_params_.end(), name); it != free_params_.end()) {
+    if (n_ <= 0) throw SceneError("/parameters/" + json_pointer_token(name), "a free parameter is read before the coordinates are known");
+    const Node node = graph_.variable(1 + 2 * n_ + static_cast<int>(it - free_params_.begin()));
+    param_nodes_[name] = node;
+    return node;
+  }
   if (resolving_.count(name)) throw SceneError("/parameters/" + json_pointer_token(name), "parameter '" + name + "' depends on itself");
   resolving_.insert(name);
   const Node node = constant_node(*params_.at(name), "/parameters/" + json_pointer_token(name));

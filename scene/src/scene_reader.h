@@ -78,6 +78,12 @@ class SceneReader {
   std::map<std::string, Node> param_nodes_;
   std::set<std::string> resolving_;
   std::map<std::string, int> coord_slot_;  // a coordinate's variable: 1..n positions, n+1..2n velocities
+  // Parameters kept free (ParametricLagrangianScene): parameter k is the variable 1 + 2n + k of the
+  // expressions, a named constant of the tapes set when they are bound, never folded in. Anything that
+  // needs its value while compiling (a gain, the step, the initial state, another parameter) fails with
+  // "must be constant".
+  std::vector<std::string> free_params_;
+  int num_params() const { return static_cast<int>(free_params_.size()); }
 };
 
 // Runs a compiler, turning expression limits and malformed JSON into SceneErrors.

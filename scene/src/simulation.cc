@@ -43,6 +43,13 @@ Simulation Simulation::from_json(const nlohmann::json& doc) {
   return sim;
 }
 
+Simulation Simulation::from_scene(LagrangianScene scene) {
+  Simulation sim;
+  sim.system_ = std::make_shared<const LagrangianScene>(std::move(scene));
+  sim.latest_ = std::make_shared<Latest>();
+  return sim;
+}
+
 Simulation Simulation::from_file(const std::string& path, const std::vector<std::string>& overrides) {
   nlohmann::json doc = read_scene_file(path);
   for (const auto& o : overrides) apply_override(doc, o);

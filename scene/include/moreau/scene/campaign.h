@@ -22,12 +22,16 @@
 #include <atomic>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include <nlohmann/json.hpp>
+
+#include "moreau/scene/scene.h"
+#include "moreau/scene/simulation.h"
 
 namespace moreau::scene {
 
@@ -110,26 +114,53 @@ struct CampaignOutcome {
   std::vector<double> inputs;                                    // per input; NaN: not a number
 };
 
-// Runs the samples of one campaign, one at a time (one runner per worker thread). It holds a copy of the
-// scene document into which each sample's values are written: every sample writes every input's path
-// (distinct and not nested, CampaignSpec checks), so nothing of the sample before remains, and no sample
-// copies the scene. The document is then compiled afresh (the scene's parameters are folded into its
-// expressions when it is compiled, so a sample's values cannot be written into a compiled scene).
+// Runs the samples of one campaign, one at a time (one runner per worker thread).
+//
+// Compiled once: when every input is a parameter (/parameters/NAME, a number in the scene) or a
+// coordinate of the initial state (/initial/q/K, /initial/v/K) of a Lagrangian scene, the runner compiles
+// the scene once with those parameters free (ParametricLagrangianScene) and binds each sample's values,
+// which computes what compiling the scene with them computes (scene.h says why, bit for bit). A sample
+// it cannot take so (a value that is not a finite number, a parameter at 0, an initial state the checks
+// refuse: the full compile names the error) is compiled in full. The first sample a runner binds is also
+// compiled in full and the two records compared (their wall times aside); if they differ in anything the
+// runner compiles every sample in full from then on (compiles_once() turns false).
+// Otherwise each sample's values are written into one scene document the runner keeps (every sample
+// writes every input's path, distinct and not nested, so nothing of the sample before remains) and the
+// document is compiled.
 class CampaignSampleRunner {
  public:
+  enum class Compile { kOnceWhenPossible, kEverySample };
   // `max_steps`: a caller's step limit on each run (a server's); a sample that needs more fails at it
   // and is recorded as failed.
-  CampaignSampleRunner(const CampaignSpec& spec, const CampaignDesign& design, std::optional<std::int64_t> max_steps = std::nullopt);
+  CampaignSampleRunner(const CampaignSpec& spec, const CampaignDesign& design, std::optional<std::int64_t> max_steps = std::nullopt,
+                       Compile compile = Compile::kOnceWhenPossible);
+  ~CampaignSampleRunner();
   // Sample i's record. Never throws for a bad sample: an invalid scene or a failed run is recorded as
   // such, with the field and the reason.
   nlohmann::json run(std::int64_t i);
+  // Whether samples are bound to the scene compiled once (see above).
+  bool compiles_once() const { return parametric_ != nullptr; }
 
  private:
+  // The record of sample i without its wall time: from the document with the values written in, or
+  // from the scene compiled once (nullopt: this sample needs the full compile).
+  nlohmann::json run_compiled(std::int64_t i, const std::vector<nlohmann::json>& values);
+  std::optional<nlohmann::json> run_bound(std::int64_t i, const std::vector<nlohmann::json>& values);
+  nlohmann::json record_of(std::int64_t i, const std::vector<nlohmann::json>& values, const Simulation& sim) const;
+
   const CampaignSpec& spec_;
   const CampaignDesign& design_;
   std::optional<std::int64_t> max_steps_;
   nlohmann::json doc_;
   std::vector<nlohmann::json::json_pointer> paths_;
+  // Compiled once: the scene, and where each input goes (a free parameter k, q0[k] or v0[k]).
+  struct Target {
+    enum Kind { kParameter, kInitialQ, kInitialV } kind;
+    int index;
+  };
+  std::unique_ptr<ParametricLagrangianScene> parametric_;
+  std::vector<Target> targets_;
+  bool checked_ = false;  // the first bound sample has been compared with its full compile
 };
 
 // The summary of a campaign's records (all of them, each index once).

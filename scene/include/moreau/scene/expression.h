@@ -130,6 +130,8 @@ class Graph {
     Node c = -1, d = -1;  // kSelectLe only (declared last so that {op, a, b} initialisation still works)
   };
   const Entry& entry(Node n) const;
+  // Whether some node reachable from f (f included) satisfies `found`: one traversal for every such query.
+  bool any_reachable(Node f, const std::function<bool(const Entry&)>& found) const;
 
  private:
   // Returns the shared node equal to `e`, adding it if new. All nodes are created here.
@@ -137,8 +139,6 @@ class Graph {
   // (a <= b) ? c : d, simplified; only the derivative of min/max creates it.
   Node select_le(Node a, Node b, Node c, Node d);
   void check_node(Node n) const;
-  // Whether some node reachable from f (f included) satisfies `found`: one traversal for every such query.
-  bool any_reachable(Node f, const std::function<bool(const Entry&)>& found) const;
 
   std::vector<Entry> nodes_;
   struct Impl;  // hash index for hash-consing, defined in expression.cc
@@ -151,8 +151,17 @@ class Tape {
  public:
   Tape() = default;
   // Compiles `outputs` (nodes of `graph`), keeping only the nodes they reach, in topological order.
-  // `num_slots` is the number of inputs; every kVar slot must be < num_slots.
-  static Tape compile(const Graph& graph, const std::vector<Node>& outputs, int num_slots);
+  // `num_slots` is the number of inputs. A kVar slot in [num_slots, num_slots + num_params) is parameter
+  // slot - num_slots: a named constant of the tape, set by bind(), not an input of eval(). Every node
+  // that depends on parameters and constants alone is computed by bind(), with the operations constant
+  // folding uses (Graph's fold), so that a bound tape computes what the tape of the expressions with the
+  // parameters folded in computes; eval() does no more work than for that tape.
+  static Tape compile(const Graph& graph, const std::vector<Node>& outputs, int num_slots, int num_params = 0);
+
+  // Sets the parameters (num_params() values) and recomputes the nodes that depend on them alone. Until
+  // the first bind, they are NaN.
+  void bind(const double* params);
+  int num_params() const { return num_params_; }
 
   // outputs[i] = value of the i-th output node for inputs `slots`.
   void eval(const double* slots, double* outputs, double* scratch) const;
@@ -178,6 +187,17 @@ class Tape {
   std::vector<double> constants_;
   std::vector<std::int32_t> input_slots_;
   std::size_t first_instr_reg_ = 0;
+  // Parameters: their registers (in the constants region) and, in order, the nodes that depend on
+  // parameters and constants alone (each writes its own register of the constants region).
+  struct BoundInstr {
+    Op op;
+    std::int32_t a, b, c, d;
+    std::int32_t target;
+  };
+  int num_params_ = 0;
+  std::vector<std::pair<std::int32_t, std::int32_t>> param_regs_;  // (register, parameter)
+  std::vector<BoundInstr> bind_code_;
+  std::vector<std::int32_t> pow_of_bound_;  // instructions x^p with p bound (x*x when p is 2)
 };
 
 }  // namespace moreau::expr

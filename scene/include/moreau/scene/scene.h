@@ -99,6 +99,11 @@ struct CompiledLagrangian {
   // symmetric pair); likewise mass_targets for mass_tape into M.
   std::vector<std::vector<int>> step_targets;
   std::vector<std::vector<int>> mass_targets;
+  // A scene compiled with free parameters (ParametricLagrangianScene): the entries of [M | C | g] of the
+  // parameters alone, output j going to the flat indices bound_targets[j] of constant_terms when the
+  // parameters are bound. Empty otherwise.
+  expr::Tape bound_terms_tape;
+  std::vector<std::vector<int>> bound_targets;
   // Unilateral constraints: outputs h_1..h_m(q), then the exact gradients dh_i/dq_j (row-major, m x n).
   int num_constraints = 0;
   expr::Tape constraint_tape;
@@ -160,6 +165,40 @@ struct LagrangianScene {
 // Validates and compiles a Lagrangian scene. Throws SceneError naming the field (a "lure" scene gets
 // one at /system/type: load it with load_lure_scene or Simulation).
 LagrangianScene load_scene(const nlohmann::json& doc);
+
+// A Lagrangian scene compiled once with some of its parameters left free, for many runs with other values
+// of them (a campaign's samples) without compiling again. A free parameter is a named constant of the
+// compiled expressions (expr::Tape::bind), never folded in; what depends on free parameters alone is
+// computed when they are bound, with the operations constant folding uses, and the rules that fold
+// constants are identities of IEEE arithmetic. So a bound scene computes, step for step, what load_scene
+// compiles from the document with those values written in, bit for bit but for the sign of a zero where a
+// free parameter is 0 (there the graph folds 0 * x to the constant 0: bind() refuses a 0, and callers
+// compile such a sample with load_scene).
+class ParametricLagrangianScene {
+ public:
+  // Compiles `doc` with the parameters named in `free` (under /parameters, each a finite number) left
+  // free. Throws SceneError for an invalid scene, and also when it cannot be compiled so: a free
+  // parameter that something needs as a number while compiling (a gain, the step, the initial state,
+  // another parameter's value, an exact solution's rest time) is reported "must be constant"; and when
+  // what the compiler decides from the expressions' structure (the smoothness of grad V + F, dependence
+  // on t, a constant M, the band of M) differs from the compile at the document's values, or depends on
+  // a free parameter's value (a free parameter in an exponent: x^p is smooth everywhere for some p only).
+  ParametricLagrangianScene(const nlohmann::json& doc, std::vector<std::string> free);
+  ~ParametricLagrangianScene();
+  ParametricLagrangianScene(ParametricLagrangianScene&&) noexcept;
+
+  // The scene with the free parameters at `values` (finite, non-zero, in the order of `free`) and the
+  // initial state q0, v0 (n finite numbers each), checked at the initial state as load_scene checks it
+  // (SceneError naming the field: M not positive definite, a constraint violated, ...). Not safe to call
+  // from two threads at once (it binds tapes it keeps for the checks).
+  LagrangianScene bind(const std::vector<double>& values, const std::vector<double>& q0, const std::vector<double>& v0);
+  // The scene at the document's own values (its q0 and v0 are the document's).
+  const LagrangianScene& nominal() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
 
 // Runs the scene's integrator on its compiled model (dispatching to fixed-size code for small n): the abl
 // scheme, or moreau-jean (which also fills `contacts` when given).

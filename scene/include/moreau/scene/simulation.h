@@ -49,6 +49,8 @@ class Simulation {
   static Simulation from_json(const nlohmann::json& doc);
   // Reads a file, applies `--set PATH=VALUE` overrides in order, then validates. Throws SceneError.
   static Simulation from_file(const std::string& path, const std::vector<std::string>& overrides = {});
+  // A Lagrangian scene compiled already (ParametricLagrangianScene::bind).
+  static Simulation from_scene(LagrangianScene scene);
 
   const std::string& name() const;
   const std::string& system_type() const;  // "lagrangian" or "lure"
