@@ -18,7 +18,9 @@ cleanup() {
 trap cleanup EXIT
 fail() {
   echo "FAIL: $*"
-  for f in "$T"/cluster/log/*.log "$T"/slurm/slurm/*.out; do [[ -f $f ]] && { echo "--- $f"; tail -5 "$f"; }; done
+  # What Slurm knows of every job (it keeps finished ones for MinJobAge, 300 s): state, exit code, reason.
+  [[ -n ${SLURM_CONF:-} ]] && { echo "--- scontrol show jobs"; scontrol -o show jobs 2>&1 | tr ' ' '\n' | grep -E '^(JobId|ArrayTaskId|JobState|Reason|Restarts|ExitCode|Dependency)=' | paste -sd ' ' | sed 's/ JobId=/\nJobId=/g'; }
+  for f in "$T"/cluster/log/*.log "$T"/slurm/slurm/*.out; do [[ -f $f ]] && { echo "--- $f"; tail -8 "$f"; }; done
   exit 1
 }
 
@@ -49,9 +51,11 @@ cat > "$T/spec.json" <<SPEC
 }
 SPEC
 
+# Until no job is pending, running or completing; squeue failing (slurmctld busy) is not an empty queue.
 wait_for_queue() {
+  local queue
   for _ in $(seq 1 1200); do
-    [[ -z $(squeue -h 2>/dev/null) ]] && return 0
+    if queue=$(squeue -h 2>&1); then [[ -z $queue ]] && return 0; fi
     sleep 0.1
   done
   squeue
