@@ -481,6 +481,25 @@ TEST(CampaignCompileOnce, TheShippedCampaignsSamplesAreThoseOfTheFullCompile) {
   expect_bound_equals_compiled(spec, true);
 }
 
+// A bound sample's run does the work of the scene compiled with its values: the tapes the run evaluates
+// have as many instructions (the paper's manipulator, the shipped campaign's three masses free).
+TEST(CampaignCompileOnce, ABoundSceneEvaluatesNoMoreInstructionsThanTheFoldedCompile) {
+  json scene = read_scene_file(source_path("scenes/manipulator-fig6.4.json"));
+  ParametricLagrangianScene parametric(scene, {"m1", "m2", "I"});
+  json folded_doc = scene;
+  folded_doc["parameters"]["m1"] = 1.1;
+  folded_doc["parameters"]["m2"] = 0.9;
+  folded_doc["parameters"]["I"] = 0.11;
+  const LagrangianScene folded = load_scene(folded_doc);
+  const LagrangianScene bound = parametric.bind({1.1, 0.9, 0.11}, folded.q0, folded.v0);
+  const CompiledLagrangian &f = *folded.compiled, &b = *bound.compiled;
+  EXPECT_EQ(b.step_tape.num_instructions(), f.step_tape.num_instructions());
+  EXPECT_EQ(b.mass_tape.num_instructions(), f.mass_tape.num_instructions());
+  EXPECT_EQ(b.potential_tape.num_instructions(), f.potential_tape.num_instructions());
+  EXPECT_EQ(b.split_force_tape.num_instructions(), f.split_force_tape.num_instructions());
+  EXPECT_GT(f.step_tape.num_instructions(), 0u);
+}
+
 TEST(CampaignCompileOnce, SpecialValuesAndInvalidSamplesGoThroughTheFullCompile) {
   // Masses at 1 and at 0 (the graph rewrites 1 * x and folds 0 * x), a negative mass (M not positive
   // definite: an invalid sample, named as the full compile names it), and initial positions.

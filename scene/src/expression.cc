@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <numeric>
 #include <unordered_map>
 #include <utility>
 
@@ -849,12 +850,8 @@ Tape Tape::compile(const Graph& graph, const std::vector<Node>& outputs, int num
       post_order(graph, out, done, [&order](Node n) { order.push_back(n); });
     }
   }
-  std::vector<std::int32_t> reg(graph.size(), -1);
-  auto reg_of = [&reg](Node n) { return n >= 0 ? reg[static_cast<std::size_t>(n)] : -1; };
-
   // Bound nodes: constants, parameters, and what depends on them alone (computed by bind()).
   std::vector<char> bound(graph.size(), 0);
-  auto is_bound = [&bound](Node n) { return n < 0 || bound[static_cast<std::size_t>(n)]; };
   for (Node n : order) {
     const Graph::Entry& e = graph.entry(n);
     if (e.op == Op::kVar) {
@@ -864,30 +861,144 @@ Tape Tape::compile(const Graph& graph, const std::vector<Node>& outputs, int num
       }
       bound[static_cast<std::size_t>(n)] = e.slot >= num_slots;
     } else {
+      auto is_bound = [&bound](Node c) { return c < 0 || bound[static_cast<std::size_t>(c)]; };
       bound[static_cast<std::size_t>(n)] = e.op == Op::kConst || (is_bound(e.a) && is_bound(e.b) && is_bound(e.c) && is_bound(e.d));
     }
   }
 
-  // Leaves get the first registers and are filled in bulk by eval: constants, then (bound) parameters and
-  // the nodes of them alone, then the inputs.
-  const double unset = std::numeric_limits<double>::quiet_NaN();
+  // The entries as the tape computes them. The graph rewrites -(c*x) to (-c)*x and c*(-y) to (-c)*y when
+  // c is a constant (Graph::unary, Graph::binary); here the same is done for a bound c (a parameter or a
+  // node of them), with -c a bound node of its own (node number graph.size() + i, computed by bind()), so
+  // that a bound tape has no more instructions than the tape with the parameters folded in. Both forms
+  // give the same bits: negation is exact and rounding is symmetric about 0.
+  const auto first_added = static_cast<Node>(graph.size());
+  std::vector<Graph::Entry> entries(graph.size(), Graph::Entry{Op::kConst});
+  for (Node n : order) entries[static_cast<std::size_t>(n)] = graph.entry(n);
+  std::vector<int> uses(graph.size(), 0);
   for (Node n : order) {
-    const Graph::Entry& e = graph.entry(n);
-    if (!bound[static_cast<std::size_t>(n)]) continue;
-    const auto r = static_cast<std::int32_t>(tape.constants_.size());
-    reg[static_cast<std::size_t>(n)] = r;
-    if (e.op == Op::kConst) {
-      tape.constants_.push_back(e.value);
-    } else if (e.op == Op::kVar) {
-      tape.constants_.push_back(unset);
-      tape.param_regs_.emplace_back(r, e.slot - num_slots);
-    } else {
-      tape.constants_.push_back(unset);
-      tape.bind_code_.push_back(BoundInstr{e.op, reg_of(e.a), reg_of(e.b), reg_of(e.c), reg_of(e.d), r});
+    const Graph::Entry& e = entries[static_cast<std::size_t>(n)];
+    for (Node c : {e.a, e.b, e.c, e.d})
+      if (c >= 0) ++uses[static_cast<std::size_t>(c)];
+  }
+  for (Node out : outputs) ++uses[static_cast<std::size_t>(out)];
+  std::vector<Graph::Entry> added;  // -c for a bound c
+  std::unordered_map<Node, Node> negation;  // c -> -c, the graph's own node where it has one
+  for (Node n : order)
+    if (bound[static_cast<std::size_t>(n)] && entries[static_cast<std::size_t>(n)].op == Op::kNeg) negation.emplace(entries[static_cast<std::size_t>(n)].a, n);
+  auto negation_of = [&](Node c) {
+    // -(-u) = u
+    const Graph::Entry& ec = c < first_added ? entries[static_cast<std::size_t>(c)] : added[static_cast<std::size_t>(c - first_added)];
+    if (ec.op == Op::kNeg) return ec.a;
+    const auto [it, inserted] = negation.try_emplace(c, first_added + static_cast<Node>(added.size()));
+    if (inserted) added.push_back(Graph::Entry{Op::kNeg, c});
+    return it->second;
+  };
+  auto is_bound = [&](Node x) { return x >= first_added || bound[static_cast<std::size_t>(x)]; };
+  auto bound_alone = [&](Node x, Node y) { return is_bound(x) && !is_bound(y); };
+  // A rewrite makes n use x (n's operands change); when the node it used instead is then used by nothing,
+  // that node is not emitted, and no longer uses its own operands.
+  auto rewrite = [&](Graph::Entry& e, Node replaced, Node c, Node x) {
+    ++uses[static_cast<std::size_t>(x)];
+    if (--uses[static_cast<std::size_t>(replaced)] == 0) {
+      const Graph::Entry& r = entries[static_cast<std::size_t>(replaced)];
+      for (Node k : {r.a, r.b})
+        if (k >= 0 && k < first_added) --uses[static_cast<std::size_t>(k)];
     }
+    e = Graph::Entry{Op::kMul, negation_of(c), x};
+  };
+  // Rewritten nodes can equal other nodes ((-c)*x made from -(c*x) and from c*(-x)): each is computed
+  // once, by the first of them (alias), as the graph shares equal nodes.
+  std::vector<Node> alias(graph.size());
+  std::iota(alias.begin(), alias.end(), Node{0});
+  auto canonical = [&](Node k) { return k >= 0 && k < first_added ? alias[static_cast<std::size_t>(k)] : k; };
+  struct Key {
+    Op op;
+    Node a, b, c, d;
+    bool operator==(const Key&) const = default;
+  };
+  struct KeyHash {
+    std::size_t operator()(const Key& k) const {
+      std::size_t h = static_cast<std::size_t>(k.op);
+      for (Node x : {k.a, k.b, k.c, k.d}) h = h * 1000003u ^ static_cast<std::size_t>(x + 1);
+      return h;
+    }
+  };
+  std::unordered_map<Key, Node, KeyHash> computed;
+  for (Node n : order) {
+    if (bound[static_cast<std::size_t>(n)]) continue;
+    Graph::Entry& e = entries[static_cast<std::size_t>(n)];
+    for (Node* k : {&e.a, &e.b, &e.c, &e.d}) *k = canonical(*k);
+    if (e.op == Op::kVar) continue;
+    if (e.op == Op::kNeg) {
+      // -(c*x) -> (-c)*x
+      const Graph::Entry m = entries[static_cast<std::size_t>(e.a)];
+      if (m.op != Op::kMul) continue;
+      const Node c = bound_alone(m.a, m.b) ? m.a : bound_alone(m.b, m.a) ? m.b : -1;
+      if (c >= 0) rewrite(e, e.a, c, c == m.a ? m.b : m.a);
+    } else if (e.op == Op::kMul) {
+      // c*(-y) -> (-c)*y
+      for (const auto& [c, other] : {std::pair{e.a, e.b}, std::pair{e.b, e.a}}) {
+        if (!bound_alone(c, other)) continue;
+        const Graph::Entry o = entries[static_cast<std::size_t>(other)];
+        if (o.op == Op::kNeg) rewrite(e, other, c, o.a);
+        break;
+      }
+    }
+    Key key{e.op, e.a, e.b, e.c, e.d};
+    if (is_commutative(e.op) && key.b < key.a) std::swap(key.a, key.b);
+    const auto [it, first] = computed.try_emplace(key, n);
+    if (first) continue;
+    if (uses[static_cast<std::size_t>(it->second)] == 0) {  // that node was rewritten away: n computes it
+      it->second = n;
+      continue;
+    }
+    // Computed already: n's users use that node instead, and n no longer uses its operands.
+    alias[static_cast<std::size_t>(n)] = it->second;
+    uses[static_cast<std::size_t>(it->second)] += uses[static_cast<std::size_t>(n)];
+    uses[static_cast<std::size_t>(n)] = 0;
+    for (Node k : {e.a, e.b, e.c, e.d})
+      if (k >= 0 && k < first_added) --uses[static_cast<std::size_t>(k)];
+  }
+  auto entry_of = [&](Node n) -> const Graph::Entry& {
+    return n < first_added ? entries[static_cast<std::size_t>(n)] : added[static_cast<std::size_t>(n - first_added)];
+  };
+  std::vector<Node> bound_order;  // the bound nodes in an order bind() can compute them in
+  for (Node n : order)
+    if (bound[static_cast<std::size_t>(n)]) bound_order.push_back(n);
+  for (std::size_t i = 0; i < added.size(); ++i) bound_order.push_back(first_added + static_cast<Node>(i));
+
+  std::vector<std::int32_t> reg(graph.size() + added.size(), -1);
+  auto reg_of = [&reg](Node n) { return n >= 0 ? reg[static_cast<std::size_t>(n)] : -1; };
+
+  // Leaves get the first registers: the bound nodes, then the inputs. Of the bound nodes, those eval()
+  // reads (operands of instructions, outputs) come first, since it copies them into the scratch at every
+  // call; those only bind() reads (a parameter used only in a product of parameters) come after them.
+  std::vector<char> read(reg.size(), 0);
+  for (Node n : order) {
+    if (bound[static_cast<std::size_t>(n)] || uses[static_cast<std::size_t>(n)] == 0) continue;
+    const Graph::Entry& e = entries[static_cast<std::size_t>(n)];
+    for (Node k : {e.a, e.b, e.c, e.d})
+      if (k >= 0 && is_bound(k)) read[static_cast<std::size_t>(k)] = 1;
+  }
+  for (Node out : outputs)
+    if (is_bound(canonical(out))) read[static_cast<std::size_t>(canonical(out))] = 1;
+  const double unset = std::numeric_limits<double>::quiet_NaN();
+  for (const bool read_by_eval : {true, false}) {
+    for (Node n : bound_order) {
+      if (static_cast<bool>(read[static_cast<std::size_t>(n)]) != read_by_eval) continue;
+      const Graph::Entry& e = entry_of(n);
+      reg[static_cast<std::size_t>(n)] = static_cast<std::int32_t>(tape.constants_.size());
+      tape.constants_.push_back(e.op == Op::kConst ? e.value : unset);
+    }
+    if (read_by_eval) tape.num_read_constants_ = tape.constants_.size();
+  }
+  for (Node n : bound_order) {
+    const Graph::Entry& e = entry_of(n);
+    if (e.op == Op::kVar) tape.param_regs_.emplace_back(reg_of(n), e.slot - num_slots);
+    if (e.op != Op::kVar && e.op != Op::kConst) tape.bind_code_.push_back(BoundInstr{e.op, reg_of(e.a), reg_of(e.b), reg_of(e.c), reg_of(e.d), reg_of(n)});
   }
   for (Node n : order) {
-    const Graph::Entry& e = graph.entry(n);
+    const Graph::Entry& e = entries[static_cast<std::size_t>(n)];
     if (e.op != Op::kVar || bound[static_cast<std::size_t>(n)]) continue;
     reg[static_cast<std::size_t>(n)] = static_cast<std::int32_t>(tape.constants_.size() + tape.input_slots_.size());
     tape.input_slots_.push_back(e.slot);
@@ -898,7 +1009,8 @@ Tape Tape::compile(const Graph& graph, const std::vector<Node>& outputs, int num
   // instruction shares the argument reduction between the two.
   std::unordered_map<Node, std::pair<Node, Node>> trig;  // u -> (sin(u), cos(u))
   for (Node n : order) {
-    const Graph::Entry& e = graph.entry(n);
+    const Graph::Entry& e = entries[static_cast<std::size_t>(n)];
+    if (uses[static_cast<std::size_t>(n)] == 0) continue;
     if (e.op == Op::kSin || e.op == Op::kCos) {
       auto [it, inserted] = trig.try_emplace(e.a, -1, -1);
       (e.op == Op::kSin ? it->second.first : it->second.second) = n;
@@ -911,7 +1023,8 @@ Tape Tape::compile(const Graph& graph, const std::vector<Node>& outputs, int num
   };
   for (Node n : order) {
     if (reg[static_cast<std::size_t>(n)] >= 0) continue;  // a leaf, or the cos half of a fused pair
-    const Graph::Entry& e = graph.entry(n);
+    if (uses[static_cast<std::size_t>(n)] == 0) continue;  // rewritten away, or computed by another node
+    const Graph::Entry& e = entries[static_cast<std::size_t>(n)];
     if (e.op == Op::kSin || e.op == Op::kCos) {
       const auto [sin_node, cos_node] = trig.at(e.a);
       if (sin_node >= 0 && cos_node >= 0) {
@@ -923,7 +1036,7 @@ Tape Tape::compile(const Graph& graph, const std::vector<Node>& outputs, int num
     }
     emit(n, Instr{e.op, reg_of(e.a), reg_of(e.b), reg_of(e.c), reg_of(e.d), 0.0});
   }
-  for (Node out : outputs) tape.output_regs_.push_back(reg[static_cast<std::size_t>(out)]);
+  for (Node out : outputs) tape.output_regs_.push_back(reg[static_cast<std::size_t>(canonical(out))]);
   tape.scratch_size_ = tape.first_instr_reg_ + tape.code_.size();
   // x^p with p bound: the graph rewrites x^2 to x*x when the exponent is the constant 2, so bind() does
   // the same when p is 2 (pow(x, 2) need not round as x*x does).
@@ -947,11 +1060,11 @@ void Tape::bind(const double* params) {
 
 void Tape::eval(const double* slots, double* outputs, double* scratch) const {
   double* s = scratch;
-  const std::size_t num_constants = constants_.size();
   const double* constants = constants_.data();
-  for (std::size_t k = 0; k < num_constants; ++k) s[k] = constants[k];
+  for (std::size_t k = 0; k < num_read_constants_; ++k) s[k] = constants[k];
   const std::int32_t* inputs = input_slots_.data();
-  for (std::size_t k = 0, m = input_slots_.size(); k < m; ++k) s[num_constants + k] = slots[inputs[k]];
+  double* input_regs = s + constants_.size();
+  for (std::size_t k = 0, m = input_slots_.size(); k < m; ++k) input_regs[k] = slots[inputs[k]];
 
   double* r = s + first_instr_reg_;
   const Instr* code = code_.data();

@@ -155,7 +155,8 @@ class Tape {
   // slot - num_slots: a named constant of the tape, set by bind(), not an input of eval(). Every node
   // that depends on parameters and constants alone is computed by bind(), with the operations constant
   // folding uses (Graph's fold), so that a bound tape computes what the tape of the expressions with the
-  // parameters folded in computes; eval() does no more work than for that tape.
+  // parameters folded in computes; eval() does no more work than for that tape (compile() also makes the
+  // rewrites the graph makes with a constant, -(c*x) = (-c)*x and c*(-y) = (-c)*y, for a bound c).
   static Tape compile(const Graph& graph, const std::vector<Node>& outputs, int num_slots, int num_params = 0);
 
   // Sets the parameters (num_params() values) and recomputes the nodes that depend on them alone. Until
@@ -185,6 +186,7 @@ class Tape {
   std::vector<std::int32_t> output_regs_;
   std::size_t scratch_size_ = 0;
   std::vector<double> constants_;
+  std::size_t num_read_constants_ = 0;  // constants_[0, this) are read by eval(); the rest only by bind()
   std::vector<std::int32_t> input_slots_;
   std::size_t first_instr_reg_ = 0;
   // Parameters: their registers (in the constants region) and, in order, the nodes that depend on
