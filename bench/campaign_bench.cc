@@ -3,7 +3,9 @@
 // scene, the report and the record) can be read off: docs/campaigns.md, "Speed".
 #include <benchmark/benchmark.h>
 
+#include <chrono>
 #include <string>
+#include <vector>
 
 #include "moreau/scene/campaign.h"
 #include "moreau/scene/scene.h"
@@ -25,6 +27,20 @@ moreau::scene::CampaignSpec manipulator_spec(bool full_report = true) {
   spec["samples"] = 1 << 20;
   spec["full_report"] = full_report;
   return moreau::scene::CampaignSpec::from_json(spec, "");
+}
+
+// The first kSamples samples of `spec`, each compiled in full from its document, observed at every step
+// as a campaign observes them.
+std::vector<moreau::scene::Simulation> compiled_samples(const moreau::scene::CampaignSpec& spec) {
+  const moreau::scene::CampaignDesign design(spec);
+  std::vector<moreau::scene::Simulation> sims;
+  for (std::int64_t i = 0; i < kSamples; ++i) {
+    json doc = spec.scene;
+    const auto values = design.values(i);
+    for (std::size_t k = 0; k < values.size(); ++k) doc[json::json_pointer(spec.inputs[k].path)] = values[k];
+    sims.push_back(moreau::scene::Simulation::from_json(doc).with_limits(moreau::scene::RunLimits{std::nullopt, 1}));
+  }
+  return sims;
 }
 
 // One whole sample: its values, the scene compiled with them, the run, the report and the record.
@@ -65,14 +81,7 @@ BENCHMARK(BM_CampaignIntegrationOnly_manipulator_T3)->Unit(benchmark::kMicroseco
 // the loop): the sample's time less this one is the per-sample overhead.
 void BM_CampaignIntegrationOfTheSamples_manipulator_T3(benchmark::State& state) {
   const auto spec = manipulator_spec();
-  const moreau::scene::CampaignDesign design(spec);
-  std::vector<moreau::scene::Simulation> sims;
-  for (std::int64_t i = 0; i < kSamples; ++i) {
-    json doc = spec.scene;
-    const auto values = design.values(i);
-    for (std::size_t k = 0; k < values.size(); ++k) doc[json::json_pointer(spec.inputs[k].path)] = values[k];
-    sims.push_back(moreau::scene::Simulation::from_json(doc).with_limits(moreau::scene::RunLimits{std::nullopt, 1}));
-  }
+  const std::vector<moreau::scene::Simulation> sims = compiled_samples(spec);
   struct Nothing : moreau::RunObserver {
     void on_sample(const moreau::Sample&) override {}
   } observer;
@@ -81,6 +90,50 @@ void BM_CampaignIntegrationOfTheSamples_manipulator_T3(benchmark::State& state) 
   for (auto _ : state) benchmark::DoNotOptimize(sims[i++ % sims.size()].run(&observer, &diagnostics).steps);
 }
 BENCHMARK(BM_CampaignIntegrationOfTheSamples_manipulator_T3)->Unit(benchmark::kMicrosecond);
+
+// The per-sample overhead as a fraction of the integration, measured in one loop: each iteration runs
+// sample i through the runner (outcome records, as BM_CampaignSampleOutcomes) and the integration alone
+// of the same sample compiled before the loop, alternating which goes first, and times both. The two
+// share the machine's state from one iteration to the next, so the ratio does not move with the load of
+// a shared machine the way the difference of two separate benchmarks does.
+void BM_CampaignSampleOverhead_manipulator_T3(benchmark::State& state) {
+  const auto spec = manipulator_spec(false);
+  const moreau::scene::CampaignDesign design(spec);
+  moreau::scene::CampaignSampleRunner runner(spec, design);
+  const std::vector<moreau::scene::Simulation> sims = compiled_samples(spec);
+  struct Nothing : moreau::RunObserver {
+    void on_sample(const moreau::Sample&) override {}
+  } observer;
+  moreau::scene::RunDiagnostics diagnostics;
+  using Clock = std::chrono::steady_clock;
+  double sample_seconds = 0.0, integration_seconds = 0.0;
+  std::int64_t i = 0;
+  for (auto _ : state) {
+    const std::int64_t k = i % kSamples;
+    auto run_sample = [&] {
+      const auto t0 = Clock::now();
+      benchmark::DoNotOptimize(runner.run(k).dump());
+      sample_seconds += std::chrono::duration<double>(Clock::now() - t0).count();
+    };
+    auto run_integration = [&] {
+      const auto t0 = Clock::now();
+      benchmark::DoNotOptimize(sims[static_cast<std::size_t>(k)].run(&observer, &diagnostics).steps);
+      integration_seconds += std::chrono::duration<double>(Clock::now() - t0).count();
+    };
+    if (i++ % 2 == 0) {
+      run_sample();
+      run_integration();
+    } else {
+      run_integration();
+      run_sample();
+    }
+  }
+  const double n = static_cast<double>(state.iterations());
+  state.counters["sample_us"] = 1e6 * sample_seconds / n;
+  state.counters["integration_us"] = 1e6 * integration_seconds / n;
+  state.counters["overhead_percent"] = 100.0 * (sample_seconds - integration_seconds) / integration_seconds;
+}
+BENCHMARK(BM_CampaignSampleOverhead_manipulator_T3)->Unit(benchmark::kMicrosecond);
 
 // Compiling the scene alone (what each sample does before it runs).
 void BM_CampaignCompileOnly_manipulator(benchmark::State& state) {

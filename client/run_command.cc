@@ -137,7 +137,7 @@ int run(const RunOptions& opt) {
   }
   if (summary.status != RunStatus::kCompleted) return 1;
   // A hypothesis the run relies on fails: a warning, or with --strict the exit status 3.
-  const std::string failure = sim->guarantees(summary).relied_on_failure();
+  const std::string failure = sim->hypothesis_failure(summary);
   if (!failure.empty()) {
     std::cerr << "moreau: " << (opt.strict ? "error" : "warning") << ": " << failure << "\n";
     if (opt.strict) return 3;

@@ -97,6 +97,41 @@ TEST(Guarantees, FixedStepBeyondTheorem41IsCountedFromItsFirstStep) {
   EXPECT_EQ(sim.report_json(s)["guarantees"][0]["verdict"], "fails");
 }
 
+// The verdicts alone (Detail::kVerdicts, what each campaign sample computes) are the full checks'
+// verdicts, and hypothesis_failure() is relied_on_failure() of the full checks, on runs where a relied-on
+// hypothesis fails ((4.2) at h = 1; Assumption 4.1 under the Theorem 4.2 rule with g = 9.81) and where
+// none does.
+TEST(Guarantees, VerdictsAloneAreTheFullChecksVerdicts) {
+  const std::vector<std::pair<std::string, std::vector<std::string>>> runs = {
+      {"manipulator.json", {"integrator.h=1", "initial.v=[10,10]", "integrator.t_end=20"}},
+      {"manipulator.json", {"integrator.step_rule=\"theorem-4.2\"", "integrator.t_end=2"}},
+      {"manipulator.json", {"integrator.t_end=2"}},
+      {"coulomb-oscillator.json", {}},
+      {"bouncing-ball-e0.5.json", {}}};
+  int failing = 0;
+  for (const auto& [scene, overrides] : runs) {
+    SCOPED_TRACE(scene);
+    const Simulation sim = Simulation::from_file(ScenePath(scene), overrides);
+    const RunSummary s = sim.run(nullptr);
+    const Guarantees full = sim.guarantees(s);
+    const Guarantees verdicts = lagrangian_guarantees(*sim.lagrangian(), s, Detail::kVerdicts);
+    for (const Guarantee& g : verdicts.items) {
+      const Guarantee* f = full.find(g.result);
+      ASSERT_NE(f, nullptr) << g.result;
+      ASSERT_EQ(g.hypotheses.size(), f->hypotheses.size()) << g.result;
+      for (std::size_t i = 0; i < g.hypotheses.size(); ++i) EXPECT_EQ(g.hypotheses[i].verdict, f->hypotheses[i].verdict) << f->hypotheses[i].name;
+    }
+    for (const Guarantee& f : full.items) {
+      if (f.relied_on) {
+        EXPECT_NE(verdicts.find(f.result), nullptr) << f.result;
+      }
+    }
+    EXPECT_EQ(sim.hypothesis_failure(s), full.relied_on_failure());
+    failing += !full.relied_on_failure().empty();
+  }
+  EXPECT_EQ(failing, 2);
+}
+
 // The same start under the Theorem 4.1 rule: every r_k <= 1 (the rule's purpose), and the first ratio is
 // exactly the bound's (h_0 = lambda_min / (2 ||C||_2) makes r_0 = 1).
 TEST(Guarantees, Theorem41RuleKeepsEveryRatioAtMostOne) {

@@ -380,10 +380,13 @@ std::vector<double> CampaignDesign::unit_point(std::int64_t i) const {
       // With the origin, any 2^m points from index 0 put one point in each of the 2^m strata of every
       // input (a (0, m, 1)-net); without it they would not. The seed does not scramble the points: the
       // same spec gives the same points.
+      // An engine is built once per thread and dimension (building one costs ten seeks): seed() sets the
+      // whole state, so the point does not depend on the engine's past.
       if (i > 0) {
-        boost::random::sobol engine(d);
-        engine.seed(ui - 1);
-        for (std::size_t k = 0; k < d; ++k) u[k] = static_cast<double>(engine()) * 0x1.0p-64;
+        thread_local std::optional<boost::random::sobol> engine;
+        if (!engine || engine->dimension() != d) engine.emplace(d);
+        engine->seed(ui - 1);
+        for (std::size_t k = 0; k < d; ++k) u[k] = static_cast<double>((*engine)()) * 0x1.0p-64;
       }
       break;
     }
@@ -494,7 +497,7 @@ json CampaignSampleRunner::record_of(std::int64_t i, const std::vector<json>& va
   record["max_abs_q"] = number_or_null(extrema.max_abs_q);
   record["max_energy"] = number_or_null(extrema.max_energy);
   record["steps"] = summary.steps;
-  const std::string failure = completed ? sim.guarantees(summary).relied_on_failure() : std::string();
+  const std::string failure = completed ? sim.hypothesis_failure(summary) : std::string();
   record["hypothesis_failed"] = failure.empty() ? json(nullptr) : json(failure);
   record["success"] = completed && summary.converged_step.has_value() &&
                       (spec.target_q.empty() || (std::isfinite(distance) && distance <= spec.target_tolerance));
@@ -539,7 +542,7 @@ std::optional<json> CampaignSampleRunner::run_bound(std::int64_t i, const std::v
     }
   }
   try {
-    return record_of(i, values, Simulation::from_scene(parametric_->bind(params, q0, v0)).with_limits(RunLimits{max_steps_, 1}));
+    return record_of(i, values, Simulation::from_scene(parametric_->bind(params, q0, v0), RunLimits{max_steps_, 1}));
   } catch (const std::exception&) {
     return std::nullopt;  // the full compile says what is wrong with this sample
   }

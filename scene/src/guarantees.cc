@@ -15,9 +15,16 @@ std::string fmt(double v) {
   return buf;
 }
 
+// A hypothesis's detail text, built only when asked for.
+template <class Text>
+std::string detail_text(Detail detail, Text&& text) {
+  return detail == Detail::kFull ? std::string(text()) : std::string();
+}
+
 // Assumption 3.1 (M_1) at the states the run visited.
-HypothesisCheck mass_check(const RunSummary& s) {
+HypothesisCheck mass_check(const RunSummary& s, Detail detail) {
   HypothesisCheck h{"Assumption 3.1: M(Q^k) positive definite at every step (lambda_min(M) > 0)", s.mass.verdict(), ""};
+  if (detail == Detail::kVerdicts) return h;
   if (s.mass.checked == 0) {
     h.detail = "no step was taken";
   } else if (h.verdict == Verdict::kHolds) {
@@ -31,13 +38,14 @@ HypothesisCheck mass_check(const RunSummary& s) {
   return h;
 }
 
-Guarantee theorem41(const RunSummary& s) {
+Guarantee theorem41(const RunSummary& s, Detail detail) {
   Guarantee g{"Theorem 4.1", "each step of (0.2) has exactly one solution (Q^{k+1}, V^{k+1})", true, {}};
-  g.hypotheses.push_back(mass_check(s));
+  g.hypotheses.push_back(mass_check(s, detail));
   const StepConditionTrack& c = s.theorem41;
   HypothesisCheck h{"(4.2): h_k k3 ||V^k|| <= k1 / 2 at every step, with k1 = lambda_min(M(Q^k)) and k3 ||V^k|| = ||C(Q^k, V^k)||_2",
                     c.verdict(), ""};
-  if (c.checked == 0) {
+  if (detail == Detail::kVerdicts) {
+  } else if (c.checked == 0) {
     h.detail = "no step was taken";
   } else if (c.violations == 0) {
     h.detail = "checked at " + std::to_string(c.checked) + " steps; r_k = 2 h_k ||C||_2 / lambda_min(M) <= " + fmt(c.worst_ratio()) +
@@ -54,7 +62,7 @@ Guarantee theorem41(const RunSummary& s) {
 // Assumption 4.1 2)-3) from the largest ||F|| and ||grad V|| at the recorded states. Any beta the
 // assumption could use is at least the largest ||F|| seen, so a failure found here is a failure of the
 // assumption; "holds" covers the recorded states only.
-HypothesisCheck assumption41_forces(const RunSummary& s, double alpha) {
+HypothesisCheck assumption41_forces(const RunSummary& s, double alpha, Detail detail) {
   const ForceBoundTrack& f = s.force_bounds;
   HypothesisCheck h{"Assumption 4.1 2)-3): sup ||F|| <= beta < alpha and ||grad V(q)|| <= (alpha - beta) / 2 for all q",
                     Verdict::kNotChecked, ""};
@@ -62,69 +70,78 @@ HypothesisCheck assumption41_forces(const RunSummary& s, double alpha) {
     h.detail = "no state was recorded";
     return h;
   }
+  const bool force_too_large = f.max_force >= alpha;
+  const bool gradient_too_large = !force_too_large && f.max_gradient > 0.5 * (alpha - f.max_force);
+  h.verdict = force_too_large || gradient_too_large ? Verdict::kFails : Verdict::kHolds;
+  if (detail == Detail::kVerdicts) return h;
   const std::string where = " (checked at " + std::to_string(f.samples) + " recorded states, every 16th of those the run recorded (every /output/every-th step)" +
                             (f.failed ? ", until this failure" : "") + ")";
-  if (f.max_force >= alpha) {
-    h.verdict = Verdict::kFails;
+  if (force_too_large) {
     h.detail = "||F|| reaches " + fmt(f.max_force) + " >= alpha = " + fmt(alpha) + " at t = " + fmt(f.max_force_time) + where;
-  } else if (f.max_gradient > 0.5 * (alpha - f.max_force)) {
-    h.verdict = Verdict::kFails;
+  } else if (gradient_too_large) {
     h.detail = "||grad V|| reaches " + fmt(f.max_gradient) + " at t = " + fmt(f.max_gradient_time) + " > (alpha - beta) / 2 = " +
                fmt(0.5 * (alpha - f.max_force)) + " even with the smallest beta = max ||F|| = " + fmt(f.max_force) + where;
   } else {
-    h.verdict = Verdict::kHolds;
     h.detail = "max ||F|| = " + fmt(f.max_force) + " < alpha = " + fmt(alpha) + ", max ||grad V|| = " + fmt(f.max_gradient) +
                " <= (alpha - max ||F||) / 2" + where + "; the sup over all states is not checked";
   }
   return h;
 }
 
-Guarantee theorem42(const LagrangianScene& scene, const RunSummary& s, const Guarantee& t41) {
+Guarantee theorem42(const LagrangianScene& scene, const RunSummary& s, const Guarantee& t41, Detail detail) {
   const bool rule = scene.settings.step_rule == StepRule::kTheorem42;
   Guarantee g{"Theorem 4.2", "E_k = 1/2 <M(Q^k) V^k, V^k> non-increasing, Q^k convergent and V^k -> 0", rule, {}};
-  g.hypotheses.push_back({"the hypotheses of Theorem 4.1 (Assumptions 3.1, 3.2)", t41.verdict(), "see Theorem 4.1"});
+  g.hypotheses.push_back({"the hypotheses of Theorem 4.1 (Assumptions 3.1, 3.2)", t41.verdict(), detail_text(detail, [] { return "see Theorem 4.1"; })});
   g.hypotheses.push_back({"the step rule of Theorem 4.2 (h_k <= h_{k-1}, ||eps_k|| <= 2 eta of (4.9))", rule ? Verdict::kHolds : Verdict::kFails,
-                          rule ? "step_rule theorem-4.2 enforces it at every step"
-                               : std::string("the run used step_rule ") +
-                                     (scene.settings.step_rule == StepRule::kFixed ? "fixed" : "theorem-4.1") +
-                                     ", which does not (use theorem-4.2 for this guarantee)"});
+                          detail_text(detail, [&] {
+                            return rule ? std::string("step_rule theorem-4.2 enforces it at every step")
+                                        : std::string("the run used step_rule ") +
+                                              (scene.settings.step_rule == StepRule::kFixed ? "fixed" : "theorem-4.1") +
+                                              ", which does not (use theorem-4.2 for this guarantee)";
+                          })});
   const double eta = scene.controller.eta(), alpha = scene.controller.alpha();
   const bool a1 = eta > 0.0 && alpha > 0.0;
   g.hypotheses.push_back({"Assumption 4.1 1): Phi(v) >= eta ||v||^2 + alpha ||v|| + Phi(0) with eta > 0, alpha > 0",
-                          a1 ? Verdict::kHolds : Verdict::kFails,
-                          "from the controller's coefficients: eta = min w_i / 2 = " + fmt(eta) + ", alpha = min a_i + a_norm = " + fmt(alpha)});
-  g.hypotheses.push_back(assumption41_forces(s, alpha));
+                          a1 ? Verdict::kHolds : Verdict::kFails, detail_text(detail, [&] {
+                            return "from the controller's coefficients: eta = min w_i / 2 = " + fmt(eta) + ", alpha = min a_i + a_norm = " + fmt(alpha);
+                          })});
+  g.hypotheses.push_back(assumption41_forces(s, alpha, detail));
   if (scene.forces_smooth_everywhere) {
     const bool robot = scene.compiled && scene.compiled->robot;
-    g.hypotheses.push_back({"Assumption 3.3: F continuous and locally Lipschitz, grad V locally Lipschitz", Verdict::kHolds,
-                            std::string(robot ? "gravity's part of grad V comes from the URDF robot (a polynomial in the joint positions "
-                                                "and their sines and cosines: C-infinity); the expressions' part of "
-                                              : "") +
-                                "grad V and F are built only from +, -, *, integer powers, sin, cos, atan, sinh, cosh, tanh and exp: "
-                                "C-infinity on all of R^(1+2n), so locally Lipschitz, uniformly in t on [t0, t_end]; Phi convex by "
-                                "construction"});
+    g.hypotheses.push_back({"Assumption 3.3: F continuous and locally Lipschitz, grad V locally Lipschitz", Verdict::kHolds, detail_text(detail, [&] {
+                              return std::string(robot ? "gravity's part of grad V comes from the URDF robot (a polynomial in the joint "
+                                                         "positions and their sines and cosines: C-infinity); the expressions' part of "
+                                                       : "") +
+                                     "grad V and F are built only from +, -, *, integer powers, sin, cos, atan, sinh, cosh, tanh and exp: "
+                                     "C-infinity on all of R^(1+2n), so locally Lipschitz, uniformly in t on [t0, t_end]; Phi convex by "
+                                     "construction";
+                            })});
   } else {
     g.hypotheses.push_back({"Assumption 3.3: F continuous and locally Lipschitz, grad V locally Lipschitz", Verdict::kNotChecked,
-                            "the expressions use an operation that is smooth only on a domain or not smooth (/, log, sqrt, tan, "
-                            "asin, acos, atan2, a non-integer power, abs, min, max), or the scene gives potential_gradient; "
-                            "their regularity is not analysed"});
+                            detail_text(detail, [] {
+                              return "the expressions use an operation that is smooth only on a domain or not smooth (/, log, sqrt, tan, "
+                                     "asin, acos, atan2, a non-integer power, abs, min, max), or the scene gives potential_gradient; "
+                                     "their regularity is not analysed";
+                            })});
   }
   return g;
 }
 
-Guarantee theorem43(const LagrangianScene& scene, const RunSummary& s, const Guarantee& t42) {
+Guarantee theorem43(const LagrangianScene& scene, const RunSummary& s, const Guarantee& t42, Detail detail) {
   // Theorem 4.3 is stated for the algorithm of Theorem 4.2, under its assumptions.
   Guarantee g{"Theorem 4.3", "Q^k = Q* for every k >= some N (finite-step convergence to an equilibrium)", t42.relied_on, {}};
-  g.hypotheses.push_back({"the hypotheses of Theorem 4.2", t42.verdict(), "see Theorem 4.2"});
-  g.hypotheses.push_back({"(4.16): F independent of t", scene.force_depends_on_time ? Verdict::kFails : Verdict::kHolds,
-                          scene.force_depends_on_time ? "a force expression reads t" : "no force expression reads t (from the scene's expressions)"});
+  g.hypotheses.push_back({"the hypotheses of Theorem 4.2", t42.verdict(), detail_text(detail, [] { return "see Theorem 4.2"; })});
+  g.hypotheses.push_back({"(4.16): F independent of t", scene.force_depends_on_time ? Verdict::kFails : Verdict::kHolds, detail_text(detail, [&] {
+                            return scene.force_depends_on_time ? "a force expression reads t"
+                                                               : "no force expression reads t (from the scene's expressions)";
+                          })});
   HypothesisCheck in{"-F(Q*, 0) - grad V(Q*) in int dPhi(0) at the final position", Verdict::kNotChecked, ""};
-  if (s.equilibrium.evaluated) {
-    in.verdict = s.equilibrium.interior ? Verdict::kHolds : Verdict::kFails;
-    in.detail = "dist(-F - grad V, dPhi(0)) = " + fmt(s.equilibrium.residual) + (s.equilibrium.interior ? ", in the interior" : ", not in the interior");
-  } else {
-    in.detail = "the forces are not finite at the final state";
-  }
+  if (s.equilibrium.evaluated) in.verdict = s.equilibrium.interior ? Verdict::kHolds : Verdict::kFails;
+  in.detail = detail_text(detail, [&] {
+    return s.equilibrium.evaluated ? "dist(-F - grad V, dPhi(0)) = " + fmt(s.equilibrium.residual) +
+                                         (s.equilibrium.interior ? ", in the interior" : ", not in the interior")
+                                   : std::string("the forces are not finite at the final state");
+  });
   g.hypotheses.push_back(in);
   return g;
 }
@@ -251,18 +268,19 @@ Guarantee lemma3(const LagrangianScene& scene, const RunSummary& s) {
 
 }  // namespace
 
-Guarantees lagrangian_guarantees(const LagrangianScene& scene, const RunSummary& s) {
+Guarantees lagrangian_guarantees(const LagrangianScene& scene, const RunSummary& s, Detail detail) {
   Guarantees g;
   if (scene.scheme == Scheme::kAbl && scene.settings.velocity_update == VelocityUpdate::kImplicit) {
-    g.items.push_back(theorem41(s));
-    g.items.push_back(theorem42(scene, s, g.items.back()));
-    g.items.push_back(theorem43(scene, s, g.items.back()));
+    g.items.push_back(theorem41(s, detail));
+    g.items.push_back(theorem42(scene, s, g.items.back(), detail));
+    g.items.push_back(theorem43(scene, s, g.items.back(), detail));
   } else {
     // Moreau-Jean (and the explicit peer) are not the scheme (0.2): the theorems of Adly, Brogliato and
     // Le do not apply; what still holds of the model is checked.
-    Guarantee m{"Assumption 3.1", "the kinetic energy 1/2 <M v, v> is a norm of v (a mass matrix)", true, {mass_check(s)}};
+    Guarantee m{"Assumption 3.1", "the kinetic energy 1/2 <M v, v> is a norm of v (a mass matrix)", true, {mass_check(s, detail)}};
     g.items.push_back(m);
-    if (!scene.constraint_names.empty()) g.items.push_back(lemma3(scene, s));
+    // Lemma 3 is not relied on: with the verdicts alone it is left out.
+    if (!scene.constraint_names.empty() && detail == Detail::kFull) g.items.push_back(lemma3(scene, s));
   }
   return g;
 }

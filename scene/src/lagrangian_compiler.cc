@@ -767,6 +767,11 @@ struct ParametricLagrangianScene::Impl {
   LagrangianCompiler compiler;   // its graph and check tapes serve every binding
   LagrangianScene nominal;       // tapes unbound
   std::size_t num_free = 0;
+  // The compiled model and exact-solution tape of the latest binding: bound again in place by the next
+  // one when nothing else holds them any more (the previous sample's simulation is gone), instead of
+  // copied; bind() sets every value that depends on the parameters, so no earlier binding shows through.
+  std::shared_ptr<CompiledLagrangian> spare_compiled;
+  std::shared_ptr<expr::Tape> spare_exact;
 };
 
 ParametricLagrangianScene::ParametricLagrangianScene(const nlohmann::json& doc, std::vector<std::string> free)
@@ -810,7 +815,8 @@ LagrangianScene ParametricLagrangianScene::bind(const std::vector<double>& value
   if (q0.size() != static_cast<std::size_t>(base.n) || v0.size() != static_cast<std::size_t>(base.n))
     throw std::invalid_argument("ParametricLagrangianScene::bind: q0 and v0 need n entries");
   LagrangianScene scene = base;
-  auto compiled = std::make_shared<CompiledLagrangian>(*base.compiled);
+  if (!impl_->spare_compiled || impl_->spare_compiled.use_count() > 1) impl_->spare_compiled = std::make_shared<CompiledLagrangian>(*base.compiled);
+  const std::shared_ptr<CompiledLagrangian> compiled = impl_->spare_compiled;
   for (expr::Tape* tape : {&compiled->step_tape, &compiled->mass_tape, &compiled->potential_tape, &compiled->split_force_tape,
                            &compiled->constraint_tape, &compiled->bound_terms_tape})
     tape->bind(values.data());
@@ -822,11 +828,11 @@ LagrangianScene ParametricLagrangianScene::bind(const std::vector<double>& value
     for (std::size_t j = 0; j < out.size(); ++j)
       for (int t : compiled->bound_targets[j]) compiled->constant_terms[static_cast<std::size_t>(t)] = out[j];
   }
-  scene.compiled = std::move(compiled);
+  scene.compiled = compiled;
   if (scene.exact_tape) {
-    auto exact = std::make_shared<expr::Tape>(*scene.exact_tape);
-    exact->bind(values.data());
-    scene.exact_tape = std::move(exact);
+    if (!impl_->spare_exact || impl_->spare_exact.use_count() > 1) impl_->spare_exact = std::make_shared<expr::Tape>(*base.exact_tape);
+    impl_->spare_exact->bind(values.data());
+    scene.exact_tape = impl_->spare_exact;
   }
   scene.q0 = q0;
   scene.v0 = v0;

@@ -43,8 +43,21 @@ Simulation Simulation::from_json(const nlohmann::json& doc) {
   return sim;
 }
 
-Simulation Simulation::from_scene(LagrangianScene scene) {
+namespace {
+
+void apply_limits(LagrangianScene& sc, const RunLimits& limits) {
+  if (limits.max_steps) {
+    sc.settings.max_steps = std::min(sc.settings.max_steps, *limits.max_steps);
+    sc.contact_settings.max_steps = sc.settings.max_steps;
+  }
+  if (limits.output_every) sc.output_every = *limits.output_every;
+}
+
+}  // namespace
+
+Simulation Simulation::from_scene(LagrangianScene scene, const RunLimits& limits) {
   Simulation sim;
+  apply_limits(scene, limits);
   sim.system_ = std::make_shared<const LagrangianScene>(std::move(scene));
   sim.latest_ = std::make_shared<Latest>();
   return sim;
@@ -113,11 +126,7 @@ Simulation Simulation::with_limits(const RunLimits& limits) const {
   out.latest_ = std::make_shared<Latest>();
   std::visit(Overloaded{[&](const std::shared_ptr<const LagrangianScene>& scene) {
                           auto sc = std::make_shared<LagrangianScene>(*scene);
-                          if (limits.max_steps) {
-                            sc->settings.max_steps = std::min(sc->settings.max_steps, *limits.max_steps);
-                            sc->contact_settings.max_steps = sc->settings.max_steps;
-                          }
-                          if (limits.output_every) sc->output_every = *limits.output_every;
+                          apply_limits(*sc, limits);
                           out.system_ = std::shared_ptr<const LagrangianScene>(std::move(sc));
                         },
                         [&](const std::shared_ptr<const LureScene>& scene) {
@@ -175,6 +184,11 @@ Guarantees Simulation::guarantees(const RunSummary& summary) const {
   return std::visit(Overloaded{[&](const std::shared_ptr<const LagrangianScene>& sc) { return lagrangian_guarantees(*sc, summary); },
                                [&](const std::shared_ptr<const LureScene>& sc) { return lure_guarantees(*sc); }},
                     system_);
+}
+
+std::string Simulation::hypothesis_failure(const RunSummary& summary) const {
+  if (const LagrangianScene* sc = lagrangian(); sc && lagrangian_guarantees(*sc, summary, Detail::kVerdicts).relied_on_failure().empty()) return "";
+  return guarantees(summary).relied_on_failure();
 }
 
 nlohmann::json Simulation::report_json(const RunSummary& summary) const {

@@ -297,7 +297,7 @@ void JobRunner::run(const std::shared_ptr<Job>& job) {
   // The guarantees: a hypothesis the run relies on that fails is a warning (an event on the stream), or
   // with `strict` the end of the job (failed, the report says why).
   if (summary.status == RunStatus::kCompleted) {
-    commit->hypothesis_failure = sim.guarantees(summary).relied_on_failure();
+    commit->hypothesis_failure = sim.hypothesis_failure(summary);
     if (job->strict && !commit->hypothesis_failure.empty()) {
       summary.status = RunStatus::kFailed;
       summary.message = "strict: " + commit->hypothesis_failure;

@@ -57,7 +57,12 @@ enum class ConvergenceFinding {
 };
 const char* describe(ConvergenceFinding f);
 
-Guarantees lagrangian_guarantees(const LagrangianScene& scene, const RunSummary& s);
+// What a check writes: each hypothesis with its numbers (reports), or the verdicts alone (empty details,
+// and the guarantees no run relies on left out), for callers that only ask whether a hypothesis the run
+// relies on fails (Simulation::hypothesis_failure, once per sample of a campaign).
+enum class Detail { kFull, kVerdicts };
+
+Guarantees lagrangian_guarantees(const LagrangianScene& scene, const RunSummary& s, Detail detail = Detail::kFull);
 // Lemmas 1 and 2 of Brogliato (2003): assumption a) (SPR, exactly decided or from the scene's P; minimal),
 // b) (by construction of the feedback graphs), C x(0) in dom d phi, and for Lemma 2 (0, 0) on the graph.
 Guarantees lure_guarantees(const LureScene& scene);

@@ -190,7 +190,8 @@ class ParametricLagrangianScene {
   // The scene with the free parameters at `values` (finite, non-zero, in the order of `free`) and the
   // initial state q0, v0 (n finite numbers each), checked at the initial state as load_scene checks it
   // (SceneError naming the field: M not positive definite, a constraint violated, ...). Not safe to call
-  // from two threads at once (it binds tapes it keeps for the checks).
+  // from two threads at once (it binds tapes it keeps for the checks). The compiled model is copied only
+  // while an earlier binding's scene is still held; otherwise that model is bound again in place.
   LagrangianScene bind(const std::vector<double>& values, const std::vector<double>& q0, const std::vector<double>& v0);
   // The scene at the document's own values (its q0 and v0 are the document's).
   const LagrangianScene& nominal() const;

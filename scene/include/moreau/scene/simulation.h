@@ -49,8 +49,9 @@ class Simulation {
   static Simulation from_json(const nlohmann::json& doc);
   // Reads a file, applies `--set PATH=VALUE` overrides in order, then validates. Throws SceneError.
   static Simulation from_file(const std::string& path, const std::vector<std::string>& overrides = {});
-  // A Lagrangian scene compiled already (ParametricLagrangianScene::bind).
-  static Simulation from_scene(LagrangianScene scene);
+  // A Lagrangian scene compiled already (ParametricLagrangianScene::bind), under `limits` as with_limits
+  // applies them (without copying the scene a second time).
+  static Simulation from_scene(LagrangianScene scene, const RunLimits& limits = {});
 
   const std::string& name() const;
   const std::string& system_type() const;  // "lagrangian" or "lure"
@@ -88,8 +89,11 @@ class Simulation {
   std::string report_text(const RunSummary& summary, const RunDiagnostics& diagnostics) const;
 
   // The guarantees section of a run's report (guarantees.h): the hypotheses of each theorem the run
-  // rests on, checked. `moreau run --strict` and a job's `strict` fail on relied_on_failure().
+  // rests on, checked.
   Guarantees guarantees(const RunSummary& summary) const;
+  // guarantees(summary).relied_on_failure(), with the detail text built only for a failure: what
+  // `moreau run --strict`, a job's `strict` and each sample of a campaign check.
+  std::string hypothesis_failure(const RunSummary& summary) const;
 
   // The underlying scene for Lagrangian systems (nullptr for other system types).
   const LagrangianScene* lagrangian() const;
