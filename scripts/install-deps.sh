@@ -33,6 +33,7 @@ packages=(
   python3                            # scripts/check-scene-results.py (shipped scenes against references)
   python3-jsonschema                 # tests/check_openapi.py (server/openapi.json against the OpenAPI 3.1 schema)
   python3-numpy                      # tests/python_client_test.py (the Python client returns numpy arrays when it can)
+  python3-yaml                       # tests/k8s_indexed_job_test.py (reads the Kubernetes manifest)
   slurmctld slurmd slurm-client munge  # tests/slurm/: a campaign through a real single-node Slurm cluster
 )
 if $browser_test; then packages+=(chromium); fi
