@@ -16,3 +16,17 @@ function(moreau_add_bench)
   target_link_libraries(${B_NAME} PRIVATE ${B_LIBS} benchmark::benchmark)
   target_compile_definitions(${B_NAME} PRIVATE MOREAU_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
 endfunction()
+
+# moreau_require_system_python_module(MODULE module PACKAGE debian-package)
+# Sets MOREAU_SYSTEM_PYTHON3 to Debian's python3 (looked for in /usr/bin first, so that another python3
+# earlier on PATH does not hide the packages), and stops with the package to install if it cannot import
+# `module`: the test scripts that need it must run, never skip.
+function(moreau_require_system_python_module)
+  cmake_parse_arguments(P "" "MODULE;PACKAGE" "" ${ARGN})
+  find_program(MOREAU_SYSTEM_PYTHON3 python3 PATHS /usr/bin NO_DEFAULT_PATH)
+  find_program(MOREAU_SYSTEM_PYTHON3 python3 REQUIRED)
+  execute_process(COMMAND ${MOREAU_SYSTEM_PYTHON3} -c "import ${P_MODULE}" RESULT_VARIABLE missing OUTPUT_QUIET ERROR_QUIET)
+  if(missing)
+    message(FATAL_ERROR "${MOREAU_SYSTEM_PYTHON3} cannot import ${P_MODULE}: install ${P_PACKAGE} (scripts/install-deps.sh)")
+  endif()
+endfunction()
