@@ -125,8 +125,14 @@ TEST(ServerCampaign, RecordsAndSummaryEqualTheLocalCampaignAndFiguresAreDrawn) {
     EXPECT_EQ(served.at(i), record) << "sample " << i;
     EXPECT_TRUE(record.contains("report"));
   }
-  std::int64_t successes = 0;
-  for (const auto& [i, record] : want) successes += record["success"].get<bool>();
+  std::int64_t successes = 0, steps = 0;
+  for (const auto& [i, record] : want) {
+    successes += record["success"].get<bool>();
+    steps += record["steps"].get<std::int64_t>();
+  }
+  EXPECT_EQ(result.steps, steps);
+  // The campaign's steps count in /metrics (the only work this server did).
+  EXPECT_THAT(c->Get("/metrics")->body, ::testing::HasSubstr("\nmoreau_steps_total " + std::to_string(steps) + "\n"));
   EXPECT_GT(successes, 0);  // the comparison covers converged samples too
 
   auto summary = c->Get("/v1/campaigns/" + id + "/summary");

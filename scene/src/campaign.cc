@@ -1074,6 +1074,7 @@ CampaignRunResult run_campaign(const CampaignSpec& spec, const std::string& dir_
       while (i < end && done[static_cast<std::size_t>(i)]) i = next.fetch_add(1);  // done[] of a skipped sample never changes
       if (i >= end) return;
       json r = runner.run(i);
+      const std::int64_t steps = r.value("steps", std::int64_t{0});  // an invalid sample has none
       const std::string line = r.dump() + '\n', row = task ? std::string() : csv_row(spec, r, dof);
       r = json();  // nothing of a finished sample stays in memory: it is on disk
       std::lock_guard lock(write_mu);
@@ -1098,6 +1099,7 @@ CampaignRunResult run_campaign(const CampaignSpec& spec, const std::string& dir_
         return;
       }
       ++result.ran;
+      result.steps += steps;
       if (options.progress) options.progress(++finished, end - begin);
     }
   };

@@ -185,6 +185,7 @@ struct CampaignRunOptions {
 
 struct CampaignRunResult {
   std::int64_t ran = 0;      // samples computed by this run
+  std::int64_t steps = 0;    // integration steps of those samples
   std::int64_t skipped = 0;  // already in the directory
   bool stopped = false;      // stopped before every sample of the range was done
   bool summarized = false;   // every sample present: summary.json written
