@@ -396,6 +396,7 @@ void JobRunner::run_campaign(const std::shared_ptr<Job>& job, std::unique_ptr<Co
   const auto t_start = Clock::now();
   try {
     const scene::CampaignRunResult result = scene::run_campaign(spec, job->dir.string(), options);
+    commit->summary.steps = result.steps;  // counted in /metrics with the integrate seconds
     const std::int64_t have = job->rows_done.load();
     if (result.summarized) {
       commit->state = JobState::kDone;
@@ -461,13 +462,9 @@ void JobRunner::commit(Commit& c) {
     fs::rename(tmp, target);
   }
   // A campaign's files were written in place as its samples finished: made durable here.
-  bool has_summary = false, has_records = false;
   for (const char* name : c.files_in_place) {
     std::error_code ec;
-    if (!fs::exists(job.dir / name, ec)) continue;
-    fsync_path(job.dir / name);
-    has_summary = has_summary || std::string_view(name) == "summary.json";
-    has_records = has_records || std::string_view(name) == "samples.jsonl";
+    if (fs::exists(job.dir / name, ec)) fsync_path(job.dir / name);
   }
   // The renames themselves survive a power loss once the directory is synced.
   if (!c.files.empty() || !c.files_in_place.empty()) fsync_path(job.dir);
@@ -476,6 +473,9 @@ void JobRunner::commit(Commit& c) {
     job.has_report = true;
     job.has_trajectory = true;
   } else if (!c.files_in_place.empty()) {
+    // A campaign: its summary once every sample is present, its records once one is.
+    std::error_code ec;
+    const bool has_summary = fs::exists(job.dir / "summary.json", ec), has_records = fs::exists(job.dir / "samples.jsonl", ec);
     std::lock_guard lock(job.mu);
     job.has_report = has_summary;
     job.has_trajectory = has_records;

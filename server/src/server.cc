@@ -472,6 +472,20 @@ class Server::Impl {
     if (job.deleted || !final_with(job, has)) return std::nullopt;
     return read_file(job.dir / name);
   }
+  // A stored result of a finished job (its report, a study's table, a campaign's summary), whole, with
+  // its strong ETag; 409 `not_yet` (the job's state and when it comes) until the job has it, 404 once the
+  // job is deleted. `attachment`: a download's file name, or "".
+  static void send_result_file(const Request& req, Response& res, const Job& job, const char* name, const char* content_type,
+                               const char* not_yet, const std::string& when, const std::string& attachment = "") {
+    bool deleted = false;
+    auto text = job_file(job, &Job::has_report, name, &deleted);
+    if (deleted) return send_deleted(res);
+    if (!text) return send_error(res, 409, not_yet, "", std::string("the ") + (job.kind == JobKind::kRun ? "job" : kind_name(job.kind)) + " is " + to_string(state_of(job)) + when);
+    if (not_modified(req, res, strong_etag(*text))) return;
+    res.status = 200;
+    if (!attachment.empty()) res.set_header("Content-Disposition", "attachment; filename=\"" + attachment + "\"");
+    res.set_content(std::move(*text), content_type);
+  }
   void too_many_waiting(Response& res) const {
     res.set_header("Retry-After", "1");
     send_error(res, 429, "too many waiting requests", "",
@@ -1262,15 +1276,9 @@ void Server::Impl::campaign_summary(const Request& req, Response& res) {
   if (!job) return;
   const std::string format = req.has_param("format") ? req.get_param_value("format") : "json";
   if (format != "json" && format != "text") return send_error(res, 400, "bad query", "", "format must be json or text");
-  bool deleted = false;
-  auto text = job_file(*job, &Job::has_report, format == "text" ? "summary.txt" : "summary.json", &deleted);
-  if (deleted) return send_deleted(res);
-  if (!text)
-    return send_error(res, 409, "no summary yet", "",
-                      std::string("the campaign is ") + to_string(state_of(*job)) + "; the summary is served once every sample is done");
-  if (not_modified(req, res, strong_etag(*text))) return;
-  res.status = 200;
-  res.set_content(std::move(*text), format == "text" ? "text/plain; charset=utf-8" : "application/json");
+  send_result_file(req, res, *job, format == "text" ? "summary.txt" : "summary.json",
+                   format == "text" ? "text/plain; charset=utf-8" : "application/json", "no summary yet",
+                   "; the summary is served once every sample is done");
 }
 
 void Server::Impl::campaign_samples(const Request& req, Response& res) {
@@ -1477,13 +1485,7 @@ void Server::Impl::job_events(const Request& req, Response& res, JobKind kind) {
 void Server::Impl::job_report(const Request& req, Response& res) {
   auto job = job_for(req, res);
   if (!job) return;
-  bool deleted = false;
-  auto text = job_file(*job, &Job::has_report, "report.json", &deleted);
-  if (deleted) return send_deleted(res);
-  if (!text) return send_error(res, 409, "no report yet", "", std::string("the job is ") + to_string(state_of(*job)));
-  if (not_modified(req, res, strong_etag(*text))) return;
-  res.status = 200;
-  res.set_content(std::move(*text), "application/json");
+  send_result_file(req, res, *job, "report.json", "application/json", "no report yet", "");
 }
 
 void Server::Impl::job_trajectory(const Request& req, Response& res) {
@@ -1590,17 +1592,8 @@ void Server::Impl::study_table(const Request& req, Response& res) {
   if (!job) return;
   const std::string format = req.has_param("format") ? req.get_param_value("format") : "json";
   if (format != "json" && format != "csv") return send_error(res, 400, "bad query", "", "format must be json or csv");
-  bool deleted = false;
-  auto text = job_file(*job, &Job::has_report, format == "csv" ? "table.csv" : "result.json", &deleted);
-  if (deleted) return send_deleted(res);
-  if (!text) {
-    return send_error(res, 409, "no table yet", "",
-                      std::string("the study is ") + to_string(state_of(*job)) + "; the table is served once it is done");
-  }
-  if (not_modified(req, res, strong_etag(*text))) return;
-  res.status = 200;
-  if (format == "csv") res.set_header("Content-Disposition", "attachment; filename=\"study-" + job->id + ".csv\"");
-  res.set_content(std::move(*text), format == "csv" ? "text/csv" : "application/json");
+  send_result_file(req, res, *job, format == "csv" ? "table.csv" : "result.json", format == "csv" ? "text/csv" : "application/json",
+                   "no table yet", "; the table is served once it is done", format == "csv" ? "study-" + job->id + ".csv" : "");
 }
 
 void Server::Impl::study_figure(const Request& req, Response& res) {
