@@ -6,7 +6,9 @@
 #include <bit>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <map>
+#include <tuple>
 #include <random>
 #include <string>
 #include <vector>
@@ -460,6 +462,30 @@ TEST_F(ExprTest, RobotManipulatorMassMatrix) {
 // Parameters bound into a tape (Tape::bind) against the reference: the same expressions with the
 // parameters folded in as constants, compiled afresh. Values and first derivatives in x must agree to the
 // bit at every point, for parameter values that trigger the builders' rewrites (1, -1, 2) and others.
+// The expressions of x, y (inputs 0 and 1) and the parameters a, b twice: in `folded` with a and b as
+// constants, in `free` as the parameters 0 and 1 (slots 2 and 3 of a tape with 2 inputs).
+struct FoldedAndFree {
+  explicit FoldedAndFree(const std::array<double, 2>& ab)
+      : fold([this, ab](std::string_view name) -> std::optional<Node> {
+          if (name == "x") return folded.variable(0);
+          if (name == "y") return folded.variable(1);
+          if (name == "a") return folded.constant(ab[0]);
+          if (name == "b") return folded.constant(ab[1]);
+          return std::nullopt;
+        }),
+        keep([this](std::string_view name) -> std::optional<Node> {
+          if (name == "x") return free.variable(0);
+          if (name == "y") return free.variable(1);
+          if (name == "a") return free.variable(2);
+          if (name == "b") return free.variable(3);
+          return std::nullopt;
+        }) {}
+  FoldedAndFree(const FoldedAndFree&) = delete;
+  FoldedAndFree& operator=(const FoldedAndFree&) = delete;
+  Graph folded, free;
+  Graph::Resolver fold, keep;
+};
+
 TEST(TapeBind, BoundParametersComputeWhatFoldedConstantsCompute) {
   const std::vector<std::string> texts = {
       "a + b",           "a*b*cos(x)",         "-a*b*sin(x)*y",      "a*x^2 + b*y",     "(a + b)*x / (b - 3)",
@@ -470,24 +496,10 @@ TEST(TapeBind, BoundParametersComputeWhatFoldedConstantsCompute) {
   std::mt19937_64 rng(11);
   std::uniform_real_distribution<double> u(-3.0, 3.0);
   for (const auto& ab : bindings) {
-    // The reference: a and b folded in.
-    Graph folded;
-    Graph::Resolver fold = [&](std::string_view name) -> std::optional<Node> {
-      if (name == "x") return folded.variable(0);
-      if (name == "y") return folded.variable(1);
-      if (name == "a") return folded.constant(ab[0]);
-      if (name == "b") return folded.constant(ab[1]);
-      return std::nullopt;
-    };
-    // Bound: a and b are parameters 0 and 1 (slots 2 and 3 of a tape with 2 inputs).
-    Graph free;
-    Graph::Resolver keep = [&](std::string_view name) -> std::optional<Node> {
-      if (name == "x") return free.variable(0);
-      if (name == "y") return free.variable(1);
-      if (name == "a") return free.variable(2);
-      if (name == "b") return free.variable(3);
-      return std::nullopt;
-    };
+    // The reference: a and b folded in; bound: a and b parameters.
+    FoldedAndFree g(ab);
+    Graph &folded = g.folded, &free = g.free;
+    const Graph::Resolver &fold = g.fold, &keep = g.keep;
     std::vector<Node> out_folded, out_free;
     for (const auto& t : texts) {
       const Node f = folded.parse(t, fold), k = free.parse(t, keep);
@@ -497,6 +509,10 @@ TEST(TapeBind, BoundParametersComputeWhatFoldedConstantsCompute) {
     const Tape reference = Tape::compile(folded, out_folded, 2);
     Tape bound = Tape::compile(free, out_free, 2, 2);
     EXPECT_EQ(bound.num_params(), 2);
+    // bind() says where a node of the parameters alone is 0 (a - 1 in the derivative of x^a at a = 1,
+    // b - 3 at b = 3): there the graph may fold differently; these expressions still agree (x^0 and
+    // pow(x, 0) are both 1, and x / 0 is not folded).
+    EXPECT_EQ(bound.bind(ab.data()), ab[0] != 1.0 && ab[1] != 3.0) << "a = " << ab[0] << ", b = " << ab[1];
     // eval() does the folded tape's work: each expression with its derivatives takes no more instructions,
     // where no value makes the graph rewrite (0, 1, -1 and 2 do: 1*x = x, x^2 = x*x; a bound tape keeps the
     // multiplication, with the same bits). Across expressions the folded graph also shares nodes that are
@@ -509,7 +525,6 @@ TEST(TapeBind, BoundParametersComputeWhatFoldedConstantsCompute) {
             << texts[t] << " with a = " << ab[0] << ", b = " << ab[1];
       }
     }
-    bound.bind(ab.data());
     std::vector<double> want(out_folded.size()), got(out_free.size()), s1(reference.scratch_size()), s2(bound.scratch_size());
     for (int p = 0; p < 50; ++p) {
       const double slots[2] = {u(rng), u(rng)};
@@ -536,9 +551,72 @@ TEST(TapeBind, BoundParametersComputeWhatFoldedConstantsCompute) {
   t.eval(&x, &out, scratch.data());
   EXPECT_TRUE(std::isnan(out));
   const double p = 3.0;
-  t.bind(&p);
+  EXPECT_TRUE(t.bind(&p));
   t.eval(&x, &out, scratch.data());
   EXPECT_EQ(out, 6.0);
+}
+
+// The same against random expressions in one tape with their first and second derivatives, so that the
+// compiler's rewrites for bound factors and its sharing of nodes that became equal meet deep graphs,
+// signs on every side and subexpressions common to many outputs. Reference: the expressions with the
+// parameters folded in, compiled afresh; bit for bit at 20 points, for three bindings.
+TEST(TapeBind, RandomExpressionsWithSecondDerivativesComputeWhatFoldedConstantsCompute) {
+  std::mt19937_64 rng(2026);
+  std::function<std::string(int)> random_text = [&](int depth) -> std::string {
+    static const char* leaves[] = {"x", "y", "a", "b", "2", "0.5", "-a", "-x"};
+    if (depth == 0 || rng() % 4 == 0) return leaves[rng() % 8];
+    const std::string l = random_text(depth - 1), r = random_text(depth - 1);
+    switch (rng() % 9) {
+      case 0: return "(" + l + " + " + r + ")";
+      case 1: return "(" + l + " - " + r + ")";
+      case 2: case 3: return "(" + l + "*" + r + ")";
+      case 4: return "-(" + l + ")";
+      case 5: return "sin(" + l + ")";
+      case 6: return "cos(" + l + ")";
+      case 7: return "(" + l + ")^2";
+      default: return "(" + l + "*(-" + r + "))";
+    }
+  };
+  std::vector<std::string> texts;
+  for (int i = 0; i < 120; ++i) texts.push_back(random_text(5));
+  std::uniform_real_distribution<double> u(-2.0, 2.0);
+  for (const std::array<double, 2> ab : {std::array<double, 2>{0.3, -1.7}, {-2.5, 0.125}, {1.0, -1.0}}) {
+    FoldedAndFree g(ab);
+    Graph &folded = g.folded, &free = g.free;
+    const Graph::Resolver &fold = g.fold, &keep = g.keep;
+    std::vector<Node> out_folded, out_free;
+    for (const auto& t : texts) {
+      for (auto [g, resolve, out] : {std::tuple{&folded, &fold, &out_folded}, std::tuple{&free, &keep, &out_free}}) {
+        const Node f = g->parse(t, *resolve), fx = g->derivative(f, 0), fy = g->derivative(f, 1);
+        out->insert(out->end(), {f, fx, fy, g->derivative(fx, 0), g->derivative(fx, 1), g->derivative(fy, 1)});
+      }
+    }
+    const Tape reference = Tape::compile(folded, out_folded, 2);
+    Tape bound = Tape::compile(free, out_free, 2, 2);
+    // At a = 1, b = -1 the node -a - b is 0: the folded graph turns 0 * u into the constant 0 where the
+    // bound tape computes -0. bind() says so, and callers compile such values in full.
+    if (!bound.bind(ab.data())) {
+      EXPECT_EQ(ab, (std::array<double, 2>{1.0, -1.0}));
+      continue;
+    }
+    std::vector<double> want(out_folded.size()), got(out_free.size()), s1(reference.scratch_size()), s2(bound.scratch_size());
+    int compared = 0;
+    for (int p = 0; p < 20; ++p) {
+      const double slots[2] = {u(rng), u(rng)};
+      reference.eval(slots, want.data(), s1.data());
+      bound.eval(slots, got.data(), s2.data());
+      for (std::size_t j = 0; j < want.size(); ++j) {
+        if (std::isnan(want[j])) {
+          EXPECT_TRUE(std::isnan(got[j])) << texts[j / 6] << " output " << j % 6;
+          continue;
+        }
+        ++compared;
+        EXPECT_EQ(std::bit_cast<std::uint64_t>(got[j]), std::bit_cast<std::uint64_t>(want[j]))
+            << texts[j / 6] << " output " << j % 6 << " with a = " << ab[0] << ", b = " << ab[1] << ": " << got[j] << " vs " << want[j];
+      }
+    }
+    EXPECT_GT(compared, 10000);
+  }
 }
 
 TEST_F(ExprTest, ErrorMessagesAndPositions) {

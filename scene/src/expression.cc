@@ -932,8 +932,7 @@ Tape Tape::compile(const Graph& graph, const std::vector<Node>& outputs, int num
     if (e.op == Op::kNeg) {
       // -(c*x) -> (-c)*x
       const Graph::Entry m = entries[static_cast<std::size_t>(e.a)];
-      if (m.op != Op::kMul) continue;
-      const Node c = bound_alone(m.a, m.b) ? m.a : bound_alone(m.b, m.a) ? m.b : -1;
+      const Node c = m.op != Op::kMul ? -1 : bound_alone(m.a, m.b) ? m.a : bound_alone(m.b, m.a) ? m.b : -1;
       if (c >= 0) rewrite(e, e.a, c, c == m.a ? m.b : m.a);
     } else if (e.op == Op::kMul) {
       // c*(-y) -> (-c)*y
@@ -1047,15 +1046,24 @@ Tape Tape::compile(const Graph& graph, const std::vector<Node>& outputs, int num
   return tape;
 }
 
-void Tape::bind(const double* params) {
-  for (const auto& [r, k] : param_regs_) constants_[static_cast<std::size_t>(r)] = params[k];
+bool Tape::bind(const double* params) {
+  bool generic = true;
+  for (const auto& [r, k] : param_regs_) {
+    constants_[static_cast<std::size_t>(r)] = params[k];
+    generic = generic && params[k] != 0.0;
+  }
   const double* c = constants_.data();
   auto at = [c](std::int32_t r) { return r >= 0 ? c[r] : 0.0; };
-  for (const BoundInstr& in : bind_code_) constants_[static_cast<std::size_t>(in.target)] = apply(in.op, at(in.a), at(in.b), at(in.c), at(in.d));
+  for (const BoundInstr& in : bind_code_) {
+    const double v = apply(in.op, at(in.a), at(in.b), at(in.c), at(in.d));
+    constants_[static_cast<std::size_t>(in.target)] = v;
+    generic = generic && v != 0.0;
+  }
   for (std::int32_t i : pow_of_bound_) {
     Instr& in = code_[static_cast<std::size_t>(i)];
     in.op = c[in.b] == 2.0 ? Op::kSquare : Op::kPow;
   }
+  return generic;
 }
 
 void Tape::eval(const double* slots, double* outputs, double* scratch) const {

@@ -521,7 +521,7 @@ class LagrangianCompiler : SceneReader {
     if (potential_ >= 0) outs.push_back(potential_);
     if (!check_tape_) check_tape_ = expr::Tape::compile(graph_, outs, 1 + 2 * n_, num_params());
     expr::Tape& tape = *check_tape_;
-    if (params) tape.bind(params);
+    if (params) static_cast<void>(tape.bind(params));  // the checks ask for finite values, not for the folded bits
     std::vector<double> slots(1 + 2 * n_), values(outs.size()), scratch(tape.scratch_size());
     auto eval_at = [&](const std::vector<double>& q, const std::vector<double>& v) {
       slots[0] = scene.settings.t0;
@@ -574,7 +574,7 @@ class LagrangianCompiler : SceneReader {
       cons.insert(cons.end(), gap_gradients_.begin(), gap_gradients_.end());
       if (!gap_check_tape_) gap_check_tape_ = expr::Tape::compile(graph_, cons, 1 + 2 * n_, num_params());
       expr::Tape& ct = *gap_check_tape_;
-      if (params) ct.bind(params);
+      if (params) static_cast<void>(ct.bind(params));
       std::vector<double> cs(1 + 2 * n_, 0.0), cv(cons.size()), cscr(ct.scratch_size());
       for (int i = 0; i < n_; ++i) cs[1 + i] = scene.q0[i];
       ct.eval(cs.data(), cv.data(), cscr.data());
@@ -817,9 +817,10 @@ LagrangianScene ParametricLagrangianScene::bind(const std::vector<double>& value
   LagrangianScene scene = base;
   if (!impl_->spare_compiled || impl_->spare_compiled.use_count() > 1) impl_->spare_compiled = std::make_shared<CompiledLagrangian>(*base.compiled);
   const std::shared_ptr<CompiledLagrangian> compiled = impl_->spare_compiled;
+  bool generic = true;
   for (expr::Tape* tape : {&compiled->step_tape, &compiled->mass_tape, &compiled->potential_tape, &compiled->split_force_tape,
                            &compiled->constraint_tape, &compiled->bound_terms_tape})
-    tape->bind(values.data());
+    generic = tape->bind(values.data()) && generic;
   // The entries of M, C and g of the parameters alone: constants of this binding.
   if (!compiled->bound_targets.empty()) {
     const expr::Tape& tape = compiled->bound_terms_tape;
@@ -831,9 +832,12 @@ LagrangianScene ParametricLagrangianScene::bind(const std::vector<double>& value
   scene.compiled = compiled;
   if (scene.exact_tape) {
     if (!impl_->spare_exact || impl_->spare_exact.use_count() > 1) impl_->spare_exact = std::make_shared<expr::Tape>(*base.exact_tape);
-    impl_->spare_exact->bind(values.data());
+    generic = impl_->spare_exact->bind(values.data()) && generic;
     scene.exact_tape = impl_->spare_exact;
   }
+  if (!generic)
+    throw std::invalid_argument("ParametricLagrangianScene::bind: a quantity of the parameters alone is 0 at these values (the full compile "
+                                "folds it, which can change the sign of a zero)");
   scene.q0 = q0;
   scene.v0 = v0;
   for (std::size_t i = 0; i < q0.size(); ++i)

@@ -160,8 +160,10 @@ class Tape {
   static Tape compile(const Graph& graph, const std::vector<Node>& outputs, int num_slots, int num_params = 0);
 
   // Sets the parameters (num_params() values) and recomputes the nodes that depend on them alone. Until
-  // the first bind, they are NaN.
-  void bind(const double* params);
+  // the first bind, they are NaN. Returns false when one of those nodes is 0: the graph folds 0 + x,
+  // 0 * x, ... for a constant 0, so there the folded tape may differ in the sign of a zero (or give 0
+  // where 0 * inf is NaN); callers that promise the folded tape's bits compile such values in full.
+  [[nodiscard]] bool bind(const double* params);
   int num_params() const { return num_params_; }
 
   // outputs[i] = value of the i-th output node for inputs `slots`.

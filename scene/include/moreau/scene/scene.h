@@ -187,7 +187,8 @@ class ParametricLagrangianScene {
   ~ParametricLagrangianScene();
   ParametricLagrangianScene(ParametricLagrangianScene&&) noexcept;
 
-  // The scene with the free parameters at `values` (finite, non-zero, in the order of `free`) and the
+  // The scene with the free parameters at `values` (finite, non-zero, in the order of `free`; a quantity of
+  // them alone that comes out 0, such as m1 - m2 at m1 = m2, is refused too: std::invalid_argument) and the
   // initial state q0, v0 (n finite numbers each), checked at the initial state as load_scene checks it
   // (SceneError naming the field: M not positive definite, a constraint violated, ...). Not safe to call
   // from two threads at once (it binds tapes it keeps for the checks). The compiled model is copied only
