@@ -219,6 +219,64 @@ TEST(Report, MechanicalEnergyOfAnUndampedSpringGrowsByTheClosedFormFactor) {
   EXPECT_NE(rep["update"].get<std::string>().find("position explicit Q^{k+1} = Q^k + h V^k"), std::string::npos);
 }
 
+// The energy balance on the undamped spring: D = 0 (no controller), so E(t) - E(t0) + D is the closed-form
+// rise E_0 ((1 + h^2 k/m)^k - 1), and the largest rise at the recorded states checked on the way is that
+// of the last checked state (every 16th: step 192 of 200 here).
+TEST(Report, EnergyRiseOnTheWayIsFoundAtTheCheckedStates) {
+  const Simulation sim =
+      Simulation::from_file(ScenePath("coulomb-oscillator.json"), {"parameters.a=0", "integrator.h=0.01", "integrator.t_end=2"});
+  const RunSummary s = sim.run(nullptr);
+  ASSERT_EQ(s.steps, 200);
+  const nlohmann::json e = sim.report_json(s)["mechanical_energy"];
+  const double k = 4.0, p0 = 2.1, h = 0.01, e0 = 0.5 * k * p0 * p0, factor = 1.0 + h * h * k;
+  EXPECT_EQ(e["dissipated_work"].get<double>(), 0.0);
+  EXPECT_NEAR(e["balance"].get<double>(), e0 * (std::pow(factor, 200.0) - 1.0), 1e-9 * e0);
+  const nlohmann::json& a = e["along_the_run"];
+  EXPECT_EQ(a["states_checked"].get<int>(), 13);  // steps 0, 16, ..., 192
+  EXPECT_NEAR(a["max_rise"].get<double>(), e0 * (std::pow(factor, 192.0) - 1.0), 1e-9 * e0);
+  EXPECT_NEAR(a["max_rise_time"].get<double>(), 1.92, 1e-12);
+  EXPECT_NEAR(a["max_abs_balance"].get<double>(), a["max_rise"].get<double>(), 1e-12 * e0);
+}
+
+// The work done against the Coulomb friction a Sign(x'), D = sum h a |V^{k+1}|, against two references:
+//  - the scheme's own sequence for m x'' + k x in -a Sign(x') written out here in closed form (one step:
+//    z = m V - h k Q; V' = 0 if |z| <= h a, else (z - h a sgn z)/m; Q' = Q + h V), which the product
+//    computes through its general one-step solver;
+//  - the continuous system: the friction takes a |dx| along the path, a (2.1 + 1.6) + ... = 8.8 from
+//    p0 = 2.1 through the turning points -1.6, 1.1, -0.6 to the rest at 0.1, and E(t) - E(t0) + D(t) = 0
+//    (F = 0). Both are approached at first order as h shrinks.
+TEST(Report, WorkAgainstFrictionIsTheSchemesAndTendsToTheClosedForm) {
+  const double m = 1.0, k = 4.0, a = 1.0, p0 = 2.1;
+  double previous_d_error = 0.0, previous_balance = 0.0;
+  for (const double h : {1e-3, 1e-4, 1e-5}) {
+    const Simulation sim = Simulation::from_file(ScenePath("coulomb-oscillator.json"), {"integrator.h=" + std::to_string(h)});
+    const RunSummary s = sim.run(nullptr);
+    ASSERT_EQ(s.status, RunStatus::kCompleted);
+    ASSERT_TRUE(s.dissipation_tracked);
+    double q = p0, v = 0.0, d = 0.0;
+    for (std::int64_t i = 0; i < s.steps; ++i) {
+      const double z = m * v - h * k * q;
+      const double v_next = std::abs(z) <= h * a ? 0.0 : (z - h * a * (z > 0 ? 1.0 : -1.0)) / m;
+      d += h * a * std::abs(v_next);
+      q += h * v;
+      v = v_next;
+    }
+    const double e0 = 0.5 * k * p0 * p0, e_end = 0.5 * m * v * v + 0.5 * k * q * q;
+    EXPECT_NEAR(s.dissipated_work, d, 1e-10 * d) << h;
+    const nlohmann::json e = sim.report_json(s)["mechanical_energy"];
+    EXPECT_NEAR(e["balance"].get<double>(), e_end - e0 + d, 1e-9) << h;
+    EXPECT_FALSE(e["rose"].get<bool>());
+    const double d_error = std::abs(d - 8.8), balance = std::abs(e_end - e0 + d);
+    if (previous_d_error > 0.0) {
+      EXPECT_NEAR(std::log10(previous_d_error / d_error), 1.0, 0.15) << h;  // order 1 towards the closed form
+      EXPECT_NEAR(std::log10(previous_balance / balance), 1.0, 0.15) << h;
+    }
+    previous_d_error = d_error;
+    previous_balance = balance;
+  }
+  EXPECT_LT(previous_d_error, 1e-3);
+}
+
 // The Coulomb oscillator declares its rest (x = 0.1 at t = 2 pi): the report gives the run's distance
 // from them, recomputed here from the summary; its mechanical energy at rest is 1/2 k x_N^2.
 TEST(Report, ComparesTheRunWithTheScenesExactValues) {

@@ -152,14 +152,20 @@ ExactComparison lure_exact(const LureScene& sc, const RunSummary& s) {
                             sc.settings.h);
 }
 
-// Total mechanical energy E = 1/2 <M v, v> + V(q) at the start and at the end, when the scene gives V.
-// With F = 0 (no /system/force) and a convex Phi minimal at 0, the continuous system cannot gain it
-// (dE/dt = -<xi, v> <= 0, xi in dPhi(v)): a rise is the scheme's doing (its explicit position update).
+// Total mechanical energy E = 1/2 <M v, v> + V(q) at the start and at the end, when the scene gives V,
+// and its balance. Along a solution of (0.1), dE/dt = -<xi, v> - <F, v> with xi in dPhi(v), so
+// E(t) - E(t0) + D(t) = -(work of F), D the work done against dPhi (RunSummary::dissipated_work): 0 when
+// F = 0 (no /system/force), and then E cannot rise either (D >= 0). What the run shows beyond that is the
+// scheme's doing (its explicit position update).
 struct MechanicalEnergy {
   bool known = false;
   double initial = 0.0, final = 0.0;
-  bool rose = false;         // beyond round-off
+  bool rose = false;         // beyond round-off, at the end or at a recorded state checked on the way
   bool cannot_rise = false;  // F = 0: a rise is the scheme's doing
+  bool dissipation_tracked = false;
+  double dissipated = 0.0;  // D at the end
+  double balance = 0.0;     // E(t_N) - E(t0) + D(t_N)
+  MechanicalEnergyTrack along;  // at the recorded states checked on the way (samples 0: none)
 };
 
 MechanicalEnergy mechanical_energy(const LagrangianScene& scene, const RunSummary& s, double kinetic_initial, double kinetic_final) {
@@ -174,14 +180,45 @@ MechanicalEnergy mechanical_energy(const LagrangianScene& scene, const RunSummar
   e.known = true;
   e.initial = kinetic_initial + potential(scene.settings.t0, scene.q0);
   e.final = kinetic_final + potential(s.t_final, s.q_final);
-  e.rose = e.final > e.initial + 1e-12 * std::max(1.0, std::abs(e.initial));
+  const double tolerance = 1e-12 * std::max(1.0, std::abs(e.initial));
+  e.along = s.mechanical;
+  e.rose = e.final > e.initial + tolerance || (e.along.samples > 0 && e.along.max_rise > tolerance);
   e.cannot_rise = !scene.has_force;
+  e.dissipation_tracked = s.dissipation_tracked;
+  e.dissipated = s.dissipated_work;
+  e.balance = e.final - e.initial + e.dissipated;
   return e;
+}
+
+// What E(t) - E(t0) + D(t) is for the continuous system.
+const char* balance_meaning(const MechanicalEnergy& e) {
+  return e.cannot_rise ? "0 for the continuous system (F = 0): what the run shows is the scheme's energy error"
+                       : "minus the work of F for the continuous system, plus the scheme's energy error (F's work is not evaluated apart)";
 }
 
 nlohmann::json mechanical_json(const MechanicalEnergy& e) {
   if (!e.known) return {{"kind", "1/2 <M v, v> + V(q)"}, {"evaluated", false}, {"why", "the scene gives no potential"}};
   nlohmann::json j = {{"kind", "1/2 <M v, v> + V(q)"}, {"evaluated", true}, {"initial", num(e.initial)}, {"final", num(e.final)}, {"rose", e.rose}};
+  if (e.dissipation_tracked) {
+    j["dissipated_work"] = num(e.dissipated);
+    j["dissipated_work_kind"] = "D = sum_k h_k <xi_k, V^{k+1}>, xi_k in dPhi(V^{k+1}): the work done against the controller and friction";
+    j["balance"] = num(e.balance);
+    j["balance_kind"] = std::string("E(t_N) - E(t0) + D: ") + balance_meaning(e);
+  } else {
+    j["dissipated_work"] = "not tracked";
+    j["dissipated_work_why"] = "only the scheme (0.2) tracks it; the contact scheme does not separate its impulses' work";
+  }
+  if (e.along.samples > 0) {
+    nlohmann::json a = {{"states_checked", e.along.samples},
+                        {"which", "every 16th recorded state"},
+                        {"max_rise", num(e.along.max_rise)},
+                        {"max_rise_time", e.along.max_rise > 0.0 ? num(e.along.max_rise_time) : nlohmann::json(nullptr)}};
+    if (e.dissipation_tracked) {
+      a["max_abs_balance"] = num(e.along.max_balance);
+      a["max_abs_balance_time"] = num(e.along.max_balance_time);
+    }
+    j["along_the_run"] = a;
+  }
   if (e.rose && e.cannot_rise) j["warning"] = "rose although F = 0 and dPhi dissipates: the scheme's explicit position update gains energy at O(h)";
   return j;
 }
@@ -192,8 +229,19 @@ void mechanical_text(std::ostream& os, const MechanicalEnergy& e) {
     return;
   }
   os << "                E = 1/2 <M v, v> + V(q): E(t0) = " << fmt(e.initial) << ", E(t_N) = " << fmt(e.final);
+  if (e.along.samples > 0)
+    os << "; largest rise above E(t0) at " << e.along.samples << " recorded states checked (every 16th): "
+       << (e.along.max_rise > 0.0 ? fmt(e.along.max_rise) + " at t = " + fmt(e.along.max_rise_time) : std::string("none"));
   if (e.rose && e.cannot_rise) os << ": ROSE although F = 0 and dPhi dissipates (the explicit position update gains energy at O(h))";
   os << "\n";
+  if (e.dissipation_tracked) {
+    os << "                work against dPhi D = " << fmt(e.dissipated) << "; E(t_N) - E(t0) + D = " << fmt(e.balance) << ", "
+       << balance_meaning(e);
+    if (e.along.samples > 0) os << " (largest |.| on the way " << fmt(e.along.max_balance) << " at t = " << fmt(e.along.max_balance_time) << ")";
+    os << "\n";
+  } else {
+    os << "                work against dPhi: not tracked (the contact scheme does not separate its impulses' work)\n";
+  }
 }
 
 // Rest and convergence as the report states them (guarantees.h: ConvergenceFinding).

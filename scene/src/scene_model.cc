@@ -1,5 +1,5 @@
 // Running a compiled Lagrangian scene: the scheme (0.2) (AblIntegrator over SceneModel, with the
-// Assumption 4.1 sampler) here, Moreau-Jean in moreau_jean_run.cc and Lur'e scenes in lure_run.cc (one
+// checks at recorded states) here, Moreau-Jean in moreau_jean_run.cc and Lur'e scenes in lure_run.cc (one
 // translation unit each, so that their fixed-size instantiations compile in parallel); ForceTerms.
 #include "moreau/scene/scene_model.h"
 
@@ -11,59 +11,6 @@
 
 namespace moreau::scene {
 namespace {
-
-// Assumption 4.1 2)-3) at every recorded state: evaluates grad V and F apart (the compiled step only
-// has their sum) and passes each sample on.
-class ForceBoundSampler final : public RunObserver {
- public:
-  ForceBoundSampler(const LagrangianScene& scene, RunObserver* next)
-      : terms_(*scene.compiled), next_(next), n_(scene.n), alpha_(scene.controller.alpha()), grad_(scene.n), force_(scene.n) {}
-  // Every kStride-th recorded state: one evaluation costs about as much as a step of the relay, and
-  // states kStride steps apart are close; a failure found at any of them is a failure of the assumption.
-  static constexpr std::int64_t kStride = 16;
-  void on_sample(const Sample& s) override {
-    if (!track.failed && seen_++ % kStride == 0) evaluate(s);
-    if (next_) next_->on_sample(s);
-  }
-  bool keep_going(std::int64_t k, double t) override { return !next_ || next_->keep_going(k, t); }
-  void on_impact(const ImpactEvent& e) override {
-    if (next_) next_->on_impact(e);
-  }
-  void on_rest_detected(std::int64_t from_step, double from_t, std::int64_t step, double t) override {
-    if (next_) next_->on_rest_detected(from_step, from_t, step, t);
-  }
-  void on_rest_ended(std::int64_t from_step, std::int64_t step, double t) override {
-    if (next_) next_->on_rest_ended(from_step, step, t);
-  }
-  ForceBoundTrack track;
-
- private:
-  void evaluate(const Sample& s) {
-    terms_.split(s.t, s.q, s.v, grad_.data(), force_.data());
-    double g2 = 0.0, f2 = 0.0;
-    for (int i = 0; i < n_; ++i) {
-      g2 += grad_[i] * grad_[i];
-      f2 += force_[i] * force_[i];
-    }
-    ++track.samples;
-    if (f2 > track.max_force * track.max_force) {
-      track.max_force = std::sqrt(f2);
-      track.max_force_time = s.t;
-    }
-    if (g2 > track.max_gradient * track.max_gradient) {
-      track.max_gradient = std::sqrt(g2);
-      track.max_gradient_time = s.t;
-    }
-    track.failed = track.max_force >= alpha_ || track.max_gradient > 0.5 * (alpha_ - track.max_force);
-  }
-
-  ForceTerms terms_;
-  RunObserver* next_;
-  int n_;
-  double alpha_;
-  std::int64_t seen_ = 0;
-  std::vector<double> grad_, force_;
-};
 
 template <int N>
 RunSummary run_fixed(const LagrangianScene& scene, RunObserver* observer) {
@@ -112,14 +59,71 @@ double ForceTerms::potential(double t, const double* q) {
   return value;
 }
 
+RecordedStateChecks::RecordedStateChecks(const LagrangianScene& scene, RunObserver* next)
+    : ForwardingObserver(next),
+      terms_(*scene.compiled),
+      n_(scene.n),
+      alpha_(scene.controller.alpha()),
+      has_potential_(scene.compiled->has_potential),
+      grad_(static_cast<std::size_t>(scene.n)),
+      force_(static_cast<std::size_t>(scene.n)) {}
+
+void RecordedStateChecks::on_sample(const Sample& s) {
+  if (seen_++ % kStride == 0) {
+    if (!force_bounds_.failed) force_bound(s);
+    if (has_potential_) energy(s);
+  }
+  ForwardingObserver::on_sample(s);
+}
+
+void RecordedStateChecks::record_into(RunSummary& s) const {
+  s.force_bounds = force_bounds_;
+  s.mechanical = mechanical_;
+}
+
+void RecordedStateChecks::force_bound(const Sample& s) {
+  ForceBoundTrack& track = force_bounds_;
+  terms_.split(s.t, s.q, s.v, grad_.data(), force_.data());
+  double g2 = 0.0, f2 = 0.0;
+  for (int i = 0; i < n_; ++i) {
+    g2 += grad_[i] * grad_[i];
+    f2 += force_[i] * force_[i];
+  }
+  ++track.samples;
+  if (f2 > track.max_force * track.max_force) {
+    track.max_force = std::sqrt(f2);
+    track.max_force_time = s.t;
+  }
+  if (g2 > track.max_gradient * track.max_gradient) {
+    track.max_gradient = std::sqrt(g2);
+    track.max_gradient_time = s.t;
+  }
+  track.failed = track.max_force >= alpha_ || track.max_gradient > 0.5 * (alpha_ - track.max_force);
+}
+
+void RecordedStateChecks::energy(const Sample& s) {
+  MechanicalEnergyTrack& track = mechanical_;
+  const double e = s.kinetic_energy + terms_.potential(s.t, s.q);
+  if (track.samples++ == 0) track.initial = e;
+  const double rise = e - track.initial, balance = std::abs(rise + s.dissipated_work);
+  if (rise > track.max_rise) {
+    track.max_rise = rise;
+    track.max_rise_time = s.t;
+  }
+  if (balance > track.max_balance) {
+    track.max_balance = balance;
+    track.max_balance_time = s.t;
+  }
+}
+
 RunSummary run_scene(const LagrangianScene& scene, RunObserver* observer) { return run_scene(scene, observer, nullptr); }
 
 RunSummary run_scene(const LagrangianScene& scene, RunObserver* observer, ContactDiagnostics* contacts) {
   if (scene.scheme == Scheme::kMoreauJean) return run_moreau_jean_scene(scene, observer, contacts);
   // Assumption 4.1 concerns the scheme (0.2) only.
-  ForceBoundSampler sampler(scene, observer);
-  RunSummary s = dispatch_dof(scene.n, [&](auto dof) { return run_fixed<decltype(dof)::value>(scene, &sampler); });
-  s.force_bounds = sampler.track;
+  RecordedStateChecks checks(scene, observer);
+  RunSummary s = dispatch_dof(scene.n, [&](auto dof) { return run_fixed<decltype(dof)::value>(scene, &checks); });
+  checks.record_into(s);
   return s;
 }
 

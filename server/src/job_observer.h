@@ -15,11 +15,12 @@
 
 namespace moreau::server {
 
-class JobObserver final : public RunObserver {
+class JobObserver final : public ForwardingObserver {
  public:
   JobObserver(Job& job, scene::TrajectoryCsvWriter& csv, std::int64_t record_every, std::int64_t engine_every, std::int64_t max_samples,
               StreamObserver* stream, std::function<void()> progress)
-      : job_(job),
+      : ForwardingObserver(stream),
+        job_(job),
         csv_(csv),
         every_(std::max<std::int64_t>(1, record_every)),
         engine_every_(std::max<std::int64_t>(1, engine_every)),
@@ -53,17 +54,8 @@ class JobObserver final : public RunObserver {
     }
   }
 
-  // Impacts go out on the job's event stream (with the first sample after them, StreamObserver).
-  void on_impact(const ImpactEvent& impact) override {
-    if (stream_) stream_->on_impact(impact);
-  }
-  // Convergence as it is detected, and a detected rest that ended (StreamObserver).
-  void on_rest_detected(std::int64_t from_step, double from_t, std::int64_t step, double t) override {
-    if (stream_) stream_->on_rest_detected(from_step, from_t, step, t);
-  }
-  void on_rest_ended(std::int64_t from_step, std::int64_t step, double t) override {
-    if (stream_) stream_->on_rest_ended(from_step, step, t);
-  }
+  // Impacts, convergence as it is detected and a detected rest that ended go on to the job's event
+  // stream (StreamObserver) as ForwardingObserver passes them.
 
   bool keep_going(std::int64_t step, double t) override {
     job_.t_now.store(t, std::memory_order_relaxed);

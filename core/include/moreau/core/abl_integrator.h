@@ -159,6 +159,11 @@ class AblIntegrator {
     }
     rec.solver_step(st.iterations, st.residual, st.used_fallback);
     s.solver.rest_steps += (st.iterations == 0);  // the y = 0 closed form of Lemma 6.1
+    // The work done against dPhi over the step, h_k <xi, V^{k+1}> with xi = -(P y + x) + W y in dPhi(y):
+    // the same for every element of dPhi(y) (Controller::dissipation_rate), so it needs no multiplier.
+    // (y = 0 takes none; the explicit peer's xi is at V^k, not in dPhi(V^{k+1}): not tracked.)
+    if (st.iterations != 0 && settings_.velocity_update == VelocityUpdate::kImplicit)
+      s.dissipated_work += h_k * model_.controller().dissipation_rate(y_);
 
     q_ += h_k * v_;  // Q^{k+1} = Q^k + h_k V^k: explicit in position
     v_ = y_;
@@ -184,6 +189,7 @@ class AblIntegrator {
     s.equilibrium.residual = phi.distance_to_subdifferential_at_zero(z);
     s.equilibrium.interior = phi.in_interior_of_subdifferential_at_zero(z);
     s.solver.linear_solver = linear_solver_description();
+    s.dissipation_tracked = settings_.velocity_update == VelocityUpdate::kImplicit;
     rec.finish(k, t, q_.data(), v_.data(), energy_, s.equilibrium.evaluated && s.equilibrium.residual == 0.0);
   }
 

@@ -39,6 +39,15 @@ struct Controller {
 
   double value(const Vec<N>& v) const { return 0.5 * v.dot(weights.cwiseProduct(v)) + gains.dot(v.cwiseAbs()) + norm_gain * v.norm(); }
 
+  // <xi, v> for every xi in dPhi(v): <W v, v> + sum_i a_i |v_i| + a_norm ||v||. The same for every element
+  // of the subdifferential, because the nonsmooth parts are positively homogeneous of degree 1 (Euler's
+  // identity <z, v> = phi(v) for z in dphi(v)). The power the controller (and friction) takes out of the
+  // system at velocity v, >= 0.
+  double dissipation_rate(const Vec<N>& v) const {
+    const double smooth = v.dot(weights.cwiseProduct(v)) + gains.dot(v.cwiseAbs());
+    return norm_gain != 0.0 ? smooth + norm_gain * v.norm() : smooth;
+  }
+
   // Distance from z to dPhi(0) = A [-1, 1]^n + a_norm B (a box plus a ball): the equilibrium residual of
   // Theorem 4.3 with z = -F(Q, 0) - grad V(Q). Zero when z lies in dPhi(0).
   double distance_to_subdifferential_at_zero(const Vec<N>& z) const {

@@ -18,6 +18,9 @@ struct Sample {
   const double* q;        // Q^k, n values
   const double* v;        // V^k, n values
   double kinetic_energy;  // E_k = 1/2 <M(Q^k) V^k, V^k>
+  // D_k = sum_{j < k} h_j <xi_j, V^{j+1}>, xi_j in dPhi(V^{j+1}): the work done so far against the
+  // set-valued controller and friction (RunSummary::dissipated_work); 0 where the scheme does not track it.
+  double dissipated_work = 0.0;
 };
 
 class RunObserver {
@@ -42,6 +45,33 @@ class RunObserver {
   virtual void on_rest_detected(std::int64_t /*from_step*/, double /*from_t*/, std::int64_t /*step*/, double /*t*/) {}
   // A rest announced by on_rest_detected() ended: the velocity is nonzero at step `step` (time t).
   virtual void on_rest_ended(std::int64_t /*from_step*/, std::int64_t /*step*/, double /*t*/) {}
+};
+
+// An observer that passes every event on to `next` (which may be null): one that acts on some events
+// derives from it and overrides only those, so that an event added to RunObserver reaches `next`
+// without every forwarding observer having to learn it.
+class ForwardingObserver : public RunObserver {
+ public:
+  explicit ForwardingObserver(RunObserver* next) : next_(next) {}
+  void on_sample(const Sample& sample) override {
+    if (next_) next_->on_sample(sample);
+  }
+  bool keep_going(std::int64_t step, double t) override { return !next_ || next_->keep_going(step, t); }
+  void on_impact(const ImpactEvent& impact) override {
+    if (next_) next_->on_impact(impact);
+  }
+  void on_rest_detected(std::int64_t from_step, double from_t, std::int64_t step, double t) override {
+    if (next_) next_->on_rest_detected(from_step, from_t, step, t);
+  }
+  void on_rest_ended(std::int64_t from_step, std::int64_t step, double t) override {
+    if (next_) next_->on_rest_ended(from_step, step, t);
+  }
+
+ protected:
+  RunObserver* next() const { return next_; }
+
+ private:
+  RunObserver* next_;
 };
 
 }  // namespace moreau

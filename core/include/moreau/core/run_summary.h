@@ -118,6 +118,20 @@ struct ForceBoundTrack {
   double max_gradient_time = 0.0;
 };
 
+// The total mechanical energy E = 1/2 <M v, v> + V(q) along a run, at the states a run recorded (every
+// kStride-th, where the scene layer evaluates V), against the energy balance of (0.1): along a solution
+// dE/dt = -<xi, v> - <F, v> with xi in dPhi(v), so E(t) - E(t0) + D(t) = -(work of F) exactly, and = 0 when
+// F = 0; what the scheme adds to it is its own energy error. Filled by the layer that can evaluate V
+// (the scene's compiled expressions or robot); samples == 0 when nobody did.
+struct MechanicalEnergyTrack {
+  std::int64_t samples = 0;
+  double initial = 0.0;           // E at the first recorded state
+  double max_rise = 0.0;          // largest E(t_k) - E(t0) seen (0 when E never rose)
+  double max_rise_time = 0.0;
+  double max_balance = 0.0;       // largest |E(t_k) - E(t0) + D(t_k)| seen
+  double max_balance_time = 0.0;
+};
+
 struct RunSummary {
   RunStatus status = RunStatus::kCompleted;
   std::string message;  // why a run failed or was cancelled; empty when completed
@@ -144,6 +158,12 @@ struct RunSummary {
   double energy_max_increase = 0.0;   // largest E_{k+1} - E_k above the round-off allowance
   std::int64_t energy_increases = 0;  // steps where E rose above the allowance
 
+  // D = sum_k h_k <xi_k, V^{k+1}> with xi_k in dPhi(V^{k+1}) the step's element: the work done against the
+  // set-valued controller and friction (Controller::dissipation_rate), >= 0. Tracked by the scheme (0.2)
+  // (dissipation_tracked); the contact scheme's impulses are not separated from it, so it does not.
+  double dissipated_work = 0.0;
+  bool dissipation_tracked = false;
+
   double h_min = 0.0;
   double h_max = 0.0;
 
@@ -154,6 +174,7 @@ struct RunSummary {
   MassDefinitenessTrack mass;      // Assumption 3.1: lambda_min(M(Q^k)) > 0
   StepConditionTrack theorem41;    // (4.2) of Theorem 4.1, for the scheme (0.2) only
   ForceBoundTrack force_bounds;    // Assumption 4.1 2)-3), at the recorded states
+  MechanicalEnergyTrack mechanical;  // E = 1/2 <M v, v> + V(q) and its balance, at the recorded states
 
   // Wall time by phase, in the order they ran ("parse", "compile", "integrate", "write", ...).
   std::vector<std::pair<std::string, double>> phase_seconds;

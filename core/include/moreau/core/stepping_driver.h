@@ -185,7 +185,7 @@ class RunRecorder {
 
  private:
   void emit(std::int64_t k, double t, double h, const double* q, const double* v, double energy) {
-    if (observer_) observer_->on_sample(Sample{k, t, h, n_, q, v, energy});
+    if (observer_) observer_->on_sample(Sample{k, t, h, n_, q, v, energy, s_.dissipated_work});
   }
   bool finite(const double* x) const {
     for (int i = 0; i < n_; ++i)

@@ -184,4 +184,32 @@ class SceneModel {
   Vec<N> gravity_;
 };
 
+// What the scheme (0.2) checks at its recorded states, apart from the step (which has only the sum
+// g = grad V + F, and no V): Assumption 4.1 2)-3) from grad V and F (until it fails), and the total
+// mechanical energy E = E_k + V(Q^k) with its balance E - E(t0) + D (MechanicalEnergyTrack). Every
+// sample, and every other event, is passed on to `next`. run_scene attaches it; a study's error runs too.
+class RecordedStateChecks final : public ForwardingObserver {
+ public:
+  RecordedStateChecks(const LagrangianScene& scene, RunObserver* next);
+  // Every kStride-th recorded state: one evaluation costs about as much as a step of the relay, and
+  // states kStride steps apart are close; a failure found at any of them is a failure of the assumption.
+  static constexpr std::int64_t kStride = 16;
+  void on_sample(const Sample& s) override;
+  // Writes what was found into the run's summary (force_bounds, mechanical).
+  void record_into(RunSummary& s) const;
+
+ private:
+  void force_bound(const Sample& s);
+  void energy(const Sample& s);
+
+  ForceTerms terms_;
+  int n_;
+  double alpha_;
+  bool has_potential_;
+  std::int64_t seen_ = 0;
+  std::vector<double> grad_, force_;
+  ForceBoundTrack force_bounds_;
+  MechanicalEnergyTrack mechanical_;
+};
+
 }  // namespace moreau::scene
