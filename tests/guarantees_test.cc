@@ -337,6 +337,51 @@ TEST(Guarantees, Lemma3AtTheBallsRestPosition) {
 }
 
 
+// Lemma 3's strict minimum decided at second order, on a particle (x, y) of unit mass under U = g y where
+// first order cannot decide (one active gradient in R^2). Closed forms: at the bottom of the bowl
+// h = 1 - x^2 - y^2 >= 0, q* = (0, -1), grad U = (0, g) = lambda grad h with lambda = g/2, and the Hessian
+// of U - lambda h is lambda * 2 I = g I: positive on the tangent (1, 0), a strict minimum. On top of the
+// dome h = x^2 + y^2 - 1 >= 0, q* = (0, 1), lambda = g/2 and the Hessian is -g I: negative along the
+// tangent, not a minimum. On flat ground h = y the Hessian is 0: second order cannot decide. With
+// U = g y + 1/2 k x^2 on flat ground it is k > 0 along x; with no active constraint at the bottom of
+// U = 1/2 k (x^2 + y^2) it is k I.
+TEST(Guarantees, Lemma3DecidesAStrictMinimumAtSecondOrder) {
+  auto scene = [](const std::string& potential, const std::string& gap, double x0, double y0) {
+    nlohmann::json wall = {{"name", "wall"}, {"gap", gap}, {"restitution", 0.5}};
+    nlohmann::json system = {{"type", "lagrangian"}, {"potential", potential}};
+    system["coordinates"] = nlohmann::json::array({"x", "y"});
+    system["mass"] = nlohmann::json::array({nlohmann::json::array({"1", "0"}), nlohmann::json::array({"0", "1"})});
+    system["constraints"] = nlohmann::json::array({wall});
+    nlohmann::json doc = {{"name", "particle"}, {"system", system}};
+    doc["parameters"] = {{"g", 9.81}, {"k", 3.0}};
+    doc["initial"]["q"] = nlohmann::json::array({x0, y0});
+    doc["initial"]["v"] = nlohmann::json::array({0.0, 0.0});
+    doc["integrator"] = {{"scheme", "moreau-jean"}, {"h", 1e-3}, {"t_end", 0.2}};
+    return Simulation::from_json(doc);
+  };
+  struct Case {
+    std::string potential, gap;
+    double x0, y0;
+    Verdict verdict;
+    std::string detail;  // the closed-form number the detail must show
+  };
+  const std::vector<Case> cases = {
+      {"g*y", "1 - x^2 - y^2", 0.0, -1.0, Verdict::kHolds, "smallest eigenvalue 9.81"},
+      {"g*y", "x^2 + y^2 - 1", 0.0, 1.0, Verdict::kFails, "= -9.81 < 0"},
+      {"g*y", "y", 0.0, 0.0, Verdict::kUndetermined, "smallest eigenvalue 0"},
+      {"g*y + 0.5*k*x^2", "y", 0.0, 0.0, Verdict::kHolds, "smallest eigenvalue 3 "},
+      {"0.5*k*(x^2 + y^2)", "y + 1", 0.0, 0.0, Verdict::kHolds, "smallest eigenvalue 3 "},
+  };
+  for (const Case& c : cases) {
+    const Simulation sim = scene(c.potential, c.gap, c.x0, c.y0);
+    const RunSummary s = sim.run(nullptr);
+    ASSERT_TRUE(s.rest_step.has_value()) << c.potential << " on " << c.gap;
+    const HypothesisCheck& strict = Hypothesis(sim.guarantees(s), "Lemma 3", "psi_Phi + U has a strict minimum");
+    EXPECT_EQ(strict.verdict, c.verdict) << c.potential << " on " << c.gap << ": " << strict.detail;
+    EXPECT_NE(strict.detail.find(c.detail), std::string::npos) << c.potential << " on " << c.gap << ": " << strict.detail;
+  }
+}
+
 // The manipulator with g = 0.9 under the Theorem 4.2 rule: ||grad V|| = b m2 g |sin th2| <= 0.45 <= 1/2 for
 // every q (closed form), F = 0, eta = 1/2, alpha = 1, and its expressions (cos, sin, products) are smooth
 // on all of R^n, so Assumption 3.3 holds: every hypothesis of Theorems 4.2 and 4.3 holds, and the finite-step

@@ -189,12 +189,95 @@ ConvergenceFinding convergence_finding(const RunSummary& s, const Guarantees& g,
 
 namespace {
 
+// A basis of the null space of the rows of `A` (k x n, k may be 0): the directions d with A d = 0.
+Eigen::MatrixXd null_space(const Eigen::MatrixXd& A, int n) {
+  if (A.rows() == 0) return Eigen::MatrixXd::Identity(n, n);
+  Eigen::JacobiSVD<Eigen::MatrixXd> svd(A, Eigen::ComputeFullV);
+  svd.setThreshold(1e-10);
+  const int rank = static_cast<int>(svd.rank());
+  return svd.matrixV().rightCols(n - rank);
+}
+
+// The second-order condition of Lemma 3's strict minimum at q*, where grad U(q*) = sum lambda_i grad h_i(q*)
+// over the active constraints (lambda >= 0) but the first-order test did not decide (the active gradients
+// do not span R^n, or a multiplier is 0). With L = U - sum lambda_i h_i (Hessians exact, from the compiled
+// second derivatives):
+//  - sufficient: d^T L''(q*) d > 0 for every d != 0 with <grad h_i, d> = 0 for the i with lambda_i > 0.
+//    That subspace contains the critical cone, so q* is a strict local minimum of U on {h >= 0}
+//    (Nocedal and Wright, Theorem 12.6);
+//  - necessary (when the active gradients are linearly independent, LICQ): d^T L''(q*) d >= 0 for every d
+//    tangent to all active constraints, which lie in the critical cone (Theorem 12.5): a negative
+//    curvature there means q* is not a local minimum;
+//  - otherwise (curvature 0 within round-off, or a degenerate multiplier): higher-order terms decide.
+void second_order(const CompiledLagrangian& c, const RunSummary& s, const std::vector<int>& active, const Eigen::MatrixXd& Ht,
+                  const Eigen::VectorXd& lambda, double multiplier_tol, HypothesisCheck& strict) {
+  const int n = c.n;
+  if (c.hessian_tape.num_outputs() == 0) {
+    strict.verdict = Verdict::kNotChecked;
+    strict.detail += "; the second-order condition needs Hessians, compiled only for an expression scene with n <= " +
+                     std::to_string(CompiledLagrangian::kMaxHessianDof) + " (not for a URDF robot): not checked";
+    return;
+  }
+  std::vector<double> slots(static_cast<std::size_t>(1 + 2 * n), 0.0), out(c.hessian_tape.num_outputs()), scratch(c.hessian_tape.scratch_size());
+  slots[0] = s.t_final;
+  for (int i = 0; i < n; ++i) slots[1 + i] = s.q_final[i];
+  c.hessian_tape.eval(slots.data(), out.data(), scratch.data());
+  auto hessian = [&](int which) { return Eigen::Map<const Eigen::MatrixXd>(out.data() + static_cast<std::size_t>(which) * n * n, n, n); };
+  Eigen::MatrixXd L = hessian(0);
+  for (std::size_t a = 0; a < active.size(); ++a) L -= lambda(static_cast<int>(a)) * hessian(1 + active[a]);
+  L = 0.5 * (L + L.transpose()).eval();  // exact Hessians are symmetric; this removes round-off only
+  const double tol = 1e-9 * std::max(1.0, L.norm());
+
+  std::vector<int> strong;
+  for (int a = 0; a < lambda.size(); ++a)
+    if (lambda(a) > multiplier_tol) strong.push_back(a);
+  Eigen::MatrixXd strong_rows(static_cast<int>(strong.size()), n);
+  for (std::size_t r = 0; r < strong.size(); ++r) strong_rows.row(static_cast<int>(r)) = Ht.col(strong[r]).transpose();
+  const Eigen::MatrixXd Z = null_space(strong_rows, n);
+  if (Z.cols() == 0) {
+    strict.verdict = Verdict::kHolds;
+    strict.detail += "; the gradients with lambda_i > 0 span R^" + std::to_string(n) + ": every feasible direction increases U";
+    return;
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> reduced(Z.transpose() * L * Z);
+  const double mu = reduced.eigenvalues().minCoeff();
+  if (mu > tol) {
+    strict.verdict = Verdict::kHolds;
+    strict.detail += "; second-order sufficient condition: the Hessian of U - sum lambda_i h_i is positive definite on the " +
+                     std::to_string(Z.cols()) + "-dimensional subspace tangent to the constraints with lambda_i > 0 (smallest eigenvalue " +
+                     fmt(mu) + " > round-off " + fmt(tol) + ")";
+    return;
+  }
+  const Eigen::MatrixXd all_rows = Ht.transpose();
+  const bool licq = Ht.cols() == 0 || Eigen::FullPivLU<Eigen::MatrixXd>(all_rows).rank() == Ht.cols();
+  const Eigen::MatrixXd Z0 = null_space(all_rows, n);
+  if (licq && Z0.cols() > 0) {
+    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> tangent(Z0.transpose() * L * Z0);
+    const double mu0 = tangent.eigenvalues().minCoeff();
+    if (mu0 < -tol) {
+      const Eigen::VectorXd d = Z0 * tangent.eigenvectors().col(0);
+      std::string ds;
+      for (int i = 0; i < n; ++i) ds += (i ? ", " : "") + fmt(d(i));
+      strict.verdict = Verdict::kFails;
+      strict.detail += "; second-order necessary condition fails: along d = (" + ds +
+                       "), tangent to every active constraint, d^T (U - sum lambda_i h_i)'' d = " + fmt(mu0) +
+                       " < 0: q* is not a local minimum";
+      return;
+    }
+  }
+  strict.verdict = Verdict::kUndetermined;
+  strict.detail += "; second order: the Hessian of U - sum lambda_i h_i has smallest eigenvalue " + fmt(mu) +
+                   " (round-off " + fmt(tol) + ") on the subspace tangent to the constraints with lambda_i > 0" +
+                   (licq ? "" : ", and the active gradients are dependent") + ": higher-order terms decide, undetermined";
+}
+
 // Lemma 3 of Brogliato (2003) for a scene with unilateral constraints: the system is (8) (F = C q' +
 // grad U, one restitution e), Phi = {h >= 0} regular (Remark 4), and psi_Phi + U has a strict minimum at
-// q0, checked at the run's rest position q* by a sufficient first-order condition: the active gradients
-// grad h_i(q*) span R^n and grad U(q*) = sum lambda_i grad h_i(q*) with every lambda_i > 0. Then every
-// feasible direction d != 0 has <grad U, d> > 0 (it cannot be orthogonal to all active gradients), so q*
-// is a strict local minimum. Not relied on: the run does not use the conclusion (Lyapunov stability).
+// q0, checked at the run's rest position q*. First order (sufficient): the active gradients grad h_i(q*)
+// span R^n and grad U(q*) = sum lambda_i grad h_i(q*) with every lambda_i > 0; then every feasible
+// direction d != 0 has <grad U, d> > 0 (it cannot be orthogonal to all active gradients), so q* is a
+// strict local minimum. When that does not decide, the second-order conditions (second_order above).
+// Not relied on: the run does not use the conclusion (Lyapunov stability).
 Guarantee lemma3(const LagrangianScene& scene, const RunSummary& s) {
   Guarantee g{"Lemma 3", "(q*, 0) is a Lyapunov stable equilibrium, with W = 1/2 <M v, v> + U(q) its Lyapunov function", false, {}};
   const int n = scene.n, m = static_cast<int>(scene.constraint_names.size());
@@ -236,9 +319,13 @@ Guarantee lemma3(const LagrangianScene& scene, const RunSummary& s) {
     for (std::size_t a = 0; a < active.size(); ++a)
       for (int j = 0; j < n; ++j) Ht(j, static_cast<int>(a)) = cons[m + active[a] * n + j];
     if (active.empty()) {
-      strict.verdict = grad_u.norm() == 0.0 ? Verdict::kNotChecked : Verdict::kFails;
-      strict.detail = "no constraint active at q*" + std::string(grad_u.norm() == 0.0 ? ": grad U = 0, second-order information needed"
-                                                                                   : ": grad U(q*) != 0, q* is not a minimum of U");
+      if (grad_u.norm() > 1e-9 * scale) {
+        strict.verdict = Verdict::kFails;
+        strict.detail = "no constraint active at q*: grad U(q*) != 0 (norm " + fmt(grad_u.norm()) + "), q* is not a minimum of U";
+      } else {
+        strict.detail = "no constraint active at q* and grad U(q*) = 0 (norm " + fmt(grad_u.norm()) + ")";
+        second_order(*c, s, active, Ht, Eigen::VectorXd(0), 1e-9 * scale, strict);
+      }
     } else {
       Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(Ht);
       qr.setThreshold(1e-10);
@@ -251,8 +338,10 @@ Guarantee lemma3(const LagrangianScene& scene, const RunSummary& s) {
         strict.detail = "grad U(q*) is not a non-negative combination of the active constraint gradients (residual " + fmt(residual) +
                         ", multipliers " + ls + "): a feasible direction decreases U, q* is not a minimum";
       } else if (qr.rank() < n || lambda.minCoeff() <= 1e-9 * scale) {
-        strict.detail = "grad U(q*) = sum lambda_i grad h_i(q*) with lambda = (" + ls + "), but the active gradients do not span R^" +
-                        std::to_string(n) + " or a multiplier is 0: a strict minimum needs second-order information, not checked";
+        strict.detail = "at q* = the rest position (gaps below " + fmt(gap_tol) + " count as active), grad U(q*) = sum lambda_i grad h_i(q*) with lambda = (" +
+                        ls + "), but the " + std::to_string(active.size()) + " active gradient(s) do not span R^" + std::to_string(n) +
+                        " or a multiplier is 0: first order does not decide";
+        second_order(*c, s, active, Ht, lambda, 1e-9 * scale, strict);
       } else {
         strict.verdict = Verdict::kHolds;
         strict.detail = "at q* = the rest position (gaps below " + fmt(gap_tol) + " count as active), " + std::to_string(active.size()) +

@@ -687,6 +687,17 @@ class LagrangianCompiler : SceneReader {
       cons.insert(cons.end(), gap_gradients_.begin(), gap_gradients_.end());
       c->num_constraints = static_cast<int>(gaps_.size());
       c->constraint_tape = expr::Tape::compile(graph_, cons, 1 + 2 * n_, num_params());
+      if (potential_ >= 0 && !robot_ && n_ <= CompiledLagrangian::kMaxHessianDof) {
+        // Exact second derivatives (the graph differentiates symbolically): V's, then each gap's.
+        std::vector<Node> hessians;
+        auto add_hessian = [&](auto first_derivative) {
+          for (int i = 0; i < n_; ++i)
+            for (int j = 0; j < n_; ++j) hessians.push_back(graph_.derivative(first_derivative(i), 1 + j));
+        };
+        add_hessian([&](int i) { return graph_.derivative(potential_, 1 + i); });
+        for (std::size_t k = 0; k < gaps_.size(); ++k) add_hessian([&](int i) { return gap_gradients_[k * n_ + i]; });
+        c->hessian_tape = expr::Tape::compile(graph_, hessians, 1 + 2 * n_, num_params());
+      }
     }
     return c;
   }
@@ -819,7 +830,7 @@ LagrangianScene ParametricLagrangianScene::bind(const std::vector<double>& value
   const std::shared_ptr<CompiledLagrangian> compiled = impl_->spare_compiled;
   bool generic = true;
   for (expr::Tape* tape : {&compiled->step_tape, &compiled->mass_tape, &compiled->potential_tape, &compiled->split_force_tape,
-                           &compiled->constraint_tape, &compiled->bound_terms_tape})
+                           &compiled->constraint_tape, &compiled->hessian_tape, &compiled->bound_terms_tape})
     generic = tape->bind(values.data()) && generic;
   // The entries of M, C and g of the parameters alone: constants of this binding.
   if (!compiled->bound_targets.empty()) {

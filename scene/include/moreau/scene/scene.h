@@ -107,6 +107,10 @@ struct CompiledLagrangian {
   // Unilateral constraints: outputs h_1..h_m(q), then the exact gradients dh_i/dq_j (row-major, m x n).
   int num_constraints = 0;
   expr::Tape constraint_tape;
+  // Lemma 3's second-order condition: the exact Hessians of V, then of h_1..h_m, each n x n row-major.
+  // Compiled only for an expression scene (no robot) with constraints, a potential and n <= kMaxHessianDof.
+  static constexpr int kMaxHessianDof = 12;
+  expr::Tape hessian_tape;
   // A URDF system's robot (/system/urdf): M(q), C(q, v) and the gravity part of grad V and of V come from
   // it at every evaluation (rigid_body.h); the tapes hold only what the scene adds (F, a potential).
   std::shared_ptr<const RigidBodyModel> robot;
