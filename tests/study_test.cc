@@ -11,6 +11,11 @@
 #include <functional>
 #include <limits>
 
+#include <Eigen/Dense>
+
+#include "moreau/core/models/manipulator.h"
+#include "moreau/scene/simulation.h"
+
 namespace moreau::scene {
 namespace {
 
@@ -90,6 +95,72 @@ TEST(Study, ManipulatorOrderIsAttributedToNoTheorem) {
   const LagrangianScene relay = load_scene(read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/damped-relay.json"));
   EXPECT_EQ(order_theory(relay, StudyScheme::kAbl).theory, "Remark 5.1");
   EXPECT_EQ(order_theory(relay, StudyScheme::kRegularized).theory, "none");
+}
+
+// A study's summary has the guarantees section of each of its runs, as `moreau run` has it.
+// References: for the damped relay C = 0, so r_k of Theorem 4.1's (4.2) is 0 at every step and every h,
+// and M = m > 0 (Assumption 3.1, for the explicit peer too); no theorem covers the regularized peer. For
+// the manipulator at h = 1 with v0 = (10, 10), r_0 = 2 h ||C(q0, v0)||_2 / lambda_min(M(q0)) > 1 from the
+// paper's closed-form M and C (models::Manipulator): the row fails from its first step, while a row at
+// a step 1000 times smaller holds there; each row's section is the one `moreau run` computes for the same
+// scene and h.
+TEST(Study, EveryRowCarriesItsRunsGuarantees) {
+  const LagrangianScene relay = load_scene(read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/damped-relay.json"));
+  StudySettings st;
+  st.h = {1e-2, 1e-3};
+  st.repeats = 1;
+  const StudyResult r = run_study(relay, st);
+  ASSERT_EQ(r.rows.size(), 6u);
+  EXPECT_TRUE(r.reference_guarantees.is_null());  // the exact solution is the reference
+  for (const StudyRow& row : r.rows) {
+    if (row.scheme == StudyScheme::kRegularized) {
+      EXPECT_TRUE(row.guarantees.empty());
+      continue;
+    }
+    const std::string relied_on = row.scheme == StudyScheme::kAbl ? "Theorem 4.1" : "Assumption 3.1";
+    bool found = false;
+    for (const auto& g : row.guarantees) {
+      if (g["result"] != relied_on) continue;
+      found = true;
+      EXPECT_TRUE(g["relied_on"].get<bool>());
+      EXPECT_EQ(g["verdict"], "holds") << g.dump();
+    }
+    EXPECT_TRUE(found) << scheme_name(row.scheme) << " " << row.h;
+  }
+  const std::string text = r.to_text();
+  EXPECT_NE(text.find("    abl: Theorem 4.1 (relied on): holds at h = 0.01, 0.001\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("    explicit: Assumption 3.1 (relied on): holds at h = 0.01, 0.001\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("    regularized: no theorem of the papers covers this scheme\n"), std::string::npos) << text;
+
+  const std::vector<std::string> overrides = {"initial.v=[10,10]", "integrator.t_end=3"};
+  const Simulation manipulator = Simulation::from_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/manipulator.json", overrides);
+  models::Manipulator model;
+  LagrangianTerms<2> terms;
+  model.evaluate(0.0, Vec<2>(3.0, -1.0), Vec<2>(10.0, 10.0), terms);
+  const double r0 = 2.0 * 1.0 * Eigen::JacobiSVD<Mat<2>>(terms.C).singularValues()(0) /
+                    Eigen::SelfAdjointEigenSolver<Mat<2>>(terms.M).eigenvalues()(0);
+  ASSERT_GT(r0, 1.0);
+  StudySettings ms;
+  ms.h = {1.0, 1e-3};
+  ms.schemes = {StudyScheme::kAbl};
+  ms.repeats = 1;
+  ms.reference_h = 1e-4;
+  const StudyResult mr = run_study(*manipulator.lagrangian(), ms);
+  ASSERT_EQ(mr.rows.size(), 2u);
+  ASSERT_TRUE(mr.reference_guarantees.is_array());
+  for (const StudyRow& row : mr.rows) {
+    const Simulation same = Simulation::from_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/manipulator.json",
+                                                  {overrides[0], overrides[1], "integrator.h=" + std::to_string(row.h)});
+    const RunSummary s = same.run(nullptr);
+    EXPECT_EQ(row.guarantees, same.report_json(s)["guarantees"]) << row.h;
+  }
+  EXPECT_EQ(mr.rows[0].guarantees[0]["result"], "Theorem 4.1");
+  EXPECT_EQ(mr.rows[0].guarantees[0]["verdict"], "fails");
+  EXPECT_EQ(mr.rows[1].guarantees[0]["verdict"], "holds");
+  const std::string mtext = mr.to_text();
+  EXPECT_NE(mtext.find("    abl: Theorem 4.1 (relied on): fails at h = 1; holds at h = 0.001\n"), std::string::npos) << mtext;
+  EXPECT_NE(mtext.find("        first at h = 1, fails: (4.2)"), std::string::npos) << mtext;
+  EXPECT_NE(mtext.find("    reference (abl at h = 0.0001): Theorem 4.1 holds"), std::string::npos) << mtext;
 }
 
 TEST(Study, ScenesWithConstraintsAreRefused) {

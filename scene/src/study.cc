@@ -11,6 +11,7 @@
 
 #include "moreau/core/abl_integrator.h"
 #include "moreau/core/regularized_integrator.h"
+#include "moreau/scene/guarantees.h"
 #include "moreau/scene/scene_model.h"
 
 namespace moreau::scene {
@@ -132,12 +133,32 @@ RunSummary run_scheme_fixed(const LagrangianScene& scene, StudyScheme scheme, do
   return integrator.run(q0, v0, observer);
 }
 
+// `checked`: a run whose guarantees the study reports (the error runs and the reference), with the
+// checks `moreau run` makes at the recorded states (RecordedStateChecks) for the schemes with a mass matrix.
 RunSummary run_scheme(const LagrangianScene& scene, StudyScheme scheme, double h, const StudySettings& st, RunObserver* observer,
-                      std::int64_t output_every = 1) {
-  const RunSummary s =
+                      std::int64_t output_every = 1, bool checked = false) {
+  std::optional<RecordedStateChecks> checks;
+  if (checked && scheme != StudyScheme::kRegularized) {
+    checks.emplace(scene, observer);
+    observer = &*checks;
+  }
+  RunSummary s =
       dispatch_dof(scene.n, [&](auto dof) { return run_scheme_fixed<decltype(dof)::value>(scene, scheme, h, st, observer, output_every); });
+  if (checks) checks->record_into(s);
   if (s.status == RunStatus::kCancelled && st.cancel && st.cancel->load()) throw StudyCancelled();
   return s;
+}
+
+// The guarantees section of a study run, as `moreau run` writes it for the same scene, scheme and h.
+nlohmann::json run_guarantees(const LagrangianScene& scene, StudyScheme scheme, double h, const RunSummary& s) {
+  if (scheme == StudyScheme::kRegularized) return nlohmann::json::array();
+  LagrangianScene at = scene;
+  at.settings.h = h;
+  if (scheme == StudyScheme::kExplicit) {
+    at.settings.velocity_update = VelocityUpdate::kExplicit;
+    at.settings.step_rule = StepRule::kFixed;
+  }
+  return guarantees_json(lagrangian_guarantees(at, s));
 }
 
 void check_cancel(const StudySettings& st) {
@@ -317,11 +338,12 @@ StudyResult run_study(const LagrangianScene& scene, const StudySettings& st) {
     std::snprintf(buf, sizeof buf, "abl at h = %g", h_ref);
     result.reference = buf;
     GridSampler sampler(grid, n, std::numeric_limits<double>::infinity(), st.cancel);
-    const RunSummary ref = run_scheme(scene, StudyScheme::kAbl, h_ref, st, &sampler);
+    const RunSummary ref = run_scheme(scene, StudyScheme::kAbl, h_ref, st, &sampler, 1, true);
     if (ref.status != RunStatus::kCompleted) throw SceneError("--reference", "the reference run failed: " + ref.message);
     ref_q = sampler.q();
     ref_v = sampler.v();
     result.reference_converged_time = ref.converged_time;
+    result.reference_guarantees = run_guarantees(scene, StudyScheme::kAbl, h_ref, ref);
   }
   const double chatter_from = result.reference_converged_time.value_or(std::numeric_limits<double>::infinity());
 
@@ -340,7 +362,7 @@ StudyResult run_study(const LagrangianScene& scene, const StudySettings& st) {
       // convergence time: a first-order scheme arrives O(h) late.
       GridSampler sampler(grid, n, chatter_from + 5.0 * h, st.cancel);
       if (st.on_row_start) st.on_row_start(scheme, h);
-      const RunSummary s = run_scheme(scene, scheme, h, st, &sampler);
+      const RunSummary s = run_scheme(scene, scheme, h, st, &sampler, 1, true);
       row.status = to_string(s.status);
       row.message = s.message;
       row.steps = s.steps;
@@ -372,6 +394,7 @@ StudyResult run_study(const LagrangianScene& scene, const StudySettings& st) {
         row.converged_time_error = std::abs(*row.converged_time - *result.reference_converged_time);
       row.chatter_sign_changes = sampler.sign_changes();
       row.chatter_amplitude = sampler.amplitude();
+      row.guarantees = run_guarantees(scene, scheme, h, s);
 
       // Timed runs: no sampling (at most a cancellation check every kControlInterval steps), the minimum
       // over repeats, a single one when it is long.
@@ -508,6 +531,7 @@ nlohmann::json StudyResult::to_json() const {
   j["scene"] = scene;
   j["reference"] = reference;
   j["reference_converged_time"] = reference_converged_time ? num(*reference_converged_time) : nlohmann::json(nullptr);
+  j["reference_guarantees"] = reference_guarantees;
   j["rows"] = nlohmann::json::array();
   for (const auto& r : rows) {
     j["rows"].push_back({{"scheme", scheme_name(r.scheme)},
@@ -525,7 +549,8 @@ nlohmann::json StudyResult::to_json() const {
                          {"converged_time", r.converged_time ? num(*r.converged_time) : nlohmann::json(nullptr)},
                          {"converged_time_error", r.converged_time_error ? num(*r.converged_time_error) : nlohmann::json(nullptr)},
                          {"chatter_sign_changes", r.chatter_sign_changes},
-                         {"chatter_amplitude", num(r.chatter_amplitude)}});
+                         {"chatter_amplitude", num(r.chatter_amplitude)},
+                         {"guarantees", r.guarantees}});
   }
   j["orders"] = nlohmann::json::array();
   for (const auto& o : orders)
@@ -568,6 +593,7 @@ StudyResult StudyResult::from_json(const nlohmann::json& j) {
     r.scene = j.at("scene").get<std::string>();
     r.reference = j.at("reference").get<std::string>();
     r.reference_converged_time = optional(j.value("reference_converged_time", nlohmann::json()));
+    r.reference_guarantees = j.value("reference_guarantees", nlohmann::json());
     for (const auto& x : j["rows"]) {
       StudyRow row;
       row.scheme = scheme_in(x.at("scheme"));
@@ -586,6 +612,7 @@ StudyResult StudyResult::from_json(const nlohmann::json& j) {
       row.converged_time_error = optional(x.at("converged_time_error"));
       row.chatter_sign_changes = x.at("chatter_sign_changes").get<std::int64_t>();
       row.chatter_amplitude = number(x.at("chatter_amplitude"));
+      row.guarantees = x.value("guarantees", nlohmann::json::array());
       r.rows.push_back(row);
     }
     for (const auto& x : j["orders"]) {
@@ -627,6 +654,75 @@ std::string StudyResult::to_csv() const {
   return os.str();
 }
 
+namespace {
+
+// The guarantees of a study in a few lines: per scheme and theorem, at which h each verdict came out, with
+// the first failing (or unchecked) hypothesis and its numbers; the JSON has every row's whole section.
+std::string guarantees_summary_text(const StudyResult& r) {
+  std::ostringstream os;
+  os << "  guarantees  of each run above (every row's full section is in the JSON):\n";
+  auto h_text = [](double h) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.3g", h);
+    return std::string(buf);
+  };
+  // The first hypothesis of `g` (one guarantee's JSON) with verdict `v`, as "name: detail".
+  auto first_with = [](const nlohmann::json& g, const std::string& v) {
+    for (const auto& x : g.value("hypotheses", nlohmann::json::array()))
+      if (x.value("verdict", "") == v) return x.value("hypothesis", "") + (x.value("detail", "").empty() ? "" : ": " + x.value("detail", ""));
+    return std::string();
+  };
+  std::vector<StudyScheme> schemes;
+  for (const StudyRow& row : r.rows)
+    if (std::find(schemes.begin(), schemes.end(), row.scheme) == schemes.end()) schemes.push_back(row.scheme);
+  for (const StudyScheme scheme : schemes) {
+    std::vector<std::string> results;  // in order of first appearance
+    for (const StudyRow& row : r.rows)
+      if (row.scheme == scheme)
+        for (const auto& g : row.guarantees)
+          if (std::find(results.begin(), results.end(), g.value("result", "")) == results.end()) results.push_back(g.value("result", ""));
+    if (results.empty()) {
+      os << "    " << scheme_name(scheme) << ": no theorem of the papers covers this scheme\n";
+      continue;
+    }
+    for (const std::string& result : results) {
+      std::vector<std::pair<std::string, std::vector<std::string>>> by_verdict;  // verdict -> h values
+      std::string relied, first_detail;
+      for (const StudyRow& row : r.rows) {
+        if (row.scheme != scheme) continue;
+        for (const auto& g : row.guarantees) {
+          if (g.value("result", "") != result) continue;
+          const std::string v = g.value("verdict", "");
+          if (g.value("relied_on", false)) relied = " (relied on)";
+          auto it = std::find_if(by_verdict.begin(), by_verdict.end(), [&](const auto& p) { return p.first == v; });
+          if (it == by_verdict.end()) it = by_verdict.insert(by_verdict.end(), {v, {}});
+          it->second.push_back(h_text(row.h));
+          if (first_detail.empty() && v != "holds") first_detail = "at h = " + h_text(row.h) + ", " + v + ": " + first_with(g, v);
+        }
+      }
+      os << "    " << scheme_name(scheme) << ": " << result << relied << ":";
+      for (std::size_t i = 0; i < by_verdict.size(); ++i) {
+        os << (i ? ";" : "") << " " << by_verdict[i].first << " at h =";
+        for (std::size_t k = 0; k < by_verdict[i].second.size(); ++k) os << (k ? ", " : " ") << by_verdict[i].second[k];
+      }
+      os << "\n";
+      if (!first_detail.empty()) os << "        first " << first_detail << "\n";
+    }
+  }
+  if (r.reference_guarantees.is_array() && !r.reference_guarantees.empty()) {
+    os << "    reference (" << r.reference << "):";
+    bool first = true;
+    for (const auto& g : r.reference_guarantees) {
+      os << (first ? " " : "; ") << g.value("result", "") << " " << g.value("verdict", "");
+      first = false;
+    }
+    os << "\n";
+  }
+  return os.str();
+}
+
+}  // namespace
+
 std::string StudyResult::to_text() const {
   std::ostringstream os;
   char line[320];
@@ -661,6 +757,7 @@ std::string StudyResult::to_text() const {
     os << "              theory: " << (o.theory_order ? o.theory + ", order " + fixed3(*o.theory_order) : o.theory) << "; " << o.theory_note
        << "\n";
   }
+  os << guarantees_summary_text(*this);
   std::snprintf(line, sizeof line, "  study wall time %.2f s\n", wall_seconds);
   os << line;
   return os.str();

@@ -10,6 +10,7 @@
 //    the final-state error, and the error of the finite-step convergence time where both have one. A run's
 //    state at a common time is linearly interpolated between its two neighbouring samples (every step is
 //    sampled in the error run);
+//  - the guarantees section of that run (guarantees.h), and of a numerical reference;
 //  - chattering: from five of the run's steps after the reference's convergence time (a first-order
 //    scheme arrives O(h) late), the number of sign changes of the velocity components and their
 //    largest magnitude. The implicit scheme shows none (Acary and Brogliato 2010).
@@ -83,12 +84,18 @@ struct StudyRow {
   std::optional<double> converged_time_error;
   std::int64_t chatter_sign_changes = 0;
   double chatter_amplitude = 0.0;
+  // The guarantees section of the row's error run (guarantees_json: each theorem its claims rest on, its
+  // hypotheses, verdicts and numbers), as a run report has it; empty for the regularized peer, which no
+  // theorem of the papers covers.
+  nlohmann::json guarantees = nlohmann::json::array();
 };
 
 struct StudyResult {
   std::string scene;
   std::string reference;  // "exact solution" or "abl at h = ..."
   std::optional<double> reference_converged_time;
+  // The reference run's guarantees when the reference is numerical (null for an exact solution).
+  nlohmann::json reference_guarantees;
   std::vector<StudyRow> rows;
   struct Order {
     StudyScheme scheme = StudyScheme::kAbl;
