@@ -43,9 +43,9 @@ RunSummary drive(RunRecorder& rec, const std::vector<bool>& rest) {
   for (std::int64_t k = 1; k <= n; ++k) {
     rec.step_taken(0.01);
     rec.rest(rest[static_cast<std::size_t>(k)], k, k / 100.0);
-    rec.after_step(k, k / 100.0, 0.01, &x, &x, 0.0);
+    rec.after_step(k, k / 100.0, 0.01, &x, &x, 0.0, 0.0);
   }
-  rec.last_sample(n, n / 100.0, 0.01, &x, &x, 0.0);
+  rec.last_sample(n, n / 100.0, 0.01, &x, &x, 0.0, 0.0);
   rec.finish(n, n / 100.0, &x, &x, 0.0);
   return rec.close();
 }

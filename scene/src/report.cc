@@ -1,6 +1,7 @@
 #include "moreau/scene/report.h"
 
 #include "moreau/scene/guarantees.h"
+#include "moreau/scene/scene_model.h"
 
 #include <algorithm>
 #include <cstdio>
@@ -210,7 +211,7 @@ nlohmann::json mechanical_json(const MechanicalEnergy& e) {
   }
   if (e.along.samples > 0) {
     nlohmann::json a = {{"states_checked", e.along.samples},
-                        {"which", "every 16th recorded state"},
+                        {"which", "every " + std::to_string(RecordedStateChecks::kEnergyStride) + "th recorded state"},
                         {"max_rise", num(e.along.max_rise)},
                         {"max_rise_time", e.along.max_rise > 0.0 ? num(e.along.max_rise_time) : nlohmann::json(nullptr)}};
     if (e.dissipation_tracked) {
@@ -230,7 +231,7 @@ void mechanical_text(std::ostream& os, const MechanicalEnergy& e) {
   }
   os << "                E = 1/2 <M v, v> + V(q): E(t0) = " << fmt(e.initial) << ", E(t_N) = " << fmt(e.final);
   if (e.along.samples > 0)
-    os << "; largest rise above E(t0) at " << e.along.samples << " recorded states checked (every 16th): "
+    os << "; largest rise above E(t0) at " << e.along.samples << " recorded states checked (every " << RecordedStateChecks::kEnergyStride << "th): "
        << (e.along.max_rise > 0.0 ? fmt(e.along.max_rise) + " at t = " + fmt(e.along.max_rise_time) : std::string("none"));
   if (e.rose && e.cannot_rise) os << ": ROSE although F = 0 and dPhi dissipates (the explicit position update gains energy at O(h))";
   os << "\n";

@@ -113,6 +113,8 @@ class AblIntegrator {
  private:
   friend struct SteppingDriver;
   static constexpr bool kAdaptiveSteps = true;
+  static constexpr bool kTracksDissipation = true;
+  double step_dissipation() const { return step_work_; }
   void on_failure() {}
 
   // The scheme's part of the stepping loop (stepping_driver.h).
@@ -152,18 +154,20 @@ class AblIntegrator {
     if (settings_.velocity_update == VelocityUpdate::kExplicit) {
       explicit_velocity(v_, h_k);
       st.iterations = 1;  // one linear solve with M
-    } else if (!solver_.solve(P_, x_, y_, st)) {
-      return f.at(k, t, q_.data(), v_.data(),
-                  "the one-step inclusion (6.5) was not solved to round-off (residual " + std::to_string(st.residual) + ", tolerance " +
-                      std::to_string(st.tolerance) + ")");
+    } else {
+      if (!solver_.solve(P_, x_, y_, st)) {
+        return f.at(k, t, q_.data(), v_.data(),
+                    "the one-step inclusion (6.5) was not solved to round-off (residual " + std::to_string(st.residual) + ", tolerance " +
+                        std::to_string(st.tolerance) + ")");
+      }
+      // The work done against dPhi over the step, h_k <xi, V^{k+1}> with xi = -(P y + x) + W y in dPhi(y):
+      // the same for every element of dPhi(y) (Controller::dissipation_rate), so it needs no multiplier.
+      // y = 0 (the closed form of Lemma 6.1, no iteration) takes none. The explicit peer's xi is at V^k,
+      // not in dPhi(V^{k+1}): it is not tracked. The driver sums it (step_dissipation()).
+      step_work_ = st.iterations != 0 ? h_k * model_.controller().dissipation_rate(y_) : 0.0;
     }
     rec.solver_step(st.iterations, st.residual, st.used_fallback);
     s.solver.rest_steps += (st.iterations == 0);  // the y = 0 closed form of Lemma 6.1
-    // The work done against dPhi over the step, h_k <xi, V^{k+1}> with xi = -(P y + x) + W y in dPhi(y):
-    // the same for every element of dPhi(y) (Controller::dissipation_rate), so it needs no multiplier.
-    // (y = 0 takes none; the explicit peer's xi is at V^k, not in dPhi(V^{k+1}): not tracked.)
-    if (st.iterations != 0 && settings_.velocity_update == VelocityUpdate::kImplicit)
-      s.dissipated_work += h_k * model_.controller().dissipation_rate(y_);
 
     q_ += h_k * v_;  // Q^{k+1} = Q^k + h_k V^k: explicit in position
     v_ = y_;
@@ -306,6 +310,7 @@ class AblIntegrator {
   Mat<N> P_, Mtrial_, eps_;
   Vec<N> q_, v_;         // the state (Q^k, V^k)
   double energy_ = 0.0;  // E_k = 1/2 <M(Q^k) V^k, V^k>
+  double step_work_ = 0.0;  // h_k <xi, V^{k+1}> of the last step (0 for the explicit peer)
   Vec<N> x_, y_, Mv_, zero_, q_trial_;
   Eigen::SelfAdjointEigenSolver<Mat<N>> eig_;
   Eigen::PartialPivLU<Mat<N>> mass_lu_;

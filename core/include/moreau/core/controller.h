@@ -44,8 +44,9 @@ struct Controller {
   // identity <z, v> = phi(v) for z in dphi(v)). The power the controller (and friction) takes out of the
   // system at velocity v, >= 0.
   double dissipation_rate(const Vec<N>& v) const {
-    const double smooth = v.dot(weights.cwiseProduct(v)) + gains.dot(v.cwiseAbs());
-    return norm_gain != 0.0 ? smooth + norm_gain * v.norm() : smooth;
+    const auto a = v.cwiseAbs().array();  // w_i v_i^2 + a_i |v_i| = |v_i| (w_i |v_i| + a_i)
+    const double separable = (a * (weights.array() * a + gains.array())).sum();
+    return norm_gain != 0.0 ? separable + norm_gain * v.norm() : separable;
   }
 
   // Distance from z to dPhi(0) = A [-1, 1]^n + a_norm B (a box plus a ball): the equilibrium residual of

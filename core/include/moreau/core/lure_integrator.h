@@ -123,6 +123,7 @@ class LureIntegrator {
  private:
   friend struct SteppingDriver;
   static constexpr bool kAdaptiveSteps = false;
+  static constexpr bool kTracksDissipation = false;
 
   // The scheme's part of the stepping loop (stepping_driver.h): the observer sees x and its discrete
   // derivative; the energy is W_k.

@@ -214,6 +214,7 @@ class MoreauJeanIntegrator {
  private:
   friend struct SteppingDriver;
   static constexpr bool kAdaptiveSteps = false;
+  static constexpr bool kTracksDissipation = false;
   void on_failure() {}
 
   // The scheme's part of the stepping loop (stepping_driver.h). Its energy is the kinetic energy; the

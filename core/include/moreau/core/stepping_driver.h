@@ -118,18 +118,19 @@ class RunRecorder {
   // The end of step k: its sample if k is a multiple of output_every, and every kControlInterval steps
   // the observer's chance to cancel. False: the run is cancelled (finish it, then call cancelled()).
   // (Steps arrive in order 1, 2, ...: a countdown replaces k % output_every, an integer division per step.)
-  bool after_step(std::int64_t k, double t, double h_k, const double* q, const double* v, double energy) {
+  // `dissipated`: D up to step k (RunSummary::dissipated_work), which the sample carries.
+  bool after_step(std::int64_t k, double t, double h_k, const double* q, const double* v, double energy, double dissipated) {
     if (--until_sample_ == 0) {
       until_sample_ = every_;
-      emit(k, t, h_k, q, v, energy);
+      emit(k, t, h_k, q, v, energy, dissipated);
       last_emitted_ = k;
     }
     return !(observer_ && k % RunObserver::kControlInterval == 0 && !observer_->keep_going(k, t));
   }
 
   // The last state's sample, unless after_step gave it already.
-  void last_sample(std::int64_t k, double t, double h_k, const double* q, const double* v, double energy) {
-    if (last_emitted_ != k) emit(k, t, h_k, q, v, energy);
+  void last_sample(std::int64_t k, double t, double h_k, const double* q, const double* v, double energy, double dissipated) {
+    if (last_emitted_ != k) emit(k, t, h_k, q, v, energy, dissipated);
   }
 
   // The summary of a run that ended at step k (completed or cancelled): the final state, energy, rest
@@ -184,8 +185,8 @@ class RunRecorder {
   }
 
  private:
-  void emit(std::int64_t k, double t, double h, const double* q, const double* v, double energy) {
-    if (observer_) observer_->on_sample(Sample{k, t, h, n_, q, v, energy, s_.dissipated_work});
+  void emit(std::int64_t k, double t, double h, const double* q, const double* v, double energy, double dissipated = 0.0) {
+    if (observer_) observer_->on_sample(Sample{k, t, h, n_, q, v, energy, dissipated});
   }
   bool finite(const double* x) const {
     for (int i = 0; i < n_; ++i)
@@ -254,6 +255,9 @@ struct SteppingPlan {
 //   double energy_allowance(double e_old, double e_initial) const;  // round-off of E_{k+1} - E_k
 //   void finish(RunRecorder& rec, std::int64_t k, double t);        // the summary of an ended run
 //   void on_failure();                                      // what else a failed run records
+//   static constexpr bool kTracksDissipation;               // whether it has, after each step,
+//   double step_dissipation() const;                        // the work done against dPhi in it
+//       // (summed by the driver in a local, so that the sum never goes through memory in the hot loop)
 //   static constexpr bool kAdaptiveSteps;                   // whether the scheme has an adaptive rule:
 //   bool propose_step(double t, double h_prev, double& h_k, std::string& why);  // then h_k from the state
 //
@@ -292,6 +296,7 @@ struct SteppingDriver {
     rec.start(t, energy, scheme.at_rest());
     rec.first_sample(t, plan.h, scheme.q(), scheme.v(), energy);
     double h_k = plan.h, h_prev = plan.h;
+    double dissipated = 0.0;  // D, RunSummary::dissipated_work
     while (true) {
       if (fixed) {
         if (k >= grid.steps) break;
@@ -315,6 +320,7 @@ struct SteppingDriver {
       }
       const double t_next = fixed ? grid.time(k + 1) : t + h_k;
       if (!scheme.step(k, t, h_k, t_next, rec, f)) return failed(scheme, rec, f);
+      if constexpr (Scheme::kTracksDissipation) dissipated += scheme.step_dissipation();
       ++k;
       t = t_next;
       h_prev = h_k;
@@ -324,12 +330,14 @@ struct SteppingDriver {
       const double e_new = scheme.energy();
       rec.energy_step(energy, e_new, scheme.energy_allowance(energy, rec.summary().energy_initial));
       energy = e_new;
-      if (!rec.after_step(k, t, h_k, scheme.q(), scheme.v(), energy)) {
+      if (!rec.after_step(k, t, h_k, scheme.q(), scheme.v(), energy, dissipated)) {
+        rec.summary().dissipated_work = dissipated;
         scheme.finish(rec, k, t);
         return rec.cancelled(k);
       }
     }
-    rec.last_sample(k, t, h_k, scheme.q(), scheme.v(), energy);
+    rec.last_sample(k, t, h_k, scheme.q(), scheme.v(), energy, dissipated);
+    rec.summary().dissipated_work = dissipated;
     scheme.finish(rec, k, t);
     return rec.close();
   }

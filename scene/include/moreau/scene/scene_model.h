@@ -191,9 +191,12 @@ class SceneModel {
 class RecordedStateChecks final : public ForwardingObserver {
  public:
   RecordedStateChecks(const LagrangianScene& scene, RunObserver* next);
-  // Every kStride-th recorded state: one evaluation costs about as much as a step of the relay, and
-  // states kStride steps apart are close; a failure found at any of them is a failure of the assumption.
+  // Assumption 4.1 at every kStride-th recorded state: one evaluation costs about as much as a step of
+  // the relay, and states kStride steps apart are close; a failure found at any of them is a failure of
+  // the assumption. E at every kEnergyStride-th: a potential costs a sine or a cosine on a 100 ns step, and
+  // the balance's exact parts (D at every step, E at both ends) do not depend on it.
   static constexpr std::int64_t kStride = 16;
+  static constexpr std::int64_t kEnergyStride = 64;
   void on_sample(const Sample& s) override;
   // Writes what was found into the run's summary (force_bounds, mechanical).
   void record_into(RunSummary& s) const;
