@@ -8,7 +8,6 @@
 #include <cstdio>
 #include <cstdlib>
 #include <stdexcept>
-#include <string_view>
 
 #include <lcm/lcm-cpp.hpp>
 #include <moreau/description_t.hpp>
@@ -278,9 +277,9 @@ void StreamObserver::publish_and_advance(const Sample& s) {
   // would publish its remaining states unpaced until the run reaches its next cancellation check.
   if (cancel_ && cancel_->load(std::memory_order_relaxed)) return;
   for (HeldEvent& e : held_) {
-    if (std::string_view(e.kind) == "converged") announced_rest_ = e.rest_from;
-    if (std::string_view(e.kind) == "convergence_withdrawn") announced_rest_.reset();
-    stream_->push_event(e.kind, e.step, e.t, std::move(e.text));
+    if (e.kind == HeldEvent::Kind::kConverged) announced_rest_ = e.rest_from;
+    if (e.kind == HeldEvent::Kind::kConvergenceWithdrawn) announced_rest_.reset();
+    stream_->push_event(e.name(), e.step, e.t, std::move(e.text));
   }
   held_.clear();
   if (impacts_seen_ > kMaxImpactEvents && !truncation_said_) {
@@ -303,7 +302,7 @@ void StreamObserver::on_impact(const ImpactEvent& e) {
   char text[256];
   std::snprintf(text, sizeof text, "contact=%d pre=%.17g post=%.17g restitution=%.17g impulse=%.17g", e.constraint, e.pre, e.post,
                 e.restitution, e.impulse);
-  held_.push_back({"impact", e.step, e.t, text, std::nullopt});
+  held_.push_back({HeldEvent::Kind::kImpact, e.step, e.t, text, std::nullopt});
 }
 
 void StreamObserver::on_rest_detected(std::int64_t from_step, double from_t, std::int64_t step, double t) {
@@ -313,14 +312,14 @@ void StreamObserver::on_rest_detected(std::int64_t from_step, double from_t, std
                 "final if the rest lasts to the end and the final state is an equilibrium of the scheme, "
                 "else a convergence_withdrawn event follows",
                 static_cast<long long>(from_step), from_t, static_cast<long long>(step), t, static_cast<long long>(step - from_step));
-  held_.push_back({"converged", from_step, from_t, text, from_step});
+  held_.push_back({HeldEvent::Kind::kConverged, from_step, from_t, text, from_step});
 }
 
 void StreamObserver::on_rest_ended(std::int64_t from_step, std::int64_t step, double t) {
   char text[200];
   std::snprintf(text, sizeof text, "v != 0 at step %lld (t = %.17g): the rest from step %lld ended, the run is no longer converged",
                 static_cast<long long>(step), t, static_cast<long long>(from_step));
-  held_.push_back({"convergence_withdrawn", step, t, text, std::nullopt});
+  held_.push_back({HeldEvent::Kind::kConvergenceWithdrawn, step, t, text, std::nullopt});
 }
 
 void StreamObserver::flush_last(const RunSummary& summary) {

@@ -186,11 +186,21 @@ class StreamObserver final : public RunObserver {
   std::chrono::steady_clock::time_point wall_start_;
   double last_h_ = 0;  // the step of the last sample seen (the summary does not carry it)
   struct HeldEvent {
-    const char* kind;
+    enum class Kind { kImpact, kConverged, kConvergenceWithdrawn };
+    Kind kind;
     std::int64_t step;
     double t;
     std::string text;
-    std::optional<std::int64_t> rest_from;  // "converged": the rest it announces; "convergence_withdrawn": none
+    std::optional<std::int64_t> rest_from;  // kConverged: the rest it announces; otherwise none
+    // The event's kind as the stream names it (docs/streaming.md).
+    const char* name() const {
+      switch (kind) {
+        case Kind::kImpact: return "impact";
+        case Kind::kConverged: return "converged";
+        case Kind::kConvergenceWithdrawn: return "convergence_withdrawn";
+      }
+      return "unknown";
+    }
   };
   std::vector<HeldEvent> held_;  // since the last sample, in order
   std::int64_t impacts_seen_ = 0;
