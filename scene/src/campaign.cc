@@ -468,12 +468,15 @@ CampaignSampleRunner::CampaignSampleRunner(const CampaignSpec& spec, const Campa
 
 CampaignSampleRunner::~CampaignSampleRunner() = default;
 
+json CampaignSampleRunner::record_head(std::int64_t i, const std::vector<json>& values) const {
+  json inputs = json::object();
+  for (std::size_t k = 0; k < values.size(); ++k) inputs[spec_.inputs[k].path] = values[k];
+  return {{"index", i}, {"inputs", std::move(inputs)}};
+}
+
 json CampaignSampleRunner::record_of(std::int64_t i, const std::vector<json>& values, const Simulation& sim) const {
   const CampaignSpec& spec = spec_;
-  json record = {{"index", i}};
-  json inputs = json::object();
-  for (std::size_t k = 0; k < values.size(); ++k) inputs[spec.inputs[k].path] = values[k];
-  record["inputs"] = std::move(inputs);
+  json record = record_head(i, values);
   ExtremaTracker extrema;
   RunDiagnostics diagnostics;
   const RunSummary summary = sim.run(&extrema, &diagnostics);
@@ -512,10 +515,7 @@ json CampaignSampleRunner::run_compiled(std::int64_t i, const std::vector<json>&
     for (std::size_t k = 0; k < values.size(); ++k) doc_[paths_[k]] = values[k];
     return record_of(i, values, Simulation::from_json(doc_).with_limits(RunLimits{max_steps_, 1}));
   } catch (const std::exception& e) {
-    json record = {{"index", i}};
-    json inputs = json::object();
-    for (std::size_t k = 0; k < values.size(); ++k) inputs[spec_.inputs[k].path] = values[k];
-    record["inputs"] = std::move(inputs);
+    json record = record_head(i, values);
     record["status"] = "invalid";
     record["success"] = false;
     // Anything else a sample's values provoke is that sample's failure, not the campaign's.
@@ -535,8 +535,7 @@ std::optional<json> CampaignSampleRunner::run_bound(std::int64_t i, const std::v
     if (!std::isfinite(v)) return std::nullopt;
     const Target& t = targets_[k];
     if (t.kind == Target::kParameter) {
-      if (v == 0.0) return std::nullopt;  // the full compile folds 0 * x into a constant 0
-      params.push_back(v);
+      params.push_back(v);  // bind() refuses a value the graph folds specially (0): then the full compile
     } else {
       (t.kind == Target::kInitialQ ? q0 : v0)[static_cast<std::size_t>(t.index)] = v;
     }

@@ -147,6 +147,8 @@ class CampaignSampleRunner {
   nlohmann::json run_compiled(std::int64_t i, const std::vector<nlohmann::json>& values);
   std::optional<nlohmann::json> run_bound(std::int64_t i, const std::vector<nlohmann::json>& values);
   nlohmann::json record_of(std::int64_t i, const std::vector<nlohmann::json>& values, const Simulation& sim) const;
+  // What every record of sample i starts with, run or not: {"index": i, "inputs": {path: value, ...}}.
+  nlohmann::json record_head(std::int64_t i, const std::vector<nlohmann::json>& values) const;
 
   const CampaignSpec& spec_;
   const CampaignDesign& design_;
