@@ -164,6 +164,7 @@ struct MechanicalEnergy {
   bool rose = false;         // beyond round-off, at the end or at a recorded state checked on the way
   bool cannot_rise = false;  // F = 0: a rise is the scheme's doing
   bool dissipation_tracked = false;
+  std::string why_not_tracked;  // when it is not
   double dissipated = 0.0;  // D at the end
   double balance = 0.0;     // E(t_N) - E(t0) + D(t_N)
   MechanicalEnergyTrack along;  // at the recorded states checked on the way (samples 0: none)
@@ -186,6 +187,10 @@ MechanicalEnergy mechanical_energy(const LagrangianScene& scene, const RunSummar
   e.rose = e.final > e.initial + tolerance || (e.along.samples > 0 && e.along.max_rise > tolerance);
   e.cannot_rise = !scene.has_force;
   e.dissipation_tracked = s.dissipation_tracked;
+  if (!e.dissipation_tracked)
+    e.why_not_tracked = scene.scheme == Scheme::kMoreauJean ? "the contact scheme does not separate its impulses' work"
+                        : s.status == RunStatus::kFailed   ? "the run failed before its end"
+                                                           : "only the implicit scheme (0.2) tracks it (the explicit peer's xi is not in dPhi(V^{k+1}))";
   e.dissipated = s.dissipated_work;
   e.balance = e.final - e.initial + e.dissipated;
   return e;
@@ -207,7 +212,7 @@ nlohmann::json mechanical_json(const MechanicalEnergy& e) {
     j["balance_kind"] = std::string("E(t_N) - E(t0) + D: ") + balance_meaning(e);
   } else {
     j["dissipated_work"] = "not tracked";
-    j["dissipated_work_why"] = "only the scheme (0.2) tracks it; the contact scheme does not separate its impulses' work";
+    j["dissipated_work_why"] = e.why_not_tracked;
   }
   if (e.along.samples > 0) {
     nlohmann::json a = {{"states_checked", e.along.samples},
@@ -241,7 +246,7 @@ void mechanical_text(std::ostream& os, const MechanicalEnergy& e) {
     if (e.along.samples > 0) os << " (largest |.| on the way " << fmt(e.along.max_balance) << " at t = " << fmt(e.along.max_balance_time) << ")";
     os << "\n";
   } else {
-    os << "                work against dPhi: not tracked (the contact scheme does not separate its impulses' work)\n";
+    os << "                work against dPhi: not tracked (" << e.why_not_tracked << ")\n";
   }
 }
 

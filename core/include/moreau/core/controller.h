@@ -15,6 +15,17 @@
 
 namespace moreau {
 
+// <xi, v> for every xi in dPhi(v), Phi = 1/2 <W v, v> + sum_i a_i |v_i| + a_norm ||v|| (Controller below):
+// <W v, v> + sum_i a_i |v_i| + a_norm ||v||. The same for every element of the subdifferential, because
+// the nonsmooth parts are positively homogeneous of degree 1 (Euler's identity <z, v> = phi(v) for z in
+// dphi(v)). The power the controller (and friction) takes out of the system at velocity v, >= 0.
+template <int N>
+double dissipation_rate(const Vec<N>& w, const Vec<N>& a, double a_norm, const Vec<N>& v) {
+  const auto abs_v = v.cwiseAbs().array();  // w_i v_i^2 + a_i |v_i| = |v_i| (w_i |v_i| + a_i)
+  const double separable = (abs_v * (w.array() * abs_v + a.array())).sum();
+  return a_norm != 0.0 ? separable + a_norm * v.norm() : separable;
+}
+
 template <int N>
 struct Controller {
   Vec<N> weights;          // w_i >= 0: the quadratic part, which enters the one-step matrix P
@@ -38,16 +49,6 @@ struct Controller {
   double alpha() const { return (size() == 0 ? 0.0 : gains.minCoeff()) + norm_gain; }
 
   double value(const Vec<N>& v) const { return 0.5 * v.dot(weights.cwiseProduct(v)) + gains.dot(v.cwiseAbs()) + norm_gain * v.norm(); }
-
-  // <xi, v> for every xi in dPhi(v): <W v, v> + sum_i a_i |v_i| + a_norm ||v||. The same for every element
-  // of the subdifferential, because the nonsmooth parts are positively homogeneous of degree 1 (Euler's
-  // identity <z, v> = phi(v) for z in dphi(v)). The power the controller (and friction) takes out of the
-  // system at velocity v, >= 0.
-  double dissipation_rate(const Vec<N>& v) const {
-    const auto a = v.cwiseAbs().array();  // w_i v_i^2 + a_i |v_i| = |v_i| (w_i |v_i| + a_i)
-    const double separable = (a * (weights.array() * a + gains.array())).sum();
-    return norm_gain != 0.0 ? separable + norm_gain * v.norm() : separable;
-  }
 
   // Distance from z to dPhi(0) = A [-1, 1]^n + a_norm B (a box plus a ball): the equilibrium residual of
   // Theorem 4.3 with z = -F(Q, 0) - grad V(Q). Zero when z lies in dPhi(0).

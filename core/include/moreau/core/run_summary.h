@@ -159,7 +159,7 @@ struct RunSummary {
   std::int64_t energy_increases = 0;  // steps where E rose above the allowance
 
   // D = sum_k h_k <xi_k, V^{k+1}> with xi_k in dPhi(V^{k+1}) the step's element: the work done against the
-  // set-valued controller and friction (Controller::dissipation_rate), >= 0. Tracked by the scheme (0.2)
+  // set-valued controller and friction (dissipation_rate in controller.h), >= 0. Tracked by the scheme (0.2)
   // (dissipation_tracked); the contact scheme's impulses are not separated from it, so it does not.
   double dissipated_work = 0.0;
   bool dissipation_tracked = false;
