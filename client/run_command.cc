@@ -69,7 +69,7 @@ int run(const RunOptions& opt) {
   }
   const double load_s = since(t_load);
 
-  scene::ObserverFan fan;
+  ObserverFan fan;
   std::optional<scene::TrajectoryCsvWriter> csv;
   if (!opt.out_csv.empty()) {
     try {

@@ -1,6 +1,7 @@
 // The run bookkeeping every scheme shares (core/include/moreau/core/stepping_driver.h): convergence is
 // announced to the observer when the rest reaches the report's window of RunSummary::kMinRestSteps steps,
-// withdrawn if the velocity leaves 0.0 again, and the announcements agree with the summary's converged step.
+// withdrawn if the velocity leaves 0.0 again, and the announcements agree with the summary's converged step;
+// and ObserverFan (core/observer.h), which hands a run's events to several observers.
 #include "moreau/core/stepping_driver.h"
 
 #include <gtest/gtest.h>
@@ -138,6 +139,59 @@ TEST(RunRecorder, AblRunAnnouncesConvergenceWhenItIsDetected) {
   EXPECT_EQ(e.samples_seen, static_cast<std::size_t>(e.step));
   EXPECT_LT(e.samples_seen, log.samples / 2) << "the relay stops at t* = (m/c) ln(1 + c v0 / a) = 3.67 of 8";
   EXPECT_EQ(log.samples, static_cast<std::size_t>(s.steps) + 1);
+}
+
+// ObserverFan (core/observer.h): every observer added sees every event of the run, the same as alone.
+TEST(ObserverFan, EachObserverSeesWhatItWouldSeeAlone) {
+  models::Oscillator1 model(2.0, 0.0, 0.0, 0.5, 1.0);
+  AblSettings settings;
+  settings.h = 1e-3;
+  settings.t_end = 8.0;
+  RestLog alone;
+  AblIntegrator<models::Oscillator1>(model, settings).run(Vec<1>(0.0), Vec<1>(3.0), &alone);
+  ASSERT_EQ(alone.entries.size(), 1u);  // the relay comes to rest once: there is something to pass on
+
+  RestLog first, second;
+  ObserverFan fan;
+  fan.add(&first);
+  fan.add(nullptr);  // ignored
+  fan.add(&second);
+  AblIntegrator<models::Oscillator1>(model, settings).run(Vec<1>(0.0), Vec<1>(3.0), &fan);
+  for (const RestLog* log : {&first, &second}) {
+    EXPECT_EQ(log->samples, alone.samples);
+    ASSERT_EQ(log->entries.size(), alone.entries.size());
+    EXPECT_EQ(log->entries[0].from_step, alone.entries[0].from_step);
+    EXPECT_EQ(log->entries[0].step, alone.entries[0].step);
+    EXPECT_EQ(log->entries[0].samples_seen, alone.entries[0].samples_seen);
+  }
+}
+
+// The run stops at the first control point where any observer says stop, and every observer is asked
+// at every control point (none is skipped because another already said stop).
+TEST(ObserverFan, StopsWhenAnyObserverAsksAndAsksThemAll) {
+  struct Stopper : RunObserver {
+    std::int64_t stop_at;
+    int asked = 0;
+    explicit Stopper(std::int64_t at) : stop_at(at) {}
+    void on_sample(const Sample&) override {}
+    bool keep_going(std::int64_t step, double) override {
+      ++asked;
+      return step < stop_at;
+    }
+  };
+  models::Oscillator1 model(2.0, 0.0, 0.0, 0.5, 1.0);
+  AblSettings settings;
+  settings.h = 1e-3;
+  settings.t_end = 8.0;
+  Stopper early(2 * RunObserver::kControlInterval), never(1 << 30);
+  ObserverFan fan;
+  fan.add(&early);
+  fan.add(&never);
+  const RunSummary s = AblIntegrator<models::Oscillator1>(model, settings).run(Vec<1>(0.0), Vec<1>(3.0), &fan);
+  EXPECT_EQ(s.status, RunStatus::kCancelled);
+  EXPECT_EQ(s.steps, 2 * RunObserver::kControlInterval);
+  EXPECT_EQ(early.asked, 2);
+  EXPECT_EQ(never.asked, 2);
 }
 
 }  // namespace

@@ -47,32 +47,4 @@ struct TrajectoryColumns {
 // std::runtime_error naming `source` and the line ("'traj.csv' line 3: 'x' is not a finite number").
 TrajectoryColumns read_trajectory_csv(std::istream& in, const std::string& source);
 
-// Runs several observers as one.
-class ObserverFan : public RunObserver {
- public:
-  void add(RunObserver* o) {
-    if (o) observers_.push_back(o);
-  }
-  void on_sample(const Sample& s) override {
-    for (auto* o : observers_) o->on_sample(s);
-  }
-  bool keep_going(std::int64_t step, double t) override {
-    bool go = true;
-    for (auto* o : observers_) go = o->keep_going(step, t) && go;
-    return go;
-  }
-  void on_impact(const ImpactEvent& e) override {
-    for (auto* o : observers_) o->on_impact(e);
-  }
-  void on_rest_detected(std::int64_t from_step, double from_t, std::int64_t step, double t) override {
-    for (auto* o : observers_) o->on_rest_detected(from_step, from_t, step, t);
-  }
-  void on_rest_ended(std::int64_t from_step, std::int64_t step, double t) override {
-    for (auto* o : observers_) o->on_rest_ended(from_step, step, t);
-  }
-
- private:
-  std::vector<RunObserver*> observers_;
-};
-
 }  // namespace moreau::scene
