@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include <Eigen/Geometry>
@@ -197,6 +198,32 @@ TEST_F(TreeCrossChecks, InverseDynamicsIsMassTimesAccelerationPlusBiasPlusGravit
   Eigen::VectorXd G;
   terms(q, v, M, C, G);
   EXPECT_LT(relative(rnea(q, v, a, true), M * a + C * v + G), 1e-12);
+}
+
+// M and C are written whole whatever the output buffers held: a chain's (ancestor, body) pairs cover every
+// entry, and a tree's entries between bodies on different branches are set to 0 (the tree here has them:
+// its M has exact zeros that RNEA's columns reproduce).
+TEST_F(TreeCrossChecks, EveryEntryIsWrittenWhateverTheBuffersHeld) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const PlanarArm arm = three_link();
+  const RigidBodyModel chain = arm.model();
+  for (const RigidBodyModel* m : std::initializer_list<const RigidBodyModel*>{&model, &chain}) {
+    RigidBodyData d(*m);
+    const int k = m->dof();
+    const Eigen::VectorXd q = random_vector().head(k), v = random_vector().head(k);
+    Eigen::MatrixXd M0 = Eigen::MatrixXd::Zero(k, k), C0 = M0, M1 = Eigen::MatrixXd::Constant(k, k, nan), C1 = M1, M2 = M1;
+    Eigen::VectorXd G0(k), G1(k);
+    rigid_body_terms(*m, d, q.data(), v.data(), M0, C0, G0);
+    rigid_body_terms(*m, d, q.data(), v.data(), M1, C1, G1);
+    mass_matrix(*m, d, q.data(), M2);
+    EXPECT_EQ(M1, M0);
+    EXPECT_EQ(C1, C0);
+    EXPECT_EQ(M2, M0);
+  }
+  Eigen::MatrixXd M, C;
+  Eigen::VectorXd G;
+  terms(random_vector(), random_vector(), M, C, G);
+  EXPECT_GT((M.array() == 0.0).count(), 0) << "the tree must have bodies on different branches";
 }
 
 }  // namespace

@@ -120,6 +120,14 @@ void gravity_from_composites(const RigidBodyModel& model, const RigidBodyData& d
   }
 }
 
+// Every body's parent is the body before it (a serial arm): then the loops over (ancestor, body) pairs
+// below visit every entry of M and C, and nothing needs zeroing first.
+bool is_chain(const RigidBodyModel& model) {
+  for (int j = 0; j < model.dof(); ++j)
+    if (model.bodies[static_cast<std::size_t>(j)].parent != j - 1) return false;
+  return true;
+}
+
 }  // namespace
 
 RigidBodyData::RigidBodyData(const RigidBodyModel& model) {
@@ -152,7 +160,7 @@ void mass_matrix(const RigidBodyModel& model, RigidBodyData& data, const double*
   update_poses(model, data, q);
   composite_inertias(model, data);
   const int n = model.dof();
-  M.setZero();
+  if (!is_chain(model)) M.setZero();  // a tree leaves M(a, j) = 0 where neither supports the other
   for (int j = 0; j < n; ++j) {
     const std::size_t k = static_cast<std::size_t>(j);
     const Vector6d F2 = inertia_times(data.mass[k], data.first_moment[k], data.rotational[k], data.S[k]);
@@ -186,8 +194,10 @@ void rigid_body_terms(const RigidBodyModel& model, RigidBodyData& data, const do
     data.momentum[pk] += data.momentum[k];
     data.A[pk] += data.A[k];
   }
-  M.setZero();
-  C.setZero();
+  if (!is_chain(model)) {  // a tree leaves M(a, j) = C(a, j) = 0 where neither body supports the other
+    M.setZero();
+    C.setZero();
+  }
   for (int j = 0; j < n; ++j) {
     const std::size_t k = static_cast<std::size_t>(j);
     const Vector6d& S = data.S[k];
