@@ -535,7 +535,8 @@ std::optional<json> CampaignSampleRunner::run_bound(std::int64_t i, const std::v
     if (!std::isfinite(v)) return std::nullopt;
     const Target& t = targets_[k];
     if (t.kind == Target::kParameter) {
-      params.push_back(v);  // bind() refuses a value the graph folds specially (0): then the full compile
+      params.push_back(v);  // bind() throws for a value the graph folds specially (0); the catch below then
+                            // leaves the sample to the full compile
     } else {
       (t.kind == Target::kInitialQ ? q0 : v0)[static_cast<std::size_t>(t.index)] = v;
     }

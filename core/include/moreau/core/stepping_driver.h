@@ -69,7 +69,7 @@ class RunRecorder {
     s_.h_max = 0.0;
   }
   // The sample of the initial state (its h is the nominal step).
-  void first_sample(double t, double h_nominal, const double* q, const double* v, double energy) { emit(0, t, h_nominal, q, v, energy); }
+  void first_sample(double t, double h_nominal, const double* q, const double* v, double energy) { emit(0, t, h_nominal, q, v, energy, 0.0); }
 
   // The one-step solver's effort on this step.
   void solver_step(int iterations, double residual, bool used_fallback) {
@@ -185,7 +185,7 @@ class RunRecorder {
   }
 
  private:
-  void emit(std::int64_t k, double t, double h, const double* q, const double* v, double energy, double dissipated = 0.0) {
+  void emit(std::int64_t k, double t, double h, const double* q, const double* v, double energy, double dissipated) {
     if (observer_) observer_->on_sample(Sample{k, t, h, n_, q, v, energy, dissipated});
   }
   bool finite(const double* x) const {
