@@ -61,7 +61,7 @@ TEST(ClientRemote, A401SaysHowToPassAToken) {
 TEST(ClientRemote, SubmitStudyRunsAServerSideStudy) {
   TestServer ts;
   auto c = ts.client();
-  const std::filesystem::path dir = testing::make_temp_dir("client-study");
+  const testing::TempDir dir("client-study");
   const std::string server = " --server http://127.0.0.1:" + std::to_string(ts.port());
   const std::string csv = (dir / "table.csv").string();
   const Outcome done = run_client("submit manipulator --study --set integrator.t_end=0.5 --h 1e-2,1e-3 --schemes abl,explicit --repeats 1 "
@@ -106,7 +106,7 @@ TEST(ClientRemote, FigureIsSvgOrPngByTheFileName) {
   const auto waited = nlohmann::json::parse(c->Get("/v1/jobs/" + id + "?wait=30")->body);
   ASSERT_EQ(waited.at("state"), "done") << waited.dump();
 
-  const std::filesystem::path dir = testing::make_temp_dir("client-figure");
+  const testing::TempDir dir("client-figure");
   const std::string server = " --server http://127.0.0.1:" + std::to_string(ts.port());
   const Outcome svg = run_client("figure " + id + " -o " + (dir / "state.svg").string() + server);
   ASSERT_EQ(svg.status, 0) << svg.output;
@@ -118,7 +118,6 @@ TEST(ClientRemote, FigureIsSvgOrPngByTheFileName) {
   };
   EXPECT_THAT(read(dir / "state.svg"), ::testing::HasSubstr("<svg"));
   EXPECT_EQ(read(dir / "state.png").substr(0, 8), std::string("\x89PNG\r\n\x1a\n", 8));
-  std::filesystem::remove_all(dir);
 }
 
 }  // namespace

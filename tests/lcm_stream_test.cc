@@ -30,10 +30,10 @@
 namespace {
 
 using moreau::server::ServerConfig;
-using moreau::server::testing::make_temp_dir;
 using moreau::server::testing::manipulator;
 using moreau::server::testing::read_json_file;
 using moreau::server::testing::submit;
+using moreau::server::testing::TempDir;
 using moreau::server::testing::TestServer;
 using moreau::server::testing::wait_final;
 using moreau::server::testing::wait_running;
@@ -251,7 +251,7 @@ TEST(LcmStream, CoarseTrajectoryDecimationStillStreamsEveryPeriod) {
 }
 
 TEST(LcmStream, FileLogIsWrittenAndReadBack) {
-  const fs::path dir = make_temp_dir("lcmlog");
+  const TempDir dir("lcmlog");
   const fs::path log = dir / "stream.log";
   std::string id;
   json report;
@@ -278,7 +278,6 @@ TEST(LcmStream, FileLogIsWrittenAndReadBack) {
     got.add(e->channel, e->data, e->datalen);
   }
   check_stream(got, id, report, 1.0 / 64, 4.0);
-  fs::remove_all(dir);
 }
 
 // A file:// log in a directory that does not exist, or a log to read that does not exist: the server
@@ -301,14 +300,14 @@ TEST(LcmStream, AFileUrlWithoutItsDirectoryOrFileSaysWhich) {
                                                "/nonexistent-moreau-dir does not exist"));
   }
 #ifdef MOREAU_CLIENT_BINARY
-  const std::string out_file = (make_temp_dir("watch-url") / "out").string();
+  const TempDir dir("watch-url");
+  const std::string out_file = (dir / "out").string();
   const int rc =
       std::system((std::string(MOREAU_CLIENT_BINARY) + " watch --lcm-url 'file:///nonexistent-moreau-dir/x.log' > " + out_file + " 2>&1").c_str());
   std::ifstream f(out_file);
   const std::string out((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
   EXPECT_EQ(WEXITSTATUS(rc), 2) << out;
   EXPECT_THAT(out, ::testing::HasSubstr("the log file /nonexistent-moreau-dir/x.log does not exist"));
-  fs::remove_all(fs::path(out_file).parent_path());
 #endif
 }
 
@@ -492,9 +491,9 @@ TEST(LcmStream, UdpmBetweenProcessesInAPrivateNetworkNamespace) {
     GTEST_SKIP() << "network namespaces are not available here (unshare -rn failed): the udpm:// test needs one "
                     "so that no multicast reaches the real network";
   }
-  const fs::path dir = make_temp_dir("udpm");
+  const TempDir dir("udpm");
   const std::string cmd = std::string("sh ") + MOREAU_NETNS_SCRIPT + " " + MOREAU_SERVER_BINARY + " " + MOREAU_CLIENT_BINARY + " " +
-                          dir.string() + " > " + (dir / "script.out").string() + " 2>&1";
+                          dir.path().string() + " > " + (dir / "script.out").string() + " 2>&1";
   const int rc = run_shell(cmd);
   std::ifstream out_file(dir / "script.out");
   const std::string out((std::istreambuf_iterator<char>(out_file)), std::istreambuf_iterator<char>());
@@ -519,7 +518,6 @@ TEST(LcmStream, UdpmBetweenProcessesInAPrivateNetworkNamespace) {
   const std::string interrupted = read("interrupt.out");
   EXPECT_THAT(interrupted, ::testing::HasSubstr("moreau watch: interrupted; received 0 states and 0 events of 0 jobs (0 ended)"));
   EXPECT_THAT(interrupted, ::testing::Not(::testing::HasSubstr("receive failed")));
-  fs::remove_all(dir);
 #endif
 }
 

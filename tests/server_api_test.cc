@@ -22,6 +22,7 @@ using moreau::server::strong_etag;
 using moreau::server::testing::manipulator;
 using moreau::server::testing::read_json_file;
 using moreau::server::testing::submit;
+using moreau::server::testing::TempDir;
 using moreau::server::testing::TestServer;
 using moreau::server::testing::wait_final;
 using moreau::server::testing::wait_running;
@@ -47,13 +48,12 @@ struct LocalRun {
 };
 LocalRun run_locally(const json& doc) {
   auto sim = moreau::scene::Simulation::from_json(doc);
-  const fs::path csv_path = moreau::server::testing::make_temp_dir("local") / "traj.csv";
+  const TempDir dir("local");
+  const fs::path csv_path = dir / "traj.csv";
   moreau::scene::TrajectoryCsvWriter csv(csv_path.string(), sim.position_names(), sim.velocity_names());
   const auto summary = sim.run(&csv);
   csv.close();
-  LocalRun out{sim.report_json(summary), slurp(csv_path)};
-  fs::remove_all(csv_path.parent_path());
-  return out;
+  return LocalRun{sim.report_json(summary), slurp(csv_path)};
 }
 
 // `strict` as `moreau run --strict`: the manipulator at h = 1 with a large initial velocity breaks (4.2)
@@ -629,11 +629,10 @@ TEST(ServerApi, PurgeDeletesAFinishedJobWithItsFilesAndNeverARunningOne) {
   // A purged job stays gone after a restart.
   const auto data = ts.release_data();
   ts.stop();
-  TestServer again(ServerConfig{}, data);
+  TestServer again(ServerConfig{}, data.path());
   auto c2 = again.client();
   EXPECT_EQ(c2->Get("/v1/jobs/" + done)->status, 404);
   EXPECT_EQ(json::parse(c2->Get("/v1/jobs")->body)["total"], 0);
-  std::filesystem::remove_all(data);
 }
 
 TEST(ServerApi, LureFiguresShowStateOutputAndStorageNotMechanicalLabels) {
@@ -828,21 +827,20 @@ TEST(ServerApi, KeepJobsDeletesTheOldestFinished) {
   ts.stop();
   ServerConfig smaller;
   smaller.keep_jobs = 2;
-  const fs::path data = ts.release_data();
+  const TempDir data = ts.release_data();
   {
-    TestServer again(smaller, data);
+    TestServer again(smaller, data.path());
     auto c2 = again.client();
     EXPECT_EQ(json::parse(c2->Get("/v1/jobs")->body)["total"], 2);
     EXPECT_EQ(c2->Get("/v1/jobs/" + ids[2])->status, 404);
     EXPECT_EQ(c2->Get("/v1/jobs/" + ids[4])->status, 200);
   }
-  fs::remove_all(data);
 }
 
 TEST(ServerApi, RemoteAddressNeedsATokenOrAnExplicitFlag) {
-  const fs::path data = moreau::server::testing::make_temp_dir("remote");
+  const TempDir data("remote");
   ServerConfig cfg;
-  cfg.data_dir = data.string();
+  cfg.data_dir = data.path().string();
   cfg.host = "0.0.0.0";
   cfg.port = 0;
   moreau::server::Server s(cfg);
@@ -853,7 +851,6 @@ TEST(ServerApi, RemoteAddressNeedsATokenOrAnExplicitFlag) {
     EXPECT_THAT(e.what(), ::testing::HasSubstr("--allow-unauthenticated-remote"));
   }
   s.stop();
-  fs::remove_all(data);
 }
 
 }  // namespace

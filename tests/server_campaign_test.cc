@@ -21,8 +21,8 @@
 namespace {
 
 using moreau::server::ServerConfig;
-using moreau::server::testing::make_temp_dir;
 using moreau::server::testing::read_json_file;
+using moreau::server::testing::TempDir;
 using moreau::server::testing::TestServer;
 using moreau::server::testing::wait_final;
 using json = nlohmann::json;
@@ -107,7 +107,8 @@ TEST(ServerCampaign, RecordsAndSummaryEqualTheLocalCampaignAndFiguresAreDrawn) {
   scene["integrator"]["t_end"] = 3.0;
   spec_doc["scene"] = scene;
   const auto spec = moreau::scene::CampaignSpec::from_json(spec_doc, "");
-  const fs::path local = make_temp_dir("campaign-local");
+  const TempDir local_dir("campaign-local");
+  const fs::path& local = local_dir.path();
   moreau::scene::CampaignRunOptions options;
   options.workers = 2;
   const auto result = moreau::scene::run_campaign(spec, local.string(), options);
@@ -174,7 +175,6 @@ TEST(ServerCampaign, RecordsAndSummaryEqualTheLocalCampaignAndFiguresAreDrawn) {
   EXPECT_EQ(json::parse(c->Get("/v1/jobs")->body)["count"], 0);
   EXPECT_EQ(c->Get("/v1/jobs/" + id)->status, 404);
   EXPECT_EQ(c->Delete("/v1/campaigns/" + id)->status, 409);
-  fs::remove_all(local);
 }
 
 struct BadCampaign {
@@ -274,7 +274,7 @@ TEST(ServerCampaign, CancelledCampaignKeepsItsFinishedSamples) {
 }
 
 TEST(ServerCampaign, InterruptedCampaignKeepsItsSamplesAcrossARestart) {
-  fs::path data;
+  TempDir data;
   std::string id;
   {
     TestServer first;
@@ -285,13 +285,12 @@ TEST(ServerCampaign, InterruptedCampaignKeepsItsSamplesAcrossARestart) {
     wait_for_samples(*c, id, 2);
     data = first.release_data();
   }  // the server stops while the campaign runs
-  TestServer second(ServerConfig{}, data);
+  TestServer second(ServerConfig{}, data.path());
   auto c = second.client();
   const json j = json::parse(c->Get("/v1/campaigns/" + id)->body);
   EXPECT_EQ(j["state"], "failed") << j.dump();
   EXPECT_THAT(j["reason"].get<std::string>(), ::testing::HasSubstr("their records are kept"));
   expect_kept_records(*c, id, 2);
-  fs::remove_all(data);
 }
 
 }  // namespace

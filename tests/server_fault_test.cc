@@ -54,6 +54,8 @@
 #include <httplib.h>
 #include <nlohmann/json.hpp>
 
+#include "temp_dir.h"
+
 namespace {
 
 using json = nlohmann::json;
@@ -61,27 +63,12 @@ using Clock = std::chrono::steady_clock;
 namespace fs = std::filesystem;
 using ::testing::AnyOf;
 using ::testing::HasSubstr;
+using moreau::server::testing::TempDir;
 
 constexpr const char* kReasonRunning = "server restarted while the job was running";
 constexpr const char* kReasonQueued = "server restarted before the job ran";
 
 // ---- small utilities ----
-
-fs::path make_temp_dir(const std::string& tag) {
-  std::string pattern = (fs::temp_directory_path() / ("moreau-fault-" + tag + "-XXXXXX")).string();
-  if (!mkdtemp(pattern.data())) throw std::runtime_error("mkdtemp failed");
-  return pattern;
-}
-
-// Removes a directory tree when it goes out of scope.
-struct TempDir {
-  explicit TempDir(const std::string& tag) : path(make_temp_dir(tag)) {}
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path, ec);
-  }
-  fs::path path;
-};
 
 std::optional<std::string> slurp(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);
@@ -323,8 +310,8 @@ struct Finished {
 };
 
 TEST(ServerFault, KillNineWhileJobsRunThenRestart) {
-  TempDir tmp("kill");
-  const fs::path data = tmp.path / "data";
+  TempDir tmp("fault-kill");
+  const fs::path data = tmp.path() / "data";
   const auto args = server_args(data, {"--workers", "2", "--max-steps", "2000000000", "--queue", "256"});
 
   std::map<std::string, Finished> finished;  // every job seen final so far, with its results' digests
@@ -335,7 +322,7 @@ TEST(ServerFault, KillNineWhileJobsRunThenRestart) {
 
   for (std::size_t round = 0; round < kill_after.size(); ++round) {
     SCOPED_TRACE("round " + std::to_string(round));
-    Running srv = start_server(args, tmp.path);
+    Running srv = start_server(args, tmp.path());
     auto c = srv.client();
 
     // L1 occupies one worker for good; the short jobs run one after another on the other; L2 then
@@ -394,7 +381,7 @@ TEST(ServerFault, KillNineWhileJobsRunThenRestart) {
     tmp_left_total += tmp_left;
 
     // Restart on the same data directory.
-    Running again = start_server(args, tmp.path);
+    Running again = start_server(args, tmp.path());
     auto c2 = again.client();
     EXPECT_TRUE(temp_files_under(data).empty()) << "temporary files survived the restart";
     int done_unseen = 0, failed_running = 0, failed_queued = 0;
@@ -512,14 +499,14 @@ std::vector<Sse> read_events(httplib::Client& c, const std::string& path, std::o
 }
 
 TEST(ServerFault, EventIdsGoOnAcrossAKillAndRestarts) {
-  TempDir tmp("sse-ids");
-  const fs::path data = tmp.path / "data";
+  TempDir tmp("fault-sse-ids");
+  const fs::path data = tmp.path() / "data";
   const auto args = server_args(data, {"--workers", "2", "--max-steps", "2000000000"});
   std::string done_id, running_id;
   std::vector<Sse> done_events;
   std::uint64_t running_last = 0, failed_id = 0;
   {
-    Running srv = start_server(args, tmp.path);
+    Running srv = start_server(args, tmp.path());
     auto c = srv.client();
     auto d = post_job(*c, {{"scene", "manipulator"}, {"overrides", {"integrator.t_end=0.5"}}});
     ASSERT_EQ(d->status, 202);
@@ -540,7 +527,7 @@ TEST(ServerFault, EventIdsGoOnAcrossAKillAndRestarts) {
   }
   for (int restart = 1; restart <= 2; ++restart) {
     SCOPED_TRACE("restart " + std::to_string(restart));
-    Running srv = start_server(args, tmp.path);
+    Running srv = start_server(args, tmp.path());
     auto c = srv.client();
     // The finished job: its final state event again, with the id it had; resuming from the event before
     // it gives exactly it, from it nothing.
@@ -584,10 +571,10 @@ void expect_clean_refusal(Child& child, const std::string& dir_named) {
 }
 
 TEST(ServerFault, DataDirectoryUnderARegularFile) {
-  TempDir tmp("notdir");
-  const fs::path file = tmp.path / "file";
+  TempDir tmp("fault-notdir");
+  const fs::path file = tmp.path() / "file";
   std::ofstream(file) << "not a directory\n";
-  Child child(server_args(file / "data"), tmp.path);
+  Child child(server_args(file / "data"), tmp.path());
   expect_clean_refusal(child, (file / "data").string());
 }
 
@@ -608,8 +595,8 @@ std::vector<std::string> read_only_server_args(const fs::path& ro_dir, const fs:
 }
 
 TEST(ServerFault, ReadOnlyDataDirectory) {
-  TempDir tmp("ro");
-  const fs::path ro = tmp.path / "ro";
+  TempDir tmp("fault-ro");
+  const fs::path ro = tmp.path() / "ro";
   fs::create_directories(ro);
   // Tests run as root, for whom a mode of 0555 does not stop writes: a read-only bind mount does.
   if (!can_bind_mount_read_only(ro)) {
@@ -618,12 +605,12 @@ TEST(ServerFault, ReadOnlyDataDirectory) {
   }
   {
     SCOPED_TRACE("an empty read-only directory");
-    Child child(read_only_server_args(ro, ro), tmp.path);
+    Child child(read_only_server_args(ro, ro), tmp.path());
     expect_clean_refusal(child, ro.string());
   }
   {
     SCOPED_TRACE("a data directory below a read-only one");
-    Child child(read_only_server_args(ro, ro / "data"), tmp.path);
+    Child child(read_only_server_args(ro, ro / "data"), tmp.path());
     expect_clean_refusal(child, (ro / "data").string());
   }
   {
@@ -631,7 +618,7 @@ TEST(ServerFault, ReadOnlyDataDirectory) {
     // nothing can be stored in it, so the server must say so rather than start and fail every job.
     SCOPED_TRACE("a used data directory, now read-only");
     {
-      Running srv = start_server(server_args(ro, {"--workers", "1"}), tmp.path);
+      Running srv = start_server(server_args(ro, {"--workers", "1"}), tmp.path());
       auto c = srv.client();
       auto r = post_job(*c, {{"scene", "damped-relay"}, {"overrides", {"integrator.t_end=1"}}});
       ASSERT_TRUE(r);
@@ -642,7 +629,7 @@ TEST(ServerFault, ReadOnlyDataDirectory) {
       ASSERT_TRUE(srv.child->wait_exit(10));
     }
     ASSERT_TRUE(fs::is_directory(ro / "jobs"));
-    Child child(read_only_server_args(ro, ro), tmp.path);
+    Child child(read_only_server_args(ro, ro), tmp.path());
     expect_clean_refusal(child, ro.string());
   }
 }
@@ -651,13 +638,13 @@ TEST(ServerFault, ReadOnlyDataDirectory) {
 // share the port and take part of the connections, with its own data directory); and a server killed
 // with SIGKILL can be replaced on its port at once (its connections in TIME_WAIT do not stop the bind).
 TEST(ServerFault, PortInUse) {
-  TempDir tmp("port");
-  Running first = start_server(server_args(tmp.path / "a"), tmp.path);
+  TempDir tmp("fault-port");
+  Running first = start_server(server_args(tmp.path() / "a"), tmp.path());
   {
     auto c = first.client();
     for (int i = 0; i < 5; ++i) ASSERT_EQ(c->Get("/healthz")->status, 200);
   }
-  Child second(server_args(tmp.path / "b", {}, first.port), tmp.path);
+  Child second(server_args(tmp.path() / "b", {}, first.port), tmp.path());
   ASSERT_EQ(wait_listening(second, 5), 0) << "a second server started on port " << first.port
                                           << " while the first listens: " << second.out();
   const auto st = second.wait_exit(5);
@@ -674,15 +661,15 @@ TEST(ServerFault, PortInUse) {
     ASSERT_EQ(r->status, 202);
   }
   first.child->kill_and_reap();
-  Child again(server_args(tmp.path / "a", {}, first.port), tmp.path);
+  Child again(server_args(tmp.path() / "a", {}, first.port), tmp.path());
   EXPECT_EQ(wait_listening(again), first.port) << again.err();
 }
 
 // ---- c. full disk ----
 
 TEST(ServerFault, DiskFullFailsTheJobAndTheServerRecovers) {
-  TempDir tmp("full");
-  const fs::path mnt = tmp.path / "mnt";
+  TempDir tmp("fault-full");
+  const fs::path mnt = tmp.path() / "mnt";
   fs::create_directories(mnt);
   const std::string m = mnt.string();
   // MOREAU_FAULT_NO_MOUNT=1 takes the RLIMIT_FSIZE path even where mounting is permitted.
@@ -699,14 +686,14 @@ TEST(ServerFault, DiskFullFailsTheJobAndTheServerRecovers) {
                                   "sh",      m};
     const auto s = server_args(data, {"--workers", "1"});
     a.insert(a.end(), s.begin(), s.end());
-    srv = std::make_unique<Running>(start_server(a, tmp.path));
+    srv = std::make_unique<Running>(start_server(a, tmp.path()));
     root = fs::path("/proc/" + std::to_string(srv->child->pid()) + "/root");
   } else {
     // Fallback: every file the server writes is limited to 256 KiB (EFBIG instead of ENOSPC).
-    data = tmp.path / "data";
+    data = tmp.path() / "data";
     SpawnOptions opt;
     opt.fsize_limit = 256 * 1024;
-    srv = std::make_unique<Running>(start_server(server_args(data, {"--workers", "1"}), tmp.path, opt));
+    srv = std::make_unique<Running>(start_server(server_args(data, {"--workers", "1"}), tmp.path(), opt));
     root = "/";
   }
   std::cout << "[disk full] " << (can_mount ? "256 KiB tmpfs in a private mount namespace" : "RLIMIT_FSIZE 256 KiB") << "\n";
@@ -811,8 +798,8 @@ TEST(ServerFault, DiskFullFailsTheJobAndTheServerRecovers) {
 // ---- d. cancellation storm ----
 
 TEST(ServerFault, CancellationStorm) {
-  TempDir tmp("storm");
-  Running srv = start_server(server_args(tmp.path / "data", {"--workers", "2", "--queue", "1000", "--max-connections", "128"}), tmp.path);
+  TempDir tmp("fault-storm");
+  Running srv = start_server(server_args(tmp.path() / "data", {"--workers", "2", "--queue", "1000", "--max-connections", "128"}), tmp.path());
   constexpr int kSubmitters = 4, kCancellers = 4, kJobsPerSubmitter = 50;
   // About 10 ms of integration each (100k steps), 101 rows: long enough to be cancelled while running.
   const json body = {{"scene", "manipulator"}, {"overrides", {"integrator.t_end=100", "output.every=1000"}}};

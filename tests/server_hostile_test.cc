@@ -25,6 +25,7 @@ namespace {
 using moreau::server::ServerConfig;
 using moreau::server::testing::manipulator;
 using moreau::server::testing::submit;
+using moreau::server::testing::TempDir;
 using moreau::server::testing::TestServer;
 using moreau::server::testing::wait_final;
 using moreau::server::testing::wait_running;
@@ -566,13 +567,11 @@ TEST(Hostile, NothingAcceptedIsLostWhenTheDiskFills) {
     EXPECT_EQ(wait_final(*c, kept)["state"], "done");
     c.reset();
     ts.stop();
-    TestServer again({}, ts.release_data());
+    const TempDir data = ts.release_data();
+    TestServer again({}, data.path());
     auto c2 = again.client();
     EXPECT_EQ(json::parse(c2->Get("/v1/jobs/" + kept)->body)["state"], "done");
     EXPECT_EQ(json::parse(c2->Get("/v1/jobs/" + id)->body)["state"], "failed");
-    std::filesystem::path data = again.data();
-    again.stop();
-    std::filesystem::remove_all(data);
   }
   fault = nullptr;
 }
@@ -604,15 +603,13 @@ TEST(Hostile, CancelledStaysCancelledAcrossARestart) {
   EXPECT_EQ(c->Delete("/v1/jobs/" + id)->status, 200);  // already cancelled: harmless
   c.reset();
   ts.stop();
-  TestServer again({}, ts.release_data());
+  const TempDir data = ts.release_data();
+  TestServer again({}, data.path());
   auto c2 = again.client();
   const json listed = json::parse(c2->Get("/v1/jobs")->body)["jobs"][0];
   EXPECT_EQ(listed["state"], "cancelled");
   EXPECT_EQ(listed["progress"]["t"].get<double>(), t_stop);
   EXPECT_EQ(json::parse(c2->Get("/v1/jobs/" + id + "/report")->body)["status"], "cancelled");
-  std::filesystem::path data = again.data();
-  again.stop();
-  std::filesystem::remove_all(data);
 }
 
 }  // namespace

@@ -16,6 +16,7 @@ namespace {
 using moreau::server::ServerConfig;
 using moreau::server::testing::manipulator;
 using moreau::server::testing::submit;
+using moreau::server::testing::TempDir;
 using moreau::server::testing::TestServer;
 using moreau::server::testing::wait_final;
 using moreau::server::testing::wait_running;
@@ -27,7 +28,7 @@ struct Saved {
 };
 
 TEST(ServerRestart, FinishedJobsAreServedAgainAndRunningOnesFail) {
-  fs::path data;
+  TempDir data;  // the servers' data directory, moved here from the first server
   Saved done, cancelled;
   std::string crashed_id;
   ServerConfig cfg;
@@ -71,7 +72,7 @@ TEST(ServerRestart, FinishedJobsAreServedAgainAndRunningOnesFail) {
   fs::create_directories(data / "jobs" / "not-a-job");
 
   {
-    TestServer second(cfg, data);
+    TestServer second(cfg, data.path());
     auto c = second.client();
     const json list = json::parse(c->Get("/v1/jobs")->body);
     EXPECT_EQ(list["count"], 3) << list.dump(2);
@@ -107,11 +108,10 @@ TEST(ServerRestart, FinishedJobsAreServedAgainAndRunningOnesFail) {
   // The record on disk now says failed, for the next restart too.
   const json record = json::parse(std::ifstream(data / "jobs" / crashed_id / "job.json"));
   EXPECT_EQ(record["state"], "failed");
-  fs::remove_all(data);
 }
 
 TEST(ServerRestart, StoppingTheServerFailsRunningAndQueuedJobs) {
-  fs::path data;
+  TempDir data;  // the servers' data directory, moved here from the first server
   std::string running, queued;
   ServerConfig cfg;
   cfg.workers = 1;
@@ -134,7 +134,7 @@ TEST(ServerRestart, StoppingTheServerFailsRunningAndQueuedJobs) {
     data = ts.release_data();
   }
   {
-    TestServer again(cfg, data);
+    TestServer again(cfg, data.path());
     auto c = again.client();
     json job = json::parse(c->Get("/v1/jobs/" + running)->body);
     EXPECT_EQ(job["state"], "failed");
@@ -144,7 +144,6 @@ TEST(ServerRestart, StoppingTheServerFailsRunningAndQueuedJobs) {
     EXPECT_EQ(job["reason"], "server stopped before the job ran");
     c.reset();
   }
-  fs::remove_all(data);
 }
 
 }  // namespace

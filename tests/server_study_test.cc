@@ -16,6 +16,7 @@ namespace {
 
 using moreau::server::ServerConfig;
 using moreau::server::testing::read_json_file;
+using moreau::server::testing::TempDir;
 using moreau::server::testing::TestServer;
 using moreau::server::testing::wait_final_study;
 using json = nlohmann::json;
@@ -229,7 +230,7 @@ TEST(ServerStudy, CancellingARunningStudyStopsIt) {
 }
 
 TEST(ServerStudy, AFinishedStudyIsServedAgainAfterARestart) {
-  fs::path data;
+  TempDir data;
   std::string id, table, csv;
   {
     TestServer first;
@@ -242,7 +243,7 @@ TEST(ServerStudy, AFinishedStudyIsServedAgainAfterARestart) {
     csv = c->Get("/v1/studies/" + id + "/table?format=csv")->body;
     data = first.release_data();
   }
-  TestServer second(ServerConfig{}, data);
+  TestServer second(ServerConfig{}, data.path());
   auto c = second.client();
   const json j = json::parse(c->Get("/v1/studies/" + id)->body);
   EXPECT_EQ(j["state"], "done");
@@ -251,8 +252,6 @@ TEST(ServerStudy, AFinishedStudyIsServedAgainAfterARestart) {
   EXPECT_EQ(c->Get("/v1/studies/" + id + "/table")->body, table);
   EXPECT_EQ(c->Get("/v1/studies/" + id + "/table?format=csv")->body, csv);
   EXPECT_EQ(c->Get("/v1/studies/" + id + "/figure?kind=work")->status, 200);
-  second.stop();
-  fs::remove_all(data);
 }
 
 }  // namespace

@@ -1,6 +1,6 @@
 // Test support: a real moreau-server in-process on an ephemeral 127.0.0.1 port with its own temporary
 // data directory, and keep-alive HTTP clients for it. The server is stopped (and the directory
-// removed) when the fixture goes out of scope.
+// removed) when the fixture goes out of scope, also when the server fails to start.
 #pragma once
 
 #include <stdlib.h>
@@ -9,7 +9,9 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <optional>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <thread>
 
@@ -17,17 +19,12 @@
 
 #include "moreau/scene/simulation.h"
 #include "moreau/server/server.h"
+#include "temp_dir.h"
 
 // httplib.h after Eigen (simulation.h): its <resolv.h> defines a `_res` macro that breaks Eigen.
 #include <httplib.h>
 
 namespace moreau::server::testing {
-
-inline std::filesystem::path make_temp_dir(const std::string& tag) {
-  std::string pattern = (std::filesystem::temp_directory_path() / ("moreau-" + tag + "-XXXXXX")).string();
-  if (!mkdtemp(pattern.data())) throw std::runtime_error("mkdtemp failed");
-  return pattern;
-}
 
 inline nlohmann::json read_json_file(const std::string& path) {
   std::ifstream in(path);
@@ -39,9 +36,11 @@ inline nlohmann::json manipulator() { return read_json_file("scenes/manipulator.
 
 class TestServer {
  public:
-  explicit TestServer(ServerConfig cfg = {}, std::filesystem::path data = {}) {
-    owns_data_ = data.empty();
-    data_ = owns_data_ ? make_temp_dir("server") : data;
+  // With no data directory, the server gets a new one of its own (owned_data_, a member, so it is removed
+  // even when Server's constructor throws).
+  explicit TestServer(ServerConfig cfg = {}, std::filesystem::path data = {})
+      : owned_data_(data.empty() ? std::optional<TempDir>(TempDir("server")) : std::nullopt),
+        data_(data.empty() ? owned_data_->path() : data) {
     cfg.data_dir = data_.string();
     cfg.host = "127.0.0.1";
     cfg.port = 0;
@@ -51,20 +50,17 @@ class TestServer {
     server_ = std::make_unique<Server>(cfg);
     port_ = server_->start();
   }
-  ~TestServer() {
-    stop();
-    if (owns_data_ && keep_data_ == false) {
-      std::error_code ec;
-      std::filesystem::remove_all(data_, ec);
-    }
-  }
+  ~TestServer() { stop(); }
   void stop() {
     if (server_) server_->stop();
   }
-  // Leaves the data directory in place (for a restart) and hands its ownership to the caller.
-  std::filesystem::path release_data() {
-    keep_data_ = true;
-    return data_;
+  // Hands the data directory to the caller (for a restart: declare the next server after the returned
+  // TempDir, so that it stops before the directory goes). Only for a server that made its own.
+  TempDir release_data() {
+    if (!owned_data_) throw std::logic_error("release_data: this server's data directory belongs to the caller");
+    TempDir d = std::move(*owned_data_);
+    owned_data_.reset();
+    return d;
   }
 
   int port() const { return port_; }
@@ -82,8 +78,8 @@ class TestServer {
 
  private:
   ServerConfig cfg_;
+  std::optional<TempDir> owned_data_;  // before data_ and server_: made first, removed last
   std::filesystem::path data_;
-  bool owns_data_ = true, keep_data_ = false;
   std::unique_ptr<Server> server_;
   int port_ = 0;
 };
