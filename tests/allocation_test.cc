@@ -4,8 +4,13 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <cmath>
 #include <cstdlib>
+#include <fstream>
 #include <new>
+#include <sstream>
+#include <string>
+#include <vector>
 
 #include "moreau/scene/scene.h"
 #include "support/allocation_counter.h"
@@ -65,6 +70,34 @@ TEST(Allocation, DynamicSizeRunDoesNotAllocatePerStep) {
   const long short_run = AllocationsOfRun(doc, 0.2, &obs);
   const long long_run = AllocationsOfRun(doc, 2.0, &obs);
   EXPECT_GT(short_run, 0) << "the counter must see the run's own allocations (its summary)";
+  EXPECT_EQ(short_run, long_run);
+}
+
+TEST(Allocation, LongChainRunDoesNotAllocatePerStep) {
+  // 32 links from URDF (scripts/make-chain-urdf.py), bent and moving under gravity with the controller on
+  // every joint: dense P of dynamic size, whose patterns share one LU per step (one_step_solver.h).
+  std::ifstream in(std::string(MOREAU_CHAIN_DIR) + "/chain-32.urdf");
+  std::stringstream text;
+  text << in.rdbuf();
+  ASSERT_FALSE(text.str().empty());
+  const int n = 32;
+  nlohmann::json q = nlohmann::json::array(), v = nlohmann::json::array();
+  for (int i = 0; i < n; ++i) {
+    q.push_back(i == 0 ? -1.2 : 0.3 * std::sin(0.7 * i));
+    v.push_back(1.5 * std::cos(0.9 * i));
+  }
+  const nlohmann::json doc = {
+      {"name", "chain"},
+      {"system",
+       {{"type", "lagrangian"},
+        {"urdf", {{"text", text.str()}, {"gravity", {0.0, -9.81, 0.0}}}},
+        {"controller", {{{"type", "quadratic"}, {"weights", std::vector<double>(n, 0.01)}}, {{"type", "abs"}, {"gains", std::vector<double>(n, 0.02)}}}}}},
+      {"initial", {{"q", q}, {"v", v}}},
+      {"integrator", {{"scheme", "abl"}, {"h", 1e-3}}}};
+  Decimated obs;
+  const long short_run = AllocationsOfRun(doc, 0.005, &obs);
+  const long long_run = AllocationsOfRun(doc, 0.05, &obs);
+  EXPECT_GT(short_run, 0);
   EXPECT_EQ(short_run, long_run);
 }
 

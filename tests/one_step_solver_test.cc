@@ -407,5 +407,58 @@ TEST(OneStepSolver, PrincipalPivotingSolvesSixtyFourCoordinatesExactly) {
   }
 }
 
+// Dense P of 16 to 128 coordinates with separable phi: the patterns of a step are solved from one LU of P
+// (through (P^{-1})_RR when few components rest, through P_FF when few move). Against the same solver
+// factorising each pattern's own matrix: the same resting components, exactly 0.0, and the same y to
+// the problems' conditioning; every step finished without falling back to the direct solves.
+TEST(OneStepSolver, SharedFactorisationGivesTheDirectSolvesSolution) {
+  std::mt19937 rng(23);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  std::uniform_real_distribution<double> unif(0.0, 2.0);
+  for (int n : {16, 33, 64, 128}) {
+    OneStepSolver<Eigen::Dynamic> shared, direct;
+    Eigen::VectorXd a(n);
+    for (int i = 0; i < n; ++i) a(i) = unif(rng);
+    shared.configure(a, 0.0);
+    direct.configure(a, 0.0);
+    direct.use_direct_solves();
+    ASSERT_TRUE(shared.factors_p_once()) << "n = " << n;
+    ASSERT_FALSE(direct.factors_p_once());
+    int resting = 0, moving = 0, pivoted = 0;
+    for (int trial = 0; trial < 12; ++trial) {
+      const Eigen::MatrixXd P = IllConditionedP(n, rng);
+      Eigen::VectorXd x(n), y(n), y_direct(n);
+      // Scales that leave some components resting and some moving, trial by trial.
+      const double scale = 0.5 + 0.5 * trial;
+      for (int i = 0; i < n; ++i) x(i) = scale * gauss(rng);
+      OneStepStats st, st_direct;
+      ASSERT_TRUE(shared.solve(P, x, y, st)) << "n = " << n << ", trial " << trial << ", residual " << st.residual;
+      ASSERT_TRUE(direct.solve(P, x, y_direct, st_direct)) << "n = " << n << ", trial " << trial;
+      pivoted += st.used_fallback;
+      for (int i = 0; i < n; ++i) {
+        ASSERT_EQ(y(i) == 0.0, y_direct(i) == 0.0) << "n = " << n << ", trial " << trial << ", component " << i;
+        resting += y(i) == 0.0;
+        moving += y(i) != 0.0;
+      }
+      EXPECT_LE((y - y_direct).cwiseAbs().maxCoeff(), 1e-8 * (1.0 + y_direct.cwiseAbs().maxCoeff())) << "n = " << n << ", trial " << trial;
+      const double tol = x.cwiseAbs().maxCoeff() + P.cwiseAbs().rowwise().sum().maxCoeff() * y.cwiseAbs().maxCoeff() + a.maxCoeff();
+      EXPECT_LE(InclusionResidual(P, x, a, 0.0, y), 1e-12 * tol) << "n = " << n << ", trial " << trial;
+    }
+    EXPECT_EQ(shared.direct_retries(), 0) << "n = " << n;
+    EXPECT_GT(resting, n) << "n = " << n << ": too few resting components to exercise (P^-1)_RR";
+    EXPECT_GT(moving, n) << "n = " << n << ": too few moving components to exercise P_FF";
+    EXPECT_GT(pivoted, 0) << "n = " << n << ": no trial reached principal pivoting";
+  }
+  // Outside 16..128 (or with a norm term) each pattern has its own factorisation.
+  OneStepSolver<Eigen::Dynamic> small, large, with_norm;
+  small.configure(Eigen::VectorXd::Ones(15), 0.0);
+  large.configure(Eigen::VectorXd::Ones(129), 0.0);
+  with_norm.configure(Eigen::VectorXd::Ones(32), 0.5);
+  EXPECT_FALSE(small.factors_p_once());
+  EXPECT_FALSE(large.factors_p_once());
+  EXPECT_FALSE(with_norm.factors_p_once());
+}
+
+
 }  // namespace
 }  // namespace moreau

@@ -28,8 +28,12 @@
 // Linear solves: LU with partial pivoting. Dense (Eigen's PartialPivLU, or its 2x2 case inline), or, for
 // dynamic sizes when the caller states that P is zero beyond a bandwidth b from its diagonal and b is
 // small (6 b <= n), the same elimination confined to the band (LAPACK's dgbtrf scheme: pivots from the b
-// rows below, fill-in up to 2 b above the diagonal), O(n b^2) instead of O(n^3). The acceptance residual
-// is always computed with the whole of P, so a wrong bandwidth cannot pass unseen.
+// rows below, fill-in up to 2 b above the diagonal), O(n b^2) instead of O(n^3). For dense P of dynamic
+// size 16 <= n <= 128 and separable phi (robot chains), one LU of P per step serves every pattern of the
+// step after its first (solve_from_p): O(n r + min(r, n - r)^3) per pattern with r resting components,
+// instead of a new O(n^3) factorisation each; a solution those solves leave above the round-off tolerance
+// is solved again directly. The acceptance residual is always computed with the whole of P, so a wrong
+// bandwidth cannot pass unseen.
 #pragma once
 
 #include <algorithm>
@@ -64,7 +68,22 @@ class OneStepSolver {
     an_ = norm_gain;
     bandwidth_ = (N == Eigen::Dynamic && bandwidth >= 0 && 6 * bandwidth <= n) ? bandwidth : -1;
     nonsmooth_ = an_ > 0.0 || (a_.array() > 0.0).any();
+    factor_p_once_ = N == Eigen::Dynamic && bandwidth_ < 0 && an_ == 0.0 && n >= kFactorOnceMin && n <= kFactorOnceMax;
+    if (factor_p_once_) {
+      p_lu_ = Eigen::PartialPivLU<Mat<N>>(n);
+      p_inv_.setZero(n, n);
+      small_.setZero(n, n);
+      col_ready_.setZero(n);
+      z_pattern_.setZero(n);
+      index_.setZero(n);
+      z_.setZero(n);
+      e_.setZero(n);
+      col_.setZero(n);
+      small_rhs_.setZero(n);
+    }
     pattern_.setZero(n);
+    start_.setZero(n);
+    newton_patterns_.setZero(n, max_newton_iterations(n) + 1);
     trial_.setZero(n);
     pinned_.setZero(n);
     A_.setZero(n, n);
@@ -81,10 +100,51 @@ class OneStepSolver {
 
   // The bandwidth the linear solves use, or -1 for dense LU.
   int banded_width() const { return bandwidth_; }
+  // Whether the pattern solves of a step share one LU of P (solve_from_p); use_direct_solves() turns
+  // that off (each pattern then factorises its own matrix, as for other sizes).
+  bool factors_p_once() const { return factor_p_once_; }
+  void use_direct_solves() { factor_p_once_ = false; }
+  // Since configure: patterns whose shared-factorisation solution missed the round-off tolerance and
+  // were solved again directly (accept_pattern_solution), and steps whose shared-factorisation solves
+  // could not finish at all, solved again from the start with direct solves (solve()).
+  std::int64_t direct_resolves() const { return direct_resolves_; }
+  std::int64_t direct_retries() const { return direct_retries_; }
 
   // Solves (6.5). On success returns true with y the solution; on failure returns false (y then holds
   // the best iterate, for diagnostics only).
   bool solve(const Mat<N>& P, const Vec<N>& x, Vec<N>& y, OneStepStats& stats) {
+    direct_ = !factor_p_once_;
+    if (direct_) return solve_with(P, x, y, stats);
+    p_factored_ = false;
+    solved_a_pattern_ = false;
+    z_ready_ = false;
+    col_ready_.setZero();
+    start_ = pattern_;
+    if (solve_with(P, x, y, stats)) return true;
+    // The shared factorisation's rounding (or a tie it decided the other way) kept the step from an
+    // accepted solution: the same step with direct solves, from the same starting pattern.
+    ++direct_retries_;
+    const int tried = stats.iterations;
+    direct_ = true;
+    pattern_ = start_;
+    const bool ok = solve_with(P, x, y, stats);
+    stats.iterations += tried;
+    return ok;
+  }
+
+  // dist(-(P y + x), d phi(y)): zero exactly at the solution of (6.5).
+  double residual(const Mat<N>& P, const Vec<N>& x, const Vec<N>& y) {
+    w_.noalias() = -(P * y);
+    w_ -= x;
+    const bool y_zero = y.squaredNorm() == 0.0;  // ||y|| == 0, without its square root
+    if (!y_zero && an_ > 0.0) w_ -= (an_ / y.norm()) * y;
+    return residual_of_w(y, y_zero);
+  }
+
+  const Pattern& pattern() const { return pattern_; }
+
+ private:
+  bool solve_with(const Mat<N>& P, const Vec<N>& x, Vec<N>& y, OneStepStats& stats) {
     const int n = size();
     stats = OneStepStats{};
     double scale_px;  // ||P||_inf
@@ -145,13 +205,24 @@ class OneStepSolver {
 
     // Semismooth Newton (primal-dual active set) from the previous step's pattern.
     if (all_zero(pattern_)) initial_pattern(x);
-    const int max_newton = 2 * n + 8;
+    const int max_newton = max_newton_iterations(n);
+    newton_patterns_.col(0) = pattern_;
     for (int it = 0; it < max_newton; ++it) {
       ++stats.iterations;
       if (solve_pattern(P, x, pattern_, y) && consistent(P, x, y, pattern_, scale_px, gain_scale)) {
-        return accept(P, x, y, scale_px, gain_scale, stats, /*w_is_current=*/true);
+        return accept_pattern_solution(P, x, y, scale_px, gain_scale, stats);
       }
       if (!update_pattern(P, x, y)) break;  // no change: a fixed point that is not a solution
+      // With P and x fixed, each pattern determines the next: a pattern seen before means the iteration
+      // cycles through patterns none of which solved. Skip to the pattern the remaining iterations would
+      // have ended on (the fallback starts from it, as if they had run), without their solves.
+      newton_patterns_.col(it + 1) = pattern_;
+      const int seen = earlier_newton_pattern(it + 1);
+      if (seen >= 0) {
+        const int period = it + 1 - seen;
+        pattern_ = newton_patterns_.col(seen + (max_newton - seen) % period);
+        break;
+      }
     }
 
     // Fallbacks. Separable phi: safeguarded principal pivoting, finite and exact. With a norm term:
@@ -164,18 +235,6 @@ class OneStepSolver {
     return forward_backward(P, x, y, scale_px, gain_scale, stats);
   }
 
-  // dist(-(P y + x), d phi(y)): zero exactly at the solution of (6.5).
-  double residual(const Mat<N>& P, const Vec<N>& x, const Vec<N>& y) {
-    w_.noalias() = -(P * y);
-    w_ -= x;
-    const bool y_zero = y.squaredNorm() == 0.0;  // ||y|| == 0, without its square root
-    if (!y_zero && an_ > 0.0) w_ -= (an_ / y.norm()) * y;
-    return residual_of_w(y, y_zero);
-  }
-
-  const Pattern& pattern() const { return pattern_; }
-
- private:
   // The residual from w_ = -(P y + x) - a_norm y / ||y|| (the last term only when y != 0).
   double residual_of_w(const Vec<N>& y, bool y_zero) const {
     if (y_zero) {
@@ -215,6 +274,33 @@ class OneStepSolver {
     return std::isfinite(stats.residual) && stats.residual <= stats.tolerance && y.allFinite();
   }
 
+  // accept() for y from the current pattern, consistent() having just passed. A shared-factorisation
+  // solve (solve_from_p) can miss the round-off tolerance where the direct solve of the same pattern
+  // meets it (its error grows with the conditioning of (P^{-1})_RR): that pattern is then solved
+  // directly, and the rest of the step's solves are direct too.
+  bool accept_pattern_solution(const Mat<N>& P, const Vec<N>& x, Vec<N>& y, double scale_px, double gain_scale, OneStepStats& stats) {
+    if (w_from_pattern_) {  // the residual from the product itself, not from the pattern's quantities
+      w_from_pattern_ = false;
+      multiplier_estimate(P, x, y);
+    }
+    if (accept(P, x, y, scale_px, gain_scale, stats, /*w_is_current=*/true)) return true;
+    if (direct_) return false;
+    direct_ = true;
+    ++direct_resolves_;
+    ++stats.iterations;
+    return solve_pattern(P, x, pattern_, y) && consistent(P, x, y, pattern_, scale_px, gain_scale) &&
+           accept(P, x, y, scale_px, gain_scale, stats, /*w_is_current=*/true);
+  }
+
+  static int max_newton_iterations(int n) { return 2 * n + 8; }
+
+  // The first j < m with newton_patterns_.col(j) equal to col(m), or -1.
+  int earlier_newton_pattern(int m) const {
+    for (int j = 0; j < m; ++j)
+      if ((newton_patterns_.col(j).array() == newton_patterns_.col(m).array()).all()) return j;
+    return -1;
+  }
+
   // A first pattern from y = 0: a component moves where |x_i| exceeds its gain, against x_i.
   void initial_pattern(const Vec<N>& x) {
     bool any = false;
@@ -236,23 +322,31 @@ class OneStepSolver {
   // (P y)_i + x_i + a_i s_i + a_norm y_i / ||y|| = 0. Returns false if they have no usable solution.
   bool solve_pattern(const Mat<N>& P, const Vec<N>& x, const Pattern& s, Vec<N>& y) {
     const int n = size();
-    A_ = P;
+    w_from_pattern_ = false;
     for (int i = 0; i < n; ++i) b_(i) = -(x(i) + a_(i) * s(i));
     bool any_free = false;
     for (int i = 0; i < n; ++i) {
       pinned_(i) = (a_(i) > 0.0 && s(i) == 0) ? 1 : 0;
-      if (pinned_(i)) {
-        A_.row(i).setZero();
-        A_.col(i).setZero();
-        A_(i, i) = 1.0;
+      if (pinned_(i))
         b_(i) = 0.0;
-      } else {
+      else
         any_free = true;
-      }
     }
     if (!any_free) {
       y.setZero(n);
       return an_ == 0.0;  // with a norm term y = 0 was already ruled out
+    }
+    if (!direct_) {  // (separable phi: no Newton iteration below)
+      if (!solve_from_p(P, x, s, y)) return false;
+      pin_zeros(s, y);
+      return y.allFinite();
+    }
+    A_ = P;
+    for (int i = 0; i < n; ++i) {
+      if (!pinned_(i)) continue;
+      A_.row(i).setZero();
+      A_.col(i).setZero();
+      A_(i, i) = 1.0;
     }
     if constexpr (N == 2) {
       solve2(y);
@@ -305,6 +399,120 @@ class OneStepSolver {
       if (step * dy_.norm() <= 4.0 * std::numeric_limits<double>::epsilon() * y.norm()) break;
     }
     return y.allFinite() && y.norm() > 0.0;
+  }
+
+  // The pattern's equations P_FF y_F = b_F, y_R = 0 (F free, R pinned: r = |R|, f = |F| = n - r):
+  //  - at the step's first pattern, and whenever f < r: P_FF itself, gathered and factorised;
+  //  - otherwise from the one LU of P that the step's later patterns share: y = z - P^{-1} E_R mu with
+  //    z = -P^{-1} (x + a s) and mu solving (P^{-1})_RR mu = z_R, so that y_R = 0 and (P y)_F = b_F.
+  //    (P^{-1})_RR is invertible exactly when P_FF is: by Jacobi's identity det (P^{-1})_RR =
+  //    det P_FF / det P. The columns of P^{-1} it needs are computed once per step, when first needed.
+  // O(n r + min(r, f)^3) per pattern once those columns exist. False when the small system is singular
+  // (P_FF is). Also w_ = -(P y + x) without a product with P: w_F = a_F s_F, since (P y)_F = b_F; and
+  // w_R = mu from P y = -(x + a s) - E_R mu (s_R = 0), or -P_RF y_F - x_R from P_FF.
+  bool solve_from_p(const Mat<N>& P, const Vec<N>& x, const Pattern& s, Vec<N>& y) {
+    const int n = size();
+    int r = 0;
+    for (int i = 0; i < n; ++i)
+      if (pinned_(i)) index_(r++) = i;
+    for (int i = 0; i < n; ++i) w_(i) = a_(i) * s(i);  // the free components' (pinned ones below)
+    w_from_pattern_ = true;
+    // Most steps need one pattern: P is factorised at the second, and the first solves P_FF directly.
+    const bool first = !p_factored_ && !solved_a_pattern_;
+    solved_a_pattern_ = true;
+    if (!first && !p_factored_) {
+      p_lu_.compute(P);
+      p_factored_ = true;
+    }
+    if (!first && r <= n - r) {
+      // z_ = -P^{-1} (x + a s) for this s: solved at the step's first pattern, then moved by the columns
+      // of P^{-1} of the components whose state changed. (Its pinned components' right-hand side is
+      // -x_R rather than b_R = 0: mu absorbs the difference, and w_R = mu - x_R + x_R = mu.)
+      if (!z_ready_) {
+        e_ = -(x + a_.cwiseProduct(s.template cast<double>()));
+        z_.noalias() = p_lu_.solve(e_);
+        z_pattern_ = s;
+        z_ready_ = true;
+      } else {
+        for (int i = 0; i < n; ++i) {
+          if (s(i) == z_pattern_(i)) continue;
+          z_.noalias() -= (a_(i) * (s(i) - z_pattern_(i))) * inverse_column(i);
+          z_pattern_(i) = s(i);
+        }
+      }
+      if (r == 0) {
+        y = z_;
+        return true;
+      }
+      for (int k = 0; k < r; ++k) inverse_column(index_(k));
+      for (int c = 0; c < r; ++c) {
+        for (int k = 0; k < r; ++k) small_(k, c) = p_inv_(index_(k), index_(c));
+        small_rhs_(c) = z_(index_(c));
+      }
+      if (!small_lu_solve(r)) return false;
+      y = z_;
+      for (int k = 0; k < r; ++k) {
+        const int j = index_(k);
+        y.noalias() -= small_rhs_(k) * p_inv_.col(j);
+        w_(j) = small_rhs_(k);
+      }
+      return true;
+    }
+    const int f = n - r;
+    for (int i = 0, m = 0; i < n; ++i)
+      if (!pinned_(i)) index_(m++) = i;
+    for (int c = 0; c < f; ++c) {
+      for (int k = 0; k < f; ++k) small_(k, c) = P(index_(k), index_(c));
+      small_rhs_(c) = b_(index_(c));
+    }
+    if (!small_lu_solve(f)) return false;
+    y.setZero(n);
+    for (int k = 0; k < f; ++k) y(index_(k)) = small_rhs_(k);
+    for (int i = 0; i < n; ++i) {
+      if (!pinned_(i)) continue;
+      double py = 0.0;
+      for (int k = 0; k < f; ++k) py += P(i, index_(k)) * small_rhs_(k);
+      w_(i) = -py - x(i);
+    }
+    return true;
+  }
+
+  // Column j of P^{-1}, solved once per step.
+  decltype(auto) inverse_column(int j) {
+    if (!col_ready_(j)) {
+      e_.setZero();
+      e_(j) = 1.0;
+      col_.noalias() = p_lu_.solve(e_);
+      p_inv_.col(j) = col_;
+      col_ready_(j) = 1;
+    }
+    return p_inv_.col(j);
+  }
+
+  // small_rhs_ <- S^{-1} small_rhs_ for S the leading m x m block of small_ (overwritten by its factors):
+  // Gaussian elimination with partial pivoting in place, no allocation. False on a zero pivot.
+  bool small_lu_solve(int m) {
+    for (int k = 0; k < m; ++k) {
+      int p = k;
+      for (int i = k + 1; i < m; ++i)
+        if (std::abs(small_(i, k)) > std::abs(small_(p, k))) p = i;
+      if (small_(p, k) == 0.0) return false;
+      if (p != k) {
+        small_.row(k).head(m).swap(small_.row(p).head(m));
+        std::swap(small_rhs_(k), small_rhs_(p));
+      }
+      const int rest = m - k - 1;
+      if (rest == 0) break;
+      small_.col(k).segment(k + 1, rest) /= small_(k, k);
+      small_rhs_.segment(k + 1, rest) -= small_rhs_(k) * small_.col(k).segment(k + 1, rest);
+      small_.block(k + 1, k + 1, rest, rest).noalias() -= small_.col(k).segment(k + 1, rest) * small_.row(k).segment(k + 1, rest);
+    }
+    for (int k = m - 1; k >= 0; --k) {
+      double sum = small_rhs_(k);
+      for (int j = k + 1; j < m; ++j) sum -= small_(k, j) * small_rhs_(j);
+      small_rhs_(k) = sum / small_(k, k);
+    }
+    return true;
   }
 
   // y = A_^{-1} b_ for n = 2: Eigen's PartialPivLU (partial pivoting, the first row on a tie, l = a10 / a00,
@@ -380,11 +588,17 @@ class OneStepSolver {
       if (a_(i) > 0.0 && s(i) == 0) y(i) = 0.0;  // exactly zero, not round-off
   }
 
+  // w_ = -(P y + x) for the y of the last pattern solve, unless solve_from_p gave it already.
+  void multiplier_estimate(const Mat<N>& P, const Vec<N>& x, const Vec<N>& y) {
+    if (w_from_pattern_) return;
+    w_.noalias() = -(P * y);
+    w_ -= x;
+  }
+
   // Whether y (from pattern s) satisfies (6.5): free components keep their sign, pinned ones have a
   // multiplier within their gain.
   bool consistent(const Mat<N>& P, const Vec<N>& x, const Vec<N>& y, const Pattern& s, double scale_px, double gain_scale) {
-    w_.noalias() = -(P * y);
-    w_ -= x;
+    multiplier_estimate(P, x, y);
     y_zero_ = y.squaredNorm() == 0.0;  // ||y|| == 0, without its square root
     if (an_ > 0.0) {
       if (y_zero_) return false;
@@ -411,8 +625,7 @@ class OneStepSolver {
   // The active-set update of the semismooth Newton method: s_i = sign(c_i y_i + w_i) where that exceeds
   // a_i, else 0, with w the multiplier estimate and c_i = P_ii. Returns whether the pattern changed.
   bool update_pattern(const Mat<N>& P, const Vec<N>& x, const Vec<N>& y) {
-    w_.noalias() = -(P * y);
-    w_ -= x;
+    multiplier_estimate(P, x, y);
     const double ny = y.norm();
     if (an_ > 0.0 && ny > 0.0) w_ -= (an_ / ny) * y;
     bool changed = false;
@@ -445,8 +658,7 @@ class OneStepSolver {
     for (long sweep = 0; sweep < max_sweeps; ++sweep) {
       ++stats.iterations;
       if (!solve_pattern(P, x, pattern_, y)) return false;  // singular: P is not a P-matrix
-      w_.noalias() = -(P * y);
-      w_ -= x;
+      multiplier_estimate(P, x, y);
       const double tol = pattern_tolerance(x, y, scale_px, gain_scale);
       int count = 0, first = -1;
       for (int i = 0; i < n; ++i) {
@@ -456,7 +668,7 @@ class OneStepSolver {
       }
       if (count == 0) {
         y_zero_ = y.squaredNorm() == 0.0;
-        return accept(P, x, y, scale_px, gain_scale, stats, /*w_is_current=*/true);
+        return accept_pattern_solution(P, x, y, scale_px, gain_scale, stats);
       }
       const bool block = count < lowest || tries < kTries;
       if (count < lowest) {
@@ -546,10 +758,27 @@ class OneStepSolver {
   int bandwidth_ = -1;  // the band of the linear solves, -1 dense
   bool nonsmooth_ = false;
   Pattern pattern_, trial_, pinned_;
+  Eigen::Matrix<std::int8_t, N, Eigen::Dynamic> newton_patterns_;  // the semismooth Newton's patterns, in order
   Mat<N> A_, J_;
   Vec<N> b_, w_, r_, dy_, best_;
   bool y_zero_ = false;  // whether the y consistent() checked last is 0
+  bool w_from_pattern_ = false;  // w_ is -(P y + x) for the last pattern solve, from solve_from_p
   Eigen::PartialPivLU<Mat<N>> lu_;
+
+  // The shared factorisation (solve_from_p): sizes where it applies, and its buffers.
+  static constexpr int kFactorOnceMin = 16;        // below, a pattern's own LU costs little
+  static constexpr int kFactorOnceMax = 128;  // the sizes it is tested and measured on (its buffers are n x n)
+  bool factor_p_once_ = false;
+  bool direct_ = true;      // this attempt's pattern solves are direct
+  bool p_factored_ = false;  // p_lu_ holds this step's P
+  bool solved_a_pattern_ = false;  // this step has solved a pattern from P_FF
+  bool z_ready_ = false;     // z_ = -P^{-1} (x + a z_pattern_) for this step's P and x
+  std::int64_t direct_resolves_ = 0, direct_retries_ = 0;
+  Pattern start_, col_ready_, z_pattern_;
+  Eigen::PartialPivLU<Mat<N>> p_lu_;
+  Mat<N> p_inv_, small_;  // columns of P^{-1} (those col_ready_ marks), and the small system
+  Eigen::Matrix<int, N, 1> index_;
+  Vec<N> z_, e_, col_, small_rhs_;
 };
 
 }  // namespace moreau
