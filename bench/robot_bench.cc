@@ -11,18 +11,14 @@
 #include "moreau/scene/scene.h"
 #include "per_step.h"
 #include "moreau/scene/urdf.h"
+#include "support/chain_scene.h"
 
 namespace {
 
 using namespace moreau;
 using bench::RunScene;
-
-std::string chain_text(int n) {
-  std::ifstream in(std::string(MOREAU_CHAIN_DIR) + "/chain-" + std::to_string(n) + ".urdf");
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
+using test_support::chain_scene;
+using test_support::chain_urdf_text;
 
 
 // The arm of iiwa14-controller.json at a fixed h = 1e-3 until t = 0.15, before it comes to rest (0.19 s).
@@ -31,22 +27,6 @@ void BM_Iiwa14Controller_moving(benchmark::State& state) {
   doc["integrator"]["step_rule"] = "fixed";
   doc["integrator"]["t_end"] = 0.15;
   RunScene(state, scene::load_scene(doc));
-}
-
-// An n-link chain hanging under gravity, bent and moving, with the controller on every joint.
-nlohmann::json chain_scene(int n, double t_end) {
-  nlohmann::json q = nlohmann::json::array(), v = nlohmann::json::array();
-  for (int i = 0; i < n; ++i) {
-    q.push_back(i == 0 ? -1.2 : 0.3 * std::sin(0.7 * i));
-    v.push_back(1.5 * std::cos(0.9 * i));
-  }
-  return {{"name", "chain"},
-          {"system",
-           {{"type", "lagrangian"},
-            {"urdf", {{"text", chain_text(n)}, {"gravity", {0.0, -9.81, 0.0}}}},
-            {"controller", {{{"type", "quadratic"}, {"weights", std::vector<double>(n, 0.01)}}, {{"type", "abs"}, {"gains", std::vector<double>(n, 0.02)}}}}}},
-          {"initial", {{"q", q}, {"v", v}}},
-          {"integrator", {{"scheme", "abl"}, {"h", 1e-3}, {"t_end", t_end}}}};
 }
 
 void BM_ChainStep(benchmark::State& state) {
@@ -63,7 +43,7 @@ void BM_RigidBodyTerms(benchmark::State& state) {
     s << in.rdbuf();
     return s.str();
   }())
-                                  : scene::read_urdf(chain_text(n));
+                                  : scene::read_urdf(chain_urdf_text(n));
   RigidBodyData data(robot.model);
   Eigen::VectorXd q = Eigen::VectorXd::LinSpaced(n, -1.0, 1.0), v = Eigen::VectorXd::LinSpaced(n, 0.5, -0.5), G(n);
   Eigen::MatrixXd M(n, n), C(n, n);

@@ -4,16 +4,13 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
-#include <cmath>
 #include <cstdlib>
-#include <fstream>
 #include <new>
-#include <sstream>
 #include <string>
-#include <vector>
 
 #include "moreau/scene/scene.h"
 #include "support/allocation_counter.h"
+#include "support/chain_scene.h"
 
 namespace moreau::scene {
 namespace {
@@ -76,24 +73,8 @@ TEST(Allocation, DynamicSizeRunDoesNotAllocatePerStep) {
 TEST(Allocation, LongChainRunDoesNotAllocatePerStep) {
   // 32 links from URDF (scripts/make-chain-urdf.py), bent and moving under gravity with the controller on
   // every joint: dense P of dynamic size, whose patterns share one LU per step (one_step_solver.h).
-  std::ifstream in(std::string(MOREAU_CHAIN_DIR) + "/chain-32.urdf");
-  std::stringstream text;
-  text << in.rdbuf();
-  ASSERT_FALSE(text.str().empty());
-  const int n = 32;
-  nlohmann::json q = nlohmann::json::array(), v = nlohmann::json::array();
-  for (int i = 0; i < n; ++i) {
-    q.push_back(i == 0 ? -1.2 : 0.3 * std::sin(0.7 * i));
-    v.push_back(1.5 * std::cos(0.9 * i));
-  }
-  const nlohmann::json doc = {
-      {"name", "chain"},
-      {"system",
-       {{"type", "lagrangian"},
-        {"urdf", {{"text", text.str()}, {"gravity", {0.0, -9.81, 0.0}}}},
-        {"controller", {{{"type", "quadratic"}, {"weights", std::vector<double>(n, 0.01)}}, {{"type", "abs"}, {"gains", std::vector<double>(n, 0.02)}}}}}},
-      {"initial", {{"q", q}, {"v", v}}},
-      {"integrator", {{"scheme", "abl"}, {"h", 1e-3}}}};
+  const nlohmann::json doc = moreau::test_support::chain_scene(32, 0.0);
+  ASSERT_FALSE(doc["system"]["urdf"]["text"].get<std::string>().empty());
   Decimated obs;
   const long short_run = AllocationsOfRun(doc, 0.005, &obs);
   const long long_run = AllocationsOfRun(doc, 0.05, &obs);
