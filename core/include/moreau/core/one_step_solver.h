@@ -105,7 +105,7 @@ class OneStepSolver {
   bool factors_p_once() const { return factor_p_once_; }
   void use_direct_solves() { factor_p_once_ = false; }
   // Since configure: patterns whose shared-factorisation solution missed the round-off tolerance and
-  // were solved again directly (accept_pattern_solution), and steps whose shared-factorisation solves
+  // were solved again directly (accept_shared_solution), and steps whose shared-factorisation solves
   // could not finish at all, solved again from the start with direct solves (solve()).
   std::int64_t direct_resolves() const { return direct_resolves_; }
   std::int64_t direct_retries() const { return direct_retries_; }
@@ -113,6 +113,7 @@ class OneStepSolver {
   // Solves (6.5). On success returns true with y the solution; on failure returns false (y then holds
   // the best iterate, for diagnostics only).
   bool solve(const Mat<N>& P, const Vec<N>& x, Vec<N>& y, OneStepStats& stats) {
+    if constexpr (N != Eigen::Dynamic) return solve_with(P, x, y, stats);  // direct_ is always true
     direct_ = !factor_p_once_;
     if (direct_) return solve_with(P, x, y, stats);
     p_factored_ = false;
@@ -147,6 +148,7 @@ class OneStepSolver {
   bool solve_with(const Mat<N>& P, const Vec<N>& x, Vec<N>& y, OneStepStats& stats) {
     const int n = size();
     stats = OneStepStats{};
+    w_from_pattern_ = false;
     double scale_px;  // ||P||_inf
     if constexpr (N == Eigen::Dynamic) {
       abs_row_sums(P, dy_);  // dy_ is free until the pattern iteration
@@ -206,12 +208,13 @@ class OneStepSolver {
     // Semismooth Newton (primal-dual active set) from the previous step's pattern.
     if (all_zero(pattern_)) initial_pattern(x);
     const int max_newton = max_newton_iterations(n);
-    newton_patterns_.col(0) = pattern_;
     for (int it = 0; it < max_newton; ++it) {
       ++stats.iterations;
       if (solve_pattern(P, x, pattern_, y) && consistent(P, x, y, pattern_, scale_px, gain_scale)) {
-        return accept_pattern_solution(P, x, y, scale_px, gain_scale, stats);
+        if (direct_) return accept(P, x, y, scale_px, gain_scale, stats, /*w_is_current=*/true);
+        return accept_shared_solution(P, x, y, scale_px, gain_scale, stats);
       }
+      newton_patterns_.col(it) = pattern_;
       if (!update_pattern(P, x, y)) break;  // no change: a fixed point that is not a solution
       // With P and x fixed, each pattern determines the next: a pattern seen before means the iteration
       // cycles through patterns none of which solved. Skip to the pattern the remaining iterations would
@@ -274,17 +277,16 @@ class OneStepSolver {
     return std::isfinite(stats.residual) && stats.residual <= stats.tolerance && y.allFinite();
   }
 
-  // accept() for y from the current pattern, consistent() having just passed. A shared-factorisation
-  // solve (solve_from_p) can miss the round-off tolerance where the direct solve of the same pattern
+  // accept() for y from a shared-factorisation solve (solve_from_p) of the current pattern, consistent()
+  // having just passed. It can miss the round-off tolerance where the direct solve of the same pattern
   // meets it (its error grows with the conditioning of (P^{-1})_RR): that pattern is then solved
   // directly, and the rest of the step's solves are direct too.
-  bool accept_pattern_solution(const Mat<N>& P, const Vec<N>& x, Vec<N>& y, double scale_px, double gain_scale, OneStepStats& stats) {
+  bool accept_shared_solution(const Mat<N>& P, const Vec<N>& x, Vec<N>& y, double scale_px, double gain_scale, OneStepStats& stats) {
     if (w_from_pattern_) {  // the residual from the product itself, not from the pattern's quantities
       w_from_pattern_ = false;
       multiplier_estimate(P, x, y);
     }
     if (accept(P, x, y, scale_px, gain_scale, stats, /*w_is_current=*/true)) return true;
-    if (direct_) return false;
     direct_ = true;
     ++direct_resolves_;
     ++stats.iterations;
@@ -668,7 +670,8 @@ class OneStepSolver {
       }
       if (count == 0) {
         y_zero_ = y.squaredNorm() == 0.0;
-        return accept_pattern_solution(P, x, y, scale_px, gain_scale, stats);
+        if (direct_) return accept(P, x, y, scale_px, gain_scale, stats, /*w_is_current=*/true);
+        return accept_shared_solution(P, x, y, scale_px, gain_scale, stats);
       }
       const bool block = count < lowest || tries < kTries;
       if (count < lowest) {
