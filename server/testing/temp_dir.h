@@ -17,8 +17,9 @@ namespace moreau::server::testing {
 class TempDir {
  public:
   TempDir() = default;  // owns nothing (yet): a place to move one into
-  explicit TempDir(const std::string& tag) {
-    std::string pattern = (std::filesystem::temp_directory_path() / ("moreau-" + tag + "-XXXXXX")).string();
+  // Under `base`: the system's temporary directory unless a test needs another file system.
+  explicit TempDir(const std::string& tag, const std::filesystem::path& base = std::filesystem::temp_directory_path()) {
+    std::string pattern = (base / ("moreau-" + tag + "-XXXXXX")).string();
     if (!mkdtemp(pattern.data())) throw std::runtime_error("mkdtemp failed for " + pattern);
     path_ = pattern;
   }
