@@ -69,9 +69,8 @@ RecordedStateChecks::RecordedStateChecks(const LagrangianScene& scene, RunObserv
       force_(static_cast<std::size_t>(scene.n)) {}
 
 void RecordedStateChecks::on_sample(const Sample& s) {
-  if (seen_ % kStride == 0 && !force_bounds_.failed) force_bound(s);
-  if (seen_ % kEnergyStride == 0 && has_potential_) energy(s);
-  ++seen_;
+  if (s.index % kStride == 0 && !force_bounds_.failed) force_bound(s);
+  if (s.index % kEnergyStride == 0 && has_potential_) energy(s);
   ForwardingObserver::on_sample(s);
 }
 

@@ -1,10 +1,12 @@
 // How a run hands its states out without knowing where they go (recorder, CSV writer, LCM publisher,
 // progress bar, cancellation). The integrator calls on_sample() only every `output_every` steps (and at
-// the first and last state), keep_going() every kControlInterval steps, on_impact() once per impact and
+// the first and last state), or only every sample_stride()-th of these recorded states where the
+// observer asks for fewer, keep_going() every kControlInterval steps, on_impact() once per impact and
 // on_rest_detected()/on_rest_ended() once per rest: the hot loop never makes a virtual call per step.
 #pragma once
 
 #include <cstdint>
+#include <numeric>
 #include <vector>
 
 namespace moreau {
@@ -22,6 +24,10 @@ struct Sample {
   // D_k = sum_{j < k} h_j <xi_j, V^{j+1}>, xi_j in dPhi(V^{j+1}): the work done so far against the
   // set-valued controller and friction (RunSummary::dissipated_work); 0 where the scheme does not track it.
   double dissipated_work = 0.0;
+  // The recorded state's number: 0 for the first, k / output_every for a state recorded at step k, and
+  // one more than the one before it for the last state when it falls between (ceil(k / output_every)).
+  // An observer with a sample_stride() above 1 sees only the numbers that are multiples of it, and the last.
+  std::int64_t index = 0;
 };
 
 class RunObserver {
@@ -31,6 +37,11 @@ class RunObserver {
   static constexpr std::int64_t kControlInterval = 256;
   virtual ~RunObserver() = default;
   virtual void on_sample(const Sample& sample) = 0;
+  // Which recorded states this observer needs: those whose Sample::index is a multiple of the stride, and
+  // the last (asked once, when the run starts). An observer that checks only every kth recorded state and
+  // passes nothing on says k, and the run skips the virtual call for the others: a JSON scene run with no
+  // output would otherwise pay one call per step for its sampled checks.
+  virtual std::int64_t sample_stride() const { return 1; }
   // Return false to cancel the run (it then ends with RunStatus::kCancelled).
   virtual bool keep_going(std::int64_t /*step*/, double /*t*/) { return true; }
   // An impact of a unilateral contact (the Moreau-Jean scheme): called from the integrating thread for
@@ -58,6 +69,8 @@ class ForwardingObserver : public RunObserver {
     if (next_) next_->on_sample(sample);
   }
   bool keep_going(std::int64_t step, double t) override { return !next_ || next_->keep_going(step, t); }
+  // Forwarding alone needs what `next` needs; none when there is no next.
+  std::int64_t sample_stride() const override { return next_ ? next_->sample_stride() : 1; }
   void on_impact(const ImpactEvent& impact) override {
     if (next_) next_->on_impact(impact);
   }
@@ -84,6 +97,12 @@ class ObserverFan : public RunObserver {
   }
   void on_sample(const Sample& s) override {
     for (auto* o : observers_) o->on_sample(s);
+  }
+  // Every state any of them needs.
+  std::int64_t sample_stride() const override {
+    std::int64_t stride = 0;
+    for (auto* o : observers_) stride = std::gcd(stride, o->sample_stride());
+    return stride > 0 ? stride : 1;
   }
   bool keep_going(std::int64_t step, double t) override {
     bool go = true;

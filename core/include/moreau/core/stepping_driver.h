@@ -1,7 +1,8 @@
 // The loop every time-stepping scheme runs, written once: SteppingDriver owns the time rule (the fixed
 // grid FixedTimeGrid, or a scheme's adaptive rule such as Theorems 4.1 and 4.2 of Adly, Brogliato and
 // Le (2016), landed on t_end) and the run's bookkeeping (RunRecorder): samples handed to the observer
-// every output_every steps and at the first and last state, cancellation every
+// every output_every steps (only every sample_stride()-th of those if the observer asks for fewer) and at
+// the first and last state, cancellation every
 // RunObserver::kControlInterval steps, the range of step sizes, the solver's effort, the energy's rises
 // above round-off, the step from which the state rests, failure and cancellation messages, and the wall
 // time of the phase. A scheme (abl_integrator.h, moreau_jean_integrator.h, lure_integrator.h) supplies
@@ -56,7 +57,10 @@ struct FixedTimeGrid {
 class RunRecorder {
  public:
   RunRecorder(RunObserver* observer, std::int64_t output_every, int n)
-      : observer_(observer), every_(std::max<std::int64_t>(1, output_every)), n_(n) {}
+      : observer_(observer),
+        every_(std::max<std::int64_t>(1, output_every)),
+        emit_every_(every_ * std::max<std::int64_t>(1, observer ? observer->sample_stride() : 1)),
+        n_(n) {}
 
   RunSummary& summary() { return s_; }
 
@@ -69,7 +73,7 @@ class RunRecorder {
     s_.h_max = 0.0;
   }
   // The sample of the initial state (its h is the nominal step).
-  void first_sample(double t, double h_nominal, const double* q, const double* v, double energy) { emit(0, t, h_nominal, q, v, energy, 0.0); }
+  void first_sample(double t, double h_nominal, const double* q, const double* v, double energy) { emit(0, 0, t, h_nominal, q, v, energy, 0.0); }
 
   // The one-step solver's effort on this step.
   void solver_step(int iterations, double residual, bool used_fallback) {
@@ -115,22 +119,24 @@ class RunRecorder {
     }
   }
 
-  // The end of step k: its sample if k is a multiple of output_every, and every kControlInterval steps
-  // the observer's chance to cancel. False: the run is cancelled (finish it, then call cancelled()).
-  // (Steps arrive in order 1, 2, ...: a countdown replaces k % output_every, an integer division per step.)
-  // `dissipated`: D up to step k (RunSummary::dissipated_work), which the sample carries.
+  // The end of step k: its sample if k is a multiple of output_every (times the observer's
+  // sample_stride()), and every kControlInterval steps the observer's chance to cancel. False: the run is
+  // cancelled (finish it, then call cancelled()). (Steps arrive in order 1, 2, ...: a countdown replaces
+  // k % output_every, an integer division per step.) `dissipated`: D up to step k
+  // (RunSummary::dissipated_work), which the sample carries.
   bool after_step(std::int64_t k, double t, double h_k, const double* q, const double* v, double energy, double dissipated) {
     if (--until_sample_ == 0) {
-      until_sample_ = every_;
-      emit(k, t, h_k, q, v, energy, dissipated);
+      until_sample_ = emit_every_;
+      emit(k, k / every_, t, h_k, q, v, energy, dissipated);
       last_emitted_ = k;
     }
-    return !(observer_ && k % RunObserver::kControlInterval == 0 && !observer_->keep_going(k, t));
+    static_assert((RunObserver::kControlInterval & (RunObserver::kControlInterval - 1)) == 0, "a power of two: a mask, not a division");
+    return !(observer_ && (k & (RunObserver::kControlInterval - 1)) == 0 && !observer_->keep_going(k, t));
   }
 
   // The last state's sample, unless after_step gave it already.
   void last_sample(std::int64_t k, double t, double h_k, const double* q, const double* v, double energy, double dissipated) {
-    if (last_emitted_ != k) emit(k, t, h_k, q, v, energy, dissipated);
+    if (last_emitted_ != k) emit(k, (k + every_ - 1) / every_, t, h_k, q, v, energy, dissipated);
   }
 
   // The summary of a run that ended at step k (completed or cancelled): the final state, energy, rest
@@ -185,8 +191,8 @@ class RunRecorder {
   }
 
  private:
-  void emit(std::int64_t k, double t, double h, const double* q, const double* v, double energy, double dissipated) {
-    if (observer_) observer_->on_sample(Sample{k, t, h, n_, q, v, energy, dissipated});
+  void emit(std::int64_t k, std::int64_t index, double t, double h, const double* q, const double* v, double energy, double dissipated) {
+    if (observer_) observer_->on_sample(Sample{k, t, h, n_, q, v, energy, dissipated, index});
   }
   bool finite(const double* x) const {
     for (int i = 0; i < n_; ++i)
@@ -196,8 +202,9 @@ class RunRecorder {
 
   const std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
   RunObserver* observer_;
-  std::int64_t every_;
-  std::int64_t until_sample_ = every_;  // steps until the next multiple of every_
+  std::int64_t every_;                       // output_every
+  std::int64_t emit_every_;                  // output_every times the observer's sample_stride()
+  std::int64_t until_sample_ = emit_every_;  // steps until the next multiple of emit_every_
   int n_;
   RunSummary s_;
   std::int64_t rest_from_ = -1;

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <memory>
+#include <numeric>
 #include <type_traits>
 #include <vector>
 
@@ -198,6 +199,8 @@ class RecordedStateChecks final : public ForwardingObserver {
   static constexpr std::int64_t kStride = 16;
   static constexpr std::int64_t kEnergyStride = 64;
   void on_sample(const Sample& s) override;
+  // With nothing to pass samples on to, only the states it checks (Sample::index a multiple of kStride).
+  std::int64_t sample_stride() const override { return next() ? std::gcd(kStride, next()->sample_stride()) : kStride; }
   // Writes what was found into the run's summary (force_bounds, mechanical).
   void record_into(RunSummary& s) const;
 
@@ -209,7 +212,6 @@ class RecordedStateChecks final : public ForwardingObserver {
   int n_;
   double alpha_;
   bool has_potential_;
-  std::int64_t seen_ = 0;
   std::vector<double> grad_, force_;
   ForceBoundTrack force_bounds_;
   MechanicalEnergyTrack mechanical_;
