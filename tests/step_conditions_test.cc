@@ -54,7 +54,7 @@ void CompareWithEigen(int n, std::mt19937& rng) {
     const double c_norm = Eigen::JacobiSVD<Eigen::MatrixXd>(Eigen::MatrixXd(C)).singularValues()(0);
     const double ratio = 2.0 * h * c_norm / lambda;
 
-    const StepCheck c = checker.check(M, C, h);
+    const StepCheck c = checker.check(M, C, h, 0.0);  // ceiling 0: every ratio (n <= 2 exactly)
     const double tol = 1e-10 * std::max(1.0, std::abs(lambda));
     if (lambda > tol) {
       ASSERT_GT(c.lambda_min_m, 0.0) << "trial " << trial;
@@ -139,7 +139,7 @@ TEST(StepConditions, CholeskyCertificatesAlongASmoothPath) {
     norm_bound_failed += 4.0 * h * h * c2_bound > lambda * lambda;
     true_min = std::min(true_min, lambda);
 
-    const StepCheck c = checker.check(M, C, h);
+    const StepCheck c = checker.check(M, C, h, 0.0);
     ASSERT_LE(c.lambda_min_m, lambda * (1.0 + 1e-12)) << "step " << k;
     ASSERT_GT(c.lambda_min_m, 0.0);
     ExpectRatioAsLabelled(c, ratio, k);
@@ -148,7 +148,9 @@ TEST(StepConditions, CholeskyCertificatesAlongASmoothPath) {
       bounded_violations += c.ratio_kind == BoundKind::kLowerBound;
       EXPECT_GT(c.ratio(), (1.0 - 1e-3) * ratio) << "step " << k << ": the Rayleigh quotients' bound must stay tight";
     }
-    if (c.exact) EXPECT_NEAR(c.lambda_min_m, lambda, 1e-12 * lambda);
+    if (c.exact) {
+      EXPECT_NEAR(c.lambda_min_m, lambda, 1e-12 * lambda);
+    }
     track.record(c.lambda_min_m, c.exact, k, t);
   }
   EXPECT_EQ(gershgorin_failed, steps) << "the path must exercise the Cholesky certificate of M";
@@ -159,6 +161,66 @@ TEST(StepConditions, CholeskyCertificatesAlongASmoothPath) {
   EXPECT_GE(track.lambda_min, (1.0 - 1e-3) * true_min * (1.0 - 1e-12));
   EXPECT_LE(checker.eigenvalue_computations(), steps / 100);
   EXPECT_GE(checker.eigenvalue_computations(), 2);
+}
+
+// A run records r_k through StepConditionTrack::ceiling: below the largest ratio recorded so far the checker
+// gives only a bound (n = 2) and the track only counts the step. Along a path whose ratio rises, falls and
+// crosses 1 several times, the records must be those of plain bookkeeping of every step's exact ratio (the
+// largest, its step, the violations and the first of them), bit for bit, at n = 1, 2 and 7.
+template <int N>
+void CeilingRecordsWhatEveryStepWouldRecord(int n) {
+  std::mt19937 rng(41 + n);
+  std::normal_distribution<double> normal;
+  Eigen::MatrixXd A(n, n), C0(n, n);
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) {
+      A(i, j) = normal(rng);
+      C0(i, j) = normal(rng);
+    }
+  const Eigen::MatrixXd M0 = A * A.transpose() / n + Eigen::MatrixXd::Identity(n, n);
+  const double lambda0 = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(M0).eigenvalues()(0);
+  StepConditionChecker<N> exact(n), checker(n);
+  StepConditionTrack track;
+  double worst_num = 0.0, worst_den = 1.0;
+  std::int64_t worst_step = -1, first_violation = -1, violations = 0, bounded = 0;
+  const int steps = 4000;
+  const double h = 0.05 / Eigen::JacobiSVD<Eigen::MatrixXd>(C0).singularValues()(0);
+  for (int k = 0; k < steps; ++k) {
+    const double t = 1e-3 * k;
+    Mat<N> M = M0 * (1.0 + 0.3 * std::sin(5.0 * t));
+    M(0, 0) += 0.2 * std::cos(7.0 * t);
+    // r_k = 0.15 |sin 4t| (1 + 3t) lambda0 / lambda_min(M): it oscillates with a growing amplitude, so
+    // new largest ratios come now and then, and violations from about t = 2.
+    const Mat<N> C = C0 * (1.5 * lambda0 * std::abs(std::sin(4.0 * t)) * (1.0 + 3.0 * t));
+    const StepCheck e = exact.check(M, C, h, 0.0);
+    const StepCheck c = checker.check(M, C, h, track.ceiling());
+    bounded += c.ratio_kind == BoundKind::kUpperBound && n <= 2;
+    if (e.ratio_sq_num * worst_den > worst_num * e.ratio_sq_den) {
+      worst_num = e.ratio_sq_num;
+      worst_den = e.ratio_sq_den;
+      worst_step = k;
+    }
+    if (e.ratio_sq_num > e.ratio_sq_den * (1.0 + StepConditionTrack::kRoundoff) * (1.0 + StepConditionTrack::kRoundoff)) {
+      if (violations++ == 0) first_violation = k;
+    }
+    track.record_squared(c.ratio_sq_num, c.ratio_sq_den, c.ratio_kind, k, t);
+  }
+  EXPECT_EQ(track.checked, steps);
+  EXPECT_EQ(track.worst_ratio(), std::sqrt(worst_num / worst_den)) << "n = " << n;
+  EXPECT_EQ(track.worst_step, worst_step) << "n = " << n;
+  EXPECT_EQ(track.violations, violations) << "n = " << n;
+  EXPECT_EQ(track.first_violation_step, first_violation) << "n = " << n;
+  EXPECT_GT(violations, steps / 20) << "the path must cross (4.2)";
+  EXPECT_LT(violations, steps / 2);
+  if (n == 2) {
+    EXPECT_GT(bounded, steps / 2) << "the n = 2 closed form of ||C||_2 must be skipped on most steps";
+  }
+}
+
+TEST(StepConditions, CeilingRecordsWhatEveryStepWouldRecord) {
+  CeilingRecordsWhatEveryStepWouldRecord<1>(1);
+  CeilingRecordsWhatEveryStepWouldRecord<2>(2);
+  CeilingRecordsWhatEveryStepWouldRecord<Eigen::Dynamic>(7);
 }
 
 TEST(StepConditions, TrackCountsViolationsFromTheFirst) {

@@ -214,7 +214,7 @@ class AblIntegrator {
   // M(Q^k) is not positive definite: the run stops there, naming t and q.
   bool check_step(RunRecorder& rec, double h_k, std::int64_t k, double t) {
     RunSummary& s = rec.summary();
-    const StepCheck c = checker_.check(terms_.M, terms_.C, h_k);
+    const StepCheck c = checker_.check(terms_.M, terms_.C, h_k, s.theorem41.ceiling());
     s.mass.record(c.lambda_min_m, c.exact, k, t);
     if (!(c.lambda_min_m > 0.0)) {
       failure_ = not_positive_definite(c.lambda_min_m, q_.data(), static_cast<int>(q_.size()));

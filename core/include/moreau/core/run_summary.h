@@ -56,12 +56,14 @@ struct StepConditionTrack {
   // lower bound where it certainly fails).
   void record_squared(double num, double den, BoundKind kind, std::int64_t k, double t) {
     ++checked;
+    if (num <= ceiling_ * den) return;  // most steps: neither a new largest ratio nor a violation
     if (num * worst_den_ > worst_num_ * den) {
       worst_num_ = num;
       worst_den_ = den;
       worst_kind = kind;
       worst_step = k;
       worst_time = t;
+      ceiling_ = std::min(1.0, num / den) * (1.0 - 1e-6);
     }
     if (num > den * ((1.0 + kRoundoff) * (1.0 + kRoundoff))) {
       if (violations == 0) {
@@ -75,10 +77,15 @@ struct StepConditionTrack {
   // the largest r_k or (worst_kind == kLowerBound) a lower bound of the largest.
   BoundKind worst_kind = BoundKind::kExact;
   double worst_ratio() const { return worst_num_ > 0.0 ? std::sqrt(worst_num_ / worst_den_) : 0.0; }
+  // Below this r_k^2 a step can move neither the largest ratio nor the violations: the largest recorded
+  // r_k^2, capped at 1, less a relative 1e-6 that covers the round-off of this division and of the bounds
+  // a checker may give below it (StepConditionChecker::check).
+  double ceiling() const { return ceiling_; }
   Verdict verdict() const { return checked == 0 ? Verdict::kNotChecked : (violations > 0 ? Verdict::kFails : Verdict::kHolds); }
 
  private:
   double worst_num_ = 0.0, worst_den_ = 1.0;
+  double ceiling_ = 0.0;
 };
 
 // The smallest eigenvalue of M(Q^k) over the run (Assumption 3.1 at the visited states): exact for n <= 2;

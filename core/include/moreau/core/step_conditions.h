@@ -11,8 +11,10 @@
 //    "theorem-4.1" chooses h_k so that r_k <= 1; the rule "fixed" does not, and this check is what says
 //    whether its steps were covered by the theorem.
 //
-// Cost: closed forms for n = 1 and 2 (three square roots). For larger n, certified two-sided bounds first,
-// and eigenvalues only when the bounds cannot decide (r_k <= 1, or r_k > 1 + round-off, for certain):
+// Cost: closed forms for n = 1 and 2 (one square root for lambda_min(M); two more for ||C||_2, only on the
+// steps where r_k may exceed the largest ratio recorded so far, see check()). For larger n, certified
+// two-sided bounds first, and eigenvalues only when the bounds cannot decide (r_k <= 1, or r_k > 1 +
+// round-off, for certain):
 //  - lambda_min(M) >= Gershgorin's bound, and ||C||_2^2 <= ||C||_1 ||C||_inf;
 //  - lambda_min(M) <= x^T M x and ||C||_2^2 >= ||C u||^2 for unit x and u (Rayleigh quotients). x and u
 //    track the eigenvectors of lambda_min(M) and of ||C||_2^2 (of C^T C): set by the last eigenvalue
@@ -99,8 +101,12 @@ class StepConditionChecker {
     }
   }
 
-  // Both checks at (Q^k, V^k) with step h. For n <= 2 two square roots and no division.
-  StepCheck check(const Mat<N>& M, const Mat<N>& C, double h) {
+  // Both checks at (Q^k, V^k) with step h. For n <= 2 at most three square roots and no division. r_k^2
+  // matters only where it may exceed ratio_sq_ceiling (StepConditionTrack::ceiling: the largest ratio
+  // recorded so far, capped at 1, less a margin; recording a ratio below it changes nothing). For n = 2,
+  // where the upper bound 4 h^2 ||C||_F^2 / lambda_min(M)^2 is below it, that bound is returned
+  // (kUpperBound) without the closed form of ||C||_2: most steps of a run.
+  StepCheck check(const Mat<N>& M, const Mat<N>& C, double h, double ratio_sq_ceiling) {
     StepCheck c;
     const double h2 = 4.0 * h * h;
     if constexpr (N == 1) {
@@ -108,8 +114,14 @@ class StepConditionChecker {
       c.ratio_sq_num = h2 * C(0, 0) * C(0, 0);
     } else if constexpr (N == 2) {
       c.lambda_min_m = min_eig2(M(0, 0), 0.5 * (M(0, 1) + M(1, 0)), M(1, 1));
-      // ||C||_2^2 = lambda_max(C^T C) = (||C||_F^2 + sqrt(||C||_F^4 - 4 det(C)^2)) / 2.
       const double f2 = C.squaredNorm();
+      if (h2 * f2 <= ratio_sq_ceiling * (c.lambda_min_m * c.lambda_min_m)) {
+        c.ratio_sq_num = h2 * f2;  // ||C||_2 <= ||C||_F
+        c.ratio_sq_den = c.lambda_min_m * c.lambda_min_m;
+        c.ratio_kind = BoundKind::kUpperBound;
+        return c;
+      }
+      // ||C||_2^2 = lambda_max(C^T C) = (||C||_F^2 + sqrt(||C||_F^4 - 4 det(C)^2)) / 2.
       const double det = C(0, 0) * C(1, 1) - C(0, 1) * C(1, 0);
       c.ratio_sq_num = h2 * 0.5 * (f2 + std::sqrt(std::max(0.0, f2 * f2 - 4.0 * det * det)));
     } else {
