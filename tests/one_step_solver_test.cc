@@ -445,6 +445,9 @@ TEST(OneStepSolver, SharedFactorisationGivesTheDirectSolvesSolution) {
       EXPECT_LE(InclusionResidual(P, x, a, 0.0, y), 1e-12 * tol) << "n = " << n << ", trial " << trial;
     }
     EXPECT_EQ(shared.direct_retries(), 0) << "n = " << n;
+    // A pattern re-solved directly (its shared solution missed the round-off tolerance) is a safety net,
+    // not the path: if most steps needed it, the shared factorisation would cost more than it saves.
+    EXPECT_LT(shared.direct_resolves(), 12 / 2) << "n = " << n << ": more than half the 12 trials needed a direct re-solve";
     EXPECT_GT(resting, n) << "n = " << n << ": too few resting components to exercise (P^-1)_RR";
     EXPECT_GT(moving, n) << "n = " << n << ": too few moving components to exercise P_FF";
     EXPECT_GT(pivoted, 0) << "n = " << n << ": no trial reached principal pivoting";
