@@ -33,7 +33,7 @@ using moreau::server::ServerConfig;
 using moreau::server::testing::manipulator;
 using moreau::server::testing::read_json_file;
 using moreau::server::testing::submit;
-using moreau::server::testing::TempDir;
+using moreau::test_support::TempDir;
 using moreau::server::testing::TestServer;
 using moreau::server::testing::wait_final;
 using moreau::server::testing::wait_running;

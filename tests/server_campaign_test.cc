@@ -22,7 +22,7 @@ namespace {
 
 using moreau::server::ServerConfig;
 using moreau::server::testing::read_json_file;
-using moreau::server::testing::TempDir;
+using moreau::test_support::TempDir;
 using moreau::server::testing::TestServer;
 using moreau::server::testing::wait_final;
 using json = nlohmann::json;

@@ -54,7 +54,7 @@
 #include <httplib.h>
 #include <nlohmann/json.hpp>
 
-#include "temp_dir.h"
+#include "support/temp_dir.h"
 
 namespace {
 
@@ -63,7 +63,7 @@ using Clock = std::chrono::steady_clock;
 namespace fs = std::filesystem;
 using ::testing::AnyOf;
 using ::testing::HasSubstr;
-using moreau::server::testing::TempDir;
+using moreau::test_support::TempDir;
 
 constexpr const char* kReasonRunning = "server restarted while the job was running";
 constexpr const char* kReasonQueued = "server restarted before the job ran";

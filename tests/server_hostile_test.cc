@@ -25,7 +25,7 @@ namespace {
 using moreau::server::ServerConfig;
 using moreau::server::testing::manipulator;
 using moreau::server::testing::submit;
-using moreau::server::testing::TempDir;
+using moreau::test_support::TempDir;
 using moreau::server::testing::TestServer;
 using moreau::server::testing::wait_final;
 using moreau::server::testing::wait_running;

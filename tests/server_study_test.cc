@@ -16,7 +16,7 @@ namespace {
 
 using moreau::server::ServerConfig;
 using moreau::server::testing::read_json_file;
-using moreau::server::testing::TempDir;
+using moreau::test_support::TempDir;
 using moreau::server::testing::TestServer;
 using moreau::server::testing::wait_final_study;
 using json = nlohmann::json;

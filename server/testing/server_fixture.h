@@ -19,12 +19,14 @@
 
 #include "moreau/scene/simulation.h"
 #include "moreau/server/server.h"
-#include "temp_dir.h"
+#include "support/temp_dir.h"
 
 // httplib.h after Eigen (simulation.h): its <resolv.h> defines a `_res` macro that breaks Eigen.
 #include <httplib.h>
 
 namespace moreau::server::testing {
+
+using test_support::TempDir;
 
 inline nlohmann::json read_json_file(const std::string& path) {
   std::ifstream in(path);

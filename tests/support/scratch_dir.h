@@ -4,29 +4,16 @@
 // under the system's temporary directory, removed with its contents when the process exits.
 #pragma once
 
-#include <stdlib.h>
-
-#include <filesystem>
-#include <stdexcept>
 #include <string>
+
+#include "temp_dir.h"  // beside this file
 
 namespace moreau::test_support {
 
 inline const std::string& scratch_dir() {
-  struct Dir {
-    std::string path;
-    Dir() {
-      std::string pattern = (std::filesystem::temp_directory_path() / "moreau-test-XXXXXX").string();
-      if (!mkdtemp(pattern.data())) throw std::runtime_error("mkdtemp failed for " + pattern);
-      path = pattern;
-    }
-    ~Dir() {
-      std::error_code ec;
-      std::filesystem::remove_all(path, ec);
-    }
-  };
-  static const Dir dir;
-  return dir.path;
+  static const TempDir dir("test");
+  static const std::string path = dir.path().string();
+  return path;
 }
 
 }  // namespace moreau::test_support

@@ -1,5 +1,5 @@
-// Test support: a directory of a test's own under the system's temporary directory, removed with
-// everything in it when the owner goes out of scope.
+// A directory of a test's own under the system's temporary directory, removed with everything in it
+// when the owner goes out of scope: every directory the tests make (scratch_dir() holds one too).
 #pragma once
 
 #include <stdlib.h>
@@ -10,7 +10,7 @@
 #include <system_error>
 #include <utility>
 
-namespace moreau::server::testing {
+namespace moreau::test_support {
 
 // A new directory under the system's temporary directory (TMPDIR), removed with its contents when the
 // TempDir goes out of scope, however the test left it (a failed assertion returns early).
@@ -49,4 +49,4 @@ class TempDir {
   std::filesystem::path path_;
 };
 
-}  // namespace moreau::server::testing
+}  // namespace moreau::test_support
