@@ -34,6 +34,51 @@ struct Recorder : RunObserver {
   }
 };
 
+// The checks at recorded states (RecordedStateChecks: Assumption 4.1 at every 16th, E at every 64th) find
+// the same maxima, times and sample counts whether the run hands them every recorded state (an observer
+// after them needs all) or only those they check (nothing after them: sample_stride() = 16), for
+// several output.every, on scenes where Assumption 4.1 holds for a while and where it fails.
+TEST(RecordedStateChecks, SeeTheSameStatesWithOrWithoutAnObserverAfterThem) {
+  int force_samples = 0, energy_samples = 0;
+  for (const char* file : {"damped-relay.json", "coulomb-oscillator.json", "manipulator.json"}) {
+    for (int every : {1, 3, 7}) {
+      json doc = Scene(file);
+      doc["output"]["every"] = every;
+      const LagrangianScene sc = load_scene(doc);
+      Recorder after;
+      EXPECT_EQ(RecordedStateChecks(sc, nullptr).sample_stride(), RecordedStateChecks::kStride);
+      EXPECT_EQ(RecordedStateChecks(sc, &after).sample_stride(), 1);
+      const RunSummary alone = run_scene(sc, nullptr);
+      const RunSummary chained = run_scene(sc, &after);
+      const std::string where = std::string(file) + ", every " + std::to_string(every);
+      EXPECT_EQ(alone.force_bounds.samples, chained.force_bounds.samples) << where;
+      EXPECT_EQ(alone.force_bounds.failed, chained.force_bounds.failed) << where;
+      EXPECT_EQ(alone.force_bounds.max_force, chained.force_bounds.max_force) << where;
+      EXPECT_EQ(alone.force_bounds.max_force_time, chained.force_bounds.max_force_time) << where;
+      EXPECT_EQ(alone.force_bounds.max_gradient, chained.force_bounds.max_gradient) << where;
+      EXPECT_EQ(alone.force_bounds.max_gradient_time, chained.force_bounds.max_gradient_time) << where;
+      EXPECT_EQ(alone.mechanical.samples, chained.mechanical.samples) << where;
+      EXPECT_EQ(alone.mechanical.initial, chained.mechanical.initial) << where;
+      EXPECT_EQ(alone.mechanical.max_rise, chained.mechanical.max_rise) << where;
+      EXPECT_EQ(alone.mechanical.max_rise_time, chained.mechanical.max_rise_time) << where;
+      EXPECT_EQ(alone.mechanical.max_balance, chained.mechanical.max_balance) << where;
+      EXPECT_EQ(alone.mechanical.max_balance_time, chained.mechanical.max_balance_time) << where;
+      // By definition: the recorded states numbered 0, 16, 32, ... up to the last (and 64 for E).
+      const std::int64_t recorded = static_cast<std::int64_t>(after.t.size());
+      if (!chained.force_bounds.failed) {
+        EXPECT_EQ(chained.force_bounds.samples, (recorded + 15) / 16) << where;
+      }
+      if (sc.compiled->has_potential) {
+        EXPECT_EQ(chained.mechanical.samples, (recorded + 63) / 64) << where;
+      }
+      force_samples += static_cast<int>(alone.force_bounds.samples);
+      energy_samples += static_cast<int>(alone.mechanical.samples);
+    }
+  }
+  EXPECT_GT(force_samples, 100) << "Assumption 4.1 must be sampled at many states, not only the first";
+  EXPECT_GT(energy_samples, 100);
+}
+
 std::vector<double> Exact(const LagrangianScene& sc, double t) {
   std::vector<double> slots(1 + 2 * sc.n, 0.0), out(2 * sc.n), scratch(sc.exact_tape->scratch_size());
   slots[0] = t;

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "moreau/core/abl_integrator.h"
@@ -139,6 +140,54 @@ TEST(RunRecorder, AblRunAnnouncesConvergenceWhenItIsDetected) {
   EXPECT_EQ(e.samples_seen, static_cast<std::size_t>(e.step));
   EXPECT_LT(e.samples_seen, log.samples / 2) << "the relay stops at t* = (m/c) ln(1 + c v0 / a) = 3.67 of 8";
   EXPECT_EQ(log.samples, static_cast<std::size_t>(s.steps) + 1);
+}
+
+// RunObserver::sample_stride: an observer that needs every 4th recorded state sees exactly those (by
+// Sample::index) and the last, out of the states an observer of every one sees; the numbers are the
+// recorded states' own, k / output_every, and the last one's ceil(k / output_every). Checked against
+// the definition: recorded states are steps 0, e, 2e, ... and the last step, numbered in order.
+TEST(RunRecorder, SampleStrideHandsOutEveryKthRecordedStateAndTheLast) {
+  struct Log : RunObserver {
+    std::int64_t stride = 1;
+    std::vector<std::pair<std::int64_t, std::int64_t>> seen;  // (step, index)
+    void on_sample(const Sample& s) override { seen.emplace_back(s.step, s.index); }
+    std::int64_t sample_stride() const override { return stride; }
+  };
+  for (std::int64_t every : {1, 3, 7}) {
+    for (std::int64_t steps : {96, 100, 101}) {  // the last step a multiple of every * 4, or of neither
+      Log all, fourth;
+      fourth.stride = 4;
+      for (Log* log : {&all, &fourth}) {
+        RunRecorder rec(log, every, 1);
+        const double x = 0.0;
+        rec.first_sample(0.0, 0.01, &x, &x, 0.0);
+        for (std::int64_t k = 1; k <= steps; ++k) rec.after_step(k, k / 100.0, 0.01, &x, &x, 0.0, 0.0);
+        rec.last_sample(steps, steps / 100.0, 0.01, &x, &x, 0.0, 0.0);
+      }
+      std::vector<std::pair<std::int64_t, std::int64_t>> expected_all, expected_fourth;
+      std::int64_t number = 0;
+      for (std::int64_t k = 0; k <= steps; ++k) {
+        if (k % every != 0 && k != steps) continue;
+        expected_all.emplace_back(k, number);
+        if (number % 4 == 0 || k == steps) expected_fourth.emplace_back(k, number);
+        ++number;
+      }
+      EXPECT_EQ(all.seen, expected_all) << "every " << every << ", " << steps << " steps";
+      EXPECT_EQ(fourth.seen, expected_fourth) << "every " << every << ", " << steps << " steps";
+    }
+  }
+  // What a chain and a fan ask for: the states every member needs.
+  Log one, four, six;
+  four.stride = 4;
+  six.stride = 6;
+  ObserverFan fan;
+  fan.add(&four);
+  fan.add(&six);
+  EXPECT_EQ(fan.sample_stride(), 2);
+  fan.add(&one);
+  EXPECT_EQ(fan.sample_stride(), 1);
+  EXPECT_EQ(ObserverFan().sample_stride(), 1);
+  EXPECT_EQ(ForwardingObserver(&six).sample_stride(), 6);
 }
 
 // ObserverFan (core/observer.h): every observer added sees every event of the run, the same as alone.
