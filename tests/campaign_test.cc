@@ -330,6 +330,46 @@ TEST(CampaignRun, TheSameRecordsHoweverTheSamplesAreSplit) {
   fs::remove_all(two);
 }
 
+// A task completes its part by linking X.jsonl to X.jsonl.partial, then removing the .partial: another
+// task or a collection that lists the directory in between sees both names for one file. Each record
+// is read once, and a task reads only the parts that can hold its own samples.
+TEST(CampaignRun, APartSeenUnderBothItsNamesIsReadOnce) {
+  const CampaignSpec s = CampaignSpec::from_json(relay_spec("sobol", 30), "");
+  const fs::path dir = fresh_dir("two-names");
+  for (auto [b, e] : {std::pair{0, 10}, std::pair{10, 20}}) {
+    CampaignRunOptions part;
+    part.begin = b;
+    part.end = e;
+    part.part = true;
+    ASSERT_EQ(run_campaign(s, dir.string(), part).ran, e - b);
+  }
+  // The moment between the link and the removal, held still.
+  ASSERT_EQ(::link((dir / "parts" / "0-10.jsonl").c_str(), (dir / "parts" / "0-10.jsonl.partial").c_str()), 0);
+  EXPECT_EQ(missing_per_task(dir.string(), s, 3), (std::vector<std::int64_t>{0, 0, 10}));
+  EXPECT_EQ(read_campaign_outcomes(s, dir.string()).size(), 20u);
+  CampaignRunOptions last;
+  last.begin = 20;
+  last.end = 30;
+  last.part = true;
+  // A part that cannot hold samples 20 to 29 is not read by their task (only a collection checks it).
+  std::ofstream(dir / "parts" / "5-8.jsonl") << "not a record\n";
+  EXPECT_EQ(run_campaign(s, dir.string(), last).ran, 10);
+  try {
+    collect_campaign(dir.string());
+    ADD_FAILURE() << "a part that is not records was collected";
+  } catch (const std::runtime_error& e) {
+    EXPECT_THAT(e.what(), HasSubstr("5-8.jsonl' line 1 is not a sample record"));
+  }
+  fs::remove(dir / "parts" / "5-8.jsonl");
+  // Collected with both names still there: the summary of the same campaign run whole.
+  const json collected = collect_campaign(dir.string());
+  const fs::path whole = fresh_dir("two-names-whole");
+  ASSERT_TRUE(run_campaign(s, whole.string(), CampaignRunOptions{}).summarized);
+  EXPECT_EQ(collected, read_scene_file((whole / "summary.json").string()));
+  fs::remove_all(dir);
+  fs::remove_all(whole);
+}
+
 TEST(CampaignRun, AStopAndAKilledWriteResumeWithoutLossOrDuplicates) {
   const CampaignSpec s = CampaignSpec::from_json(relay_spec("sobol", 50), "");
   const fs::path ref = fresh_dir("ref"), dir = fresh_dir("resume");

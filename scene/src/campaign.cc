@@ -8,17 +8,21 @@
 #include <cstring>
 
 #include <algorithm>
+#include <charconv>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <mutex>
 #include <numeric>
+#include <optional>
 #include <random>
 #include <set>
 #include <sstream>
+#include <string_view>
 #include <thread>
 
 #include <boost/math/distributions/normal.hpp>
@@ -854,21 +858,47 @@ void for_each_record(const fs::path& file, CutLine cut, Each each) {
   if (partial && cut == CutLine::kRepair) fs::resize_file(file, good_end);
 }
 
+// The samples a reader wants: a task needs only its own range, a collection all of them.
+struct SampleRange {
+  std::int64_t begin = 0, end = std::numeric_limits<std::int64_t>::max();
+  bool contains(std::int64_t i) const { return i >= begin && i < end; }
+  bool overlaps(std::int64_t b, std::int64_t e) const { return b < end && e > begin; }
+};
+
+// The range a part file's name states (parts/<begin>-<end>.jsonl[.partial]), or nothing for another name.
+std::optional<std::pair<std::int64_t, std::int64_t>> part_range(const std::string& name) {
+  std::int64_t b = 0, e = 0;
+  const char* p = name.c_str();
+  const char* const last = p + name.size();
+  auto [after_b, eb] = std::from_chars(p, last, b);
+  if (eb != std::errc() || after_b == last || *after_b != '-') return std::nullopt;
+  auto [after_e, ee] = std::from_chars(after_b + 1, last, e);
+  if (ee != std::errc() || std::string_view(after_e, static_cast<std::size_t>(last - after_e)).rfind(".jsonl", 0) != 0) return std::nullopt;
+  return std::pair{b, e};
+}
+
 // The records files of a campaign directory: samples.jsonl (a run on one machine) and the parts of
 // ranges run as separate tasks, parts/<begin>-<end>.jsonl (complete) or .jsonl.partial (running, or
-// stopped: its complete lines are records like any other).
-std::vector<fs::path> record_files(const fs::path& dir) {
+// stopped: its complete lines are records like any other). Parts whose named range lies outside `wanted`
+// are left out. A task completes its part by linking X.jsonl to X.jsonl.partial and then removing the
+// .partial, so a listing taken in between holds both names for one file: the complete name is kept.
+std::vector<fs::path> record_files(const fs::path& dir, SampleRange wanted) {
   std::vector<fs::path> files;
   if (fs::exists(dir / "samples.jsonl")) files.push_back(dir / "samples.jsonl");
   if (fs::is_directory(dir / "parts")) {
-    std::vector<fs::path> parts;
+    std::set<std::string> complete, partial;
     for (const auto& e : fs::directory_iterator(dir / "parts")) {
       const std::string name = e.path().filename().string();
       auto ends_with = [&](const std::string& suffix) { return name.size() > suffix.size() && name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0; };
-      if (ends_with(".jsonl") || ends_with(".jsonl.partial")) parts.push_back(e.path());
+      if (const auto r = part_range(name); r && !wanted.overlaps(r->first, r->second)) continue;
+      if (ends_with(".jsonl")) complete.insert(name);
+      else if (ends_with(".jsonl.partial")) partial.insert(name.substr(0, name.size() - std::string(".partial").size()));
     }
-    std::sort(parts.begin(), parts.end());
-    files.insert(files.end(), parts.begin(), parts.end());
+    // Sorted by name, the complete and the running parts together.
+    std::set<std::string> names = complete;
+    for (const std::string& p : partial)
+      if (!complete.count(p)) names.insert(p + ".partial");
+    for (const std::string& n : names) files.push_back(dir / "parts" / n);
   }
   return files;
 }
@@ -963,21 +993,28 @@ void write_summary(const fs::path& dir, const json& summary) {
 
 namespace {
 
-// Every record of the directory, each index once and inside the campaign, as summary rows (and as
-// rows of `csv` when given); present[i] says whether sample i has a record. `own` (a file this process
-// writes) has a cut last line repaired; the others' cut lines are handled as `others` says.
+// Every record of the directory in `wanted`, each index once and inside the campaign, as summary rows
+// (and as rows of `csv` when given); present[i] says whether sample i has a record. `own` (a file this
+// process writes) has a cut last line repaired; the others' cut lines are handled as `others` says.
 std::vector<CampaignOutcome> load_rows(const CampaignSpec& spec, const fs::path& dir, const fs::path& own, CutLine others, std::vector<bool>& present,
-                                 std::ofstream* csv, int dof) {
+                                 std::ofstream* csv, int dof, SampleRange wanted = {}) {
   present.assign(static_cast<std::size_t>(spec.samples), false);
   std::vector<CampaignOutcome> rows;
-  std::vector<fs::path> files = record_files(dir);
+  std::vector<fs::path> files = record_files(dir, wanted);
   if (!own.empty() && std::find(files.begin(), files.end(), own) == files.end() && fs::exists(own)) files.push_back(own);
-  for (const fs::path& file : files) {
+  for (fs::path file : files) {
+    // Another task's running part completed since the listing: its records are under the complete name
+    // now (read here unless the listing already held that name).
+    if (file != own && file.extension() == ".partial" && !fs::exists(file)) {
+      file.replace_extension();
+      if (std::find(files.begin(), files.end(), file) != files.end()) continue;
+    }
     for_each_record(file, file == own ? CutLine::kRepair : others, [&](json&& r) {
       const auto i = r["index"].get<std::int64_t>();
       if (i < 0 || i >= spec.samples)
         throw std::runtime_error("'" + file.string() + "' holds sample " + std::to_string(i) + ", outside the campaign's " +
                                  std::to_string(spec.samples) + " samples");
+      if (!wanted.contains(i)) return;
       if (present[static_cast<std::size_t>(i)])
         throw std::runtime_error("sample " + std::to_string(i) + " is present twice (the second time in '" + file.string() + "')");
       present[static_cast<std::size_t>(i)] = true;
@@ -1020,7 +1057,7 @@ CampaignRunResult run_campaign(const CampaignSpec& spec, const std::string& dir_
   CampaignRunResult result;
   if (task) {
     // A block that is complete is left as it is: nothing is opened, created or renamed.
-    load_rows(spec, dir, fs::path(), CutLine::kIgnore, done, nullptr, dof);
+    load_rows(spec, dir, fs::path(), CutLine::kIgnore, done, nullptr, dof, SampleRange{begin, end});
     bool complete = true;
     for (std::int64_t i = begin; i < end && complete; ++i) complete = done[static_cast<std::size_t>(i)];
     if (complete) {
@@ -1042,7 +1079,7 @@ CampaignRunResult run_campaign(const CampaignSpec& spec, const std::string& dir_
     throw std::runtime_error("'" + own.string() + "' is being written by another process (the same samples run twice at once?)");
   std::ofstream out_csv;
   if (task) {
-    present = static_cast<std::int64_t>(load_rows(spec, dir, own, CutLine::kIgnore, done, nullptr, dof).size());
+    present = static_cast<std::int64_t>(load_rows(spec, dir, own, CutLine::kIgnore, done, nullptr, dof, SampleRange{begin, end}).size());
   } else {
     // The table is rewritten from the records: it may have been cut at another point than they were.
     const fs::path csv = dir / "samples.csv";
