@@ -36,22 +36,19 @@ Vector6d inertia_times(double m, const Eigen::Vector3d& h, const Eigen::Matrix3d
   return pack(Ibar * s + h.cross(su), m * su - h.cross(s));
 }
 
-Eigen::Matrix3d skew(const Eigen::Vector3d& a) {
-  Eigen::Matrix3d x;
-  x << 0.0, -a.z(), a.y(), a.z(), 0.0, -a.x(), -a.y(), a.x(), 0.0;
-  return x;
-}
-
-// A = (V x*) I for the spatial inertia I = [Ibar, hx; hx^T, m E] (hx = skew(h), hx^T = -hx) and
-// (V x*) = [wx, ux; 0, wx], by 3 x 3 blocks: [wx Ibar - ux hx, wx hx + m ux; -wx hx, m wx].
-void crf_times_inertia(const Vector6d& V, double m, const Eigen::Vector3d& h, const Eigen::Matrix3d& Ibar, Matrix6d& A) {
-  const Eigen::Matrix3d wx = skew(V.head<3>()), ux = skew(V.tail<3>()), hx = skew(h);
-  const Eigen::Matrix3d wxhx = wx * hx;
-  A.topLeftCorner<3, 3>().noalias() = wx * Ibar;
-  A.topLeftCorner<3, 3>().noalias() -= ux * hx;
-  A.topRightCorner<3, 3>() = wxhx + m * ux;
-  A.bottomLeftCorner<3, 3>() = -wxhx;
-  A.bottomRightCorner<3, 3>() = m * wx;
+// T_i, the top-left 3 x 3 block of A_i + A_i^T for A_i = (V_i x*) I_i, with V_i = (w, u) and the spatial
+// inertia I_i = [Ibar, hx; hx^T, m E] (hx = skew(h)). By 3 x 3 blocks, (V x*) = [wx, ux; 0, wx] gives
+// A = [wx Ibar - ux hx, wx hx + m ux; -wx hx, m wx], so that
+//   A + A^T = [T, px; -px, 0],  T = wx Ibar - Ibar wx - (h u^T + u h^T) + 2 (u . h) E,
+// with p = m u + w x h the body's linear momentum (wx hx - hx wx = skew(w x h)): T and the momentum I V
+// carry all of A + A^T, and both add over subtrees.
+void twice_symmetric_part(const Vector6d& V, const Eigen::Vector3d& h, const Eigen::Matrix3d& Ibar, Eigen::Matrix3d& T) {
+  const Eigen::Vector3d w = V.head<3>(), u = V.tail<3>();
+  Eigen::Matrix3d K;  // wx Ibar, column by column; Ibar wx = -(wx Ibar)^T since Ibar is symmetric
+  for (int c = 0; c < 3; ++c) K.col(c) = w.cross(Ibar.col(c));
+  T.noalias() = K + K.transpose();
+  T.noalias() -= h * u.transpose() + u * h.transpose();
+  T.diagonal().array() += 2.0 * u.dot(h);
 }
 
 // Body i's own inertia in the base frame: mass, first moment m c and rotational inertia about the origin
@@ -141,7 +138,7 @@ RigidBodyData::RigidBodyData(const RigidBodyModel& model) {
   first_moment.assign(n, Eigen::Vector3d::Zero());
   rotational.assign(n, Eigen::Matrix3d::Zero());
   momentum.assign(n, Vector6d::Zero());
-  A.assign(n, Matrix6d::Zero());
+  T.assign(n, Eigen::Matrix3d::Zero());
   F.assign(n, Vector6d::Zero());
 }
 
@@ -176,12 +173,12 @@ void rigid_body_terms(const RigidBodyModel& model, RigidBodyData& data, const do
                       Eigen::Ref<Eigen::MatrixXd> M, Eigen::Ref<Eigen::MatrixXd> C, Eigen::Ref<Eigen::VectorXd> G) {
   update_kinematics(model, data, q, v);
   const int n = model.dof();
-  // Each body's own inertia, momentum I_i V_i and A_i = (V_i x*) I_i; then the sums over subtrees.
+  // Each body's own inertia, momentum I_i V_i and T_i (twice_symmetric_part); then the sums over subtrees.
   for (int j = 0; j < n; ++j) {
     const std::size_t k = static_cast<std::size_t>(j);
     world_inertia(model.bodies[k], data.rotation[k], data.position[k], data.mass[k], data.first_moment[k], data.rotational[k]);
     data.momentum[k] = inertia_times(data.mass[k], data.first_moment[k], data.rotational[k], data.V[k]);
-    crf_times_inertia(data.V[k], data.mass[k], data.first_moment[k], data.rotational[k], data.A[k]);
+    twice_symmetric_part(data.V[k], data.first_moment[k], data.rotational[k], data.T[k]);
   }
   for (int j = n - 1; j >= 0; --j) {
     const std::size_t k = static_cast<std::size_t>(j);
@@ -192,7 +189,7 @@ void rigid_body_terms(const RigidBodyModel& model, RigidBodyData& data, const do
     data.first_moment[pk] += data.first_moment[k];
     data.rotational[pk] += data.rotational[k];
     data.momentum[pk] += data.momentum[k];
-    data.A[pk] += data.A[k];
+    data.T[pk] += data.T[k];
   }
   if (!is_chain(model)) {  // a tree leaves M(a, j) = C(a, j) = 0 where neither body supports the other
     M.setZero();
@@ -201,12 +198,15 @@ void rigid_body_terms(const RigidBodyModel& model, RigidBodyData& data, const do
   for (int j = 0; j < n; ++j) {
     const std::size_t k = static_cast<std::size_t>(j);
     const Vector6d& S = data.S[k];
-    // Ic_j S_j, Bc_j S_j and Bc_j^T S_j with Bc = 1/2 (Ac + Ac^T + X(hc)), X(hc) S = S x* hc.
+    const Eigen::Vector3d s = S.head<3>(), su = S.tail<3>();
+    // Bc_j = 1/2 (Ac + Ac^T + X(hc)) with X(hc) S = S x* hc for the composite momentum hc = (nc, pc), and
+    // Ac + Ac^T = [Tc, pcx; -pcx, 0] (twice_symmetric_part), so that
+    //   Bc S = (1/2 (Tc s + s x nc), s x pc),  Bc^T S = (1/2 (Tc s - s x nc) + pc x su, 0).
+    const Eigen::Vector3d nc = data.momentum[k].head<3>(), pc = data.momentum[k].tail<3>();
+    const Eigen::Vector3d Ts = data.T[k] * s, s_x_nc = s.cross(nc);
+    const Vector6d BS = pack(0.5 * (Ts + s_x_nc), s.cross(pc));
+    const Eigen::Vector3d BtS = 0.5 * (Ts - s_x_nc) + pc.cross(su);  // its bottom half is 0
     const Vector6d IS = inertia_times(data.mass[k], data.first_moment[k], data.rotational[k], S);
-    const Vector6d sym = data.A[k] * S + data.A[k].transpose() * S;
-    const Vector6d skew = cross_force(S, data.momentum[k]);
-    const Vector6d BS = 0.5 * (sym + skew);
-    const Vector6d BtS = 0.5 * (sym - skew);
     const Vector6d F1 = inertia_times(data.mass[k], data.first_moment[k], data.rotational[k], data.S_dot[k]) + BS;
     for (int a = j; a >= 0; a = model.bodies[static_cast<std::size_t>(a)].parent) {
       const std::size_t ak = static_cast<std::size_t>(a);
@@ -214,7 +214,7 @@ void rigid_body_terms(const RigidBodyModel& model, RigidBodyData& data, const do
       M(a, j) = m;
       M(j, a) = m;
       C(a, j) = data.S[ak].dot(F1);
-      if (a != j) C(j, a) = IS.dot(data.S_dot[ak]) + BtS.dot(data.S[ak]);
+      if (a != j) C(j, a) = IS.dot(data.S_dot[ak]) + BtS.dot(data.S[ak].head<3>());
     }
   }
   gravity_from_composites(model, data, G);

@@ -19,7 +19,9 @@
 //   Coriolis matrix and Christoffel symbols for rigid-body systems", J. Comput. Nonlinear Dynam., 2021),
 //   also the one of Pinocchio's computeCoriolisMatrix. Composite sums over subtrees make it O(n^2):
 //   C_aj = S_a^T (Ic_j dS_j/dt + Bc_j S_j) for a an ancestor of j (or j), and
-//   C_jb = (Ic_j S_j)^T dS_b/dt + (Bc_j^T S_j)^T S_b for b a strict ancestor of j;
+//   C_jb = (Ic_j S_j)^T dS_b/dt + (Bc_j^T S_j)^T S_b for b a strict ancestor of j.
+//   Bc_j is never formed: A_i + A_i^T has the blocks [T_i, p_i x; -p_i x, 0] (p_i the body's linear
+//   momentum), so a 3 x 3 sum T over the subtree and the composite momentum give Bc_j S_j and Bc_j^T S_j;
 // - grad V = G: G_j = -S_j^T sum_{i in subtree(j)} (c_i x m_i g, m_i g);
 // - inverse dynamics by the recursive Newton-Euler algorithm (for cross-checks and tests).
 // tests/rigid_body_test.cc checks each against closed forms, against each other and against KDL.
@@ -35,7 +37,6 @@
 namespace moreau {
 
 using Vector6d = Eigen::Matrix<double, 6, 1>;
-using Matrix6d = Eigen::Matrix<double, 6, 6>;
 
 enum class JointType { kRevolute, kPrismatic };
 
@@ -81,12 +82,13 @@ struct RigidBodyData {
   std::vector<Vector6d> S_dot;            // dS_j/dt = V_j x S_j
   std::vector<Vector6d> V;                // spatial velocity of body j
   // Composite quantities of the subtree at j: mass, first moment m c, rotational inertia about the base
-  // origin (together the spatial inertia Ic_j), momentum sum I_i V_i and sum (V_i x*) I_i.
+  // origin (together the spatial inertia Ic_j), momentum sum I_i V_i, and T, the top-left block of
+  // sum (A_i + A_i^T) with A_i = (V_i x*) I_i (the rest of that sum is the momentum's, rigid_body.cc).
   std::vector<double> mass;
   std::vector<Eigen::Vector3d> first_moment;
   std::vector<Eigen::Matrix3d> rotational;
   std::vector<Vector6d> momentum;
-  std::vector<Matrix6d> A;
+  std::vector<Eigen::Matrix3d> T;
   std::vector<Vector6d> F;  // per-body force or auxiliary vector
 };
 
