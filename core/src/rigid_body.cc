@@ -2,6 +2,8 @@
 // part first: a motion V = (w, u) (u: velocity of the body point at the origin), a force f = (n, f).
 #include "moreau/core/rigid_body.h"
 
+#include <cmath>
+
 #include <Eigen/Geometry>
 
 namespace moreau {
@@ -36,6 +38,12 @@ Vector6d inertia_times(double m, const Eigen::Vector3d& h, const Eigen::Matrix3d
   return pack(Ibar * s + h.cross(su), m * su - h.cross(s));
 }
 
+Eigen::Matrix3d skew(const Eigen::Vector3d& a) {
+  Eigen::Matrix3d x;
+  x << 0.0, -a.z(), a.y(), a.z(), 0.0, -a.x(), -a.y(), a.x(), 0.0;
+  return x;
+}
+
 // T_i, the top-left 3 x 3 block of A_i + A_i^T for A_i = (V_i x*) I_i, with V_i = (w, u) and the spatial
 // inertia I_i = [Ibar, hx; hx^T, m E] (hx = skew(h)). By 3 x 3 blocks, (V x*) = [wx, ux; 0, wx] gives
 // A = [wx Ibar - ux hx, wx hx + m ux; -wx hx, m wx], so that
@@ -63,30 +71,40 @@ void world_inertia(const RigidBody& body, const Eigen::Matrix3d& R, const Eigen:
   Ibar += m * (c.squaredNorm() * Eigen::Matrix3d::Identity() - c * c.transpose());
 }
 
-// Poses only (V and dS/dt untouched).
+// Poses only (V and dS/dt untouched). A revolute joint's frame is R_p (Rip Rot(a, q_j)) with, by Rodrigues'
+// formula, Rip Rot(a, q) = Rip + sin q (Rip ax) + (1 - cos q) (Rip ax^2): the three constant matrices
+// are the model's JointFrame, so a pose costs one 3 x 3 product and one sincos.
 void update_poses(const RigidBodyModel& model, RigidBodyData& data, const double* q) {
   const int n = model.dof();
   for (int j = 0; j < n; ++j) {
-    const RigidBody& b = model.bodies[static_cast<std::size_t>(j)];
-    Eigen::Matrix3d R0;
-    Eigen::Vector3d p0;
-    if (b.parent < 0) {
-      R0 = b.rotation_in_parent;
-      p0 = b.position_in_parent_m;
-    } else {
-      const Eigen::Matrix3d& Rp = data.rotation[static_cast<std::size_t>(b.parent)];
-      R0.noalias() = Rp * b.rotation_in_parent;
-      p0 = data.position[static_cast<std::size_t>(b.parent)] + Rp * b.position_in_parent_m;
-    }
-    const Eigen::Vector3d axis = R0 * b.axis;  // the joint axis in the base frame
+    const std::size_t k = static_cast<std::size_t>(j);
+    const RigidBody& b = model.bodies[k];
+    const RigidBodyData::JointFrame& f = data.joint_frame[k];
+    Eigen::Matrix3d local;  // the joint frame moved by q_j, in the parent's frame
     if (b.joint == JointType::kRevolute) {
-      data.rotation[static_cast<std::size_t>(j)].noalias() = R0 * Eigen::AngleAxisd(q[j], b.axis).toRotationMatrix();
-      data.position[static_cast<std::size_t>(j)] = p0;
-      data.S[static_cast<std::size_t>(j)] = pack(axis, p0.cross(axis));  // rotation about the line through p0
+      const double sn = std::sin(q[j]), versine = 1.0 - std::cos(q[j]);
+      local = f.rotation + sn * f.sin_term + versine * f.versine_term;
     } else {
-      data.rotation[static_cast<std::size_t>(j)] = R0;
-      data.position[static_cast<std::size_t>(j)] = p0 + q[j] * axis;
-      data.S[static_cast<std::size_t>(j)] = pack(Eigen::Vector3d::Zero(), axis);
+      local = f.rotation;
+    }
+    Eigen::Vector3d p0, axis;  // the joint frame's origin and axis in the base frame
+    if (b.parent < 0) {
+      data.rotation[k] = local;
+      p0 = b.position_in_parent_m;
+      axis = f.axis_in_parent;
+    } else {
+      const std::size_t pk = static_cast<std::size_t>(b.parent);
+      const Eigen::Matrix3d& Rp = data.rotation[pk];
+      data.rotation[k].noalias() = Rp * local;
+      p0 = data.position[pk] + Rp * b.position_in_parent_m;
+      axis.noalias() = Rp * f.axis_in_parent;
+    }
+    if (b.joint == JointType::kRevolute) {
+      data.position[k] = p0;
+      data.S[k] = pack(axis, p0.cross(axis));  // rotation about the line through p0
+    } else {
+      data.position[k] = p0 + q[j] * axis;
+      data.S[k] = pack(Eigen::Vector3d::Zero(), axis);
     }
   }
 }
@@ -129,6 +147,16 @@ bool is_chain(const RigidBodyModel& model) {
 
 RigidBodyData::RigidBodyData(const RigidBodyModel& model) {
   const std::size_t n = static_cast<std::size_t>(model.dof());
+  joint_frame.resize(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    const RigidBody& b = model.bodies[k];
+    const Eigen::Matrix3d ax = skew(b.axis);
+    JointFrame& f = joint_frame[k];
+    f.rotation = b.rotation_in_parent;
+    f.sin_term.noalias() = b.rotation_in_parent * ax;
+    f.versine_term.noalias() = f.sin_term * ax;
+    f.axis_in_parent.noalias() = b.rotation_in_parent * b.axis;
+  }
   rotation.assign(n, Eigen::Matrix3d::Identity());
   position.assign(n, Eigen::Vector3d::Zero());
   S.assign(n, Vector6d::Zero());
