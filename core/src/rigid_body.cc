@@ -73,7 +73,8 @@ void world_inertia(const RigidBody& body, const Eigen::Matrix3d& R, const Eigen:
 
 // Poses only (V and dS/dt untouched). A revolute joint's frame is R_p (Rip Rot(a, q_j)) with, by Rodrigues'
 // formula, Rip Rot(a, q) = Rip + sin q (Rip ax) + (1 - cos q) (Rip ax^2): the three constant matrices
-// are the model's JointFrame, so a pose costs one 3 x 3 product and one sincos.
+// are RigidBodyData::JointFrame, derived once from the model, so a pose costs one 3 x 3 product and one
+// sincos.
 void update_poses(const RigidBodyModel& model, RigidBodyData& data, const double* q) {
   const int n = model.dof();
   for (int j = 0; j < n; ++j) {
