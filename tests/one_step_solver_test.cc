@@ -407,10 +407,11 @@ TEST(OneStepSolver, PrincipalPivotingSolvesSixtyFourCoordinatesExactly) {
   }
 }
 
-// Dense P of 16 to 128 coordinates with separable phi: the patterns of a step are solved from one LU of P
-// (through (P^{-1})_RR when few components rest, through P_FF when few move). Against the same solver
-// factorising each pattern's own matrix: the same resting components, exactly 0.0, and the same y to
-// the problems' conditioning; every step finished without falling back to the direct solves.
+// Dense P of 16 to 128 coordinates with separable phi: the patterns of a step share one LU, that of the
+// step's first pattern's P_FF, which later patterns update by a Schur complement of the components that
+// changed state. Against the same solver factorising each pattern's own n x n matrix (the independent
+// reference): the same resting components, exactly 0.0, and the same y to the problems' conditioning;
+// every step finished without falling back to the direct solves, and the updates were used.
 TEST(OneStepSolver, SharedFactorisationGivesTheDirectSolvesSolution) {
   std::mt19937 rng(23);
   std::normal_distribution<double> gauss(0.0, 1.0);
@@ -422,8 +423,8 @@ TEST(OneStepSolver, SharedFactorisationGivesTheDirectSolvesSolution) {
     shared.configure(a, 0.0);
     direct.configure(a, 0.0);
     direct.use_direct_solves();
-    ASSERT_TRUE(shared.factors_p_once()) << "n = " << n;
-    ASSERT_FALSE(direct.factors_p_once());
+    ASSERT_TRUE(shared.shares_factorisation()) << "n = " << n;
+    ASSERT_FALSE(direct.shares_factorisation());
     int resting = 0, moving = 0, pivoted = 0;
     for (int trial = 0; trial < 12; ++trial) {
       const Eigen::MatrixXd P = IllConditionedP(n, rng);
@@ -448,8 +449,9 @@ TEST(OneStepSolver, SharedFactorisationGivesTheDirectSolvesSolution) {
     // A pattern re-solved directly (its shared solution missed the round-off tolerance) is a safety net,
     // not the path: if most steps needed it, the shared factorisation would cost more than it saves.
     EXPECT_LT(shared.direct_resolves(), 12 / 2) << "n = " << n << ": more than half the 12 trials needed a direct re-solve";
-    EXPECT_GT(resting, n) << "n = " << n << ": too few resting components to exercise (P^-1)_RR";
-    EXPECT_GT(moving, n) << "n = " << n << ": too few moving components to exercise P_FF";
+    EXPECT_GT(resting, n) << "n = " << n << ": too few resting components";
+    EXPECT_GT(moving, n) << "n = " << n << ": too few moving components";
+    EXPECT_GT(shared.schur_updates(), 12) << "n = " << n << ": the steps' later patterns were not solved by updates";
     EXPECT_GT(pivoted, 0) << "n = " << n << ": no trial reached principal pivoting";
   }
   // Outside 16..128 (or with a norm term) each pattern has its own factorisation.
@@ -457,9 +459,9 @@ TEST(OneStepSolver, SharedFactorisationGivesTheDirectSolvesSolution) {
   small.configure(Eigen::VectorXd::Ones(15), 0.0);
   large.configure(Eigen::VectorXd::Ones(129), 0.0);
   with_norm.configure(Eigen::VectorXd::Ones(32), 0.5);
-  EXPECT_FALSE(small.factors_p_once());
-  EXPECT_FALSE(large.factors_p_once());
-  EXPECT_FALSE(with_norm.factors_p_once());
+  EXPECT_FALSE(small.shares_factorisation());
+  EXPECT_FALSE(large.shares_factorisation());
+  EXPECT_FALSE(with_norm.shares_factorisation());
 }
 
 

@@ -204,7 +204,7 @@ class AblIntegrator {
   // For the report: which factorisation solved the step's linear systems.
   std::string linear_solver_description() const {
     if (settings_.velocity_update == VelocityUpdate::kExplicit) return "dense LU with partial pivoting (of M)";
-    if (solver_.factors_p_once()) return "dense LU with partial pivoting, one of P per step for all its patterns";
+    if (solver_.shares_factorisation()) return "dense LU with partial pivoting, of a step's first pattern, updated for its later patterns";
     if (solver_.banded_width() < 0) return "dense LU with partial pivoting";
     char buf[80];
     std::snprintf(buf, sizeof buf, "banded LU with partial pivoting, bandwidth %d", solver_.banded_width());

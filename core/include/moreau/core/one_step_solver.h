@@ -29,10 +29,10 @@
 // dynamic sizes when the caller states that P is zero beyond a bandwidth b from its diagonal and b is
 // small (6 b <= n), the same elimination confined to the band (LAPACK's dgbtrf scheme: pivots from the b
 // rows below, fill-in up to 2 b above the diagonal), O(n b^2) instead of O(n^3). For dense P of dynamic
-// size 16 <= n <= 128 and separable phi (robot chains), one LU of P per step serves every pattern of the
-// step after its first (solve_from_p): O(n r + min(r, n - r)^3) per pattern with r resting components,
-// instead of a new O(n^3) factorisation each; a solution those solves leave above the round-off tolerance
-// is solved again directly. The acceptance residual is always computed with the whole of P, so a wrong
+// size 16 <= n <= 128 and separable phi (robot chains), a step's patterns share one LU (solve_from_base):
+// that of its first pattern's free block, which later patterns update by a Schur complement of the few
+// components whose state changed, O(f^2) per changed component instead of a new O(f^3) factorisation
+// each; a solution those solves leave above the round-off tolerance is solved again directly. The acceptance residual is always computed with the whole of P, so a wrong
 // bandwidth cannot pass unseen.
 #pragma once
 
@@ -68,16 +68,18 @@ class OneStepSolver {
     an_ = norm_gain;
     bandwidth_ = (N == Eigen::Dynamic && bandwidth >= 0 && 6 * bandwidth <= n) ? bandwidth : -1;
     nonsmooth_ = an_ > 0.0 || (a_.array() > 0.0).any();
-    factor_p_once_ = N == Eigen::Dynamic && bandwidth_ < 0 && an_ == 0.0 && n >= kFactorOnceMin && n <= kFactorOnceMax;
-    if (factor_p_once_) {
-      p_lu_ = Eigen::PartialPivLU<Mat<N>>(n);
-      p_inv_.setZero(n, n);
+    share_factorisation_ = N == Eigen::Dynamic && bandwidth_ < 0 && an_ == 0.0 && n >= kShareMin && n <= kShareMax;
+    if (share_factorisation_) {
+      base_lu_.setZero(n, n);
+      base_cols_.setZero(n, n);
       small_.setZero(n, n);
       col_ready_.setZero(n);
-      z_pattern_.setZero(n);
+      base_transpositions_.setZero(n);
+      small_transpositions_.setZero(n);
+      base_index_.setZero(n);
+      base_position_.setZero(n);
       index_.setZero(n);
-      z_.setZero(n);
-      e_.setZero(n);
+      u_.setZero(n);
       col_.setZero(n);
       small_rhs_.setZero(n);
     }
@@ -100,25 +102,25 @@ class OneStepSolver {
 
   // The bandwidth the linear solves use, or -1 for dense LU.
   int banded_width() const { return bandwidth_; }
-  // Whether the pattern solves of a step share one LU of P (solve_from_p); use_direct_solves() turns
-  // that off (each pattern then factorises its own matrix, as for other sizes).
-  bool factors_p_once() const { return factor_p_once_; }
-  void use_direct_solves() { factor_p_once_ = false; }
+  // Whether the pattern solves of a step share one LU (solve_from_base); use_direct_solves() turns that
+  // off (each pattern then factorises its own n x n matrix, as for other sizes).
+  bool shares_factorisation() const { return share_factorisation_; }
+  void use_direct_solves() { share_factorisation_ = false; }
   // Since configure: patterns whose shared-factorisation solution missed the round-off tolerance and
   // were solved again directly (accept_shared_solution), and steps whose shared-factorisation solves
   // could not finish at all, solved again from the start with direct solves (solve()).
   std::int64_t direct_resolves() const { return direct_resolves_; }
   std::int64_t direct_retries() const { return direct_retries_; }
+  // Since configure: patterns solved by a Schur complement update of the step's base LU (solve_from_base).
+  std::int64_t schur_updates() const { return schur_updates_; }
 
   // Solves (6.5). On success returns true with y the solution; on failure returns false (y then holds
   // the best iterate, for diagnostics only).
   bool solve(const Mat<N>& P, const Vec<N>& x, Vec<N>& y, OneStepStats& stats) {
     if constexpr (N != Eigen::Dynamic) return solve_with(P, x, y, stats);  // direct_ is always true
-    direct_ = !factor_p_once_;
+    direct_ = !share_factorisation_;
     if (direct_) return solve_with(P, x, y, stats);
-    p_factored_ = false;
-    solved_a_pattern_ = false;
-    z_ready_ = false;
+    base_size_ = -1;
     col_ready_.setZero();
     start_ = pattern_;
     if (solve_with(P, x, y, stats)) return true;
@@ -277,7 +279,7 @@ class OneStepSolver {
     return std::isfinite(stats.residual) && stats.residual <= stats.tolerance && y.allFinite();
   }
 
-  // accept() for y from a shared-factorisation solve (solve_from_p) of the current pattern, consistent()
+  // accept() for y from a shared-factorisation solve (solve_from_base) of the current pattern, consistent()
   // having just passed. It can miss the round-off tolerance where the direct solve of the same pattern
   // meets it (its error grows with the conditioning of (P^{-1})_RR): that pattern is then solved
   // directly, and the rest of the step's solves are direct too.
@@ -339,7 +341,7 @@ class OneStepSolver {
       return an_ == 0.0;  // with a norm term y = 0 was already ruled out
     }
     if (!direct_) {  // (separable phi: no Newton iteration below)
-      if (!solve_from_p(P, x, s, y)) return false;
+      if (!solve_from_base(P, x, s, y)) return false;
       pin_zeros(s, y);
       return y.allFinite();
     }
@@ -403,118 +405,146 @@ class OneStepSolver {
     return y.allFinite() && y.norm() > 0.0;
   }
 
-  // The pattern's equations P_FF y_F = b_F, y_R = 0 (F free, R pinned: r = |R|, f = |F| = n - r):
-  //  - at the step's first pattern, and whenever f < r: P_FF itself, gathered and factorised;
-  //  - otherwise from the one LU of P that the step's later patterns share: y = z - P^{-1} E_R mu with
-  //    z = -P^{-1} (x + a s) and mu solving (P^{-1})_RR mu = z_R, so that y_R = 0 and (P y)_F = b_F.
-  //    (P^{-1})_RR is invertible exactly when P_FF is: by Jacobi's identity det (P^{-1})_RR =
-  //    det P_FF / det P. The columns of P^{-1} it needs are computed once per step, when first needed.
-  // O(n r + min(r, f)^3) per pattern once those columns exist. False when the small system is singular
-  // (P_FF is). Also w_ = -(P y + x) without a product with P: w_F = a_F s_F, since (P y)_F = b_F; and
-  // w_R = mu from P y = -(x + a s) - E_R mu (s_R = 0), or -P_RF y_F - x_R from P_FF.
-  bool solve_from_p(const Mat<N>& P, const Vec<N>& x, const Pattern& s, Vec<N>& y) {
+  // The pattern's equations P_FF y_F = b_F, y_R = 0 (F free, R pinned, f = |F|), with one LU for the
+  // several patterns of a step wherever the active-set iteration changes few components at a time:
+  //  - the step's first pattern is its base: B = P_F0F0 is gathered and factorised (2/3 f0^3);
+  //  - a later pattern F differs from F0 by the components A = F \ F0 that started moving and
+  //    D = F0 \ F that came to rest. With K = [P_F0A, E_D] and L^T = [P_AF0; E_D^T] (E_D: the columns of
+  //    the identity at D's places in F0) its equations are the bordered system
+  //        [ B    K ] [ y_F0      ]   [ b_F0   ]
+  //        [ L^T  Z ] [ y_A ; mu  ] = [ b_A ; 0 ],     Z = [ P_AA  0 ; 0  0 ],
+  //    where mu holds y_D = 0 (it absorbs rows D of b_F0). It is solved through the Schur complement
+  //    S = Z - L^T B^{-1} K (m x m, m = |A| + |D|): y_F0 = B^{-1} b_F0 - B^{-1} K (y_A ; mu). S is
+  //    invertible exactly when P_FF is (eliminating mu and y_D from the bordered matrix leaves P_FF). The
+  //    columns B^{-1} k_j are solved once per step, when first needed: O(f0^2) each, then O(m^2 f0 + m^3)
+  //    per pattern instead of a new O(f^3) LU;
+  //  - where that would cost more operations than P_FF's own LU (many components changed), P_FF is
+  //    factorised and becomes the base.
+  // False when a system is singular (P_FF is). Also w_ = -(P y + x) without the whole product with P:
+  // w_F = a_F s_F, since (P y)_F = b_F, and w_R = -P_RF y_F - x_R.
+  bool solve_from_base(const Mat<N>& P, const Vec<N>& x, const Pattern& s, Vec<N>& y) {
     const int n = size();
-    int r = 0;
-    for (int i = 0; i < n; ++i)
-      if (pinned_(i)) index_(r++) = i;
     for (int i = 0; i < n; ++i) w_(i) = a_(i) * s(i);  // the free components' (pinned ones below)
     w_from_pattern_ = true;
-    // Most steps need one pattern: P is factorised at the second, and the first solves P_FF directly.
-    const bool first = !p_factored_ && !solved_a_pattern_;
-    solved_a_pattern_ = true;
-    if (!first && !p_factored_) {
-      p_lu_.compute(P);
-      p_factored_ = true;
+    int f = 0;
+    for (int i = 0; i < n; ++i) f += !pinned_(i);
+    // A, then D, in index_; and the columns of B^{-1} K not yet solved this step.
+    int m = 0, added = 0, new_columns = 0;
+    if (base_size_ >= 0) {
+      for (int i = 0; i < n; ++i)
+        if (!pinned_(i) && base_position_(i) < 0) index_(m++) = i;
+      added = m;
+      for (int i = 0; i < n; ++i)
+        if (pinned_(i) && base_position_(i) >= 0) index_(m++) = i;
+      for (int c = 0; c < m; ++c) new_columns += !col_ready_(index_(c));
     }
-    if (!first && r <= n - r) {
-      // z_ = -P^{-1} (x + a s) for this s: solved at the step's first pattern, then moved by the columns
-      // of P^{-1} of the components whose state changed. (Its pinned components' right-hand side is
-      // -x_R rather than b_R = 0: mu absorbs the difference, and w_R = mu - x_R + x_R = mu.)
-      if (!z_ready_) {
-        e_ = -(x + a_.cwiseProduct(s.template cast<double>()));
-        z_.noalias() = p_lu_.solve(e_);
-        z_pattern_ = s;
-        z_ready_ = true;
-      } else {
-        for (int i = 0; i < n; ++i) {
-          if (s(i) == z_pattern_(i)) continue;
-          z_.noalias() -= (a_(i) * (s(i) - z_pattern_(i))) * inverse_column(i);
-          z_pattern_(i) = s(i);
+    const double f0 = base_size_, mm = m;
+    const double schur_cost = (new_columns + 1) * 2.0 * f0 * f0 + 2.0 * added * mm * f0 + 2.0 / 3.0 * mm * mm * mm;
+    const double own_cost = 2.0 / 3.0 * f * f * f;
+    y.setZero(n);
+    if (base_size_ < 0 || own_cost < schur_cost) {
+      if (!factor_base(P)) return false;
+      for (int k = 0; k < f; ++k) u_(k) = b_(base_index_(k));
+      lu_solve(base_lu_, base_transpositions_, f, u_);
+      for (int k = 0; k < f; ++k) y(base_index_(k)) = u_(k);
+    } else {
+      ++schur_updates_;
+      const int nb = base_size_;
+      for (int c = 0; c < m; ++c) {
+        const int j = index_(c);
+        if (col_ready_(j)) continue;
+        if (c < added) {
+          for (int k = 0; k < nb; ++k) col_(k) = P(base_index_(k), j);
+        } else {
+          col_.head(nb).setZero();
+          col_(base_position_(j)) = 1.0;
+        }
+        lu_solve(base_lu_, base_transpositions_, nb, col_);
+        base_cols_.col(j).head(nb) = col_.head(nb);
+        col_ready_(j) = 1;
+      }
+      for (int k = 0; k < nb; ++k) u_(k) = b_(base_index_(k));
+      lu_solve(base_lu_, base_transpositions_, nb, u_);
+      // S and its right-hand side, row by row: a row of A from P's row (gathered over F0), a row of D
+      // from the columns' entries at its place in F0.
+      for (int r = 0; r < m; ++r) {
+        const int i = index_(r);
+        if (r < added) {
+          for (int k = 0; k < nb; ++k) col_(k) = P(i, base_index_(k));
+          for (int c = 0; c < m; ++c) {
+            const int j = index_(c);
+            small_(r, c) = (c < added ? P(i, j) : 0.0) - col_.head(nb).dot(base_cols_.col(j).head(nb));
+          }
+          small_rhs_(r) = b_(i) - col_.head(nb).dot(u_.head(nb));
+        } else {
+          const int p = base_position_(i);
+          for (int c = 0; c < m; ++c) small_(r, c) = -base_cols_(p, index_(c));
+          small_rhs_(r) = -u_(p);
         }
       }
-      if (r == 0) {
-        y = z_;
-        return true;
+      if (m > 0) {
+        if (!lu_factor(small_, small_transpositions_, m)) return false;
+        lu_solve(small_, small_transpositions_, m, small_rhs_);
       }
-      for (int k = 0; k < r; ++k) inverse_column(index_(k));
-      for (int c = 0; c < r; ++c) {
-        for (int k = 0; k < r; ++k) small_(k, c) = p_inv_(index_(k), index_(c));
-        small_rhs_(c) = z_(index_(c));
+      for (int c = 0; c < m; ++c) u_.head(nb) -= small_rhs_(c) * base_cols_.col(index_(c)).head(nb);
+      for (int k = 0; k < nb; ++k) {
+        const int i = base_index_(k);
+        if (!pinned_(i)) y(i) = u_(k);
       }
-      if (!small_lu_solve(r)) return false;
-      y = z_;
-      for (int k = 0; k < r; ++k) {
-        const int j = index_(k);
-        y.noalias() -= small_rhs_(k) * p_inv_.col(j);
-        w_(j) = small_rhs_(k);
-      }
-      return true;
+      for (int c = 0; c < added; ++c) y(index_(c)) = small_rhs_(c);
     }
-    const int f = n - r;
-    for (int i = 0, m = 0; i < n; ++i)
-      if (!pinned_(i)) index_(m++) = i;
-    for (int c = 0; c < f; ++c) {
-      for (int k = 0; k < f; ++k) small_(k, c) = P(index_(k), index_(c));
-      small_rhs_(c) = b_(index_(c));
-    }
-    if (!small_lu_solve(f)) return false;
-    y.setZero(n);
-    for (int k = 0; k < f; ++k) y(index_(k)) = small_rhs_(k);
+    for (int i = 0; i < n; ++i)
+      if (pinned_(i)) w_(i) = -P.row(i).dot(y) - x(i);
+    return y.allFinite();
+  }
+
+  // The current pattern's free set becomes the step's base: P_FF gathered into base_lu_ and factorised.
+  bool factor_base(const Mat<N>& P) {
+    const int n = size();
+    int f = 0;
     for (int i = 0; i < n; ++i) {
-      if (!pinned_(i)) continue;
-      double py = 0.0;
-      for (int k = 0; k < f; ++k) py += P(i, index_(k)) * small_rhs_(k);
-      w_(i) = -py - x(i);
+      base_position_(i) = pinned_(i) ? -1 : f;
+      if (!pinned_(i)) base_index_(f++) = i;
     }
-    return true;
+    for (int c = 0; c < f; ++c)
+      for (int k = 0; k < f; ++k) base_lu_(k, c) = P(base_index_(k), base_index_(c));
+    col_ready_.setZero();
+    base_size_ = f;
+    if (lu_factor(base_lu_, base_transpositions_, f)) return true;
+    base_size_ = -1;
+    return false;
   }
 
-  // Column j of P^{-1}, solved once per step.
-  decltype(auto) inverse_column(int j) {
-    if (!col_ready_(j)) {
-      e_.setZero();
-      e_(j) = 1.0;
-      col_.noalias() = p_lu_.solve(e_);
-      p_inv_.col(j) = col_;
-      col_ready_(j) = 1;
+  // LU with partial pivoting of the leading m x m block of A, in place (unit lower and upper factors),
+  // the row interchanges in t: t(k) is the row swapped with row k at step k. No allocation. False on a
+  // zero pivot. Above 16 rows Eigen's blocked LU (the one PartialPivLU runs: panels of 8 columns, the
+  // trailing block updated by a matrix product); below, the same elimination unblocked.
+  static bool lu_factor(Mat<N>& A, Eigen::Matrix<int, N, 1>& t, int m) {
+    if (m > 16) {
+      int transpositions = 0;
+      return Eigen::internal::partial_lu_impl<double, Eigen::ColMajor, int>::blocked_lu(m, m, A.data(), A.outerStride(), t.data(),
+                                                                                          transpositions) < 0;
     }
-    return p_inv_.col(j);
-  }
-
-  // small_rhs_ <- S^{-1} small_rhs_ for S the leading m x m block of small_ (overwritten by its factors):
-  // Gaussian elimination with partial pivoting in place, no allocation. False on a zero pivot.
-  bool small_lu_solve(int m) {
     for (int k = 0; k < m; ++k) {
       int p = k;
       for (int i = k + 1; i < m; ++i)
-        if (std::abs(small_(i, k)) > std::abs(small_(p, k))) p = i;
-      if (small_(p, k) == 0.0) return false;
-      if (p != k) {
-        small_.row(k).head(m).swap(small_.row(p).head(m));
-        std::swap(small_rhs_(k), small_rhs_(p));
-      }
+        if (std::abs(A(i, k)) > std::abs(A(p, k))) p = i;
+      t(k) = p;
+      if (A(p, k) == 0.0) return false;
+      if (p != k) A.row(k).head(m).swap(A.row(p).head(m));
       const int rest = m - k - 1;
       if (rest == 0) break;
-      small_.col(k).segment(k + 1, rest) /= small_(k, k);
-      small_rhs_.segment(k + 1, rest) -= small_rhs_(k) * small_.col(k).segment(k + 1, rest);
-      small_.block(k + 1, k + 1, rest, rest).noalias() -= small_.col(k).segment(k + 1, rest) * small_.row(k).segment(k + 1, rest);
-    }
-    for (int k = m - 1; k >= 0; --k) {
-      double sum = small_rhs_(k);
-      for (int j = k + 1; j < m; ++j) sum -= small_(k, j) * small_rhs_(j);
-      small_rhs_(k) = sum / small_(k, k);
+      A.col(k).segment(k + 1, rest) /= A(k, k);
+      A.block(k + 1, k + 1, rest, rest).noalias() -= A.col(k).segment(k + 1, rest) * A.row(k).segment(k + 1, rest);
     }
     return true;
+  }
+  // rhs <- S^{-1} rhs for S the leading m x m block whose factors lu_factor left in A.
+  static void lu_solve(const Mat<N>& A, const Eigen::Matrix<int, N, 1>& t, int m, Vec<N>& rhs) {
+    for (int k = 0; k < m; ++k) std::swap(rhs(k), rhs(t(k)));
+    const auto lu = A.topLeftCorner(m, m);
+    lu.template triangularView<Eigen::UnitLower>().solveInPlace(rhs.head(m));
+    lu.template triangularView<Eigen::Upper>().solveInPlace(rhs.head(m));
   }
 
   // y = A_^{-1} b_ for n = 2: Eigen's PartialPivLU (partial pivoting, the first row on a tie, l = a10 / a00,
@@ -590,7 +620,7 @@ class OneStepSolver {
       if (a_(i) > 0.0 && s(i) == 0) y(i) = 0.0;  // exactly zero, not round-off
   }
 
-  // w_ = -(P y + x) for the y of the last pattern solve, unless solve_from_p gave it already.
+  // w_ = -(P y + x) for the y of the last pattern solve, unless solve_from_base gave it already.
   void multiplier_estimate(const Mat<N>& P, const Vec<N>& x, const Vec<N>& y) {
     if (w_from_pattern_) return;
     w_.noalias() = -(P * y);
@@ -765,23 +795,23 @@ class OneStepSolver {
   Mat<N> A_, J_;
   Vec<N> b_, w_, r_, dy_, best_;
   bool y_zero_ = false;  // whether the y consistent() checked last is 0
-  bool w_from_pattern_ = false;  // w_ is -(P y + x) for the last pattern solve, from solve_from_p
+  bool w_from_pattern_ = false;  // w_ is -(P y + x) for the last pattern solve, from solve_from_base
   Eigen::PartialPivLU<Mat<N>> lu_;
 
-  // The shared factorisation (solve_from_p): sizes where it applies, and its buffers.
-  static constexpr int kFactorOnceMin = 16;        // below, a pattern's own LU costs little
-  static constexpr int kFactorOnceMax = 128;  // the sizes it is tested and measured on (its buffers are n x n)
-  bool factor_p_once_ = false;
+  // The shared factorisation (solve_from_base): sizes where it applies, and its buffers.
+  static constexpr int kShareMin = 16;        // below, a pattern's own LU costs little
+  static constexpr int kShareMax = 128;  // the sizes it is tested and measured on (its buffers are n x n)
+  bool share_factorisation_ = false;
   bool direct_ = true;      // this attempt's pattern solves are direct
-  bool p_factored_ = false;  // p_lu_ holds this step's P
-  bool solved_a_pattern_ = false;  // this step has solved a pattern from P_FF
-  bool z_ready_ = false;     // z_ = -P^{-1} (x + a z_pattern_) for this step's P and x
-  std::int64_t direct_resolves_ = 0, direct_retries_ = 0;
-  Pattern start_, col_ready_, z_pattern_;
-  Eigen::PartialPivLU<Mat<N>> p_lu_;
-  Mat<N> p_inv_, small_;  // columns of P^{-1} (those col_ready_ marks), and the small system
-  Eigen::Matrix<int, N, 1> index_;
-  Vec<N> z_, e_, col_, small_rhs_;
+  std::int64_t direct_resolves_ = 0, direct_retries_ = 0, schur_updates_ = 0;
+  Pattern start_, col_ready_;
+  // The step's base pattern: its free set F0 (base_index_, base_size_ = |F0|, -1 before the step's first
+  // pattern; base_position_(i) = position of i in F0 or -1), the LU factors of P_F0F0 in the leading
+  // block of base_lu_ with their row interchanges, and the columns B^{-1} k_j that col_ready_ marks.
+  int base_size_ = -1;
+  Mat<N> base_lu_, base_cols_, small_;  // small_: the Schur complement or a pattern's own P_FF
+  Eigen::Matrix<int, N, 1> base_transpositions_, small_transpositions_, base_index_, base_position_, index_;
+  Vec<N> u_, col_, small_rhs_;
 };
 
 }  // namespace moreau
