@@ -3,10 +3,15 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <string_view>
 
 #include "moreau/scene/simulation.h"
 
 namespace moreau::scene {
+namespace detail {
+extern const std::string_view kIiwa14ControllerScene;  // scenes/iiwa14-controller.json (shipped_robot.cc.in)
+extern const std::string_view kIiwa14Urdf;             // scenes/robots/kuka-iiwa14.urdf
+}  // namespace detail
 namespace {
 
 using nlohmann::json;
@@ -38,6 +43,20 @@ json manipulator(double g, std::vector<double> v0, double h, double t_end, const
             {"initial", {{"q", {3, -1}}, {"v", v0}}},
             {"integrator", {{"h", h}, {"t_end", t_end}, {"step_rule", rule}}},
             {"output", {{"every", 100}}}};
+  return s;
+}
+
+// The shipped iiwa scene (a 7-joint arm from URDF, the controller on every joint), its initial velocity
+// scaled by speed, with the given step rule.
+json iiwa14(double speed, const std::string& rule, double t_end) {
+  json s = json::parse(detail::kIiwa14ControllerScene);
+  s["name"] = "stress-iiwa14";
+  s["system"]["urdf"].erase("file");
+  s["system"]["urdf"]["text"] = std::string(detail::kIiwa14Urdf);
+  for (auto& v : s["initial"]["v"]) v = speed * v.get<double>();
+  s["integrator"]["step_rule"] = rule;
+  s["integrator"]["t_end"] = t_end;
+  s["output"] = {{"every", 1000}};
   return s;
 }
 
@@ -80,6 +99,13 @@ std::vector<StressCase> stress_cases() {
   add({"perturbation-just-above-gain", "a constant force f = a (1 + 1e-9) against the relay a, with damping c = 1",
        one_dof(1.0, 1.0, 1.0, 1.0 + 1e-9, 1.0, 1e-3, 30.0), true, std::nullopt, false, true,
        "-F lies outside dPhi(0): no equilibrium at rest; it slides on at the terminal speed (f - a)/c = 1e-9"});
+  add({"robot-iiwa-fixed-step", "the 7-joint iiwa (URDF) from its moving start with a fixed h = 1e-3; lambda_min(M) ~ 1e-3 kg m^2",
+       iiwa14(1.0, "fixed", 3.0), true, std::nullopt, std::nullopt, false,
+       "outside Thm 4.1 where (4.2) fails (its first steps): a step's solution is not guaranteed unique; the report counts those steps"});
+  add({"robot-iiwa-10x-speed", "the iiwa at 10 times its scene's initial speed (up to 30 rad/s), the Theorem 4.1 rule",
+       iiwa14(10.0, "theorem-4.1", 3.0), true, std::nullopt, std::nullopt, true,
+       "Thm 4.1: the rule keeps each step uniquely solvable, so h_k must shrink; Assumption 4.1 fails under gravity, so "
+       "Thms 4.2 and 4.3 promise nothing"});
   {
     json s = one_dof(2.0, 0.5, 1.0, 0.0, 3.0, 1e-7, 10.0);
     s["output"]["every"] = 1000000;
