@@ -32,8 +32,8 @@
 // size 16 <= n <= 128 and separable phi (robot chains), a step's patterns share one LU (solve_from_base):
 // that of its first pattern's free block, which later patterns update by a Schur complement of the few
 // components whose state changed, O(f^2) per changed component instead of a new O(f^3) factorisation
-// each; a solution those solves leave above the round-off tolerance is solved again directly. The acceptance residual is always computed with the whole of P, so a wrong
-// bandwidth cannot pass unseen.
+// each; a solution those solves leave above the round-off tolerance is solved again directly. The
+// acceptance residual is always computed with the whole of P, so a wrong bandwidth cannot pass unseen.
 #pragma once
 
 #include <algorithm>
@@ -281,8 +281,8 @@ class OneStepSolver {
 
   // accept() for y from a shared-factorisation solve (solve_from_base) of the current pattern, consistent()
   // having just passed. It can miss the round-off tolerance where the direct solve of the same pattern
-  // meets it (its error grows with the conditioning of (P^{-1})_RR): that pattern is then solved
-  // directly, and the rest of the step's solves are direct too.
+  // meets it (its error grows with the conditioning of the base block and of the Schur complement):
+  // that pattern is then solved directly, and the rest of the step's solves are direct too.
   bool accept_shared_solution(const Mat<N>& P, const Vec<N>& x, Vec<N>& y, double scale_px, double gain_scale, OneStepStats& stats) {
     if (w_from_pattern_) {  // the residual from the product itself, not from the pattern's quantities
       w_from_pattern_ = false;
@@ -809,7 +809,7 @@ class OneStepSolver {
   // pattern; base_position_(i) = position of i in F0 or -1), the LU factors of P_F0F0 in the leading
   // block of base_lu_ with their row interchanges, and the columns B^{-1} k_j that col_ready_ marks.
   int base_size_ = -1;
-  Mat<N> base_lu_, base_cols_, small_;  // small_: the Schur complement or a pattern's own P_FF
+  Mat<N> base_lu_, base_cols_, small_;  // small_: the Schur complement S of a later pattern
   Eigen::Matrix<int, N, 1> base_transpositions_, small_transpositions_, base_index_, base_position_, index_;
   Vec<N> u_, col_, small_rhs_;
 };
