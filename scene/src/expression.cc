@@ -1066,14 +1066,29 @@ bool Tape::bind(const double* params) {
   return generic;
 }
 
-void Tape::eval(const double* slots, double* outputs, double* scratch) const {
-  double* s = scratch;
+void Tape::load_constants(double* scratch) const {
   const double* constants = constants_.data();
-  for (std::size_t k = 0; k < num_read_constants_; ++k) s[k] = constants[k];
-  const std::int32_t* inputs = input_slots_.data();
-  double* input_regs = s + constants_.size();
-  for (std::size_t k = 0, m = input_slots_.size(); k < m; ++k) input_regs[k] = slots[inputs[k]];
+  for (std::size_t k = 0; k < num_read_constants_; ++k) scratch[k] = constants[k];
+}
 
+std::int32_t Tape::input_register(int slot) const {
+  for (std::size_t k = 0; k < input_slots_.size(); ++k)
+    if (input_slots_[k] == slot) return static_cast<std::int32_t>(constants_.size() + k);
+  return -1;
+}
+
+void Tape::eval(const double* slots, double* outputs, double* scratch) const {
+  load_constants(scratch);
+  const std::int32_t* inputs = input_slots_.data();
+  double* input_regs = scratch + constants_.size();
+  for (std::size_t k = 0, m = input_slots_.size(); k < m; ++k) input_regs[k] = slots[inputs[k]];
+  run(scratch);
+  const std::int32_t* regs = output_regs_.data();
+  for (std::size_t j = 0, m = output_regs_.size(); j < m; ++j) outputs[j] = scratch[regs[j]];
+}
+
+void Tape::run(double* scratch) const {
+  double* s = scratch;
   double* r = s + first_instr_reg_;
   const Instr* code = code_.data();
   const std::size_t n = code_.size();
@@ -1125,8 +1140,6 @@ void Tape::eval(const double* slots, double* outputs, double* scratch) const {
     }
     r[i] = v;
   }
-  const std::int32_t* regs = output_regs_.data();
-  for (std::size_t j = 0, m = output_regs_.size(); j < m; ++j) outputs[j] = s[regs[j]];
 }
 
 }  // namespace moreau::expr

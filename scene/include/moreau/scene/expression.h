@@ -169,6 +169,15 @@ class Tape {
   // outputs[i] = value of the i-th output node for inputs `slots`.
   void eval(const double* slots, double* outputs, double* scratch) const;
 
+  // eval() in its parts, for a caller that runs one tape at every step from a scratch of its own (the
+  // scene's step, scene_model.h): it writes the constants once, then at each evaluation the inputs
+  // straight into their registers, runs the instructions and reads the outputs from their registers,
+  // sparing the copies eval() makes through `slots` and `outputs`. Same instructions, same bits.
+  void load_constants(double* scratch) const;          // the constants run() reads (again after a bind())
+  std::int32_t input_register(int slot) const;         // where input `slot` goes, -1 if the tape reads none
+  std::int32_t output_register(std::size_t j) const { return output_regs_[j]; }
+  void run(double* scratch) const;                     // the instructions alone
+
   std::size_t scratch_size() const { return scratch_size_; }
   std::size_t num_outputs() const { return output_regs_.size(); }
   // Executed instructions; constants and inputs occupy registers but are copied in bulk, not executed.

@@ -54,19 +54,10 @@ class SceneModel {
     phi_.gains = scene.controller.gains;
     phi_.norm_gain = scene.controller.norm_gain;
     slots_.assign(static_cast<std::size_t>(1 + 2 * n_), 0.0);
-    step_values_.assign(c_.step_tape.num_outputs(), 0.0);
     mass_values_.assign(c_.mass_tape.num_outputs(), 0.0);
-    scratch_.assign(std::max({c_.step_tape.scratch_size(), c_.mass_tape.scratch_size(), c_.potential_tape.scratch_size(),
-                              c_.constraint_tape.scratch_size()}),
-                    0.0);
+    scratch_.assign(std::max({c_.mass_tape.scratch_size(), c_.potential_tape.scratch_size(), c_.constraint_tape.scratch_size()}), 0.0);
     constraint_values_.assign(c_.constraint_tape.num_outputs(), 0.0);
-    // Flatten the targets: output j of the step tape writes flat index target_index_[k] for k in
-    // [target_begin_[j], target_begin_[j+1]).
-    for (const auto& targets : c_.step_targets) {
-      step_begin_.push_back(static_cast<int>(step_index_.size()));
-      for (int t : targets) step_index_.push_back(t);
-    }
-    step_begin_.push_back(static_cast<int>(step_index_.size()));
+    wire_step_tape();
     for (const auto& targets : c_.mass_targets) {
       mass_begin_.push_back(static_cast<int>(mass_index_.size()));
       for (int t : targets) mass_index_.push_back(t);
@@ -94,7 +85,7 @@ class SceneModel {
       out.M = constant_.M;
       out.C = constant_.C;
     }
-    if (!step_values_.empty()) scatter_step_tape(t, q, v, out);  // none when everything is constant
+    if (has_step_tape_) run_step_tape(t, q, v, out);  // none when everything is constant
     if (c_.robot) out.g += gravity_;
   }
 
@@ -139,30 +130,43 @@ class SceneModel {
   }
 
  private:
-  // Runs the step tape and writes its values over the constant parts of M, C and g.
-  void scatter_step_tape(double t, const Vec<N>& q, const Vec<N>& v, LagrangianTerms<N>& out) {
-    slots_[0] = t;
+  // The step tape runs in a scratch of its own: its constants are loaded once, t, q and v are written
+  // straight into the registers it reads, and its outputs are read from their registers into M, C and g
+  // (the flat index of step_targets split by matrix), with no copy through a slot or an output array.
+  void wire_step_tape() {
+    const expr::Tape& tape = c_.step_tape;
+    has_step_tape_ = tape.num_outputs() > 0;
+    step_scratch_.assign(tape.scratch_size(), 0.0);
+    tape.load_constants(step_scratch_.data());
+    t_register_ = tape.input_register(0);
     for (int i = 0; i < n_; ++i) {
-      slots_[1 + i] = q(i);
-      slots_[1 + n_ + i] = v(i);
+      if (const int r = tape.input_register(1 + i); r >= 0) q_registers_.push_back({r, i});
+      if (const int r = tape.input_register(1 + n_ + i); r >= 0) v_registers_.push_back({r, i});
     }
-    c_.step_tape.eval(slots_.data(), step_values_.data(), scratch_.data());
     const int nn = n_ * n_;
-    double* M = out.M.data();
-    double* C = out.C.data();
-    double* g = out.g.data();
-    for (std::size_t j = 0; j + 1 < step_begin_.size(); ++j) {
-      const double value = step_values_[j];
-      for (int k = step_begin_[j]; k < step_begin_[j + 1]; ++k) {
-        const int idx = step_index_[k];
+    for (std::size_t j = 0; j < c_.step_targets.size(); ++j) {
+      const int r = tape.output_register(j);
+      for (int idx : c_.step_targets[j]) {
         if (idx < nn)
-          M[idx] = value;
+          to_M_.push_back({r, idx});
         else if (idx < 2 * nn)
-          C[idx - nn] = value;
+          to_C_.push_back({r, idx - nn});
         else
-          g[idx - 2 * nn] = value;
+          to_g_.push_back({r, idx - 2 * nn});
       }
     }
+  }
+
+  // Runs the step tape and writes its values over the constant parts of M, C and g.
+  void run_step_tape(double t, const Vec<N>& q, const Vec<N>& v, LagrangianTerms<N>& out) {
+    double* s = step_scratch_.data();
+    if (t_register_ >= 0) s[t_register_] = t;
+    for (const Wire& w : q_registers_) s[w.reg] = q(w.index);
+    for (const Wire& w : v_registers_) s[w.reg] = v(w.index);
+    c_.step_tape.run(s);
+    for (const Wire& w : to_M_) out.M.data()[w.index] = s[w.reg];
+    for (const Wire& w : to_C_) out.C.data()[w.index] = s[w.reg];
+    for (const Wire& w : to_g_) out.g.data()[w.index] = s[w.reg];
   }
 
   void load_constants(LagrangianTerms<N>& t) const {
@@ -179,8 +183,17 @@ class SceneModel {
   Controller<N> phi_;
   LagrangianTerms<N> constant_;
   std::vector<double> restitution_;
-  std::vector<double> slots_, step_values_, mass_values_, scratch_, constraint_values_;
-  std::vector<int> step_begin_, step_index_, mass_begin_, mass_index_;
+  std::vector<double> slots_, mass_values_, scratch_, constraint_values_;
+  std::vector<int> mass_begin_, mass_index_;
+  // The step tape's wiring (wire_step_tape): a register of its scratch and an index of q, v, M, C or g.
+  struct Wire {
+    int reg;
+    int index;
+  };
+  bool has_step_tape_ = false;
+  std::vector<double> step_scratch_;
+  int t_register_ = -1;
+  std::vector<Wire> q_registers_, v_registers_, to_M_, to_C_, to_g_;
   std::unique_ptr<RigidBodyData> robot_data_;  // a URDF system's buffers
   Vec<N> gravity_;
 };
