@@ -84,9 +84,9 @@ void update_poses(const RigidBodyModel& model, RigidBodyData& data, const double
     Eigen::Matrix3d local;  // the joint frame moved by q_j, in the parent's frame
     if (b.joint == JointType::kRevolute) {
       const double sn = std::sin(q[j]), versine = 1.0 - std::cos(q[j]);
-      local = f.rotation + sn * f.sin_term + versine * f.versine_term;
+      local = b.rotation_in_parent + sn * f.sin_term + versine * f.versine_term;
     } else {
-      local = f.rotation;
+      local = b.rotation_in_parent;
     }
     Eigen::Vector3d p0, axis;  // the joint frame's origin and axis in the base frame
     if (b.parent < 0) {
@@ -153,7 +153,6 @@ RigidBodyData::RigidBodyData(const RigidBodyModel& model) {
     const RigidBody& b = model.bodies[k];
     const Eigen::Matrix3d ax = skew(b.axis);
     JointFrame& f = joint_frame[k];
-    f.rotation = b.rotation_in_parent;
     f.sin_term.noalias() = b.rotation_in_parent * ax;
     f.versine_term.noalias() = f.sin_term * ax;
     f.axis_in_parent.noalias() = b.rotation_in_parent * b.axis;

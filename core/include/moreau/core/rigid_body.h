@@ -76,11 +76,11 @@ struct RigidBodyModel {
 // Buffers and intermediate results of the algorithms, sized once for a model: no allocation afterwards.
 struct RigidBodyData {
   explicit RigidBodyData(const RigidBodyModel& model);
-  // Derived once from the model: joint j's frame at q_j is rotation + sin q_j sin_term + (1 - cos q_j)
-  // versine_term in its parent's frame (Rodrigues' formula with rotation_in_parent folded in), and its axis
-  // in the parent's frame.
+  // Derived once from the model: joint j's frame at q_j is rotation_in_parent + sin q_j sin_term +
+  // (1 - cos q_j) versine_term in its parent's frame (Rodrigues' formula with rotation_in_parent folded
+  // in), and its axis in the parent's frame.
   struct JointFrame {
-    Eigen::Matrix3d rotation, sin_term, versine_term;
+    Eigen::Matrix3d sin_term, versine_term;
     Eigen::Vector3d axis_in_parent;
   };
   std::vector<JointFrame> joint_frame;
