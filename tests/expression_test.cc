@@ -2,10 +2,12 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <bit>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <functional>
 #include <map>
 #include <tuple>
@@ -855,6 +857,43 @@ TEST_F(ExprTest, TapeWithRepeatedConstantAndVariableOutputs) {
   empty.eval(slots, nullptr, nullptr);
   const Tape def;
   EXPECT_EQ(def.num_instructions(), 0u);
+}
+
+// The parts of eval() that the scene's step runs (scene_model.h: the constants loaded once, the inputs
+// written into their registers, run(), the outputs read from theirs, one scratch reused at every step)
+// against eval() itself with a scratch of its own, bit for bit: with a bound parameter p, a constant
+// output, an input that is an output, sin and cos of one angle, and a slot the tape does not read.
+TEST_F(ExprTest, TapePartsComputeWhatEvalComputes) {
+  const Node p = g_.variable(3);  // the tape's parameter (slots 0-2 are its inputs)
+  const Node f = g_.binary(Op::kAdd, g_.binary(Op::kMul, p, parse("cos(x)*y")), parse("sin(x)"));
+  const std::vector<Node> outputs = {f, g_.derivative(f, 0), parse("a*b"), parse("y"), g_.derivative(f, 1)};
+  Tape tape = Tape::compile(g_, outputs, 3, 1);
+  const double param = -1.75;
+  ASSERT_TRUE(tape.bind(&param));
+  ASSERT_EQ(tape.input_register(2), -1);  // z appears in no output
+  const std::int32_t rx = tape.input_register(0), ry = tape.input_register(1);
+  ASSERT_GE(rx, 0);
+  ASSERT_GE(ry, 0);
+  ASSERT_NE(rx, ry);
+  std::vector<double> resident(tape.scratch_size(), 0.0), fresh(tape.scratch_size());
+  tape.load_constants(resident.data());
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> u(-4.0, 4.0);
+  for (int k = 0; k < 200; ++k) {
+    const double slots[3] = {u(rng), u(rng), u(rng)};
+    std::vector<double> want(outputs.size());
+    std::fill(fresh.begin(), fresh.end(), std::nan(""));  // eval() must not depend on what the scratch held
+    tape.eval(slots, want.data(), fresh.data());
+    resident[static_cast<std::size_t>(rx)] = slots[0];
+    resident[static_cast<std::size_t>(ry)] = slots[1];
+    tape.run(resident.data());
+    for (std::size_t j = 0; j < outputs.size(); ++j) {
+      const double got = resident[static_cast<std::size_t>(tape.output_register(j))];
+      EXPECT_EQ(std::bit_cast<std::uint64_t>(got), std::bit_cast<std::uint64_t>(want[j])) << "output " << j << " at step " << k;
+    }
+    // Independent reference for the first output: the same expression in C++.
+    EXPECT_EQ(want[0], param * (std::cos(slots[0]) * slots[1]) + std::sin(slots[0]));
+  }
 }
 
 TEST_F(ExprTest, TapeIsTopologicallyOrderedForDeepSharing) {
