@@ -1,7 +1,7 @@
 // A compiled Lagrangian scene as a model of the ABL integrator (see abl_integrator.h for the model
 // requirements) and of the Moreau-Jean integrator (moreau_jean_integrator.h: constraints, restitution,
 // potential). evaluate() runs one tape for every non-constant entry of M, C and g = grad V + F and
-// scatters the values over the constant parts; constraints() runs one tape for the gaps h_i(q) and their
+// writes the values over the constant parts; constraints() runs one tape for the gaps h_i(q) and their
 // exact gradients: no allocation, no virtual call.
 #pragma once
 
@@ -78,8 +78,8 @@ class SceneModel {
   void evaluate(double t, const Vec<N>& q, const Vec<N>& v, LagrangianTerms<N>& out) {
     out.g = constant_.g;
     if (c_.robot) {
-      // M, C and G = grad V of gravity from the robot (rigid_body.h); the tape adds F (and a potential's
-      // gradient) to G after the scatter below.
+      // M, C and G = grad V of gravity from the robot (rigid_body.h); the step tape below writes F (and a
+      // potential's gradient) into g, and G is added after it.
       rigid_body_terms(*c_.robot, *robot_data_, q.data(), v.data(), out.M, out.C, gravity_);
     } else {
       out.M = constant_.M;
