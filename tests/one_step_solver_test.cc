@@ -5,6 +5,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <bit>
+#include <cstdint>
 #include <cmath>
 #include <random>
 
@@ -129,6 +131,44 @@ void RandomProblems(int n, int count, unsigned seed) {
     EXPECT_LE(st.residual, st.tolerance);
   }
   EXPECT_GT(zeros, 0) << "the random problems should exercise sticking components";
+}
+
+// The fixed-size n = 2 solver takes its own scalar route (solve_pattern2, solve2); the dynamic-size solver
+// at n = 2 takes the general one (A_ with pinned rows and columns of the identity, Eigen's PartialPivLU).
+// Reference: that general path. Same problems in the same order (so the same warm-start patterns), one
+// of the gains 0 on some problems (a component with no relay is never pinned): the same y, residual,
+// tolerance and iteration count, bit for bit.
+TEST(OneStepSolver, TwoCoordinatesTakeTheGeneralPathsArithmetic) {
+  std::mt19937 rng(7);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  int pinned = 0, moving = 0;
+  for (const Vec<2>& a : {Vec<2>(0.7, 1.3), Vec<2>(0.0, 1.0), Vec<2>(2.0, 0.0)}) {
+    OneStepSolver<2> fixed;
+    OneStepSolver<Eigen::Dynamic> dynamic;
+    fixed.configure(a, 0.0);
+    dynamic.configure(Eigen::VectorXd(a), 0.0);
+    for (int trial = 0; trial < 2000; ++trial) {
+      Mat<2> P;
+      const double k = 0.8 * gauss(rng);
+      P << 2.0 + std::abs(gauss(rng)), 0.3 * gauss(rng) + k, 0.0, 2.0 + std::abs(gauss(rng));
+      P(1, 0) = P(0, 1) - 2.0 * k;  // symmetric part plus a skew part, as M/h + C + W
+      const Vec<2> x(2.0 * gauss(rng), 2.0 * gauss(rng));
+      Vec<2> y;
+      Eigen::VectorXd yd(2);
+      OneStepStats st, sd;
+      ASSERT_TRUE(fixed.solve(P, x, y, st)) << trial;
+      ASSERT_TRUE(dynamic.solve(Eigen::MatrixXd(P), Eigen::VectorXd(x), yd, sd)) << trial;
+      for (int i = 0; i < 2; ++i) {
+        ASSERT_EQ(std::bit_cast<std::uint64_t>(y(i)), std::bit_cast<std::uint64_t>(yd(i))) << "trial " << trial << " y(" << i << ")";
+        (y(i) == 0.0 ? pinned : moving) += a(i) > 0.0;
+      }
+      ASSERT_EQ(std::bit_cast<std::uint64_t>(st.residual), std::bit_cast<std::uint64_t>(sd.residual)) << trial;
+      ASSERT_EQ(std::bit_cast<std::uint64_t>(st.tolerance), std::bit_cast<std::uint64_t>(sd.tolerance)) << trial;
+      ASSERT_EQ(st.iterations, sd.iterations) << trial;
+    }
+  }
+  EXPECT_GT(pinned, 1000) << "the problems should pin components (one pinned: the pinned-row route)";
+  EXPECT_GT(moving, 1000);
 }
 
 TEST(OneStepSolver, RandomNonsymmetric2) { RandomProblems<2>(2, 400, 1); }

@@ -270,10 +270,11 @@ class OneStepSolver {
   }
 
   // The accepted residual: a few ulps of the size of the terms of (6.5). w_is_current: consistent() has
-  // just computed w_ and y_zero_ for this y, the same quantities residual() computes first.
+  // just computed w_, y_zero_ and pattern_scale_ for this y, the quantities residual() and the scale need.
   bool accept(const Mat<N>& P, const Vec<N>& x, const Vec<N>& y, double scale_px, double gain_scale, OneStepStats& stats,
               bool w_is_current = false) {
-    const double scale = x.cwiseAbs().maxCoeff() + scale_px * (y.size() ? y.cwiseAbs().maxCoeff() : 0.0) + gain_scale;
+    const double scale =
+        w_is_current ? pattern_scale_ : x.cwiseAbs().maxCoeff() + scale_px * (y.size() ? y.cwiseAbs().maxCoeff() : 0.0) + gain_scale;
     stats.tolerance = 256.0 * std::numeric_limits<double>::epsilon() * std::max(scale, 1e-300);
     stats.residual = w_is_current ? residual_of_w(y, y_zero_) : residual(P, x, y);
     return std::isfinite(stats.residual) && stats.residual <= stats.tolerance && y.allFinite();
@@ -322,9 +323,33 @@ class OneStepSolver {
     }
   }
 
+  // solve_pattern for n = 2 without a norm term, in scalars: the entries solve2 receives are those A_ and
+  // b_ would hold (a pinned component's row and column those of the identity, its right-hand side 0), so
+  // the same operations on the same values: the same bits, without the copies and loops of the general
+  // path (this is the paper's manipulator, whose every step comes here).
+  bool solve_pattern2(const Mat<N>& P, const Vec<N>& x, const Pattern& s, Vec<N>& y) {
+    w_from_pattern_ = false;
+    const bool pin0 = a_(0) > 0.0 && s(0) == 0, pin1 = a_(1) > 0.0 && s(1) == 0;
+    pinned_(0) = pin0;
+    pinned_(1) = pin1;
+    if (pin0 && pin1) {
+      y.setZero();
+      return true;
+    }
+    const bool off_diagonal = !(pin0 || pin1);
+    solve2(pin0 ? 1.0 : P(0, 0), off_diagonal ? P(0, 1) : 0.0, off_diagonal ? P(1, 0) : 0.0, pin1 ? 1.0 : P(1, 1),
+           pin0 ? 0.0 : -(x(0) + a_(0) * s(0)), pin1 ? 0.0 : -(x(1) + a_(1) * s(1)), y);
+    if (pin0) y(0) = 0.0;  // exactly zero, not round-off
+    if (pin1) y(1) = 0.0;
+    return y.allFinite();
+  }
+
   // Solves the equations of pattern s: y_i = 0 where a_i > 0 and s_i = 0; elsewhere
   // (P y)_i + x_i + a_i s_i + a_norm y_i / ||y|| = 0. Returns false if they have no usable solution.
   bool solve_pattern(const Mat<N>& P, const Vec<N>& x, const Pattern& s, Vec<N>& y) {
+    if constexpr (N == 2) {
+      if (an_ == 0.0) return solve_pattern2(P, x, s, y);
+    }
     const int n = size();
     w_from_pattern_ = false;
     for (int i = 0; i < n; ++i) b_(i) = -(x(i) + a_(i) * s(i));
@@ -353,7 +378,7 @@ class OneStepSolver {
       A_(i, i) = 1.0;
     }
     if constexpr (N == 2) {
-      solve2(y);
+      solve2(A_(0, 0), A_(0, 1), A_(1, 0), A_(1, 1), b_(0), b_(1), y);
     } else {
       if (bandwidth_ >= 0) {
         if (!banded_lu_solve(y)) return false;
@@ -551,11 +576,10 @@ class OneStepSolver {
     lu.template triangularView<Eigen::Upper>().solveInPlace(rhs.head(m));
   }
 
-  // y = A_^{-1} b_ for n = 2: Eigen's PartialPivLU (partial pivoting, the first row on a tie, l = a10 / a00,
+  // y = A^{-1} b for n = 2: Eigen's PartialPivLU (partial pivoting, the first row on a tie, l = a10 / a00,
   // u11 = a11 - l a01, then the unit-lower and upper substitutions) operation for operation, so the result
   // is bit-identical, without its loops and calls: the step's hottest path (the paper's manipulator).
-  void solve2(Vec<N>& y) const {
-    double a00 = A_(0, 0), a01 = A_(0, 1), a10 = A_(1, 0), a11 = A_(1, 1), b0 = b_(0), b1 = b_(1);
+  static void solve2(double a00, double a01, double a10, double a11, double b0, double b1, Vec<N>& y) {
     if (std::abs(a10) > std::abs(a00)) {
       std::swap(a00, a10);
       std::swap(a01, a11);
@@ -647,8 +671,10 @@ class OneStepSolver {
   }
 
   // The slack of the multiplier test below: a few ulps of the size of the terms of (6.5).
-  double pattern_tolerance(const Vec<N>& x, const Vec<N>& y, double scale_px, double gain_scale) const {
-    return 64.0 * std::numeric_limits<double>::epsilon() * (x.cwiseAbs().maxCoeff() + scale_px * y.cwiseAbs().maxCoeff() + gain_scale);
+  // Keeps the scale for accept(), which follows on the same y.
+  double pattern_tolerance(const Vec<N>& x, const Vec<N>& y, double scale_px, double gain_scale) {
+    pattern_scale_ = x.cwiseAbs().maxCoeff() + scale_px * y.cwiseAbs().maxCoeff() + gain_scale;
+    return 64.0 * std::numeric_limits<double>::epsilon() * pattern_scale_;
   }
 
   // Whether component i breaks pattern s at y, with w_ = -(P y + x) (- a_norm y / ||y||) current: a
@@ -799,6 +825,7 @@ class OneStepSolver {
   Mat<N> A_, J_;
   Vec<N> b_, w_, r_, dy_, best_;
   bool y_zero_ = false;  // whether the y consistent() checked last is 0
+  double pattern_scale_ = 0.0;  // the scale of the terms of (6.5) at that y (pattern_tolerance)
   bool w_from_pattern_ = false;  // w_ is -(P y + x) for the last pattern solve, from solve_from_base
   Eigen::PartialPivLU<Mat<N>> lu_;
 
