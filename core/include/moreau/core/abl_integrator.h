@@ -138,9 +138,9 @@ class AblIntegrator {
     if (!terms_.M.allFinite() || !terms_.C.allFinite() || !terms_.g.allFinite()) return f.at(k, t, q_.data(), v_.data(), why);
     if constexpr (N == 2) {
       // The same products and sums as Eigen's M * v, from the entries one by one: a scene's model has
-      // just written M's entries one by one (its step tape), and Eigen's 16-byte loads of M's columns
-      // right after those 8-byte stores wait for them to reach the cache instead of taking their values
-      // from the store buffer. Measured on the manipulator from JSON: see README, Performance.
+      // just written M's (and C's) entries one by one (its step tape), and Eigen's 16-byte loads of M's
+      // columns right after those 8-byte stores wait for them to reach the cache instead of taking their
+      // values from the store buffer. Measured on the manipulator from JSON: see README, Performance.
       const double* m = terms_.M.data();
       Mv_(0) = m[0] * v_(0) + m[2] * v_(1);
       Mv_(1) = m[1] * v_(0) + m[3] * v_(1);
@@ -158,9 +158,20 @@ class AblIntegrator {
     RunSummary& s = rec.summary();
     const double inv_h = 1.0 / h_k;
     if (settings_.velocity_update == VelocityUpdate::kImplicit) {
-      P_.noalias() = inv_h * terms_.M + terms_.C;  // one pass; the same two roundings per entry as before
-      P_.diagonal() += weights_;
-      x_ = terms_.g - inv_h * Mv_;
+      if constexpr (N == 2) {  // entry by entry, as M V^k in evaluate() and for the same reason
+        const double* m = terms_.M.data();
+        const double* c = terms_.C.data();
+        P_(0, 0) = (inv_h * m[0] + c[0]) + weights_(0);
+        P_(1, 0) = inv_h * m[1] + c[1];
+        P_(0, 1) = inv_h * m[2] + c[2];
+        P_(1, 1) = (inv_h * m[3] + c[3]) + weights_(1);
+        x_(0) = terms_.g(0) - inv_h * Mv_(0);
+        x_(1) = terms_.g(1) - inv_h * Mv_(1);
+      } else {
+        P_.noalias() = inv_h * terms_.M + terms_.C;  // one pass; the same two roundings per entry as before
+        P_.diagonal() += weights_;
+        x_ = terms_.g - inv_h * Mv_;
+      }
     }
     OneStepStats st;
     if (settings_.velocity_update == VelocityUpdate::kExplicit) {
