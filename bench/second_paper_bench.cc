@@ -56,6 +56,7 @@ struct Ball {
   int dof() const { return 1; }
   const Controller<1>& controller() const { return phi; }
   bool constant_mass() const { return true; }
+  bool constant_terms() const { return true; }
   void mass(const Vec<1>&, Mat<1>& M) const { M(0, 0) = m; }
   void evaluate(double, const Vec<1>&, const Vec<1>&, LagrangianTerms<1>& out) const {
     out.M(0, 0) = m;

@@ -72,6 +72,37 @@ TEST(AblIntegrator, DampedRelayStopsInFiniteStepsAtTheExactTime) {
   }
 }
 
+// An Oscillator1 that counts its evaluations and declares its terms constant or not, as told.
+struct CountingOscillator : Oscillator1 {
+  bool declared_constant = false;
+  int evaluations = 0;
+  CountingOscillator(bool constant) : Oscillator1(2.0, 0.0, 0.0, 0.5, 1.0), declared_constant(constant) {}
+  bool constant_terms() const { return declared_constant; }
+  void evaluate(double t, const Vec<1>& q, const Vec<1>& v, LagrangianTerms<1>& out) {
+    ++evaluations;
+    Oscillator1::evaluate(t, q, v, out);
+  }
+};
+
+// A model whose M, C and g never change is evaluated at the start (and for the final equilibrium
+// check) only. Reference: the same model evaluated at every step: the same samples, bit for bit.
+TEST(AblIntegrator, ConstantTermsAreEvaluatedOnceWithTheSameResults) {
+  CountingOscillator varying(false), constant(true);
+  Recorder rec_varying, rec_constant;
+  AblIntegrator<CountingOscillator> a(varying, Fixed(1e-3, 8.0)), b(constant, Fixed(1e-3, 8.0));
+  const RunSummary s_varying = a.run(Vec<1>(0.0), Vec<1>(3.0), &rec_varying);
+  const RunSummary s_constant = b.run(Vec<1>(0.0), Vec<1>(3.0), &rec_constant);
+  ASSERT_EQ(s_varying.status, RunStatus::kCompleted) << s_varying.message;
+  ASSERT_EQ(s_constant.status, RunStatus::kCompleted) << s_constant.message;
+  EXPECT_EQ(varying.evaluations, 8000 + 2);  // the initial state, each step's new state, the final check
+  EXPECT_EQ(constant.evaluations, 2);
+  EXPECT_EQ(rec_constant.q, rec_varying.q);
+  EXPECT_EQ(rec_constant.v, rec_varying.v);
+  EXPECT_EQ(rec_constant.e, rec_varying.e);
+  EXPECT_EQ(s_constant.converged_step, s_varying.converged_step);
+  EXPECT_EQ(s_constant.theorem41.checked, s_varying.theorem41.checked);
+}
+
 // The discrete sequence of the forced relay m v' = f - a Sign(v) (F = -f), |f| < a, is known exactly:
 // V^k = v0 - k h (a - f)/m until it would cross zero, then 0.0 forever; Q^k = q(t_k) + (a - f) h t_k / (2m)
 // with q the exact solution, because the position update uses V^k (explicit in position).

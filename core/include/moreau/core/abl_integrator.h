@@ -28,6 +28,7 @@
 //   int dof() const;
 //   const Controller<kDof>& controller() const;
 //   bool constant_mass() const;
+//   bool constant_terms() const;                      // M, C and g the same at every (t, q, v): evaluated once
 //   void evaluate(double t, const Vec<N>& q, const Vec<N>& v, LagrangianTerms<N>& out);  // M, C, g
 //   void mass(const Vec<N>& q, Mat<N>& M);           // M(q) alone, for the Theorem 4.2 rule
 #pragma once
@@ -130,12 +131,20 @@ class AblIntegrator {
     return 64.0 * std::numeric_limits<double>::epsilon() * std::max(e_old, e_initial);
   }
 
-  bool begin(double t0, StepFailure& f) { return evaluate(0, t0, f, "model terms are not finite at the initial state"); }
+  bool begin(double t0, StepFailure& f) {
+    terms_vary_ = true;
+    if (!evaluate(0, t0, f, "model terms are not finite at the initial state")) return false;
+    terms_vary_ = !model_.constant_terms();
+    return true;
+  }
 
-  // M, C, g at (t_k, Q^k, V^k), and E_k = 1/2 <M V^k, V^k>.
+  // M, C, g at (t_k, Q^k, V^k) (kept from the first step when the model's are constant), and
+  // E_k = 1/2 <M V^k, V^k>.
   bool evaluate(std::int64_t k, double t, StepFailure& f, const char* why) {
-    model_.evaluate(t, q_, v_, terms_);
-    if (!terms_.M.allFinite() || !terms_.C.allFinite() || !terms_.g.allFinite()) return f.at(k, t, q_.data(), v_.data(), why);
+    if (terms_vary_) {
+      model_.evaluate(t, q_, v_, terms_);
+      if (!terms_.M.allFinite() || !terms_.C.allFinite() || !terms_.g.allFinite()) return f.at(k, t, q_.data(), v_.data(), why);
+    }
     if constexpr (N == 2) {
       // The same products and sums as Eigen's M * v, from the entries one by one: a scene's model has
       // just written M's (and C's) entries one by one (its step tape), and Eigen's 16-byte loads of M's
@@ -337,6 +346,7 @@ class AblIntegrator {
   double eta_ = 0.0;
   OneStepSolver<N> solver_;
   LagrangianTerms<N> terms_;
+  bool terms_vary_ = true;  // false: the model's terms are constant, and terms_ holds them
   Mat<N> P_, Mtrial_, eps_;
   Vec<N> q_, v_;         // the state (Q^k, V^k)
   double energy_ = 0.0;  // E_k = 1/2 <M(Q^k) V^k, V^k>

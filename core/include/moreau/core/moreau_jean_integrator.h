@@ -50,7 +50,8 @@
 //
 // Model requirements (the ABL model of abl_integrator.h plus the constraints):
 //   static constexpr int kDof;  int dof() const;  const Controller<kDof>& controller() const;  (norm_gain 0)
-//   bool constant_mass() const;  void evaluate(t, q, v, LagrangianTerms<N>&);  void mass(q, Mat<N>&);
+//   bool constant_mass() const;  bool constant_terms() const;  void evaluate(t, q, v, LagrangianTerms<N>&);
+//   void mass(q, Mat<N>&);
 //   int num_constraints() const;  double restitution(int i) const;
 //   void constraints(const Vec<N>& q, Eigen::VectorXd& gap, Eigen::Matrix<double, Eigen::Dynamic, N>& H);
 //   bool has_potential() const;  double potential(const Vec<N>& q);
@@ -242,6 +243,7 @@ class MoreauJeanIntegrator {
     model_.evaluate(t, q_, v_, terms_);
     if (!terms_.M.allFinite() || !terms_.C.allFinite() || !terms_.g.allFinite())
       return f.at(0, t, q_.data(), v_.data(), "model terms are not finite at the initial state");
+    terms_vary_ = !model_.constant_terms();  // constant: terms_ keeps them for the whole run
     if (nc_ > 0) model_.constraints(q_, gap_, H_);
     note_gaps(d, t);
     kinetic_ = 0.5 * v_.dot(terms_.M * v_);
@@ -398,9 +400,11 @@ class MoreauJeanIntegrator {
       }
     }
 
-    model_.evaluate(t, q_, v_, terms_);
-    if (!terms_.M.allFinite() || !terms_.C.allFinite() || !terms_.g.allFinite())
-      return f.at(k, t, q_.data(), v_.data(), "model terms are not finite (an expression left its domain)");
+    if (terms_vary_) {
+      model_.evaluate(t, q_, v_, terms_);
+      if (!terms_.M.allFinite() || !terms_.C.allFinite() || !terms_.g.allFinite())
+        return f.at(k, t, q_.data(), v_.data(), "model terms are not finite (an expression left its domain)");
+    }
     note_gaps(d, t);
     const double kin_new = 0.5 * v_.dot(terms_.M * v_);
     const double pot_new = d.potential_known ? model_.potential(q_) : 0.0;
@@ -661,6 +665,7 @@ class MoreauJeanIntegrator {
   std::vector<double> restitution_;
   RunObserver* observer_ = nullptr;  // of the current run: told of each impact
   LagrangianTerms<N> terms_;
+  bool terms_vary_ = true;  // false: the model's terms are constant, and terms_ holds them
   Mat<N> Wm_;
   Eigen::PartialPivLU<Mat<N>> lu_, mlu_, sqlu_;
   StepConditionChecker<N> checker_{model_.dof()};

@@ -74,6 +74,8 @@ class SceneModel {
   int dof() const { return n_; }
   const Controller<N>& controller() const { return phi_; }
   bool constant_mass() const { return c_.constant_mass; }
+  // M, C and g the same at every (t, q, v): nothing for the step tape to compute, no robot.
+  bool constant_terms() const { return !c_.robot && !has_step_tape_; }
 
   void evaluate(double t, const Vec<N>& q, const Vec<N>& v, LagrangianTerms<N>& out) {
     out.g = constant_.g;

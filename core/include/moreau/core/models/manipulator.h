@@ -40,6 +40,7 @@ class Manipulator {
   int dof() const { return 2; }
   const Controller<2>& controller() const { return phi_; }
   bool constant_mass() const { return false; }
+  bool constant_terms() const { return false; }
 
   void mass(const Vec<2>& q, Mat<2>& M) const {
     const double off = p_.m2_kg * p_.b_m * std::cos(q(1));

@@ -25,6 +25,7 @@ struct Oscillator1 {
   int dof() const { return 1; }
   const Controller<1>& controller() const { return phi; }
   bool constant_mass() const { return true; }
+  bool constant_terms() const { return stiffness_n_per_m == 0.0; }  // g = k x + f0
   void mass(const Vec<1>&, Mat<1>& M) const { M(0, 0) = mass_kg; }
   void evaluate(double, const Vec<1>& q, const Vec<1>&, LagrangianTerms<1>& out) const {
     out.M(0, 0) = mass_kg;
