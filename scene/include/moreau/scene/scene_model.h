@@ -54,15 +54,10 @@ class SceneModel {
     phi_.gains = scene.controller.gains;
     phi_.norm_gain = scene.controller.norm_gain;
     slots_.assign(static_cast<std::size_t>(1 + 2 * n_), 0.0);
-    mass_values_.assign(c_.mass_tape.num_outputs(), 0.0);
-    scratch_.assign(std::max({c_.mass_tape.scratch_size(), c_.potential_tape.scratch_size(), c_.constraint_tape.scratch_size()}), 0.0);
+    scratch_.assign(std::max(c_.potential_tape.scratch_size(), c_.constraint_tape.scratch_size()), 0.0);
     constraint_values_.assign(c_.constraint_tape.num_outputs(), 0.0);
-    wire_step_tape();
-    for (const auto& targets : c_.mass_targets) {
-      mass_begin_.push_back(static_cast<int>(mass_index_.size()));
-      for (int t : targets) mass_index_.push_back(t);
-    }
-    mass_begin_.push_back(static_cast<int>(mass_index_.size()));
+    step_.wire(c_.step_tape, c_.step_targets, n_);
+    mass_.wire(c_.mass_tape, c_.mass_targets, n_);
     constant_.resize(n_);
     load_constants(constant_);
     if (c_.robot) {
@@ -75,7 +70,7 @@ class SceneModel {
   const Controller<N>& controller() const { return phi_; }
   bool constant_mass() const { return c_.constant_mass; }
   // M, C and g the same at every (t, q, v): nothing for the step tape to compute, no robot.
-  bool constant_terms() const { return !c_.robot && !has_step_tape_; }
+  bool constant_terms() const { return !c_.robot && !step_.active; }
 
   void evaluate(double t, const Vec<N>& q, const Vec<N>& v, LagrangianTerms<N>& out) {
     out.g = constant_.g;
@@ -87,7 +82,7 @@ class SceneModel {
       out.M = constant_.M;
       out.C = constant_.C;
     }
-    if (has_step_tape_) run_step_tape(t, q, v, out);  // none when everything is constant
+    if (step_.active) step_.run(c_.step_tape, t, q, v, out.M.data(), out.C.data(), out.g.data());  // none when all is constant
     if (c_.robot) out.g += gravity_;
   }
 
@@ -124,53 +119,10 @@ class SceneModel {
       return;
     }
     M = constant_.M;
-    if (mass_values_.empty()) return;
-    for (int i = 0; i < n_; ++i) slots_[1 + i] = q(i);
-    c_.mass_tape.eval(slots_.data(), mass_values_.data(), scratch_.data());
-    for (std::size_t j = 0; j + 1 < mass_begin_.size(); ++j)
-      for (int k = mass_begin_[j]; k < mass_begin_[j + 1]; ++k) M.data()[mass_index_[k]] = mass_values_[j];
+    if (mass_.active) mass_.run(c_.mass_tape, 0.0, q, q, M.data(), nullptr, nullptr);  // M(q) reads no t, no v
   }
 
  private:
-  // The step tape runs in a scratch of its own: its constants are loaded once, t, q and v are written
-  // straight into the registers it reads, and its outputs are read from their registers into M, C and g
-  // (the flat index of step_targets split by matrix), with no copy through a slot or an output array.
-  void wire_step_tape() {
-    const expr::Tape& tape = c_.step_tape;
-    has_step_tape_ = tape.num_outputs() > 0;
-    step_scratch_.assign(tape.scratch_size(), 0.0);
-    tape.load_constants(step_scratch_.data());
-    t_register_ = tape.input_register(0);
-    for (int i = 0; i < n_; ++i) {
-      if (const int r = tape.input_register(1 + i); r >= 0) q_registers_.push_back({r, i});
-      if (const int r = tape.input_register(1 + n_ + i); r >= 0) v_registers_.push_back({r, i});
-    }
-    const int nn = n_ * n_;
-    for (std::size_t j = 0; j < c_.step_targets.size(); ++j) {
-      const int r = tape.output_register(j);
-      for (int idx : c_.step_targets[j]) {
-        if (idx < nn)
-          to_M_.push_back({r, idx});
-        else if (idx < 2 * nn)
-          to_C_.push_back({r, idx - nn});
-        else
-          to_g_.push_back({r, idx - 2 * nn});
-      }
-    }
-  }
-
-  // Runs the step tape and writes its values over the constant parts of M, C and g.
-  void run_step_tape(double t, const Vec<N>& q, const Vec<N>& v, LagrangianTerms<N>& out) {
-    double* s = step_scratch_.data();
-    if (t_register_ >= 0) s[t_register_] = t;
-    for (const Wire& w : q_registers_) s[w.reg] = q(w.index);
-    for (const Wire& w : v_registers_) s[w.reg] = v(w.index);
-    c_.step_tape.run(s);
-    for (const Wire& w : to_M_) out.M.data()[w.index] = s[w.reg];
-    for (const Wire& w : to_C_) out.C.data()[w.index] = s[w.reg];
-    for (const Wire& w : to_g_) out.g.data()[w.index] = s[w.reg];
-  }
-
   void load_constants(LagrangianTerms<N>& t) const {
     const int nn = n_ * n_;
     for (int i = 0; i < nn; ++i) {
@@ -185,17 +137,59 @@ class SceneModel {
   Controller<N> phi_;
   LagrangianTerms<N> constant_;
   std::vector<double> restitution_;
-  std::vector<double> slots_, mass_values_, scratch_, constraint_values_;
-  std::vector<int> mass_begin_, mass_index_;
-  // The step tape's wiring (wire_step_tape): a register of its scratch and an index of q, v, M, C or g.
-  struct Wire {
-    int reg;
-    int index;
+  std::vector<double> slots_, scratch_, constraint_values_;
+
+  // A tape of M, C and g (the step tape; the mass tape, M alone) run in a scratch of its own: its constants
+  // loaded once, t, q and v written straight into the registers it reads, its outputs read from their
+  // registers straight into the flat indices of M, C and g they go to (its targets, split by matrix once:
+  // no branch per target), with no copy through a slot or an output array.
+  struct WiredTape {
+    struct Wire {  // a register of the scratch and an index of q, v, M, C or g
+      int reg;
+      int index;
+    };
+    bool active = false;  // the tape has outputs
+    std::vector<double> scratch;
+    int t_register = -1;
+    std::vector<Wire> q_in, v_in, to_M, to_C, to_g;
+
+    // targets[j]: the flat indices of [M | C | g] (column-major M and C) that output j goes to.
+    void wire(const expr::Tape& tape, const std::vector<std::vector<int>>& targets, int n) {
+      active = tape.num_outputs() > 0;
+      scratch.assign(tape.scratch_size(), 0.0);
+      tape.load_constants(scratch.data());
+      t_register = tape.input_register(0);
+      for (int i = 0; i < n; ++i) {
+        if (const int r = tape.input_register(1 + i); r >= 0) q_in.push_back({r, i});
+        if (const int r = tape.input_register(1 + n + i); r >= 0) v_in.push_back({r, i});
+      }
+      const int nn = n * n;
+      for (std::size_t j = 0; j < targets.size(); ++j) {
+        const int r = tape.output_register(j);
+        for (int idx : targets[j]) {
+          if (idx < nn)
+            to_M.push_back({r, idx});
+          else if (idx < 2 * nn)
+            to_C.push_back({r, idx - nn});
+          else
+            to_g.push_back({r, idx - 2 * nn});
+        }
+      }
+    }
+
+    // Runs the tape and writes its values over the constant parts of M, C and g.
+    void run(const expr::Tape& tape, double t, const Vec<N>& q, const Vec<N>& v, double* M, double* C, double* g) {
+      double* s = scratch.data();
+      if (t_register >= 0) s[t_register] = t;
+      for (const Wire& w : q_in) s[w.reg] = q(w.index);
+      for (const Wire& w : v_in) s[w.reg] = v(w.index);
+      tape.run(s);
+      for (const Wire& w : to_M) M[w.index] = s[w.reg];
+      for (const Wire& w : to_C) C[w.index] = s[w.reg];
+      for (const Wire& w : to_g) g[w.index] = s[w.reg];
+    }
   };
-  bool has_step_tape_ = false;
-  std::vector<double> step_scratch_;
-  int t_register_ = -1;
-  std::vector<Wire> q_registers_, v_registers_, to_M_, to_C_, to_g_;
+  WiredTape step_, mass_;
   std::unique_ptr<RigidBodyData> robot_data_;  // a URDF system's buffers
   Vec<N> gravity_;
 };
