@@ -179,7 +179,7 @@ class SceneModel {
 
     // Runs the tape and writes its values over the constant parts of M, C and g. Inlined into each caller:
     // with two callers (evaluate, mass) the compiler left it out of line, which cost the manipulator from
-    // JSON 27 instructions and about 5 ns per step (measured against the inlined build).
+    // JSON 7 instructions per step (callgrind: 1,059 out of line, 1,052 inlined).
     [[gnu::always_inline]] void run(const expr::Tape& tape, double t, const Vec<N>& q, const Vec<N>& v, double* M, double* C, double* g) {
       double* s = scratch.data();
       if (t_register >= 0) s[t_register] = t;
