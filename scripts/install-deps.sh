@@ -20,6 +20,7 @@ done
 packages=(
   build-essential cmake ninja-build pkg-config
   libeigen3-dev                      # core numerics
+  libxbyak-dev                       # native code for the expression tapes (x86-64)
   nlohmann-json3-dev libcli11-dev    # scene format, command line
   liblcm-dev liblcm-bin libglib2.0-dev  # live state (lcm.pc needs glib-2.0 and gthread-2.0)
   libosmesa6-dev libfreetype-dev libpng-dev fonts-dejavu-core  # figures

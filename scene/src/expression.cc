@@ -1,5 +1,8 @@
 #include "moreau/scene/expression.h"
 
+#include "expression_arithmetic.h"
+#include "native_tape.h"
+
 #include <bit>
 #include <charconv>
 #include <cmath>
@@ -7,25 +10,20 @@
 #include <limits>
 #include <numeric>
 #include <unordered_map>
+#include <stdexcept>
+#include <string>
 #include <utility>
 
 namespace moreau::expr {
 
 namespace {
 
-// ---------------------------------------------------------------------------------------------------------
-// Arithmetic shared by constant folding and by Tape::eval. Folding must give bit-for-bit the value the tape
-// would compute at run time, so both go through these functions and nowhere else.
-
-inline double sign_of(double x) {
-  // sign(0) = 0 (abs is differentiated to 0 at the kink); NaN stays NaN.
-  return x > 0.0 ? 1.0 : (x < 0.0 ? -1.0 : (x == 0.0 ? 0.0 : x));
-}
-// std::min / std::max semantics: the first argument wins ties and unordered (NaN) comparisons.
-inline double min_of(double a, double b) { return b < a ? b : a; }
-inline double max_of(double a, double b) { return a < b ? b : a; }
-// Chooses like min_of: c where min(a, b) would pick a, d where it would pick b.
-inline double select_le_of(double a, double b, double c, double d) { return b < a ? d : c; }
+// Constant folding computes with the interpreter's operations (apply below, Tape::run_interpreted), so that
+// a folded constant is bit for bit what the tape would compute at run time.
+using arithmetic::max_of;
+using arithmetic::min_of;
+using arithmetic::select_le_of;
+using arithmetic::sign_of;
 
 double apply(Op op, double x, double y, double z, double w) {
   switch (op) {
@@ -1043,6 +1041,10 @@ Tape Tape::compile(const Graph& graph, const std::vector<Node>& outputs, int num
     for (std::size_t i = 0; i < tape.code_.size(); ++i)
       if (tape.code_[i].op == Op::kPow && tape.code_[i].b >= 0 && static_cast<std::size_t>(tape.code_[i].b) < tape.constants_.size())
         tape.pow_of_bound_.push_back(static_cast<std::int32_t>(i));
+  if (!tape.code_.empty() && tape.code_.size() <= kMaxNativeInstructions) {
+    tape.native_ = compile_native(tape, nullptr, nullptr);
+    tape.native_run_ = tape.native_ ? tape.native_->run : nullptr;
+  }
   return tape;
 }
 
@@ -1088,6 +1090,42 @@ void Tape::eval(const double* slots, double* outputs, double* scratch) const {
 }
 
 void Tape::run(double* scratch) const {
+  if (native_run_ != nullptr) {
+    native_run_(scratch);
+    return;
+  }
+  run_interpreted(scratch);
+}
+
+void Tape::wire(const Wiring& wiring) {
+  std::vector<Wire> inputs, outputs;
+  for (std::size_t k = 0; k < input_slots_.size(); ++k) {
+    const auto slot = static_cast<std::size_t>(input_slots_[k]);
+    if (slot >= wiring.inputs.size() || wiring.inputs[slot].array < 0)
+      throw std::invalid_argument("the tape reads input slot " + std::to_string(slot) + ", which the wiring does not place");
+    inputs.push_back({static_cast<std::int32_t>(constants_.size() + k), wiring.inputs[slot].array, wiring.inputs[slot].index});
+  }
+  if (wiring.outputs.size() < output_regs_.size())
+    throw std::invalid_argument("the wiring places " + std::to_string(wiring.outputs.size()) + " outputs of " + std::to_string(output_regs_.size()));
+  for (std::size_t j = 0; j < output_regs_.size(); ++j)
+    for (const Place& p : wiring.outputs[j]) outputs.push_back({output_regs_[j], p.array, p.index});
+  wired_inputs_ = std::move(inputs);
+  wired_outputs_ = std::move(outputs);
+  wired_native_ = code_.empty() || code_.size() > kMaxNativeInstructions ? nullptr : compile_native(*this, &wired_inputs_, &wired_outputs_);
+  native_run_wired_ = wired_native_ ? wired_native_->run_wired : nullptr;
+}
+
+void Tape::run_wired(double* scratch, const double* const* sources, double* const* sinks) const {
+  if (native_run_wired_ != nullptr) {
+    native_run_wired_(scratch, sources, sinks);
+    return;
+  }
+  for (const Wire& w : wired_inputs_) scratch[w.reg] = sources[w.array][w.index];
+  run_interpreted(scratch);
+  for (const Wire& w : wired_outputs_) sinks[w.array][w.index] = scratch[w.reg];
+}
+
+void Tape::run_interpreted(double* scratch) const {
   double* s = scratch;
   double* r = s + first_instr_reg_;
   const Instr* code = code_.data();

@@ -617,6 +617,23 @@ class LagrangianCompiler : SceneReader {
       throw SceneError("/initial/v", "the kinetic energy 1/2 <M(q0) v0, v0> is not finite at the initial state (" + format(e0) + ")");
   }
 
+  // The wiring of a tape of M, C and g entries (CompiledLagrangian::Source and Sink): input slot 0 is t,
+  // 1..n are q and n+1..2n are v; flat index k of [M | C | g] is entry k of M, k - n^2 of C or k - 2n^2 of g.
+  expr::Tape::Wiring terms_wiring(const std::vector<std::vector<int>>& targets) const {
+    using Place = expr::Tape::Place;
+    expr::Tape::Wiring w;
+    w.inputs.push_back({CompiledLagrangian::kTime, 0});
+    for (int i = 0; i < n_; ++i) w.inputs.push_back({CompiledLagrangian::kPosition, i});
+    for (int i = 0; i < n_; ++i) w.inputs.push_back({CompiledLagrangian::kVelocity, i});
+    const int nn = n_ * n_;
+    for (const auto& flat : targets) {
+      auto& places = w.outputs.emplace_back();
+      for (int k : flat)
+        places.push_back(k < nn ? Place{CompiledLagrangian::kMass, k} : k < 2 * nn ? Place{CompiledLagrangian::kCoriolis, k - nn} : Place{CompiledLagrangian::kForce, k - 2 * nn});
+    }
+    return w;
+  }
+
   // Builds the three tapes and the constant parts.
   std::shared_ptr<CompiledLagrangian> build() {
     auto c = std::make_shared<CompiledLagrangian>();
@@ -678,6 +695,8 @@ class LagrangianCompiler : SceneReader {
     }
     c->step_tape = expr::Tape::compile(graph_, step_outputs, 1 + 2 * n_, num_params());
     c->mass_tape = expr::Tape::compile(graph_, mass_outputs, 1 + 2 * n_, num_params());
+    c->step_tape.wire(terms_wiring(c->step_targets));
+    c->mass_tape.wire(terms_wiring(c->mass_targets));
     if (potential_ >= 0) {
       c->has_potential = true;
       c->potential_tape = expr::Tape::compile(graph_, {potential_}, 1 + 2 * n_, num_params());

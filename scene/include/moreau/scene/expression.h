@@ -178,6 +178,36 @@ class Tape {
   std::int32_t output_register(std::size_t j) const { return output_regs_[j]; }
   void run(double* scratch) const;                     // the instructions alone
 
+  // A tape wired to its caller's arrays: run_wired() reads input slot k from sources[p.array][p.index] for
+  // p = inputs[k] and writes output j to sinks[p.array][p.index] for every p in outputs[j], with no copy
+  // through `slots` or an output array; its native code reads the inputs where they are, keeps the values
+  // it computes in registers between calls (and still stores every one in the scratch) and writes each
+  // output where it goes as soon as it is computed. The scratch must hold the constants (load_constants()).
+  // The scene's step runs this way (scene_model.h): t, q, v in, the entries of M, C and g out.
+  struct Place {
+    std::int32_t array = -1;  // an index into sources or sinks; -1 for an input slot the caller does not give
+    std::int32_t index = 0;   // the element of that array
+  };
+  struct Wiring {
+    std::vector<Place> inputs;                // by input slot: each slot the tape reads needs an array
+    std::vector<std::vector<Place>> outputs;  // by output: every place it is written to
+  };
+  // Throws std::invalid_argument when the wiring leaves an input the tape reads without a place, or has
+  // too few outputs.
+  void wire(const Wiring& wiring);
+  void run_wired(double* scratch, const double* const* sources, double* const* sinks) const;
+
+  // run() executes the tape's native code where it has some, and interprets the instructions otherwise.
+  // Native code (x86-64, compiled once by Tape::compile): each instruction one SSE2 operation on the
+  // scratch registers (min and max too) or a call of the very function the interpreter calls (libm's sin,
+  // pow, ...; the helpers of sign and select), so that it computes bit for bit what the interpreter
+  // computes (native_tape.cc). None on other processors, for a tape of more than kMaxNativeInstructions
+  // instructions, or where the system refuses executable memory: the interpreter serves then.
+  static constexpr std::size_t kMaxNativeInstructions = std::size_t{1} << 16;
+  bool native() const { return native_ != nullptr; }
+  void run_interpreted(double* scratch) const;  // the interpreter alone: the reference of the native code
+  struct NativeCode;                             // defined where the code is made (private to the library)
+
   std::size_t scratch_size() const { return scratch_size_; }
   std::size_t num_outputs() const { return output_regs_.size(); }
   // Executed instructions; constants and inputs occupy registers but are copied in bulk, not executed.
@@ -211,6 +241,21 @@ class Tape {
   std::vector<std::pair<std::int32_t, std::int32_t>> param_regs_;  // (register, parameter)
   std::vector<BoundInstr> bind_code_;
   std::vector<std::int32_t> pow_of_bound_;  // instructions x^p with p bound (x*x when p is 2)
+
+  // The wiring as registers: input register <- sources[array][index], sinks[array][index] <- output register.
+  struct Wire {
+    std::int32_t reg, array, index;
+  };
+  // The native code of code_ (native_tape.cc), shared by the tape's copies: it reads its constants from
+  // the scratch, so a bind() leaves it valid (x^p with p bound calls a helper that squares when p is 2).
+  // Without wires: the code of run(scratch). With them: of run_wired (inputs from the sources, outputs to
+  // the sinks).
+  static std::shared_ptr<const NativeCode> compile_native(const Tape& tape, const std::vector<Wire>* inputs,
+                                                          const std::vector<Wire>* outputs);
+  std::vector<Wire> wired_inputs_, wired_outputs_;
+  std::shared_ptr<const NativeCode> native_, wired_native_;
+  void (*native_run_)(double* scratch) = nullptr;  // native_'s entry point
+  void (*native_run_wired_)(double* scratch, const double* const* sources, double* const* sinks) = nullptr;  // wired_native_'s
 };
 
 }  // namespace moreau::expr

@@ -83,6 +83,10 @@ std::optional<std::size_t> json_depth_exceeded(std::string_view text, int max_de
 // alone (the Theorem 4.2 rule) and one for V(q). Inputs of every tape: [t, q_1..q_n, v_1..v_n].
 struct CompiledLagrangian {
   int n = 0;
+  // step_tape and mass_tape are wired (Tape::run_wired) to these arrays: they read t, q and v where the
+  // model holds them and write their outputs straight into M, C and g (column-major M and C).
+  enum Source : std::int32_t { kTime, kPosition, kVelocity };
+  enum Sink : std::int32_t { kMass, kCoriolis, kForce };
   expr::Tape step_tape;       // the non-constant entries of M, C and g = grad V + F
   expr::Tape mass_tape;       // the non-constant entries of M
   expr::Tape potential_tape;  // V(q), if the scene gives a potential

@@ -1,6 +1,6 @@
 // A compiled Lagrangian scene as a model of the ABL integrator (see abl_integrator.h for the model
 // requirements) and of the Moreau-Jean integrator (moreau_jean_integrator.h: constraints, restitution,
-// potential). evaluate() runs one tape for every non-constant entry of M, C and g = grad V + F and
+// potential). evaluate() runs one tape for every non-constant entry of M, C and g = grad V + F, which
 // writes the values over the constant parts; constraints() runs one tape for the gaps h_i(q) and their
 // exact gradients: no allocation, no virtual call.
 #pragma once
@@ -56,8 +56,8 @@ class SceneModel {
     slots_.assign(static_cast<std::size_t>(1 + 2 * n_), 0.0);
     scratch_.assign(std::max(c_.potential_tape.scratch_size(), c_.constraint_tape.scratch_size()), 0.0);
     constraint_values_.assign(c_.constraint_tape.num_outputs(), 0.0);
-    step_.wire(c_.step_tape, c_.step_targets, n_);
-    mass_.wire(c_.mass_tape, c_.mass_targets, n_);
+    step_.wire(c_.step_tape);
+    mass_.wire(c_.mass_tape);
     constant_.resize(n_);
     load_constants(constant_);
     if (c_.robot) {
@@ -139,56 +139,22 @@ class SceneModel {
   std::vector<double> restitution_;
   std::vector<double> slots_, scratch_, constraint_values_;
 
-  // A tape of M, C and g (the step tape; the mass tape, M alone) run in a scratch of its own: its constants
-  // loaded once, t, q and v written straight into the registers it reads, its outputs read from their
-  // registers straight into the flat indices of M, C and g they go to (its targets, split by matrix once:
-  // no branch per target), with no copy through a slot or an output array.
+  // A tape of M, C and g (the step tape; the mass tape, M alone), wired by the compiler to read t, q and v
+  // and write the entries of M, C and g it computes (Tape::run_wired), run in a scratch of its own with
+  // its constants loaded once.
   struct WiredTape {
-    struct Wire {  // a register of the scratch and an index of q, v, M, C or g
-      int reg;
-      int index;
-    };
     bool active = false;  // the tape has outputs
     std::vector<double> scratch;
-    int t_register = -1;
-    std::vector<Wire> q_in, v_in, to_M, to_C, to_g;
 
-    // targets[j]: the flat indices of [M | C | g] (column-major M and C) that output j goes to.
-    void wire(const expr::Tape& tape, const std::vector<std::vector<int>>& targets, int n) {
+    void wire(const expr::Tape& tape) {
       active = tape.num_outputs() > 0;
       scratch.assign(tape.scratch_size(), 0.0);
       tape.load_constants(scratch.data());
-      t_register = tape.input_register(0);
-      for (int i = 0; i < n; ++i) {
-        if (const int r = tape.input_register(1 + i); r >= 0) q_in.push_back({r, i});
-        if (const int r = tape.input_register(1 + n + i); r >= 0) v_in.push_back({r, i});
-      }
-      const int nn = n * n;
-      for (std::size_t j = 0; j < targets.size(); ++j) {
-        const int r = tape.output_register(j);
-        for (int idx : targets[j]) {
-          if (idx < nn)
-            to_M.push_back({r, idx});
-          else if (idx < 2 * nn)
-            to_C.push_back({r, idx - nn});
-          else
-            to_g.push_back({r, idx - 2 * nn});
-        }
-      }
     }
-
-    // Runs the tape and writes its values over the constant parts of M, C and g. Inlined into each caller:
-    // with two callers (evaluate, mass) the compiler left it out of line, which cost the manipulator from
-    // JSON 7 instructions per step (callgrind: 1,059 out of line, 1,052 inlined).
-    [[gnu::always_inline]] void run(const expr::Tape& tape, double t, const Vec<N>& q, const Vec<N>& v, double* M, double* C, double* g) {
-      double* s = scratch.data();
-      if (t_register >= 0) s[t_register] = t;
-      for (const Wire& w : q_in) s[w.reg] = q(w.index);
-      for (const Wire& w : v_in) s[w.reg] = v(w.index);
-      tape.run(s);
-      for (const Wire& w : to_M) M[w.index] = s[w.reg];
-      for (const Wire& w : to_C) C[w.index] = s[w.reg];
-      for (const Wire& w : to_g) g[w.index] = s[w.reg];
+    void run(const expr::Tape& tape, double t, const Vec<N>& q, const Vec<N>& v, double* M, double* C, double* g) {
+      const double* sources[] = {&t, q.data(), v.data()};  // CompiledLagrangian::Source
+      double* sinks[] = {M, C, g};                          // CompiledLagrangian::Sink
+      tape.run_wired(scratch.data(), sources, sinks);
     }
   };
   WiredTape step_, mass_;
