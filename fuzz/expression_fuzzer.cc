@@ -44,7 +44,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     double* sinks[] = {wired_out.data()};
     tape.run_wired(wired_scratch.data(), sources, sinks);
     for (std::size_t j = 0; j < outs.size(); ++j)
-      if (std::memcmp(&wired_out[j], &interpreted[static_cast<std::size_t>(tape.output_register(j))], sizeof(double)) != 0) __builtin_trap();
+      if (std::memcmp(&wired_out[j], &interpreted[static_cast<std::size_t>(tape.output_register(j))], sizeof(double)) != 0)
+        __builtin_trap();
     (void)g.to_string(f);
   } catch (const ExpressionError&) {
   }

@@ -1136,6 +1136,35 @@ TEST(TapeNative, WiredRunsWriteWhatTheInterpreterComputesWhereTheWiringSays) {
   }
 }
 
+// A wired tape that calls nothing (its code keeps the caller's pointers where they came, and pushes nothing).
+TEST(TapeNative, WiredArithmeticWithoutCallsWritesWhatTheInterpreterComputes) {
+  Graph g;
+  auto resolve = [&](std::string_view name) -> std::optional<Node> {
+    if (name == "x") return g.variable(0);
+    if (name == "y") return g.variable(1);
+    return std::nullopt;
+  };
+  const std::vector<Node> outputs = {g.parse("x*y - 0.5*x", resolve), g.parse("min(x, y)/max(x, 1)", resolve), g.parse("-sqrt(abs(x))*y^2", resolve)};
+  Tape tape = Tape::compile(g, outputs, 2);
+  tape.wire({{{0, 0}, {0, 1}}, {{{0, 0}}, {{0, 1}}, {{0, 2}}}});
+  std::vector<double> scratch(tape.scratch_size()), reference(tape.scratch_size());
+  tape.load_constants(scratch.data());
+  for (double x : special_values())
+    for (double y : special_values()) {
+      const double in[] = {x, y};
+      double out[3] = {};
+      const double* sources[] = {in};
+      double* sinks[] = {out};
+      tape.run_wired(scratch.data(), sources, sinks);
+      tape.load_constants(reference.data());
+      for (int k = 0; k < 2; ++k) reference[static_cast<std::size_t>(tape.input_register(k))] = in[k];
+      tape.run_interpreted(reference.data());
+      for (std::size_t j = 0; j < 3; ++j)
+        EXPECT_EQ(std::bit_cast<std::uint64_t>(out[j]), std::bit_cast<std::uint64_t>(reference[static_cast<std::size_t>(tape.output_register(j))]))
+            << "output " << j << " at x = " << x << ", y = " << y;
+    }
+}
+
 TEST(TapeNative, WiringMustPlaceEveryInputTheTapeReads) {
   Graph g;
   Tape tape = Tape::compile(g, {g.binary(Op::kMul, g.variable(0), g.variable(2))}, 3);

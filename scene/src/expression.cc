@@ -1089,14 +1089,6 @@ void Tape::eval(const double* slots, double* outputs, double* scratch) const {
   for (std::size_t j = 0, m = output_regs_.size(); j < m; ++j) outputs[j] = scratch[regs[j]];
 }
 
-void Tape::run(double* scratch) const {
-  if (native_run_ != nullptr) {
-    native_run_(scratch);
-    return;
-  }
-  run_interpreted(scratch);
-}
-
 void Tape::wire(const Wiring& wiring) {
   std::vector<Wire> inputs, outputs;
   for (std::size_t k = 0; k < input_slots_.size(); ++k) {
@@ -1115,11 +1107,7 @@ void Tape::wire(const Wiring& wiring) {
   native_run_wired_ = wired_native_ ? wired_native_->run_wired : nullptr;
 }
 
-void Tape::run_wired(double* scratch, const double* const* sources, double* const* sinks) const {
-  if (native_run_wired_ != nullptr) {
-    native_run_wired_(scratch, sources, sinks);
-    return;
-  }
+void Tape::run_wired_interpreted(double* scratch, const double* const* sources, double* const* sinks) const {
   for (const Wire& w : wired_inputs_) scratch[w.reg] = sources[w.array][w.index];
   run_interpreted(scratch);
   for (const Wire& w : wired_outputs_) sinks[w.array][w.index] = scratch[w.reg];

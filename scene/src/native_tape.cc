@@ -8,8 +8,9 @@
 // or clear the sign bit as the compiler's code for -x and std::fabs does; min and max are minsd and maxsd
 // with their operands in the order that makes them the interpreter's comparisons, ties and NaNs included;
 // every other operation is a call of the very function the interpreter calls (libm's sin, cos, sincos,
-// pow, ...; the helpers of expression_arithmetic.h for sign and select). tests/expression_test.cc checks it on every
-// operation at special values and on random expressions, and the expression fuzzer on any it finds.
+// pow, ...; the helpers of expression_arithmetic.h for sign and select). tests/expression_test.cc checks
+// it on every operation at special values and on random expressions, and the expression fuzzer on any
+// expression it finds.
 //
 // The code is written into memory that is writable and not executable, then made executable and not
 // writable (W^X) before it is ever run. Its only inputs are the tape's own instructions (operations of a
@@ -76,13 +77,19 @@ struct XbyakCode final : Tape::NativeCode {
 constexpr std::size_t kMaxBytesPerInstruction = 160;
 constexpr std::size_t kMaxBytesPerWire = 32;
 
-// Writes the code of one tape. Registers: rbx the scratch, r12 the sources, r13 the sinks (callee-saved:
-// they survive the calls); rax a temporary; xmm0-xmm3 the arguments of calls and xmm1 a sign mask;
+// Writes the code of one tape. Registers: the scratch, the sources and the sinks stay where the caller
+// passed them (rdi, rsi, rdx) in code that calls nothing, and move to rbx, r12 and r13 (callee-saved: they
+// survive the calls) in code that calls; rax a temporary; xmm0-xmm3 the arguments of calls and xmm1 a sign mask;
 // xmm4-xmm15 hold the values last computed or read, so that an instruction takes its operands from a
 // register rather than reloading what was just stored (a call clobbers them all).
 class Emitter {
  public:
-  Emitter(Xbyak::CodeGenerator& g, std::size_t scratch_size) : g_(g), cached_in_(scratch_size, -1) {
+  Emitter(Xbyak::CodeGenerator& g, std::size_t scratch_size, bool calls)
+      : g_(g),
+        scratch_(calls ? g.rbx : g.rdi),
+        sources_(calls ? g.r12 : g.rsi),
+        sinks_(calls ? g.r13 : g.rdx),
+        cached_in_(scratch_size, -1) {
     for (int& h : holder_) h = -1;
   }
 
@@ -94,7 +101,7 @@ class Emitter {
   // Register r, once computed, is also written to sinks[array][index].
   void write_to(std::int32_t r, std::int32_t array, std::int32_t index) { sinks_of_[r].push_back({array, index}); }
 
-  Xbyak::Address at(std::int64_t r) { return g_.qword[g_.rbx + static_cast<std::int32_t>(8 * r)]; }
+  Xbyak::Address at(std::int64_t r) { return g_.qword[scratch_ + static_cast<std::int32_t>(8 * r)]; }
 
   // xmm `x` <- register r: from the register that holds it, the caller's array, or the scratch.
   void load(const Xbyak::Xmm& x, std::int32_t r) {
@@ -102,7 +109,7 @@ class Emitter {
     if (k >= 0) {
       if (k != x.getIdx()) g_.movapd(x, Xbyak::Xmm(k));
     } else if (const auto [array, index] = input_at(r); array >= 0) {
-      g_.mov(g_.rax, g_.qword[g_.r12 + 8 * array]);
+      g_.mov(g_.rax, g_.qword[sources_ + 8 * array]);
       g_.movsd(x, g_.qword[g_.rax + 8 * index]);
     } else {
       g_.movsd(x, at(r));
@@ -151,7 +158,7 @@ class Emitter {
     const auto it = sinks_of_.find(r);
     if (it == sinks_of_.end()) return;
     for (const auto& [array, index] : it->second) {
-      g_.mov(g_.rax, g_.qword[g_.r13 + 8 * array]);
+      g_.mov(g_.rax, g_.qword[sinks_ + 8 * array]);
       g_.movsd(g_.qword[g_.rax + 8 * index], x);
     }
   }
@@ -159,10 +166,12 @@ class Emitter {
 
  private:
   std::pair<std::int32_t, std::int32_t> input_at(std::int32_t r) const {
-    return static_cast<std::size_t>(r) < input_at_.size() ? input_at_[static_cast<std::size_t>(r)] : std::pair<std::int32_t, std::int32_t>{-1, 0};
+    return static_cast<std::size_t>(r) < input_at_.size() ? input_at_[static_cast<std::size_t>(r)]
+                                                          : std::pair<std::int32_t, std::int32_t>{-1, 0};
   }
   static constexpr int kFirstPool = 4, kPoolSize = 12;
   Xbyak::CodeGenerator& g_;
+  const Xbyak::Reg64 scratch_, sources_, sinks_;
   std::vector<int> cached_in_;  // scratch register -> the xmm holding its value, or -1
   int holder_[16];              // xmm -> the scratch register whose value it holds, or -1
   int next_ = 0;
@@ -181,7 +190,12 @@ std::shared_ptr<const Tape::NativeCode> Tape::compile_native(const Tape& tape, c
     const std::size_t wires = (inputs ? inputs->size() : 0) + (outputs ? outputs->size() : 0);
     auto native = std::make_shared<XbyakCode>(256 + kMaxBytesPerInstruction * code.size() + kMaxBytesPerWire * wires);
     Xbyak::CodeGenerator& g = native->gen;
-    Emitter e(g, tape.scratch_size_);
+    // Whether the code calls (libm, the helpers): only then need the pointers survive calls.
+    bool calls = false;
+    for (const Instr& in : code)
+      calls = calls || !(in.op == Op::kAdd || in.op == Op::kSub || in.op == Op::kMul || in.op == Op::kDiv || in.op == Op::kMin ||
+                         in.op == Op::kMax || in.op == Op::kSquare || in.op == Op::kSqrt || in.op == Op::kNeg || in.op == Op::kAbs);
+    Emitter e(g, tape.scratch_size_, calls);
     if (inputs)
       for (const Wire& w : *inputs) e.read_from(w.reg, w.array, w.index);
     if (outputs)
@@ -194,13 +208,14 @@ std::shared_ptr<const Tape::NativeCode> Tape::compile_native(const Tape& tape, c
       g.call(rax);
       e.forget_all();
     };
-    // Three pushes also align the stack to the 16 bytes a call needs.
-    g.push(rbx);
-    g.push(r12);
-    g.push(r13);
-    g.mov(rbx, rdi);
-    g.mov(r12, rsi);
-    g.mov(r13, rdx);
+    if (calls) {  // three pushes also align the stack to the 16 bytes a call needs
+      g.push(rbx);
+      g.push(r12);
+      g.push(r13);
+      g.mov(rbx, rdi);
+      g.mov(r12, rsi);
+      g.mov(r13, rdx);
+    }
     for (std::size_t i = 0; i < code.size(); ++i) {
       const Instr& in = code[i];
       const auto target = static_cast<std::int32_t>(first_instr_reg + i);
@@ -265,9 +280,9 @@ std::shared_ptr<const Tape::NativeCode> Tape::compile_native(const Tape& tape, c
         case Op::kAtan2:
           e.load(xmm0, in.a);
           e.load(xmm1, in.b);
-          call(in.op == Op::kAtan2           ? reinterpret_cast<const void*>(static_cast<Binary>(&std::atan2))
-               : is_pow_of_bound[i] != 0     ? reinterpret_cast<const void*>(&call_pow_of_bound)
-                                             : reinterpret_cast<const void*>(static_cast<Binary>(&std::pow)));
+          call(in.op == Op::kAtan2       ? reinterpret_cast<const void*>(static_cast<Binary>(&std::atan2))
+               : is_pow_of_bound[i] != 0 ? reinterpret_cast<const void*>(&call_pow_of_bound)
+                                         : reinterpret_cast<const void*>(static_cast<Binary>(&std::pow)));
           break;
         case Op::kSelectLe:
           e.load(xmm0, in.a);
@@ -295,9 +310,11 @@ std::shared_ptr<const Tape::NativeCode> Tape::compile_native(const Tape& tape, c
       e.load(xmm0, r);
       e.write_sinks(r, xmm0);
     }
-    g.pop(r13);
-    g.pop(r12);
-    g.pop(rbx);
+    if (calls) {
+      g.pop(r13);
+      g.pop(r12);
+      g.pop(rbx);
+    }
     g.ret();
     g.setProtectModeRE();  // W^X: executable from here on, never writable again
     if (inputs != nullptr || outputs != nullptr)

@@ -176,7 +176,10 @@ class Tape {
   void load_constants(double* scratch) const;          // the constants run() reads (again after a bind())
   std::int32_t input_register(int slot) const;         // where input `slot` goes, -1 if the tape reads none
   std::int32_t output_register(std::size_t j) const { return output_regs_[j]; }
-  void run(double* scratch) const;                     // the instructions alone
+  void run(double* scratch) const {                    // the instructions alone
+    if (native_run_ != nullptr) return native_run_(scratch);
+    run_interpreted(scratch);
+  }
 
   // A tape wired to its caller's arrays: run_wired() reads input slot k from sources[p.array][p.index] for
   // p = inputs[k] and writes output j to sinks[p.array][p.index] for every p in outputs[j], with no copy
@@ -195,7 +198,10 @@ class Tape {
   // Throws std::invalid_argument when the wiring leaves an input the tape reads without a place, or has
   // too few outputs.
   void wire(const Wiring& wiring);
-  void run_wired(double* scratch, const double* const* sources, double* const* sinks) const;
+  void run_wired(double* scratch, const double* const* sources, double* const* sinks) const {
+    if (native_run_wired_ != nullptr) return native_run_wired_(scratch, sources, sinks);
+    run_wired_interpreted(scratch, sources, sinks);
+  }
 
   // run() executes the tape's native code where it has some, and interprets the instructions otherwise.
   // Native code (x86-64, compiled once by Tape::compile): each instruction one SSE2 operation on the
@@ -253,6 +259,7 @@ class Tape {
   static std::shared_ptr<const NativeCode> compile_native(const Tape& tape, const std::vector<Wire>* inputs,
                                                           const std::vector<Wire>* outputs);
   std::vector<Wire> wired_inputs_, wired_outputs_;
+  void run_wired_interpreted(double* scratch, const double* const* sources, double* const* sinks) const;
   std::shared_ptr<const NativeCode> native_, wired_native_;
   void (*native_run_)(double* scratch) = nullptr;  // native_'s entry point
   void (*native_run_wired_)(double* scratch, const double* const* sources, double* const* sinks) = nullptr;  // wired_native_'s
