@@ -185,7 +185,8 @@ class Tape {
   // p = inputs[k] and writes output j to sinks[p.array][p.index] for every p in outputs[j], with no copy
   // through `slots` or an output array; its native code reads the inputs where they are, keeps the values
   // it computes in registers between calls (and still stores every one in the scratch) and writes each
-  // output where it goes as soon as it is computed. The scratch must hold the constants (load_constants()).
+  // output where it goes as soon as it is computed. The scratch must hold the constants (load_constants()),
+  // and no sink may overlap a source (an input is read when first used, possibly after outputs are written).
   // The scene's step runs this way (scene_model.h): t, q, v in, the entries of M, C and g out.
   struct Place {
     std::int32_t array = -1;  // an index into sources or sinks; -1 for an input slot the caller does not give
