@@ -1041,10 +1041,8 @@ Tape Tape::compile(const Graph& graph, const std::vector<Node>& outputs, int num
     for (std::size_t i = 0; i < tape.code_.size(); ++i)
       if (tape.code_[i].op == Op::kPow && tape.code_[i].b >= 0 && static_cast<std::size_t>(tape.code_[i].b) < tape.constants_.size())
         tape.pow_of_bound_.push_back(static_cast<std::int32_t>(i));
-  if (!tape.code_.empty() && tape.code_.size() <= kMaxNativeInstructions) {
-    tape.native_ = compile_native(tape, nullptr, nullptr);
-    tape.native_run_ = tape.native_ ? tape.native_->run : nullptr;
-  }
+  tape.native_ = compile_native(tape, nullptr, nullptr);
+  tape.native_run_ = tape.native_ ? tape.native_->run : nullptr;
   return tape;
 }
 
@@ -1103,7 +1101,7 @@ void Tape::wire(const Wiring& wiring) {
     for (const Place& p : wiring.outputs[j]) outputs.push_back({output_regs_[j], p.array, p.index});
   wired_inputs_ = std::move(inputs);
   wired_outputs_ = std::move(outputs);
-  wired_native_ = code_.empty() || code_.size() > kMaxNativeInstructions ? nullptr : compile_native(*this, &wired_inputs_, &wired_outputs_);
+  wired_native_ = compile_native(*this, &wired_inputs_, &wired_outputs_);
   native_run_wired_ = wired_native_ ? wired_native_->run_wired : nullptr;
 }
 

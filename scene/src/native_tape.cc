@@ -18,6 +18,7 @@
 // functions: nothing of a scene's text reaches it but through them.
 #include "native_tape.h"
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
 #include <unordered_map>
@@ -44,6 +45,23 @@ double call_select_le(double a, double b, double c, double d) { return arithmeti
 // x^p with p a parameter: Tape::bind turns the interpreter's instruction into x*x when p is 2 and back to
 // pow otherwise; the native code, compiled once, decides at the call from the p in the scratch.
 double call_pow_of_bound(double x, double p) { return p == 2.0 ? x * x : std::pow(x, p); }
+
+// The operations the native code does with SSE2 instructions of its own; every other one is a call.
+bool emitted_inline(Op op) {
+  switch (op) {
+    case Op::kAdd:
+    case Op::kSub:
+    case Op::kMul:
+    case Op::kDiv:
+    case Op::kMin:
+    case Op::kMax:
+    case Op::kSquare:
+    case Op::kSqrt:
+    case Op::kNeg:
+    case Op::kAbs: return true;
+    default: return false;
+  }
+}
 
 using Unary = double (*)(double);
 using Binary = double (*)(double, double);
@@ -89,15 +107,13 @@ class Emitter {
         scratch_(calls ? g.rbx : g.rdi),
         sources_(calls ? g.r12 : g.rsi),
         sinks_(calls ? g.r13 : g.rdx),
-        cached_in_(scratch_size, -1) {
+        cached_in_(scratch_size, -1),
+        input_at_(scratch_size, {-1, 0}) {
     for (int& h : holder_) h = -1;
   }
 
   // Input register r is read from sources[array][index] rather than from the scratch.
-  void read_from(std::int32_t r, std::int32_t array, std::int32_t index) {
-    if (input_at_.size() <= static_cast<std::size_t>(r)) input_at_.resize(static_cast<std::size_t>(r) + 1, {-1, 0});
-    input_at_[static_cast<std::size_t>(r)] = {array, index};
-  }
+  void read_from(std::int32_t r, std::int32_t array, std::int32_t index) { input_at_[static_cast<std::size_t>(r)] = {array, index}; }
   // Register r, once computed, is also written to sinks[array][index].
   void write_to(std::int32_t r, std::int32_t array, std::int32_t index) { sinks_of_[r].push_back({array, index}); }
 
@@ -108,7 +124,7 @@ class Emitter {
     const int k = cached_in_[static_cast<std::size_t>(r)];
     if (k >= 0) {
       if (k != x.getIdx()) g_.movapd(x, Xbyak::Xmm(k));
-    } else if (const auto [array, index] = input_at(r); array >= 0) {
+    } else if (const auto [array, index] = input_at_[static_cast<std::size_t>(r)]; array >= 0) {
       g_.mov(g_.rax, g_.qword[sources_ + 8 * array]);
       g_.movsd(x, g_.qword[g_.rax + 8 * index]);
     } else {
@@ -165,17 +181,13 @@ class Emitter {
   const std::unordered_map<std::int32_t, std::vector<std::pair<std::int32_t, std::int32_t>>>& sinks() const { return sinks_of_; }
 
  private:
-  std::pair<std::int32_t, std::int32_t> input_at(std::int32_t r) const {
-    return static_cast<std::size_t>(r) < input_at_.size() ? input_at_[static_cast<std::size_t>(r)]
-                                                          : std::pair<std::int32_t, std::int32_t>{-1, 0};
-  }
   static constexpr int kFirstPool = 4, kPoolSize = 12;
   Xbyak::CodeGenerator& g_;
   const Xbyak::Reg64 scratch_, sources_, sinks_;
   std::vector<int> cached_in_;  // scratch register -> the xmm holding its value, or -1
   int holder_[16];              // xmm -> the scratch register whose value it holds, or -1
   int next_ = 0;
-  std::vector<std::pair<std::int32_t, std::int32_t>> input_at_;
+  std::vector<std::pair<std::int32_t, std::int32_t>> input_at_;  // scratch register -> (source array, index), or -1
   std::unordered_map<std::int32_t, std::vector<std::pair<std::int32_t, std::int32_t>>> sinks_of_;
 };
 
@@ -186,15 +198,13 @@ std::shared_ptr<const Tape::NativeCode> Tape::compile_native(const Tape& tape, c
   using namespace Xbyak::util;
   const std::vector<Instr>& code = tape.code_;
   const std::size_t first_instr_reg = tape.first_instr_reg_;
+  if (code.empty() || code.size() > kMaxNativeInstructions) return nullptr;  // nothing to gain; bounded code size
   try {
     const std::size_t wires = (inputs ? inputs->size() : 0) + (outputs ? outputs->size() : 0);
     auto native = std::make_shared<XbyakCode>(256 + kMaxBytesPerInstruction * code.size() + kMaxBytesPerWire * wires);
     Xbyak::CodeGenerator& g = native->gen;
     // Whether the code calls (libm, the helpers): only then need the pointers survive calls.
-    bool calls = false;
-    for (const Instr& in : code)
-      calls = calls || !(in.op == Op::kAdd || in.op == Op::kSub || in.op == Op::kMul || in.op == Op::kDiv || in.op == Op::kMin ||
-                         in.op == Op::kMax || in.op == Op::kSquare || in.op == Op::kSqrt || in.op == Op::kNeg || in.op == Op::kAbs);
+    const bool calls = std::any_of(code.begin(), code.end(), [](const Instr& in) { return !emitted_inline(in.op); });
     Emitter e(g, tape.scratch_size_, calls);
     if (inputs)
       for (const Wire& w : *inputs) e.read_from(w.reg, w.array, w.index);
