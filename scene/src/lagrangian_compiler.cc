@@ -642,6 +642,9 @@ class LagrangianCompiler : SceneReader {
     c->constant_terms.assign(static_cast<std::size_t>(2 * nn + n_), 0.0);
     std::vector<Node> step_outputs, mass_outputs;
     std::vector<Node> bound_outputs;
+    // step_tape output j goes to the flat indices step_targets[j] of [M | C | g] (two for a symmetric
+    // pair of M); likewise mass_targets for mass_tape into M. The tapes are wired to them (terms_wiring).
+    std::vector<std::vector<int>> step_targets, mass_targets;
     auto place = [&](Node node, std::vector<int> targets, bool is_mass) {
       if (graph_.is_constant(node)) {
         for (int t : targets) c->constant_terms[t] = graph_.constant_value(node);
@@ -655,10 +658,10 @@ class LagrangianCompiler : SceneReader {
         return;
       }
       step_outputs.push_back(node);
-      c->step_targets.push_back(targets);
+      step_targets.push_back(targets);
       if (is_mass) {
         mass_outputs.push_back(node);
-        c->mass_targets.push_back(targets);
+        mass_targets.push_back(targets);
         c->constant_mass = false;
       }
     };
@@ -672,7 +675,7 @@ class LagrangianCompiler : SceneReader {
       const int ij = flat % nn;  // column-major within M or C
       c->bandwidth = std::max(c->bandwidth, std::abs(ij % n_ - ij / n_));
     };
-    for (const auto& targets : c->step_targets)
+    for (const auto& targets : step_targets)
       for (int t : targets)
         if (t < 2 * nn) widen(t);
     for (const auto& targets : c->bound_targets)  // whatever their values
@@ -695,8 +698,8 @@ class LagrangianCompiler : SceneReader {
     }
     c->step_tape = expr::Tape::compile(graph_, step_outputs, 1 + 2 * n_, num_params());
     c->mass_tape = expr::Tape::compile(graph_, mass_outputs, 1 + 2 * n_, num_params());
-    c->step_tape.wire(terms_wiring(c->step_targets));
-    c->mass_tape.wire(terms_wiring(c->mass_targets));
+    c->step_tape.wire(terms_wiring(step_targets));
+    c->mass_tape.wire(terms_wiring(mass_targets));
     if (potential_ >= 0) {
       c->has_potential = true;
       c->potential_tape = expr::Tape::compile(graph_, {potential_}, 1 + 2 * n_, num_params());

@@ -99,10 +99,6 @@ struct CompiledLagrangian {
   int bandwidth = 0;
   // Constant parts, as flat arrays: M (n*n, column-major), C (n*n), g (n).
   std::vector<double> constant_terms;
-  // step_tape output j goes to flat index step_targets[j] of [M | C | g] (several targets for a
-  // symmetric pair); likewise mass_targets for mass_tape into M.
-  std::vector<std::vector<int>> step_targets;
-  std::vector<std::vector<int>> mass_targets;
   // A scene compiled with free parameters (ParametricLagrangianScene): the entries of [M | C | g] of the
   // parameters alone, output j going to the flat indices bound_targets[j] of constant_terms when the
   // parameters are bound. Empty otherwise.
