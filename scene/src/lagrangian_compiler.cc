@@ -634,6 +634,15 @@ class LagrangianCompiler : SceneReader {
     return w;
   }
 
+  // The inputs of a tape of q alone (V, the gaps): q from sources[0]; t and v have no place, so wiring a
+  // tape that read them would throw.
+  expr::Tape::Wiring position_wiring() const {
+    expr::Tape::Wiring w;
+    w.inputs.push_back({});
+    for (int i = 0; i < n_; ++i) w.inputs.push_back({0, i});
+    return w;
+  }
+
   // Builds the three tapes and the constant parts.
   std::shared_ptr<CompiledLagrangian> build() {
     auto c = std::make_shared<CompiledLagrangian>();
@@ -703,12 +712,21 @@ class LagrangianCompiler : SceneReader {
     if (potential_ >= 0) {
       c->has_potential = true;
       c->potential_tape = expr::Tape::compile(graph_, {potential_}, 1 + 2 * n_, num_params());
+      expr::Tape::Wiring w = position_wiring();
+      w.outputs.push_back({{0, 0}});
+      c->potential_tape.wire(w);
     }
     if (!gaps_.empty()) {
       std::vector<Node> cons = gaps_;
       cons.insert(cons.end(), gap_gradients_.begin(), gap_gradients_.end());
-      c->num_constraints = static_cast<int>(gaps_.size());
+      const int m = static_cast<int>(gaps_.size());
+      c->num_constraints = m;
       c->constraint_tape = expr::Tape::compile(graph_, cons, 1 + 2 * n_, num_params());
+      expr::Tape::Wiring w = position_wiring();
+      for (int i = 0; i < m; ++i) w.outputs.push_back({{0, i}});
+      for (int i = 0; i < m; ++i)
+        for (int j = 0; j < n_; ++j) w.outputs.push_back({{1, i + j * m}});  // output m + i n + j: H(i, j), column-major
+      c->constraint_tape.wire(w);
       if (potential_ >= 0 && !robot_ && n_ <= CompiledLagrangian::kMaxHessianDof) {
         // Exact second derivatives (the graph differentiates symbolically): V's, then each gap's.
         std::vector<Node> hessians;

@@ -89,7 +89,9 @@ struct CompiledLagrangian {
   enum Sink : std::int32_t { kMass, kCoriolis, kForce };
   expr::Tape step_tape;       // the non-constant entries of M, C and g = grad V + F
   expr::Tape mass_tape;       // the non-constant entries of M
-  expr::Tape potential_tape;  // V(q), if the scene gives a potential
+  // V(q), if the scene gives a potential. Wired (Tape::run_wired) to read q from sources[0] and write V to
+  // sinks[0][0]: the Moreau-Jean step evaluates it at every step (the Lagrange-Dirichlet check).
+  expr::Tape potential_tape;
   // grad V(q) (n outputs) then F(t, q, v) (n outputs), apart: Assumption 4.1 2)-3) at the recorded states.
   expr::Tape split_force_tape;
   bool has_potential = false;
@@ -105,6 +107,8 @@ struct CompiledLagrangian {
   expr::Tape bound_terms_tape;
   std::vector<std::vector<int>> bound_targets;
   // Unilateral constraints: outputs h_1..h_m(q), then the exact gradients dh_i/dq_j (row-major, m x n).
+  // Wired to read q from sources[0] and to write h_i to sinks[0][i] and dh_i/dq_j to sinks[1][i + j m]:
+  // the gap vector and the m x n gradient matrix H (column-major) of the Moreau-Jean step, in place.
   int num_constraints = 0;
   expr::Tape constraint_tape;
   // Lemma 3's second-order condition: the exact Hessians of V, then of h_1..h_m, each n x n row-major.

@@ -2,10 +2,12 @@
 // requirements) and of the Moreau-Jean integrator (moreau_jean_integrator.h: constraints, restitution,
 // potential). evaluate() runs one tape for every non-constant entry of M, C and g = grad V + F, which
 // writes the values over the constant parts; constraints() runs one tape for the gaps h_i(q) and their
-// exact gradients: no allocation, no virtual call.
+// exact gradients, potential() one for V(q). Each tape is wired to where its caller holds q and wants the
+// results (Tape::run_wired): no copy, no allocation, no virtual call.
 #pragma once
 
 #include <algorithm>
+#include <cassert>
 #include <memory>
 #include <numeric>
 #include <type_traits>
@@ -53,11 +55,10 @@ class SceneModel {
     phi_.weights = scene.controller.weights;
     phi_.gains = scene.controller.gains;
     phi_.norm_gain = scene.controller.norm_gain;
-    slots_.assign(static_cast<std::size_t>(1 + 2 * n_), 0.0);
-    scratch_.assign(std::max(c_.potential_tape.scratch_size(), c_.constraint_tape.scratch_size()), 0.0);
-    constraint_values_.assign(c_.constraint_tape.num_outputs(), 0.0);
     step_.wire(c_.step_tape);
     mass_.wire(c_.mass_tape);
+    potential_.wire(c_.potential_tape);
+    constraints_.wire(c_.constraint_tape);
     constant_.resize(n_);
     load_constants(constant_);
     if (c_.robot) {
@@ -82,7 +83,7 @@ class SceneModel {
       out.M = constant_.M;
       out.C = constant_.C;
     }
-    if (step_.active) step_.run(c_.step_tape, t, q, v, out.M.data(), out.C.data(), out.g.data());  // none when all is constant
+    if (step_.active) step_.run(c_.step_tape, {&t, q.data(), v.data()}, {out.M.data(), out.C.data(), out.g.data()});  // none when all is constant
     if (c_.robot) out.g += gravity_;
   }
 
@@ -92,25 +93,19 @@ class SceneModel {
 
   double potential(const Vec<N>& q) {
     double value = 0.0;
-    if (c_.potential_tape.num_outputs() > 0) {
-      for (int i = 0; i < n_; ++i) slots_[1 + i] = q(i);
-      c_.potential_tape.eval(slots_.data(), &value, scratch_.data());
-    }
+    if (potential_.active) potential_.run(c_.potential_tape, {q.data()}, {&value});  // CompiledLagrangian::potential_tape
     if (c_.robot) value += potential_energy(*c_.robot, *robot_data_, q.data());
     return value;
   }
 
-  // gap(i) = h_i(q), H.row(i) = grad h_i(q)^T.
+  // gap(i) = h_i(q), H.row(i) = grad h_i(q)^T, written in place by the constraint tape, which is wired to
+  // a gap vector of m entries and a column-major m x n matrix (CompiledLagrangian::constraint_tape).
   template <class Rows>
   void constraints(const Vec<N>& q, Eigen::VectorXd& gap, Rows& H) {
-    const int m = c_.num_constraints;
-    if (m == 0) return;
-    for (int i = 0; i < n_; ++i) slots_[1 + i] = q(i);
-    c_.constraint_tape.eval(slots_.data(), constraint_values_.data(), scratch_.data());
-    for (int i = 0; i < m; ++i) {
-      gap(i) = constraint_values_[i];
-      for (int j = 0; j < n_; ++j) H(i, j) = constraint_values_[m + i * n_ + j];
-    }
+    static_assert(!Rows::IsRowMajor, "the constraint tape writes H column-major");
+    if (!constraints_.active) return;
+    assert(gap.size() == c_.num_constraints && H.rows() == c_.num_constraints && H.cols() == n_ && H.outerStride() == H.rows());
+    constraints_.run(c_.constraint_tape, {q.data()}, {gap.data(), H.data()});
   }
 
   void mass(const Vec<N>& q, Mat<N>& M) {
@@ -119,7 +114,8 @@ class SceneModel {
       return;
     }
     M = constant_.M;
-    if (mass_.active) mass_.run(c_.mass_tape, 0.0, q, q, M.data(), nullptr, nullptr);  // M(q) reads no t, no v
+    const double t = 0.0;  // M(q) reads no t, no v
+    if (mass_.active) mass_.run(c_.mass_tape, {&t, q.data(), q.data()}, {M.data()});
   }
 
  private:
@@ -137,10 +133,9 @@ class SceneModel {
   Controller<N> phi_;
   LagrangianTerms<N> constant_;
   std::vector<double> restitution_;
-  std::vector<double> slots_, scratch_, constraint_values_;
 
-  // A tape of M, C and g (the step tape; the mass tape, M alone), wired by the compiler to read t, q and v
-  // and write the entries of M, C and g it computes (Tape::run_wired), run in a scratch of its own with
+  // A tape wired by the compiler to read its inputs from the caller's arrays and write its outputs into
+  // them (Tape::run_wired; the arrays of each tape: CompiledLagrangian), run in a scratch of its own with
   // its constants loaded once.
   struct WiredTape {
     bool active = false;  // the tape has outputs
@@ -151,13 +146,12 @@ class SceneModel {
       scratch.assign(tape.scratch_size(), 0.0);
       tape.load_constants(scratch.data());
     }
-    void run(const expr::Tape& tape, double t, const Vec<N>& q, const Vec<N>& v, double* M, double* C, double* g) {
-      const double* sources[] = {&t, q.data(), v.data()};  // CompiledLagrangian::Source
-      double* sinks[] = {M, C, g};                          // CompiledLagrangian::Sink
+    template <std::size_t kSources, std::size_t kSinks>
+    void run(const expr::Tape& tape, const double* const (&sources)[kSources], double* const (&sinks)[kSinks]) {
       tape.run_wired(scratch.data(), sources, sinks);
     }
   };
-  WiredTape step_, mass_;
+  WiredTape step_, mass_, potential_, constraints_;
   std::unique_ptr<RigidBodyData> robot_data_;  // a URDF system's buffers
   Vec<N> gravity_;
 };
