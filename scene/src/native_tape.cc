@@ -46,6 +46,9 @@ double call_select_le(double a, double b, double c, double d) { return arithmeti
 // pow otherwise; the native code, compiled once, decides at the call from the p in the scratch.
 double call_pow_of_bound(double x, double p) { return p == 2.0 ? x * x : std::pow(x, p); }
 
+// Thrown when code compiled as call-free would call (see `call` in compile_native).
+struct CallInCallFreeCode {};
+
 // The operations the native code does with SSE2 instructions of its own; every other one is a call.
 bool emitted_inline(Op op) {
   switch (op) {
@@ -214,6 +217,11 @@ std::shared_ptr<const Tape::NativeCode> Tape::compile_native(const Tape& tape, c
     for (std::int32_t i : tape.pow_of_bound_) is_pow_of_bound[static_cast<std::size_t>(i)] = 1;
 
     auto call = [&](const void* function) {
+      // Call-free code keeps the caller's pointers in rdi, rsi and rdx, which a call clobbers: an operation
+      // that calls but that emitted_inline() lists as inline would corrupt them. Refuse, and the
+      // interpreter serves (ExprTest.NativeCodeComputesEveryOperation requires native code for every
+      // operation, so such a mistake fails there).
+      if (!calls) throw CallInCallFreeCode{};
       g.mov(rax, reinterpret_cast<std::uint64_t>(function));
       g.call(rax);
       e.forget_all();
@@ -332,6 +340,8 @@ std::shared_ptr<const Tape::NativeCode> Tape::compile_native(const Tape& tape, c
     else
       native->run = g.getCode<void (*)(double*)>();
     return native;
+  } catch (const CallInCallFreeCode&) {
+    return nullptr;
   } catch (const Xbyak::Error&) {
     return nullptr;  // no executable memory (a hardened system) or no room: the interpreter serves
   } catch (const std::bad_alloc&) {
