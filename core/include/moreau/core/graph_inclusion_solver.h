@@ -182,8 +182,8 @@ class GraphInclusionSolver {
       const GraphPiece& g = graphs_[i]->piece(p(i));
       if (!g.vertical && g.slope == 0.0) w(i) = g.w0;  // exactly
     }
-    u.noalias() = -(D * w);
-    u += q;
+    u.noalias() = D * w;  // u = q - D w, the product into u itself (nested, it would be a heap temporary)
+    u = q - u;
     for (int i = 0; i < m; ++i) {
       const GraphPiece& g = graphs_[i]->piece(p(i));
       if (g.vertical) u(i) = g.u0;  // exactly

@@ -110,6 +110,7 @@ class LureIntegrator {
       }
     }
     cx_.setZero(n_);
+    Px_.setZero(n_);
   }
 
   RunSummary run(const Vec<N>& x0, RunObserver* observer = nullptr, LureDiagnostics* diag = nullptr) {
@@ -238,7 +239,13 @@ class LureIntegrator {
     }
   }
 
-  double storage(const Vec<N>& x) const { return P_ ? 0.5 * x.dot(*P_ * x) : 0.5 * x.squaredNorm(); }
+  // W = 1/2 x^T P x (P x into a member: nested in dot(), the product would be a heap temporary at dynamic
+  // sizes, an allocation per step).
+  double storage(const Vec<N>& x) {
+    if (!P_) return 0.5 * x.squaredNorm();
+    Px_.noalias() = *P_ * x;
+    return 0.5 * x.dot(Px_);
+  }
   // Round-off in W itself: a few ulps of |x|^2 ||P||.
   double storage_allowance(const Vec<N>& x, double w_old) const {
     const double pn = P_ ? P_->cwiseAbs().rowwise().sum().maxCoeff() : 1.0;
@@ -260,7 +267,7 @@ class LureIntegrator {
   std::int64_t last_step_ = 0;    // the index of the grid's last step, which takes its own h
   double last_h_ = 0.0;           // that step's h
   LureDiagnostics* d_ = nullptr;  // where the running run records
-  Vec<N> xf_, xn_, v_, cx_;
+  Vec<N> xf_, xn_, v_, cx_, Px_;
   Vec<Mo> q_, u_, w_;
   std::vector<int> unit_col_;
   bool square_invertible_ = false;

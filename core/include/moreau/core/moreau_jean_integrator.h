@@ -158,6 +158,7 @@ class MoreauJeanIntegrator {
     vn_.setZero(n_);
     vpos_.setZero(n_);
     rhs_.setZero(n_);
+    Mv_.setZero(n_);
     qn_.setZero(n_);
     q_.setZero(n_);
     v_.setZero(n_);
@@ -229,6 +230,12 @@ class MoreauJeanIntegrator {
     return 64.0 * std::numeric_limits<double>::epsilon() * std::max(kinetic_, e_initial);
   }
 
+  // <M x, x> with M = M(Q^k) of terms_.
+  double m_norm2(const Vec<N>& x) {
+    Mv_.noalias() = terms_.M * x;
+    return x.dot(Mv_);
+  }
+
   bool begin(double t, StepFailure& f) {
     ContactDiagnostics& d = *d_;
     d = ContactDiagnostics{};
@@ -246,7 +253,7 @@ class MoreauJeanIntegrator {
     terms_vary_ = !model_.constant_terms();  // constant: terms_ keeps them for the whole run
     if (nc_ > 0) model_.constraints(q_, gap_, H_);
     note_gaps(d, t);
-    kinetic_ = 0.5 * v_.dot(terms_.M * v_);
+    kinetic_ = 0.5 * m_norm2(v_);
     potential_ = d.potential_known ? model_.potential(q_) : 0.0;
     d.lagrange_dirichlet.start(kinetic_ + potential_);
     return true;
@@ -406,7 +413,7 @@ class MoreauJeanIntegrator {
         return f.at(k, t, q_.data(), v_.data(), "model terms are not finite (an expression left its domain)");
     }
     note_gaps(d, t);
-    const double kin_new = 0.5 * v_.dot(terms_.M * v_);
+    const double kin_new = 0.5 * m_norm2(v_);
     const double pot_new = d.potential_known ? model_.potential(q_) : 0.0;
     const double allowance =
         64.0 * std::numeric_limits<double>::epsilon() * (kinetic_ + std::abs(potential_) + kin_new + std::abs(pot_new));
@@ -633,7 +640,8 @@ class MoreauJeanIntegrator {
       qc_ = gap_;
       GraphSolveStats st;
       if (!corr_solver_.solve(Dc_, qc_, corr_ptrs_.data(), uc_, wc_, st)) return false;
-      rhs_.noalias() = -(Z_.leftCols(nc_) * wc_);  // delta q = M^{-1} H^T mu, mu = -w
+      rhs_.noalias() = Z_.leftCols(nc_) * wc_;  // delta q = M^{-1} H^T mu, mu = -w (the product into rhs_ itself: no temporary)
+      rhs_ = -rhs_;
       qn += rhs_;
       dq_ += rhs_;
       model_.constraints(qn, gap_, H_);
@@ -642,7 +650,7 @@ class MoreauJeanIntegrator {
       if (gap_.minCoeff() >= -allowance) break;
       if (it == 19) return false;
     }
-    total_norm2 = dq_.dot(terms_.M * dq_);
+    total_norm2 = m_norm2(dq_);
     ++d.corrected_steps;
     d.max_correction = std::max(d.max_correction, std::sqrt(std::max(0.0, total_norm2)));
     if (d.potential_known) d.correction_energy += model_.potential(qn) - before;
@@ -673,6 +681,7 @@ class MoreauJeanIntegrator {
   double kinetic_ = 0.0, potential_ = 0.0;  // 1/2 <M V^k, V^k> and U(Q^k)
   ContactDiagnostics* d_ = nullptr;         // where the running run records
   Vec<N> vf_, vn_, vpos_, rhs_, qn_, dq_, rsq_, vsq_;
+  Vec<N> Mv_;  // M v for the kinetic energies: a product nested in dot() would be a heap temporary at dynamic sizes
   Mat<N> Gsq_;
   Eigen::VectorXd gap_, U_, Un_;
   RowsN H_;

@@ -137,8 +137,7 @@ class OneStepSolver {
 
   // dist(-(P y + x), d phi(y)): zero exactly at the solution of (6.5).
   double residual(const Mat<N>& P, const Vec<N>& x, const Vec<N>& y) {
-    w_.noalias() = -(P * y);
-    w_ -= x;
+    set_w(P, x, y);
     const bool y_zero = y.squaredNorm() == 0.0;  // ||y|| == 0, without its square root
     if (!y_zero && an_ > 0.0) w_ -= (an_ / y.norm()) * y;
     return residual_of_w(y, y_zero);
@@ -651,8 +650,13 @@ class OneStepSolver {
   // w_ = -(P y + x) for the y of the last pattern solve, unless solve_from_base gave it already.
   void multiplier_estimate(const Mat<N>& P, const Vec<N>& x, const Vec<N>& y) {
     if (w_from_pattern_) return;
-    w_.noalias() = -(P * y);
-    w_ -= x;
+    set_w(P, x, y);
+  }
+  // w_ = -(P y) - x. The product goes into w_ itself: nested in an expression, Eigen would evaluate it
+  // into a temporary, on the heap at dynamic sizes (an allocation per step). The same values.
+  void set_w(const Mat<N>& P, const Vec<N>& x, const Vec<N>& y) {
+    w_.noalias() = P * y;
+    w_ = -w_ - x;
   }
 
   // Whether y (from pattern s) satisfies (6.5): free components keep their sign, pinned ones have a

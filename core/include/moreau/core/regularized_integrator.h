@@ -77,7 +77,8 @@ class RegularizedIntegrator {
         v_(i) = z(n + i);
       }
       model_.evaluate(t, q_, v_, terms_);
-      const double energy = 0.5 * v_.dot(terms_.M * v_);
+      rhs_.noalias() = terms_.M * v_;  // into a member: nested in dot(), a heap temporary at dynamic sizes
+      const double energy = 0.5 * v_.dot(rhs_);
       if (samples == 0) summary.energy_initial = energy;
       if (energy_prev >= 0.0 &&
           energy - energy_prev > 64.0 * std::numeric_limits<double>::epsilon() * std::max(energy_prev, summary.energy_initial)) {
