@@ -1,7 +1,7 @@
 // The second paper's schemes allocate nothing per step: the number of heap allocations of a run does not
 // depend on its number of steps (moreau-jean with impacts, a closed contact, the coupled controller and
 // the position correction; the Lur'e theta-method, fixed and dynamic sizes). Its own test binary because
-// it replaces the global operator new.
+// it replaces the global operator new and the C allocator (Eigen's dynamic-size temporaries use malloc).
 #include <gtest/gtest.h>
 
 #include <atomic>
@@ -56,6 +56,14 @@ TEST(Allocation, BouncingBallThroughItsZenoPhase) {
 
 TEST(Allocation, Example1) {
   EXPECT_EQ(ContactAllocations(Scene("example1-eq17.json"), 0.2), ContactAllocations(Scene("example1-eq17.json"), 4.0));
+}
+
+TEST(Allocation, ControllerRowsThroughTheGraphSolver) {
+  // The paper's manipulator under moreau-jean: no contact, its controller's rows solved every step by the
+  // graph solver (dynamic size inside a fixed-size integrator).
+  nlohmann::json doc = Scene("manipulator.json");
+  doc["integrator"]["scheme"] = "moreau-jean";
+  EXPECT_EQ(ContactAllocations(doc, 0.2), ContactAllocations(doc, 3.0));
 }
 
 TEST(Allocation, CurvedConstraintWithPositionCorrection) {

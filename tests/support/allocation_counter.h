@@ -1,4 +1,5 @@
-// Counts heap allocations made through the global operator new, which allocation_counter.cc replaces.
+// Counts heap allocations: the global operator new and the C allocator (malloc, calloc, realloc and the
+// aligned ones), which allocation_counter.cc replaces.
 // Link that file only into test binaries that measure allocations.
 #pragma once
 
