@@ -697,6 +697,12 @@ class LagrangianCompiler : SceneReader {
     std::vector<Node> split = gradient_;
     split.insert(split.end(), force_.begin(), force_.end());
     c->split_force_tape = expr::Tape::compile(graph_, split, 1 + 2 * n_, num_params());
+    {
+      expr::Tape::Wiring w = terms_wiring({});
+      for (int i = 0; i < n_; ++i) w.outputs.push_back({{0, i}});  // grad V
+      for (int i = 0; i < n_; ++i) w.outputs.push_back({{1, i}});  // F
+      c->split_force_tape.wire(w);
+    }
     if (robot_) {
       c->robot = std::make_shared<const RigidBodyModel>(robot_->model);
       c->constant_mass = false;

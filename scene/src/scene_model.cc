@@ -27,33 +27,31 @@ RunSummary run_fixed(const LagrangianScene& scene, RunObserver* observer) {
 
 ForceTerms::ForceTerms(const CompiledLagrangian& compiled)
     : c_(compiled),
-      slots_(static_cast<std::size_t>(1 + 2 * compiled.n), 0.0),
-      out_(std::max<std::size_t>(compiled.split_force_tape.num_outputs(), 1), 0.0),
-      scratch_(std::max(compiled.split_force_tape.scratch_size(), compiled.potential_tape.scratch_size()), 0.0),
+      split_scratch_(compiled.split_force_tape.scratch_size(), 0.0),
+      potential_scratch_(compiled.potential_tape.scratch_size(), 0.0),
       gravity_(static_cast<std::size_t>(compiled.n), 0.0) {
+  c_.split_force_tape.load_constants(split_scratch_.data());
+  c_.potential_tape.load_constants(potential_scratch_.data());
   if (c_.robot) robot_data_ = std::make_unique<RigidBodyData>(*c_.robot);
 }
 
 void ForceTerms::split(double t, const double* q, const double* v, double* grad_v, double* force) {
-  const int n = c_.n;
-  slots_[0] = t;
-  std::copy(q, q + n, slots_.begin() + 1);
-  std::copy(v, v + n, slots_.begin() + 1 + n);
-  c_.split_force_tape.eval(slots_.data(), out_.data(), scratch_.data());
-  std::copy(out_.begin(), out_.begin() + n, grad_v);
-  std::copy(out_.begin() + n, out_.begin() + 2 * n, force);
+  const double* sources[] = {&t, q, v};  // CompiledLagrangian::Source
+  double* sinks[] = {grad_v, force};     // CompiledLagrangian::split_force_tape
+  c_.split_force_tape.run_wired(split_scratch_.data(), sources, sinks);
   if (c_.robot) {
+    const int n = c_.n;
     gravity_torque(*c_.robot, *robot_data_, q, Eigen::Map<Eigen::VectorXd>(gravity_.data(), n));
     for (int i = 0; i < n; ++i) grad_v[i] += gravity_[static_cast<std::size_t>(i)];
   }
 }
 
-double ForceTerms::potential(double t, const double* q) {
+double ForceTerms::potential(double /*t: V depends on q only*/, const double* q) {
   double value = 0.0;
   if (c_.potential_tape.num_outputs() > 0) {
-    slots_[0] = t;
-    std::copy(q, q + c_.n, slots_.begin() + 1);
-    c_.potential_tape.eval(slots_.data(), &value, scratch_.data());
+    const double* sources[] = {q};  // CompiledLagrangian::potential_tape
+    double* sinks[] = {&value};
+    c_.potential_tape.run_wired(potential_scratch_.data(), sources, sinks);
   }
   if (c_.robot) value += potential_energy(*c_.robot, *robot_data_, q);
   return value;

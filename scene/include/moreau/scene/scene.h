@@ -93,6 +93,8 @@ struct CompiledLagrangian {
   // sinks[0][0]: the Moreau-Jean step evaluates it at every step (the Lagrange-Dirichlet check).
   expr::Tape potential_tape;
   // grad V(q) (n outputs) then F(t, q, v) (n outputs), apart: Assumption 4.1 2)-3) at the recorded states.
+  // Wired to read t, q and v from sources[kTime, kPosition, kVelocity] and to write grad V to sinks[0] and
+  // F to sinks[1] (ForceTerms::split).
   expr::Tape split_force_tape;
   bool has_potential = false;
   bool constant_mass = true;
@@ -121,8 +123,8 @@ struct CompiledLagrangian {
 };
 
 // V(q), grad V(q) and F(t, q, v) of a compiled scene apart, wherever they come from (the expressions, the
-// robot model): for checks and reports (Assumption 4.1, energies, Lemma 3), not for the step. Buffers
-// are sized once.
+// robot model): for checks and reports (Assumption 4.1, energies, Lemma 3), not for the step. The tapes
+// run wired to the caller's arrays, each in a scratch of its own with its constants loaded once.
 class ForceTerms {
  public:
   explicit ForceTerms(const CompiledLagrangian& compiled);
@@ -133,7 +135,7 @@ class ForceTerms {
 
  private:
   const CompiledLagrangian& c_;
-  std::vector<double> slots_, out_, scratch_, gravity_;
+  std::vector<double> split_scratch_, potential_scratch_, gravity_;
   std::unique_ptr<RigidBodyData> robot_data_;
 };
 
