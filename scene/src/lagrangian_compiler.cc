@@ -643,7 +643,8 @@ class LagrangianCompiler : SceneReader {
     return w;
   }
 
-  // Builds the three tapes and the constant parts.
+  // Builds the tapes (step, mass, grad V and F apart, V, the gaps, their Hessians, the parameters' terms)
+  // and the constant parts.
   std::shared_ptr<CompiledLagrangian> build() {
     auto c = std::make_shared<CompiledLagrangian>();
     c->n = n_;
