@@ -71,7 +71,7 @@ inline std::string not_positive_definite(double lambda_min, const double* q, int
 template <int N>
 class StepConditionChecker {
  public:
-  explicit StepConditionChecker(int n) {
+  explicit StepConditionChecker(int n) : llt_(sized_llt(n)) {
     if constexpr (N == Eigen::Dynamic) {
       CtC_.resize(n, n);
       shifted_.resize(n, n);
@@ -79,7 +79,6 @@ class StepConditionChecker {
       x_.resize(n);
       u_.resize(n);
       w_.resize(n);
-      llt_ = Eigen::LLT<Mat<N>>(n);
     }
   }
 
@@ -187,6 +186,16 @@ class StepConditionChecker {
   std::int64_t eigenvalue_computations() const { return eigenvalue_computations_; }
 
  private:
+  // The factorisation's storage sized once (no allocation in compute()), built in place: Eigen's LLT(Index)
+  // leaves its `info` unset, so copying or moving it in (as an assignment would) reads an indeterminate
+  // enum, which UBSan reports.
+  static Eigen::LLT<Mat<N>> sized_llt(int n) {
+    if constexpr (N == Eigen::Dynamic) {
+      return Eigen::LLT<Mat<N>>(n);
+    } else {
+      return Eigen::LLT<Mat<N>>();
+    }
+  }
   static double min_eig2(double a, double b, double d) {
     const double m = 0.5 * (a + d), e = 0.5 * (a - d);
     return m - std::sqrt(e * e + b * b);
