@@ -1,5 +1,6 @@
 // Robots from URDF: the per-step cost of scheme (0.2) on the 7-joint KUKA iiwa with the paper's
-// controller on every joint (scenes/iiwa14-controller.json at a fixed h = 1e-3), on n-link planar chains
+// controller on every joint (scenes/iiwa14-controller.json at a fixed h = 1e-3) and of the Moreau-Jean
+// scheme on the same arm with joint limits and friction (scenes/iiwa14-joint-limit.json), on n-link planar chains
 // (scripts/make-chain-urdf.py, n = 2 .. 64) and the rigid-body terms alone (M, C, G: rigid_body.h), and
 // the time to load and compile a 64-link URDF scene. docs/robots.md has the figures and the command.
 #include <benchmark/benchmark.h>
@@ -26,6 +27,16 @@ void BM_Iiwa14Controller_moving(benchmark::State& state) {
   nlohmann::json doc = scene::read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/iiwa14-controller.json");
   doc["integrator"]["step_rule"] = "fixed";
   doc["integrator"]["t_end"] = 0.15;
+  RunScene(state, scene::load_scene(doc));
+}
+
+// The same arm under the Moreau-Jean scheme (scenes/iiwa14-joint-limit.json: 14 joint limits with
+// Newton impacts, viscous and Coulomb joint friction): its first 0.6 s, the fall, the impacts on joint 2's
+// and joint 4's limits and the closing contact. The one-step problem has a row per friction term and per
+// limit, most of them inactive or sliding on every step.
+void BM_Iiwa14JointLimit_impacts(benchmark::State& state) {
+  nlohmann::json doc = scene::read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/iiwa14-joint-limit.json");
+  doc["integrator"]["t_end"] = 0.6;
   RunScene(state, scene::load_scene(doc));
 }
 
@@ -65,6 +76,7 @@ void BM_LoadChain64Scene(benchmark::State& state) {
 }
 
 BENCHMARK(BM_Iiwa14Controller_moving)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_Iiwa14JointLimit_impacts)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_ChainStep)->Arg(2)->Arg(7)->Arg(16)->Arg(32)->Arg(64)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_RigidBodyTerms)->Arg(2)->Arg(7)->Arg(16)->Arg(32)->Arg(64)->Unit(benchmark::kNanosecond);
 BENCHMARK(BM_LoadChain64Scene)->Unit(benchmark::kMillisecond);

@@ -1,6 +1,7 @@
 // Per-step cost of the second paper's schemes (Brogliato 2003), end to end through the integrators:
 // moreau-jean on the bouncing ball (model and gap evaluation, prediction of the active set, the exact
-// one-step complementarity problem, impacts and the W bookkeeping) and the theta-method on a two-state
+// one-step complementarity problem, impacts and the W bookkeeping), moreau-jean on the first paper's
+// manipulator (its controller rows in the one-step generalized equation) and the theta-method on a two-state
 // relay Lur'e system (the one-step generalized equation, exact zeros, the storage function W). Each
 // benchmark runs a whole simulation per iteration and reports ns_per_step (items_per_second is steps
 // per second).
@@ -16,22 +17,18 @@
 #include "moreau/core/moreau_jean_integrator.h"
 #include "moreau/scene/scene.h"
 #include "moreau/scene/simulation.h"
+#include "per_step.h"
 
 namespace {
 
 using namespace moreau;
+using bench::RunScene;
+using bench::SetPerStep;
 
 nlohmann::json Doc(const char* file, double t_end) {
   nlohmann::json doc = scene::read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/" + file);
   doc["integrator"]["t_end"] = t_end;
   return doc;
-}
-
-void SetPerStep(benchmark::State& state, std::int64_t steps_per_run) {
-  state.SetItemsProcessed(state.iterations() * steps_per_run);
-  state.counters["ns_per_step"] =
-      benchmark::Counter(static_cast<double>(state.iterations() * steps_per_run), benchmark::Counter::kIsRate | benchmark::Counter::kInvert,
-                         benchmark::Counter::kIs1000);
 }
 
 // ---- the bouncing ball (e = 0.5; impacts accumulate at t_inf = 1.355 s) ---------------------------------
@@ -91,6 +88,18 @@ void BallCompiled(benchmark::State& state, double t_end) {
 void BM_BouncingBallCompiled_moving(benchmark::State& state) { BallCompiled(state, 1.3); }
 void BM_BouncingBallCompiled_to_rest(benchmark::State& state) { BallCompiled(state, 3.0); }
 
+// ---- the manipulator of Adly, Brogliato and Le (2016), section 6, under moreau-jean --------------------
+// scenes/manipulator.json with the Moreau-Jean scheme instead of (0.2): the controller's two abs terms are
+// two rows of the one-step generalized equation on every step (graph_inclusion_solver.h), where (0.2)
+// solves them by its own sign patterns. position_update "standard" (q_{k+1} = q_k + h v_{k+1}, the
+// update of Siconos' MoreauJeanOSI). Moving: its first second, before it rests at t = 1.135.
+void BM_ManipulatorMoreauJeanJsonScene_moving(benchmark::State& state) {
+  nlohmann::json doc = Doc("manipulator.json", 1.0);
+  doc["integrator"]["scheme"] = "moreau-jean";
+  doc["integrator"]["position_update"] = "standard";
+  RunScene(state, scene::load_scene(doc));
+}
+
 // ---- the two-state relay Lur'e system (y = x1 + 2 x2 slides from t = 0.218 s) ---------------------------
 void RelayScene(benchmark::State& state, double t_end) {
   const scene::LureScene sc = scene::load_lure_scene(Doc("lure-relay-2state.json", t_end));
@@ -133,6 +142,7 @@ BENCHMARK(BM_BouncingBallJsonScene_moving)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_BouncingBallJsonScene_to_rest)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_BouncingBallCompiled_moving)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_BouncingBallCompiled_to_rest)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_ManipulatorMoreauJeanJsonScene_moving)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_RelayLure2JsonScene_moving)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_RelayLure2JsonScene_sliding)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_RelayLure2Compiled_moving)->Unit(benchmark::kMicrosecond);

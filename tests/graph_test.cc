@@ -4,6 +4,7 @@
 // brute-force search over piece patterns.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <random>
@@ -254,6 +255,55 @@ void RandomProblems(int m, int trials, unsigned seed) {
 TEST(GraphInclusionSolver, RandomProblemsMatchBruteForceFixedSize) { RandomProblems<3>(3, 400, 11); }
 TEST(GraphInclusionSolver, RandomProblemsMatchBruteForceDynamicSize) { RandomProblems<Eigen::Dynamic>(5, 200, 12); }
 TEST(GraphInclusionSolver, DecoupledProblemsUseTheScalarResolvent) { RandomProblems<1>(1, 300, 13); }
+
+// Components on horizontal pieces are pinned and leave the linear system of a pattern (solve_pattern): a
+// problem of m = 21 components (beyond the 16 where a dense LU would block), 17 of them on the zero graph
+// (inactive contacts, w = 0) at random places between 4 on graphs of the pool. Reference: the brute force
+// on the 4 live components alone with D restricted to them (w = 0 elsewhere does not enter their
+// equations), then u = q - D w for the others.
+TEST(GraphInclusionSolver, PinnedComponentsLeaveTheSystem) {
+  const int m = 21, live = 4;
+  std::mt19937 rng(21);
+  std::normal_distribution<double> N(0.0, 1.0);
+  const std::vector<MonotoneGraph> pool = {MonotoneGraph::relay(1.0), MonotoneGraph::complementarity(), MonotoneGraph::saturation(2.0, 1.0),
+                                           MonotoneGraph::coulomb(0.5, 1.0)};
+  const MonotoneGraph zero = MonotoneGraph::zero();
+  GraphInclusionSolver<Eigen::Dynamic> solver;
+  solver.configure(m);
+  for (int trial = 0; trial < 100; ++trial) {
+    const Eigen::MatrixXd R = Eigen::MatrixXd::NullaryExpr(m, m, [&] { return N(rng); });
+    const Eigen::MatrixXd K = Eigen::MatrixXd::NullaryExpr(m, m, [&] { return N(rng); });
+    const Eigen::MatrixXd D = R * R.transpose() / m + 0.2 * Eigen::MatrixXd::Identity(m, m) + 0.1 * (K - K.transpose());
+    const Eigen::VectorXd q = Eigen::VectorXd::NullaryExpr(m, [&] { return 2.0 * N(rng); });
+    std::vector<int> order(m);
+    for (int i = 0; i < m; ++i) order[i] = i;
+    std::shuffle(order.begin(), order.end(), rng);
+    std::vector<int> live_at(order.begin(), order.begin() + live);
+    std::sort(live_at.begin(), live_at.end());
+    std::vector<const MonotoneGraph*> g(m, &zero), g_live(live);
+    Eigen::MatrixXd D_live(live, live);
+    Eigen::VectorXd q_live(live);
+    for (int a = 0; a < live; ++a) {
+      g[live_at[a]] = g_live[a] = &pool[(trial + a) % pool.size()];
+      q_live(a) = q(live_at[a]);
+      for (int b = 0; b < live; ++b) D_live(a, b) = D(live_at[a], live_at[b]);
+    }
+    Eigen::VectorXd ub, wb;
+    ASSERT_TRUE(BruteForce(D_live, q_live, g_live, ub, wb)) << "trial " << trial;
+    Eigen::VectorXd w_ref = Eigen::VectorXd::Zero(m);
+    for (int a = 0; a < live; ++a) w_ref(live_at[a]) = wb(a);
+    const Eigen::VectorXd u_ref = q - D * w_ref;
+
+    Eigen::VectorXd u(m), w(m);
+    GraphSolveStats st;
+    ASSERT_TRUE(solver.solve(D, q, g.data(), u, w, st)) << "trial " << trial << " residual " << st.residual;
+    for (int i = 0; i < m; ++i) {
+      EXPECT_NEAR(w(i), w_ref(i), 1e-9 * (1.0 + std::abs(w_ref(i)))) << "trial " << trial << " component " << i;
+      EXPECT_NEAR(u(i), u_ref(i), 1e-9 * (1.0 + std::abs(u_ref(i)))) << "trial " << trial << " component " << i;
+      if (g[i] == &zero) EXPECT_EQ(w(i), 0.0);  // pinned: exactly
+    }
+  }
+}
 
 // The pure LCP (every graph the corner law): 0 <= u = q + D (-w) perp -w >= 0.
 TEST(GraphInclusionSolver, LinearComplementarityProblem) {

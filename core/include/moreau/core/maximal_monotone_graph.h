@@ -208,11 +208,11 @@ class MonotoneGraph {
     const GraphPiece& p = pieces_[j];
     if (p.vertical) {
       const double dw = w < p.lo ? p.lo - w : (w > p.hi ? w - p.hi : 0.0);
-      return std::hypot(u - p.u0, dw);
+      return norm2(u - p.u0, dw);
     }
     // Project onto the line w = w0 + slope (u - u0), parametrised by its u offset, then clamp.
     const double t = std::clamp(((u - p.u0) + p.slope * (w - p.w0)) / (1.0 + p.slope * p.slope), p.lo - p.u0, p.hi - p.u0);
-    return std::hypot(u - (p.u0 + t), w - (p.w0 + p.slope * t));
+    return norm2(u - (p.u0 + t), w - (p.w0 + p.slope * t));
   }
   double distance(double u, double w) const {
     double d = std::numeric_limits<double>::infinity();
@@ -276,6 +276,13 @@ class MonotoneGraph {
   }
 
  private:
+  // sqrt(a^2 + b^2) without overflow: std::hypot, which C defines to be exactly |a| when b is +-0 (and
+  // symmetrically); those cases, a point on its piece along one axis, skip its call.
+  static double norm2(double a, double b) {
+    if (b == 0.0) return std::abs(a);
+    if (a == 0.0) return std::abs(b);
+    return std::hypot(a, b);
+  }
   static std::string fmt(double v) {
     if (std::isnan(v)) return "NaN";  // not printf's "nan" or "-nan"
     char buf[32];

@@ -72,6 +72,7 @@
 #include "moreau/core/observer.h"
 #include "moreau/core/run_diagnostics.h"
 #include "moreau/core/run_summary.h"
+#include "moreau/core/small_lu.h"
 #include "moreau/core/step_conditions.h"
 #include "moreau/core/stepping_driver.h"
 #include "moreau/core/types.h"
@@ -90,35 +91,6 @@ struct MoreauJeanSettings {
   bool correct_positions = false;
   int max_recorded_impacts = 10000;
 };
-
-namespace detail {
-// Solves A x = b in place for the leading r x r block (partial pivoting); A and b are overwritten.
-// Returns false on a zero pivot. Allocation-free, for the small systems of impact steps.
-inline bool solve_small_in_place(Eigen::MatrixXd& A, Eigen::VectorXd& b, int r) {
-  for (int c = 0; c < r; ++c) {
-    int p = c;
-    for (int i = c + 1; i < r; ++i)
-      if (std::abs(A(i, c)) > std::abs(A(p, c))) p = i;
-    if (A(p, c) == 0.0) return false;
-    if (p != c) {
-      for (int j = 0; j < r; ++j) std::swap(A(c, j), A(p, j));
-      std::swap(b(c), b(p));
-    }
-    for (int i = c + 1; i < r; ++i) {
-      const double f = A(i, c) / A(c, c);
-      if (f == 0.0) continue;
-      for (int j = c; j < r; ++j) A(i, j) -= f * A(c, j);
-      b(i) -= f * b(c);
-    }
-  }
-  for (int c = r - 1; c >= 0; --c) {
-    double s = b(c);
-    for (int j = c + 1; j < r; ++j) s -= A(c, j) * b(j);
-    b(c) = s / A(c, c);
-  }
-  return true;
-}
-}  // namespace detail
 
 template <class Model>
 class MoreauJeanIntegrator {
@@ -372,7 +344,7 @@ class MoreauJeanIntegrator {
           for (int b = 0; b < rebounds; ++b) S_(a, b) = H_.row(rows_[a]).dot(Z_.col(b));
           s_(a) = Un_(rows_[a]);
         }
-        if (!detail::solve_small_in_place(S_, s_, rebounds))
+        if (!lu_solve_in_place(S_, s_, rebounds))
           return f.at(k, t, q.data(), v.data(), "the gradients of the rebounding contacts are dependent");
         for (int a = 0; a < rebounds; ++a) vpos_ -= s_(a) * Z_.col(a);
       }
@@ -492,6 +464,7 @@ class MoreauJeanIntegrator {
       }
       ++nv;
     }
+    if (nv == 0) return;  // no exact velocity to impose (every row moving)
     if (nv == n_ && n_ == 1) {
       if (Gsq_(0, 0) != 0.0) {
         v(0) = rsq_(0) / Gsq_(0, 0);
@@ -605,7 +578,7 @@ class MoreauJeanIntegrator {
           if (set & (1 << b1)) S_(m, mm++) = Sd_(a1, b1);
         s_(m++) = -(1.0 + restitution_[impact_rows_[a1]]) * U_(impact_rows_[a1]);
       }
-      if (!detail::solve_small_in_place(S_, s_, m)) continue;
+      if (!lu_solve_in_place(S_, s_, m)) continue;
       bool ok = true;
       int k1 = 0;
       for (int a1 = 0; a1 < r; ++a1) pref_(a1) = (set & (1 << a1)) ? s_(k1++) : 0.0;
