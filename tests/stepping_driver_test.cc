@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdint>
+#include <limits>
 #include <utility>
 #include <vector>
 
@@ -85,6 +86,35 @@ TEST(RunRecorder, AnnouncesRestAtTheReportsWindowAndWithdrawsItWhenItEnds) {
   ASSERT_TRUE(s.converged_step.has_value());
   EXPECT_EQ(*s.converged_step, 26);
   EXPECT_DOUBLE_EQ(*s.converged_time, 0.26);
+}
+
+// The samples' numbers (Sample::index) when only the first and the last state are recorded: output_every
+// = INT64_MAX, as a study's runs ask, with and without an observer that wants every 4th sample. Reference:
+// the definition in observer.h, 0 for the first and ceil(k / output_every) = 1 for the last. (The number of
+// the last was once (k + output_every - 1) / output_every, a signed overflow for this output_every.)
+TEST(RunRecorder, OnlyTheFirstAndLastStatesWhenOutputEveryIsTheLargestCount) {
+  struct Indices : RunObserver {
+    std::int64_t stride = 1;
+    std::vector<std::pair<std::int64_t, std::int64_t>> seen;  // (step, index)
+    void on_sample(const Sample& s) override { seen.emplace_back(s.step, s.index); }
+    std::int64_t sample_stride() const override { return stride; }
+  };
+  for (std::int64_t stride : {1, 4}) {
+    Indices log;
+    log.stride = stride;
+    RunRecorder rec(&log, std::numeric_limits<std::int64_t>::max(), 1);
+    drive(rec, std::vector<bool>(601, false));
+    ASSERT_EQ(log.seen.size(), 2u) << "stride " << stride;
+    EXPECT_EQ(log.seen[0], std::make_pair(std::int64_t{0}, std::int64_t{0}));
+    EXPECT_EQ(log.seen[1], std::make_pair(std::int64_t{600}, std::int64_t{1}));
+  }
+  // An ordinary decimation, for comparison: every 7th of 600 steps, the last (600 = 85 * 7 + 5) numbered 86.
+  Indices log;
+  RunRecorder rec(&log, 7, 1);
+  drive(rec, std::vector<bool>(601, false));
+  ASSERT_EQ(log.seen.size(), 87u);
+  EXPECT_EQ(log.seen[85], std::make_pair(std::int64_t{595}, std::int64_t{85}));
+  EXPECT_EQ(log.seen[86], std::make_pair(std::int64_t{600}, std::int64_t{86}));
 }
 
 TEST(RunRecorder, ARestShorterThanTheWindowIsNeitherAnnouncedNorConverged) {

@@ -59,7 +59,7 @@ class RunRecorder {
   RunRecorder(RunObserver* observer, std::int64_t output_every, int n)
       : observer_(observer),
         every_(std::max<std::int64_t>(1, output_every)),
-        emit_every_(every_ * std::max<std::int64_t>(1, observer ? observer->sample_stride() : 1)),
+        emit_every_(saturating_product(every_, std::max<std::int64_t>(1, observer ? observer->sample_stride() : 1))),
         n_(n) {}
 
   RunSummary& summary() { return s_; }
@@ -136,7 +136,9 @@ class RunRecorder {
 
   // The last state's sample, unless after_step gave it already.
   void last_sample(std::int64_t k, double t, double h_k, const double* q, const double* v, double energy, double dissipated) {
-    if (last_emitted_ != k) emit(k, (k + every_ - 1) / every_, t, h_k, q, v, energy, dissipated);
+    // ceil(k / output_every), written so that it cannot overflow: a run that records only its first and
+    // last states (a study's runs) has output_every = INT64_MAX.
+    if (last_emitted_ != k) emit(k, k / every_ + (k % every_ != 0), t, h_k, q, v, energy, dissipated);
   }
 
   // The summary of a run that ended at step k (completed or cancelled): the final state, energy, rest
@@ -191,6 +193,10 @@ class RunRecorder {
   }
 
  private:
+  // a b for a, b >= 1, INT64_MAX when it would overflow.
+  static std::int64_t saturating_product(std::int64_t a, std::int64_t b) {
+    return a > std::numeric_limits<std::int64_t>::max() / b ? std::numeric_limits<std::int64_t>::max() : a * b;
+  }
   void emit(std::int64_t k, std::int64_t index, double t, double h, const double* q, const double* v, double energy, double dissipated) {
     if (observer_) observer_->on_sample(Sample{k, t, h, n_, q, v, energy, dissipated, index});
   }
