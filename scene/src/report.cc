@@ -174,14 +174,14 @@ MechanicalEnergy mechanical_energy(const LagrangianScene& scene, const RunSummar
   MechanicalEnergy e;
   if (!scene.compiled || !scene.compiled->has_potential) return e;
   ForceTerms terms(*scene.compiled);
-  auto potential = [&](double t, const std::vector<double>& q) {
+  auto potential = [&](const std::vector<double>& q) {
     std::vector<double> full(static_cast<std::size_t>(scene.n), 0.0);
     std::copy(q.begin(), q.begin() + std::min<std::size_t>(q.size(), full.size()), full.begin());
-    return terms.potential(t, full.data());
+    return terms.potential(full.data());
   };
   e.known = true;
-  e.initial = kinetic_initial + potential(scene.settings.t0, scene.q0);
-  e.final = kinetic_final + potential(s.t_final, s.q_final);
+  e.initial = kinetic_initial + potential(scene.q0);
+  e.final = kinetic_final + potential(s.q_final);
   const double tolerance = 1e-12 * std::max(1.0, std::abs(e.initial));
   e.along = s.mechanical;
   e.rose = e.final > e.initial + tolerance || (e.along.samples > 0 && e.along.max_rise > tolerance);

@@ -46,7 +46,7 @@ void ForceTerms::split(double t, const double* q, const double* v, double* grad_
   }
 }
 
-double ForceTerms::potential(double /*t: V depends on q only*/, const double* q) {
+double ForceTerms::potential(const double* q) {
   double value = 0.0;
   if (c_.potential_tape.num_outputs() > 0) {
     const double* sources[] = {q};  // CompiledLagrangian::potential_tape
@@ -99,7 +99,7 @@ void RecordedStateChecks::force_bound(const Sample& s) {
 
 void RecordedStateChecks::energy(const Sample& s) {
   MechanicalEnergyTrack& track = mechanical_;
-  const double e = s.kinetic_energy + terms_.potential(s.t, s.q);
+  const double e = s.kinetic_energy + terms_.potential(s.q);
   if (track.samples++ == 0) track.initial = e;
   const double rise = e - track.initial, balance = std::abs(rise + s.dissipated_work);
   if (rise > track.max_rise) {

@@ -131,7 +131,7 @@ class ForceTerms {
   // grad_v and force: n entries each.
   void split(double t, const double* q, const double* v, double* grad_v, double* force);
   // V(q); 0 when the scene has no potential (has_potential false).
-  double potential(double t, const double* q);
+  double potential(const double* q);
 
  private:
   const CompiledLagrangian& c_;
