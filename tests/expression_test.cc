@@ -1165,6 +1165,43 @@ TEST(TapeNative, WiredArithmeticWithoutCallsWritesWhatTheInterpreterComputes) {
     }
 }
 
+// A wired tape without instructions (outputs that are inputs or constants: a contact whose gap is a
+// coordinate and whose gradient is constant) runs native code too, which copies each input and constant to
+// its places: the values the wiring names, bit for bit (NaN payloads and signed zeros included), and
+// nothing else.
+TEST(TapeNative, WiredTapeWithoutInstructionsCopiesInputsAndConstants) {
+  Graph g;
+  auto resolve = [&](std::string_view name) -> std::optional<Node> {
+    if (name == "x") return g.variable(0);
+    if (name == "y") return g.variable(1);
+    return std::nullopt;
+  };
+  const std::vector<Node> outputs = {g.parse("y", resolve), g.parse("1", resolve), g.parse("x", resolve), g.parse("2.5", resolve)};
+  Tape tape = Tape::compile(g, outputs, 2);
+  ASSERT_EQ(tape.num_instructions(), 0u);
+  // Output 0 to two places, the others to one; sink index 4 is written by nothing.
+  tape.wire({{{0, 0}, {0, 1}}, {{{0, 0}, {0, 3}}, {{0, 1}}, {{0, 2}}, {{0, 5}}}});
+#if defined(__x86_64__) && defined(__linux__)
+  ASSERT_TRUE(tape.native_wired()) << "a wired tape is compiled to native code even without instructions";
+#endif
+  std::vector<double> scratch(tape.scratch_size());
+  tape.load_constants(scratch.data());
+  for (double x : special_values())
+    for (double y : special_values()) {
+      const double in[] = {x, y};
+      double out[6] = {-7.0, -7.0, -7.0, -7.0, -7.0, -7.0};
+      const double* sources[] = {in};
+      double* sinks[] = {out};
+      tape.run_wired(scratch.data(), sources, sinks);
+      EXPECT_EQ(std::bit_cast<std::uint64_t>(out[0]), std::bit_cast<std::uint64_t>(y));
+      EXPECT_EQ(std::bit_cast<std::uint64_t>(out[3]), std::bit_cast<std::uint64_t>(y));
+      EXPECT_EQ(out[1], 1.0);
+      EXPECT_EQ(std::bit_cast<std::uint64_t>(out[2]), std::bit_cast<std::uint64_t>(x));
+      EXPECT_EQ(out[5], 2.5);
+      EXPECT_EQ(out[4], -7.0);
+    }
+}
+
 TEST(TapeNative, WiringMustPlaceEveryInputTheTapeReads) {
   Graph g;
   Tape tape = Tape::compile(g, {g.binary(Op::kMul, g.variable(0), g.variable(2))}, 3);

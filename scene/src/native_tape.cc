@@ -201,7 +201,11 @@ std::shared_ptr<const Tape::NativeCode> Tape::compile_native(const Tape& tape, c
   using namespace Xbyak::util;
   const std::vector<Instr>& code = tape.code_;
   const std::size_t first_instr_reg = tape.first_instr_reg_;
-  if (code.empty() || code.size() > kMaxNativeInstructions) return nullptr;  // nothing to gain; bounded code size
+  // Bounded code size. A tape without instructions has nothing to gain unwired (its run does nothing), but
+  // wired it still copies inputs and constants to their sinks, and the interpreter's loops over the wires
+  // cost more than the copies (a contact whose gap is a coordinate: the bouncing ball's constraint tape).
+  const bool wired = inputs != nullptr || outputs != nullptr;
+  if ((code.empty() && !wired) || code.size() > kMaxNativeInstructions) return nullptr;
   try {
     const std::size_t wires = (inputs ? inputs->size() : 0) + (outputs ? outputs->size() : 0);
     auto native = std::make_shared<XbyakCode>(256 + kMaxBytesPerInstruction * code.size() + kMaxBytesPerWire * wires);
@@ -335,7 +339,7 @@ std::shared_ptr<const Tape::NativeCode> Tape::compile_native(const Tape& tape, c
     }
     g.ret();
     g.setProtectModeRE();  // W^X: executable from here on, never writable again
-    if (inputs != nullptr || outputs != nullptr)
+    if (wired)
       native->run_wired = g.getCode<void (*)(double*, const double* const*, double* const*)>();
     else
       native->run = g.getCode<void (*)(double*)>();

@@ -307,7 +307,9 @@ class MoreauJeanIntegrator {
       split_merged_impulses(h);
     } else {
       vn_ = vf_;
-      w_.setZero();
+      // A loop the compiler inlines: Eigen's setZero on a dynamic-size vector is a call, which cost the
+      // bouncing ball in flight about 25 instructions per step (callgrind).
+      std::fill_n(w_.data(), w_.size(), 0.0);
       s.solver.total_iterations += 1;
       s.solver.max_iterations = std::max(s.solver.max_iterations, 1);
     }

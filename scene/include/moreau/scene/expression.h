@@ -212,6 +212,7 @@ class Tape {
   // instructions, or where the system refuses executable memory: the interpreter serves then.
   static constexpr std::size_t kMaxNativeInstructions = std::size_t{1} << 16;
   bool native() const { return native_ != nullptr; }
+  bool native_wired() const { return native_run_wired_ != nullptr; }  // run_wired() runs native code
   void run_interpreted(double* scratch) const;  // the interpreter alone: the reference of the native code
   struct NativeCode;                             // defined where the code is made (private to the library)
 
