@@ -1136,14 +1136,19 @@ TEST(TapeNative, WiredRunsWriteWhatTheInterpreterComputesWhereTheWiringSays) {
   }
 }
 
-// A wired tape that calls nothing (its code keeps the caller's pointers where they came, and pushes nothing).
-TEST(TapeNative, WiredArithmeticWithoutCallsWritesWhatTheInterpreterComputes) {
-  Graph g;
-  auto resolve = [&](std::string_view name) -> std::optional<Node> {
+// Names for the wired tapes' tests: x is slot 0, y slot 1.
+auto resolve_x_y(Graph& g) {
+  return [&g](std::string_view name) -> std::optional<Node> {
     if (name == "x") return g.variable(0);
     if (name == "y") return g.variable(1);
     return std::nullopt;
   };
+}
+
+// A wired tape that calls nothing (its code keeps the caller's pointers where they came, and pushes nothing).
+TEST(TapeNative, WiredArithmeticWithoutCallsWritesWhatTheInterpreterComputes) {
+  Graph g;
+  const auto resolve = resolve_x_y(g);
   const std::vector<Node> outputs = {g.parse("x*y - 0.5*x", resolve), g.parse("min(x, y)/max(x, 1)", resolve), g.parse("-sqrt(abs(x))*y^2", resolve)};
   Tape tape = Tape::compile(g, outputs, 2);
   tape.wire({{{0, 0}, {0, 1}}, {{{0, 0}}, {{0, 1}}, {{0, 2}}}});
@@ -1171,11 +1176,7 @@ TEST(TapeNative, WiredArithmeticWithoutCallsWritesWhatTheInterpreterComputes) {
 // nothing else.
 TEST(TapeNative, WiredTapeWithoutInstructionsCopiesInputsAndConstants) {
   Graph g;
-  auto resolve = [&](std::string_view name) -> std::optional<Node> {
-    if (name == "x") return g.variable(0);
-    if (name == "y") return g.variable(1);
-    return std::nullopt;
-  };
+  const auto resolve = resolve_x_y(g);
   const std::vector<Node> outputs = {g.parse("y", resolve), g.parse("1", resolve), g.parse("x", resolve), g.parse("2.5", resolve)};
   Tape tape = Tape::compile(g, outputs, 2);
   ASSERT_EQ(tape.num_instructions(), 0u);
