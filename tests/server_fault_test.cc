@@ -65,8 +65,7 @@ using ::testing::AnyOf;
 using ::testing::HasSubstr;
 using moreau::test_support::TempDir;
 
-constexpr const char* kReasonRunning = "server restarted while the job was running";
-constexpr const char* kReasonQueued = "server restarted before the job ran";
+constexpr const char* kReasonCrashed = "the server died while the job was running: it runs again from the start";
 
 // ---- small utilities ----
 
@@ -315,9 +314,13 @@ TEST(ServerFault, KillNineWhileJobsRunThenRestart) {
   const auto args = server_args(data, {"--workers", "2", "--max-steps", "2000000000", "--queue", "256"});
 
   std::map<std::string, Finished> finished;  // every job seen final so far, with its results' digests
+  // The trajectory each request body gave, the first time one of its jobs was seen done: every other job
+  // of the same body, run before a kill or again after one, must give the same bytes.
+  std::map<std::string, Digest> trajectory_of_body;
+  std::map<std::string, std::string> body_of;  // job id -> its request body
   // Kill moments: when this many of the round's short jobs are done (0: as soon as all are submitted).
   const std::vector<int> kill_after = {0, 2, 10, 24};
-  int total_jobs = 0, seen_done_total = 0, done_unseen_total = 0, failed_running_total = 0, failed_queued_total = 0, tmp_left_total = 0;
+  int total_jobs = 0, seen_done_total = 0, done_unseen_total = 0, rerun_running_total = 0, rerun_queued_total = 0, tmp_left_total = 0;
   std::mt19937 rng(12345);
 
   for (std::size_t round = 0; round < kill_after.size(); ++round) {
@@ -326,27 +329,32 @@ TEST(ServerFault, KillNineWhileJobsRunThenRestart) {
     auto c = srv.client();
 
     // L1 occupies one worker for good; the short jobs run one after another on the other; L2 then
-    // takes that worker too, so that the jobs submitted after it (Q) can never start.
-    std::vector<std::string> shorts, queued_forever, longs;
+    // takes that worker too, so that the jobs submitted after it (Q) cannot start before the kill.
+    std::vector<std::string> shorts, queued_behind, longs;
     auto submit = [&](const json& body) {
       auto r = post_job(*c, body);
       if (!r || r->status != 202) throw std::runtime_error("submit failed: " + (r ? r->body : httplib::to_string(r.error())));
       ++total_jobs;
-      return json::parse(r->body)["id"].get<std::string>();
+      const std::string id = json::parse(r->body)["id"].get<std::string>();
+      body_of[id] = body.dump();
+      return id;
     };
     longs.push_back(submit(long_job()));
     ASSERT_EQ(wait_state_not(*c, longs[0], "queued"), "running");
+    // The short jobs take 1e5 to 3e5 steps (a few milliseconds each, one row per 100 steps), so that the
+    // kill finds one running more often than not.
     for (int i = 0; i < 30; ++i) {
       json body;
       if (i % 3 == 2) {
-        body = {{"scene", manipulator()}, {"overrides", {"integrator.t_end=" + std::to_string(1 + i % 2)}}};
+        body = {{"scene", manipulator()}, {"overrides", {"integrator.t_end=" + std::to_string(100 * (1 + i % 2)), "output.every=100"}}};
       } else {
-        body = {{"scene", damped_relay()}, {"overrides", {"integrator.t_end=" + std::to_string(1 + rng() % 3)}}};
+        body = {{"scene", damped_relay()},
+                {"overrides", {"integrator.t_end=" + std::to_string(100 * (1 + rng() % 3)), "output.every=100"}}};
       }
       shorts.push_back(submit(body));
     }
     longs.push_back(submit(long_job()));
-    for (int i = 0; i < 3; ++i) queued_forever.push_back(submit({{"scene", "damped-relay"}}));
+    for (int i = 0; i < 3; ++i) queued_behind.push_back(submit({{"scene", "damped-relay"}}));
 
     // Wait until enough short jobs are done, then kill at once.
     const std::set<std::string> this_round(shorts.begin(), shorts.end());
@@ -379,50 +387,75 @@ TEST(ServerFault, KillNineWhileJobsRunThenRestart) {
     ASSERT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL) << describe_exit(status);
     const int tmp_left = static_cast<int>(temp_files_under(data).size());
     tmp_left_total += tmp_left;
-
-    // Restart on the same data directory.
-    Running again = start_server(args, tmp.path());
-    auto c2 = again.client();
-    EXPECT_TRUE(temp_files_under(data).empty()) << "temporary files survived the restart";
-    int done_unseen = 0, failed_running = 0, failed_queued = 0;
+    // What the records say at the kill: the jobs that were running and those that had not started.
     std::vector<std::string> all = longs;
     all.insert(all.end(), shorts.begin(), shorts.end());
-    all.insert(all.end(), queued_forever.begin(), queued_forever.end());
+    all.insert(all.end(), queued_behind.begin(), queued_behind.end());
+    // (A report on disk commits a run, whatever its record says: such a run is done, not run again.)
+    std::set<std::string> running_at_kill, queued_at_kill, committed_at_kill;
     for (const auto& id : all) {
-      SCOPED_TRACE("job " + id);
-      const json job = get_json(*c2, "/v1/jobs/" + id);
-      const std::string state = job.value("state", "");
-      if (seen_done.count(id)) {
-        EXPECT_EQ(state, "done");
-        continue;
-      }
-      if (state == "done") {
-        // Finished (committed) between the last look and the kill: a whole, consistent result.
-        ++done_unseen;
-        auto rep = c2->Get("/v1/jobs/" + id + "/report");
-        auto csv = c2->Get("/v1/jobs/" + id + "/trajectory?format=csv");
-        ASSERT_TRUE(rep && csv);
-        ASSERT_EQ(rep->status, 200);
-        ASSERT_EQ(csv->status, 200);
-        const json report = json::parse(rep->body);
-        EXPECT_EQ(report.value("status", ""), "completed");
-        EXPECT_EQ(count_lines(csv->body), report["steps"].get<std::int64_t>() + 2) << "a truncated trajectory";
-        finished[id] = {digest(rep->body), digest(csv->body), "done"};
-        continue;
-      }
-      ASSERT_EQ(state, "failed") << job.dump();
-      const std::string reason = job.value("reason", "");
-      EXPECT_THAT(reason, AnyOf(kReasonRunning, kReasonQueued));
-      if (reason == kReasonRunning) ++failed_running;
-      if (reason == kReasonQueued) ++failed_queued;
-      EXPECT_EQ(c2->Get("/v1/jobs/" + id + "/report")->status, 409);
-      finished[id] = {{}, {}, "failed"};
+      const std::string state = json::parse(slurp(data / "jobs" / id / "job.json").value_or("{}")).value("state", "");
+      if (fs::exists(data / "jobs" / id / "report.json"))
+        committed_at_kill.insert(id);
+      else if (state == "running")
+        running_at_kill.insert(id);
+      else if (state == "queued")
+        queued_at_kill.insert(id);
+      else
+        ADD_FAILURE() << "job " << id << ": state " << state << " and no report at the kill";
     }
-    // The long jobs were running; the jobs behind L2 never ran.
-    EXPECT_EQ(get_json(*c2, "/v1/jobs/" + longs[0])["reason"], kReasonRunning);
-    for (const auto& id : queued_forever) EXPECT_EQ(get_json(*c2, "/v1/jobs/" + id)["reason"], kReasonQueued);
+    EXPECT_TRUE(running_at_kill.count(longs[0]));
+    for (const auto& id : queued_behind) EXPECT_TRUE(queued_at_kill.count(id)) << id;
 
-    // Every result finished in this round or an earlier one: the same bytes over HTTP and on disk.
+    // Restart on the same data directory. The endless jobs are run again too: cancel them, so that the
+    // others can run.
+    Running again = start_server(args, tmp.path());
+    auto c2 = again.client();
+    for (const auto& id : longs) {
+      const json job = get_json(*c2, "/v1/jobs/" + id);
+      EXPECT_THAT(job.value("state", ""), AnyOf("queued", "running")) << job.dump();
+      if (running_at_kill.count(id)) EXPECT_EQ(job.value("reason", ""), job.value("state", "") == "queued" ? kReasonCrashed : "");
+      auto d = c2->Delete("/v1/jobs/" + id);
+      ASSERT_TRUE(d);
+      EXPECT_TRUE(d->status == 200 || d->status == 202) << d->body;
+      EXPECT_EQ(wait_final(*c2, id)["state"], "cancelled");
+    }
+    // Every other job of the round ends done: the ones seen done as they were, the others committed at
+    // the kill or run again after it, each with the trajectory its body gives.
+    int done_unseen = 0, rerun_running = 0, rerun_queued = 0;
+    for (const auto& id : all) {
+      if (std::find(longs.begin(), longs.end(), id) != longs.end()) continue;
+      SCOPED_TRACE("job " + id);
+      const json job = wait_final(*c2, id, 60);
+      ASSERT_EQ(job.value("state", ""), "done") << job.dump();
+      if (seen_done.count(id)) continue;
+      auto rep = c2->Get("/v1/jobs/" + id + "/report");
+      auto csv = c2->Get("/v1/jobs/" + id + "/trajectory?format=csv");
+      ASSERT_TRUE(rep && csv);
+      ASSERT_EQ(rep->status, 200);
+      ASSERT_EQ(csv->status, 200);
+      const json report = json::parse(rep->body);
+      EXPECT_EQ(report.value("status", ""), "completed");
+      // The header, and a row every 100 steps (the short jobs) or every step (those behind L2) from step 0
+      // to the last.
+      const std::int64_t every = this_round.count(id) ? 100 : 1;
+      EXPECT_EQ(count_lines(csv->body), report["steps"].get<std::int64_t>() / every + 2) << "a truncated trajectory";
+      finished[id] = {digest(rep->body), digest(csv->body), "done"};
+      const json record = json::parse(slurp(data / "jobs" / id / "job.json").value_or("{}"));
+      if (running_at_kill.count(id)) {
+        ++rerun_running;
+        EXPECT_EQ(record.value("crashes", 0), 1) << "a job the server died under counts it";
+      } else {
+        ++(queued_at_kill.count(id) ? rerun_queued : done_unseen);  // done_unseen: committed between the last look and the kill
+        EXPECT_FALSE(record.contains("crashes"));
+      }
+    }
+
+    // Nothing runs now: a temporary file would be one the kill left and the restart did not remove.
+    EXPECT_TRUE(temp_files_under(data).empty()) << "temporary files survived the restart";
+
+    // Every result finished in this round or an earlier one: the same bytes over HTTP and on disk, and
+    // the same trajectory as every other job of its body.
     int verified = 0;
     for (const auto& [id, f] : finished) {
       if (f.state != "done") continue;
@@ -435,15 +468,18 @@ TEST(ServerFault, KillNineWhileJobsRunThenRestart) {
       EXPECT_EQ(digest(slurp(data / "jobs" / id / "report.json").value_or("")), f.report);
       EXPECT_EQ(digest(slurp(data / "jobs" / id / "trajectory.csv").value_or("")), f.csv);
       EXPECT_EQ(get_json(*c2, "/v1/jobs/" + id)["state"], "done");
+      const auto [it, first] = trajectory_of_body.emplace(body_of.at(id), f.csv);
+      if (!first) EXPECT_EQ(it->second, f.csv) << "a job of the same body gave another trajectory";
       ++verified;
     }
     seen_done_total += static_cast<int>(seen_done.size());
     done_unseen_total += done_unseen;
-    failed_running_total += failed_running;
-    failed_queued_total += failed_queued;
+    rerun_running_total += rerun_running;
+    rerun_queued_total += rerun_queued;
     std::cout << "[kill -9] round " << round << ": killed after " << seen_done.size() << " jobs seen done; " << done_unseen
-              << " more done at the kill, " << failed_running << " failed (running), " << failed_queued << " failed (queued), " << tmp_left
-              << " temporary files left by the kill; " << verified << " finished results verified byte for byte\n";
+              << " more done at the kill, " << rerun_running << " run again (were running), " << rerun_queued
+              << " run again (had not started), " << tmp_left << " temporary files left by the kill; " << verified
+              << " finished results verified byte for byte\n";
 
     // The restarted server takes new jobs; a clean stop exits 0.
     auto r = post_job(*c2, {{"scene", "damped-relay"}});
@@ -457,9 +493,9 @@ TEST(ServerFault, KillNineWhileJobsRunThenRestart) {
     EXPECT_TRUE(WIFEXITED(*st) && WEXITSTATUS(*st) == 0) << describe_exit(*st);
   }
   std::cout << "[kill -9] " << kill_after.size() << " rounds, " << total_jobs << " jobs: " << seen_done_total
-            << " seen done before the kill, " << done_unseen_total << " committed at the kill, " << failed_running_total
-            << " failed while running, " << failed_queued_total << " failed before running, " << tmp_left_total
-            << " temporary files cleaned up\n";
+            << " seen done before the kill, " << done_unseen_total << " committed at the kill, " << rerun_running_total
+            << " run again after dying under them, " << rerun_queued_total << " run after the restart that had not started, "
+            << tmp_left_total << " temporary files cleaned up; every job but the cancelled endless ones done\n";
 }
 
 // ---- a2. server-sent event ids across a SIGKILL and restarts ----
@@ -525,7 +561,9 @@ TEST(ServerFault, EventIdsGoOnAcrossAKillAndRestarts) {
     running_last = seen.back().id;
     srv.child->kill_and_reap();
   }
-  for (int restart = 1; restart <= 2; ++restart) {
+  // Restart 1 runs the killed job again; it is killed again under it; restart 2 fails it (a job the
+  // server died under twice); restart 3, after another kill, shows the same failure with the same id.
+  for (int restart = 1; restart <= 3; ++restart) {
     SCOPED_TRACE("restart " + std::to_string(restart));
     Running srv = start_server(args, tmp.path());
     auto c = srv.client();
@@ -539,17 +577,32 @@ TEST(ServerFault, EventIdsGoOnAcrossAKillAndRestarts) {
     ASSERT_EQ(resumed.size(), 1u);
     EXPECT_EQ(resumed[0].id, done_events.back().id);
     EXPECT_TRUE(read_events(*c, "/v1/jobs/" + done_id + "/events", done_events.back().id).empty());
-    // The killed job: failed, with an id after every event it sent before the kill, so a client that
-    // resumes from the last one it saw gets the failure and nothing twice.
-    const auto after = read_events(*c, "/v1/jobs/" + running_id + "/events", running_last);
-    ASSERT_EQ(after.size(), 1u);
-    EXPECT_EQ(after[0].name, "state");
-    EXPECT_THAT(after[0].data, ::testing::HasSubstr("\"failed\""));
-    EXPECT_GT(after[0].id, running_last);
-    EXPECT_EQ(read_events(*c, "/v1/jobs/" + running_id + "/events").at(0).id, after[0].id);
-    if (restart == 1) failed_id = after[0].id;
-    EXPECT_EQ(after[0].id, failed_id) << "the same id after the second restart as after the first";
-    if (restart == 1) srv.child->kill_and_reap();  // the second restart follows a kill of the restarted server
+    if (restart == 1) {
+      // Queued again (saying why), then running, then progress: ids after every event it sent before the
+      // kill, so a client that resumes from the last one it saw misses nothing and gets nothing twice.
+      const auto after = read_events(*c, "/v1/jobs/" + running_id + "/events", running_last, 4);
+      ASSERT_EQ(after.size(), 4u);
+      EXPECT_EQ(after[0].name, "state");
+      EXPECT_THAT(after[0].data, HasSubstr("\"queued\""));
+      EXPECT_THAT(after[0].data, HasSubstr(kReasonCrashed));
+      EXPECT_GT(after[0].id, running_last);
+      EXPECT_EQ(after[1].name, "state");
+      EXPECT_THAT(after[1].data, HasSubstr("\"running\""));
+      for (std::size_t i = 1; i < after.size(); ++i) EXPECT_GT(after[i].id, after[i - 1].id);
+      running_last = after.back().id;
+    } else {
+      // Failed, with an id after every event it sent, and the same after a further restart.
+      const auto after = read_events(*c, "/v1/jobs/" + running_id + "/events", running_last);
+      ASSERT_EQ(after.size(), 1u);
+      EXPECT_EQ(after[0].name, "state");
+      EXPECT_THAT(after[0].data, HasSubstr("\"failed\""));
+      EXPECT_THAT(after[0].data, HasSubstr("the server died twice while the job was running"));
+      EXPECT_GT(after[0].id, running_last);
+      EXPECT_EQ(read_events(*c, "/v1/jobs/" + running_id + "/events").at(0).id, after[0].id);
+      if (restart == 2) failed_id = after[0].id;
+      EXPECT_EQ(after[0].id, failed_id) << "the same id after the third restart as after the second";
+    }
+    srv.child->kill_and_reap();
   }
 }
 

@@ -171,6 +171,7 @@ json job_record(const Job& job, JobState state, const std::string& reason, doubl
     r["stream"] = {{"prefix", job.stream.prefix}, {"period", job.stream.period}, {"realtime", job.stream.realtime}};
   }
   if (job.strict) r["strict"] = true;
+  if (job.crashes > 0) r["crashes"] = job.crashes;
   // The id this state's event takes: the next one, since a record is written just before its state's
   // event is pushed (JobRunner::set_state). Exact for a final state (no progress event comes between);
   // JobStore::recover() continues the ids from it.

@@ -52,6 +52,9 @@ struct Job {
   StreamSettings stream;
   // The request's `strict`: a run whose relied-on hypothesis fails ends failed (else a warning).
   bool strict = false;
+  // How many times the server died (no clean stop) while this job ran: it is run again after the first,
+  // not after the second (JobStore::recover). In job.json as "crashes".
+  int crashes = 0;
 
   // Set before the job is queued, used by its worker, released when it ends.
   std::optional<scene::Simulation> sim;

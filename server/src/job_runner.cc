@@ -18,8 +18,7 @@ using Clock = std::chrono::steady_clock;
 
 namespace {
 
-const char* kReasonStoppedRunning = "server stopped while the job was running";
-const char* kReasonStoppedQueued = "server stopped before the job ran";
+const char* kReasonStoppedRunning = "the server stopped while the job was running: it runs again from the start when the server restarts";
 
 double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
@@ -45,12 +44,7 @@ void JobRunner::stop() {
     all = store_.list();
   }
   queue_cv_.notify_all();
-  for (auto& job : queued) {
-    job->sim.reset();
-    job->study_scene.reset();
-    job->campaign.reset();
-    set_state(*job, JobState::kFailed, kReasonStoppedQueued);
-  }
+  // The queued jobs stay queued, in memory and in their records: a restarted server runs them.
   auto wake = [](Job& job) {
     { std::lock_guard l(job.mu); }  // a waiter is either before its predicate check or blocked
     job.cv.notify_all();
@@ -73,6 +67,27 @@ void JobRunner::stop() {
     if (t.joinable()) t.join();
   committers_.clear();
   for (auto& job : all) wake(*job);
+}
+
+void JobRunner::requeue(const std::shared_ptr<Job>& job, const std::string& refused) {
+  if (!refused.empty()) {
+    job->sim.reset();
+    job->study_scene.reset();
+    job->campaign.reset();
+    set_state(*job, JobState::kFailed, "the restarted server cannot run the job again: " + refused);
+    return;
+  }
+  std::string reason;
+  {
+    std::lock_guard lock(job->mu);
+    reason = job->reason;
+  }
+  set_state(*job, JobState::kQueued, reason);  // the record (with its crashes) and the state event
+  {
+    std::lock_guard lock(mu_);
+    queue_.push_back(job);  // beyond --queue if need be: it was accepted
+  }
+  queue_cv_.notify_one();
 }
 
 JobRunner::Submit JobRunner::submit(const std::shared_ptr<Job>& job, const json& scene_doc, int* retry_after, const json* spec_doc) {
@@ -230,10 +245,8 @@ void JobRunner::run(const std::shared_ptr<Job>& job) {
     job->sim.reset();
     job->study_scene.reset();
     job->campaign.reset();
-    if (job->shutdown && !job->cancel_requested)
-      set_state(*job, JobState::kFailed, kReasonStoppedQueued);
-    else
-      set_state(*job, JobState::kCancelled, "cancelled before it ran");
+    // Taken from the queue as the server stopped: it stays queued, for the restarted server.
+    if (!job->shutdown || job->cancel_requested) set_state(*job, JobState::kCancelled, "cancelled before it ran");
     return;
   }
   set_state(*job, JobState::kRunning, "");
@@ -270,6 +283,10 @@ void JobRunner::run(const std::shared_ptr<Job>& job) {
 
   RunSummary summary = sim.run(&observer);
   observer.finish();
+  if (summary.status == RunStatus::kCancelled && job->shutdown && !job->cancel_requested) {
+    if (commit->stream) commit->stream->push_event("stopped", summary.steps, summary.t_final, kReasonStoppedRunning);
+    return queue_again_after_stop(*job, kReasonStoppedRunning);
+  }
   if (stream_observer) {
     stream_observer->flush_last(summary);
     commit->announced_rest = stream_observer->announced_rest();
@@ -308,13 +325,8 @@ void JobRunner::run(const std::shared_ptr<Job>& job) {
     commit->state = JobState::kFailed;
     commit->reason = summary.message;
   } else if (summary.status == RunStatus::kCancelled) {
-    if (job->shutdown && !job->cancel_requested) {
-      commit->state = JobState::kFailed;
-      commit->reason = kReasonStoppedRunning;
-    } else {
-      commit->state = JobState::kCancelled;
-      commit->reason = "cancelled by request (" + summary.message + ")";
-    }
+    commit->state = JobState::kCancelled;
+    commit->reason = "cancelled by request (" + summary.message + ")";
   }
   summary.add_phase("write", csv.seconds() + seconds_since(t_write));
   const std::string report = sim.report_json(summary).dump(2) + "\n";
@@ -350,9 +362,9 @@ void JobRunner::run_study(const std::shared_ptr<Job>& job, std::unique_ptr<Commi
   try {
     result = scene::run_study(sc, st);
   } catch (const scene::StudyCancelled&) {
-    const bool stopped = job->shutdown && !job->cancel_requested;
-    commit->state = stopped ? JobState::kFailed : JobState::kCancelled;
-    commit->reason = stopped ? kReasonStoppedRunning : "cancelled by request";
+    if (job->shutdown && !job->cancel_requested) return queue_again_after_stop(*job, kReasonStoppedRunning);
+    commit->state = JobState::kCancelled;
+    commit->reason = "cancelled by request";
   } catch (const scene::SceneError& e) {
     commit->state = JobState::kFailed;
     commit->reason = e.what();
@@ -401,9 +413,10 @@ void JobRunner::run_campaign(const std::shared_ptr<Job>& job, std::unique_ptr<Co
     if (result.summarized) {
       commit->state = JobState::kDone;
     } else if (job->shutdown && !job->cancel_requested) {
-      commit->state = JobState::kFailed;
-      commit->reason = std::string(kReasonStoppedRunning) + " (" + std::to_string(have) + " of " + std::to_string(spec.samples) +
-                       " samples finished; their records are kept)";
+      // The records written so far stay; the restarted server's run skips their samples.
+      return queue_again_after_stop(*job, "the server stopped while the campaign was running (" + std::to_string(have) + " of " +
+                                              std::to_string(spec.samples) +
+                                              " samples finished; their records are kept): it goes on from them when the server restarts");
     } else if (result.stopped) {
       commit->state = JobState::kCancelled;
       commit->reason = "cancelled by request (" + std::to_string(have) + " of " + std::to_string(spec.samples) +
@@ -428,6 +441,17 @@ void JobRunner::fail_to_store(Job& job, const std::string& what) {
   job.sim.reset();
   std::cerr << "moreau-server: job " << job.id << ": cannot store the results: " << what << "\n";
   set_state(job, JobState::kFailed, "cannot store the results: " + what);
+}
+
+void JobRunner::queue_again_after_stop(Job& job, const std::string& why) {
+  std::error_code ec;
+  for (const char* name : {"trajectory.csv.tmp", "report.json.tmp", "table.csv.tmp", "result.json.tmp"}) fs::remove(job.dir / name, ec);
+  job.sim.reset();
+  job.study_scene.reset();
+  job.t_now = job.t0;
+  job.step_now = 0;
+  job.rows_done = 0;
+  set_state(job, JobState::kQueued, why);
 }
 
 void JobRunner::committer_loop() {

@@ -46,10 +46,15 @@ class JobRunner {
   JobRunner(const ServerConfig& config, LcmHub& hub);
   ~JobRunner();
 
-  // The jobs a previous server left (JobStore::recover).
-  void recover() { store_.recover(); }
+  // The jobs a previous server left (JobStore::recover); returns those to run again, for requeue().
+  std::vector<std::shared_ptr<Job>> recover() { return store_.recover(); }
+  // Queues a job recover() returned, compiled again (`refused` empty), or fails it with `refused` (why this
+  // server cannot run it).
+  void requeue(const std::shared_ptr<Job>& job, const std::string& refused);
   void start();
-  // Fails the queued jobs, stops the running ones (failed: the server stopped) and joins the workers.
+  // Stops the running jobs and joins the workers. Nothing accepted is lost: queued jobs stay queued, and a
+  // run the stop interrupts is queued again (its partial results dropped; a campaign keeps its finished
+  // samples' records), so that a restarted server runs them (recover()).
   void stop();
   bool stopping() const { return stopping_.load(); }
   // No job queued or running.
@@ -112,6 +117,9 @@ class JobRunner {
   void commit(Commit& c);
   // The run's results could not be written: removes its temporary files and fails the job, saying so.
   void fail_to_store(Job& job, const std::string& what);
+  // A run the server's stop interrupted: its temporary files go, and it is queued again (on disk: the
+  // restarted server runs it), with `why`.
+  void queue_again_after_stop(Job& job, const std::string& why);
   // Changes the state (and reason): records it in job.json, then (for a final state) prunes, and only
   // then publishes it to readers and event streams, so that whoever sees the new state sees the store
   // as it is after it.

@@ -8,8 +8,14 @@ namespace fs = std::filesystem;
 using json = nlohmann::json;
 
 namespace {
-const char* kReasonRestartedRunning = "server restarted while the job was running";
-const char* kReasonRestartedQueued = "server restarted before the job ran";
+// A job the server died under twice is not run a third time: it may be what kills the server.
+constexpr int kMaxCrashes = 2;
+const char* kReasonCrashedTwice = "the server died twice while the job was running: it is not run again (it may be what stops the server)";
+std::string reason_crashed(JobKind kind) {
+  return kind == JobKind::kCampaign
+             ? "the server died while the campaign was running: it goes on from the samples whose records were written"
+             : "the server died while the job was running: it runs again from the start";
+}
 }  // namespace
 
 JobStore::JobStore(const ServerConfig& config) : config_(config), jobs_dir_(fs::path(config.data_dir) / "jobs") {
@@ -72,7 +78,7 @@ void JobStore::write_record(const json& record, const Job& job, Durability durab
   write_file_atomic(job.dir / "job.json", record.dump(2) + "\n", durability);
 }
 
-void JobStore::recover() {
+std::vector<std::shared_ptr<Job>> JobStore::recover() {
   std::error_code ec;
   std::vector<std::shared_ptr<Job>> found;
   for (const auto& entry : fs::directory_iterator(jobs_dir_, ec)) {
@@ -105,6 +111,7 @@ void JobStore::recover() {
     job->planned_steps = record.value("planned_steps", std::int64_t{0});
     job->reason = record.value("reason", "");
     job->strict = record.contains("strict") && record["strict"].is_boolean() && record["strict"].get<bool>();
+    job->crashes = record.contains("crashes") && record["crashes"].is_number_integer() ? record["crashes"].get<int>() : 0;
     if (record.contains("progress") && record["progress"].is_object()) {
       const json& p = record["progress"];
       if (p.contains("t") && p["t"].is_number()) job->t_now = p["t"].get<double>();
@@ -154,12 +161,22 @@ void JobStore::recover() {
       job->state = JobState::kCancelled;
       job->reason = "cancelled by request (the server restarted before the run had stopped)";
       rewrite = true;
-    } else {
+    } else if (recorded == JobState::kQueued) {
+      // Accepted and not yet run, or run until a clean stop (its reason says so): it runs now.
+      job->state = JobState::kQueued;
+    } else if (job->crashes + 1 >= kMaxCrashes) {
+      // Running when the server died, and not for the first time.
+      job->crashes += 1;
       job->state = JobState::kFailed;
-      job->reason = recorded == JobState::kQueued ? kReasonRestartedQueued : kReasonRestartedRunning;
+      job->reason = kReasonCrashedTwice;
       if (campaign && job->has_trajectory)
         job->reason += " (the records of the samples that had finished are kept: GET " + kind_url(job->kind) + job->id + "/samples)";
       rewrite = true;
+    } else {
+      // Running when the server died (no clean stop recorded it): it runs again, once.
+      job->crashes += 1;
+      job->state = JobState::kQueued;
+      job->reason = reason_crashed(job->kind);
     }
     if (job->finished == 0 && rewrite) job->finished = unix_now();
     if (job->state == JobState::kDone) {
@@ -179,16 +196,25 @@ void JobStore::recover() {
   }
   std::sort(found.begin(), found.end(),
             [](const auto& a, const auto& b) { return a->created != b->created ? a->created < b->created : a->id < b->id; });
+  std::vector<std::shared_ptr<Job>> pending;
   {
     std::lock_guard lock(mu_);
     for (auto& job : found) {
-      push_event(*job, "state", {{"id", job->id}, {"state", to_string(job->state)}});
       jobs_.emplace(job->id, job);
       order_.push_back(job);
-      ++finished_;  // every recovered job is final
+      if (!is_final(job->state)) {
+        pending.push_back(job);  // its state event comes when it is queued again (JobRunner::requeue)
+        continue;
+      }
+      // As JobRunner::set_state published it: with the reason, if there is one.
+      json data = {{"id", job->id}, {"state", to_string(job->state)}};
+      if (!job->reason.empty()) data["reason"] = job->reason;
+      push_event(*job, "state", data);
+      ++finished_;
     }
   }
   prune();
+  return pending;
 }
 
 bool JobStore::remove(const std::shared_ptr<Job>& job) {

@@ -54,9 +54,11 @@ class JobStore {
   std::shared_ptr<Job> find(const std::string& id) const;
   std::vector<std::shared_ptr<Job>> list() const;  // by creation
 
-  // Reads DATA/jobs: finished jobs are served again; jobs left queued or running are marked failed. The
-  // recovered jobs are added, then pruned.
-  void recover();
+  // Reads DATA/jobs: finished jobs are served again. Jobs left queued (accepted and not run, or stopped by
+  // a clean stop while running) are returned in submission order, queued, to be run again; so are jobs
+  // left running by a server that died, once (Job::crashes): the second time they fail. The recovered
+  // jobs are added, then the finished ones pruned.
+  std::vector<std::shared_ptr<Job>> recover();
   // Writes job.json (atomically; fsync'ed with kFsync). Throws std::runtime_error.
   void write_record(const nlohmann::json& record, const Job& job, Durability durability) const;
   // One more job reached a final state.

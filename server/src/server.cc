@@ -325,6 +325,15 @@ class Budget {
   int taken_ = 0;
 };
 
+// The study settings of a request or of a stored study.json, its errors at /study.
+scene::StudySettings study_settings_at(const json& fields) {
+  try {
+    return scene::study_settings_from_json(fields, "/study");
+  } catch (const scene::SceneError& e) {
+    throw BadRequest{400, "invalid request", e.pointer(), e.reason(), "request"};
+  }
+}
+
 }  // namespace
 
 class Server::Impl {
@@ -332,11 +341,41 @@ class Server::Impl {
   explicit Impl(ServerConfig config) : cfg_(std::move(config)), hub_(cfg_.lcm_url), jobs_(cfg_, hub_), http_(transport_limits(cfg_)) {
     if (cfg_.scenes_dir.empty()) cfg_.scenes_dir = default_scenes_dir();
     if (!cfg_.lcm_url.empty()) hub_.open();
-    jobs_.recover();
+    requeue_recovered(jobs_.recover());
     setup_routes();
   }
 
   ~Impl() { stop(); }
+
+  // The jobs a previous server accepted and did not finish run again, compiled from the documents they
+  // stored, within this server's limits (which may have changed since: a job they now refuse fails,
+  // saying why), in the order they were submitted and ahead of new ones.
+  void requeue_recovered(const std::vector<std::shared_ptr<Job>>& pending) {
+    for (const auto& job : pending) {
+      const auto t_load = Clock::now();
+      std::string refused;
+      try {
+        const auto stored = [&job](const char* name) {
+          json doc = json::parse(read_file(job->dir / name).value_or(""), nullptr, false);
+          if (!doc.is_object()) throw std::runtime_error(std::string("its ") + name + " is missing or unreadable");
+          return doc;
+        };
+        switch (job->kind) {
+          case JobKind::kRun: prepare_run(*job, stored("scene.json"), job->stream); break;
+          case JobKind::kStudy: prepare_study(*job, stored("scene.json"), study_settings_at(stored("study.json"))); break;
+          case JobKind::kCampaign: prepare_campaign(*job, stored("campaign.json")); break;
+        }
+      } catch (const BadRequest& e) {
+        refused = (e.pointer.empty() ? "" : e.pointer + ": ") + e.reason;
+      } catch (const scene::SceneError& e) {
+        refused = e.pointer() + ": " + e.reason();
+      } catch (const std::exception& e) {
+        refused = e.what();
+      }
+      job->load_seconds = std::chrono::duration<double>(Clock::now() - t_load).count();
+      jobs_.requeue(job, refused);
+    }
+  }
 
   int start() {
     if (cfg_.token.empty() && !is_loopback(cfg_.host) && !cfg_.allow_unauthenticated_remote) {
@@ -423,6 +462,11 @@ class Server::Impl {
   void post_job(const Request& req, Response& res, const std::string& body);
   void post_study(const Request& req, Response& res, const std::string& body);
   void post_campaign(const Request& req, Response& res, const std::string& body);
+  // A job's compiled contents and fields from its documents, within this server's limits: at submission,
+  // and again for a job a restarted server runs (requeue_recovered). Throw BadRequest or scene::SceneError.
+  void prepare_run(Job& job, const json& doc, const StreamSettings& stream);
+  void prepare_study(Job& job, const json& doc, scene::StudySettings st);
+  void prepare_campaign(Job& job, const json& spec_doc);
   void get_job(const Request& req, Response& res, JobKind kind);
   void list_jobs(const Request& req, Response& res, JobKind kind);
   void delete_job(const Request& req, Response& res, JobKind kind);
@@ -1026,6 +1070,78 @@ std::optional<std::string> Server::Impl::read_body(const Request&, Response& res
   return std::nullopt;
 }
 
+// What a run needs, from its scene (the request's, or the one a job stored): compiled once, within this
+// server's limits. Throws BadRequest or scene::SceneError.
+void Server::Impl::prepare_run(Job& job, const json& doc, const StreamSettings& stream) {
+  // The scene is compiled once; this server's limits then apply to the compiled simulation
+  // (Simulation::with_limits), never by rewriting the scene.
+  const scene::Simulation sim = scene::Simulation::from_json(doc);
+
+  // Limits. Fixed steps are known now; for the adaptive rules (h their largest step) the count is a
+  // lower bound, and the run gets this server's step limit as its max_steps.
+  const auto* lag = sim.lagrangian();
+  const bool fixed = !lag || lag->settings.step_rule == StepRule::kFixed;
+  const std::int64_t planned = sim.planned_steps();
+  scene::RunLimits limits;
+  if (planned > cfg_.max_steps) {
+    throw BadRequest{400, "invalid scene", "/integrator/h",
+                     "h = " + fmt_g(sim.h()) + " over [" + fmt_g(sim.t0()) + ", " + fmt_g(sim.t_end()) + "] needs " +
+                         (fixed ? "" : "at least ") + std::to_string(planned) + " steps; this server runs at most " +
+                         std::to_string(cfg_.max_steps) + " steps per job",
+                     "scene"};
+  }
+  if (sim.max_steps() > cfg_.max_steps) limits.max_steps = cfg_.max_steps;
+  const std::int64_t every = sim.output_every();
+  const std::int64_t rows = planned / every + 2;
+  if (rows > cfg_.max_samples) {
+    const std::int64_t need = (planned + cfg_.max_samples - 3) / std::max<std::int64_t>(1, cfg_.max_samples - 2);
+    throw BadRequest{400, "invalid scene", "/output/every",
+                     "the trajectory would have about " + std::to_string(rows) + " rows (" + std::to_string(planned) +
+                         " steps, one row every " + std::to_string(every) + "); this server keeps at most " +
+                         std::to_string(cfg_.max_samples) + ": set /output/every to at least " + std::to_string(need),
+                     "scene"};
+  }
+  // Bytes: rows times the widest row bounds the file.
+  const std::int64_t row_bytes = max_trajectory_row_bytes(sim);
+  if (rows > cfg_.max_result_bytes / row_bytes) {
+    const std::int64_t max_rows = std::max<std::int64_t>(3, cfg_.max_result_bytes / row_bytes);
+    const std::int64_t need = (planned + max_rows - 3) / std::max<std::int64_t>(1, max_rows - 2);
+    throw BadRequest{422, "result too large", "/output/every",
+                     "the trajectory could take about " + std::to_string(rows) + " rows of up to " + std::to_string(row_bytes) +
+                         " bytes (" + std::to_string(rows / 1'000'000 * row_bytes) + " MB); this server stores at most " +
+                         std::to_string(cfg_.max_result_bytes) + " bytes per job: set /output/every to at least " + std::to_string(need),
+                     "scene"};
+  }
+  // Streaming needs a sample at least once per period: sample the run more finely than the
+  // trajectory's decimation if needed (the trajectory keeps the scene's own rows).
+  std::int64_t engine_every = every;
+  if (stream.enabled) {
+    const std::int64_t per_period = std::max<std::int64_t>(1, static_cast<std::int64_t>(std::floor(stream.period / sim.h() + 1e-9)));
+    if (every > per_period) {
+      engine_every = std::gcd(every, per_period);
+      limits.output_every = engine_every;
+    }
+  }
+
+  if (stream.enabled) {
+    try {
+      hub_.open();
+    } catch (const std::exception& e) {
+      throw BadRequest{503, "streaming is not available", "/stream", e.what(), "request"};
+    }
+  }
+
+  job.scene_name = sim.name().empty() ? "scene" : sim.name();
+  job.t0 = sim.t0();
+  job.t_end = sim.t_end();
+  job.t_now = sim.t0();
+  job.planned_steps = planned;
+  job.record_every = every;
+  job.stream = stream;
+  if (stream.enabled) set_channels(job.stream, job.id);
+  job.sim.emplace(sim.with_limits(limits));
+}
+
 void Server::Impl::post_job(const Request&, Response& res, const std::string& text) {
   const auto t_load = Clock::now();
   answer_bad_requests(res, [&] {
@@ -1065,79 +1181,56 @@ void Server::Impl::post_job(const Request&, Response& res, const std::string& te
       }
     }
 
-    // The scene is compiled once; this server's limits then apply to the compiled simulation
-    // (Simulation::with_limits), never by rewriting the scene.
-    const scene::Simulation sim = scene::Simulation::from_json(doc);
-
-    // Limits. Fixed steps are known now; for the adaptive rules (h their largest step) the count is a
-    // lower bound, and the run gets this server's step limit as its max_steps.
-    const auto* lag = sim.lagrangian();
-    const bool fixed = !lag || lag->settings.step_rule == StepRule::kFixed;
-    const std::int64_t planned = sim.planned_steps();
-    scene::RunLimits limits;
-    if (planned > cfg_.max_steps) {
-      throw BadRequest{400, "invalid scene", "/integrator/h",
-                       "h = " + fmt_g(sim.h()) + " over [" + fmt_g(sim.t0()) + ", " + fmt_g(sim.t_end()) + "] needs " +
-                           (fixed ? "" : "at least ") + std::to_string(planned) + " steps; this server runs at most " +
-                           std::to_string(cfg_.max_steps) + " steps per job",
-                       "scene"};
-    }
-    if (sim.max_steps() > cfg_.max_steps) limits.max_steps = cfg_.max_steps;
-    const std::int64_t every = sim.output_every();
-    const std::int64_t rows = planned / every + 2;
-    if (rows > cfg_.max_samples) {
-      const std::int64_t need = (planned + cfg_.max_samples - 3) / std::max<std::int64_t>(1, cfg_.max_samples - 2);
-      throw BadRequest{400, "invalid scene", "/output/every",
-                       "the trajectory would have about " + std::to_string(rows) + " rows (" + std::to_string(planned) +
-                           " steps, one row every " + std::to_string(every) + "); this server keeps at most " +
-                           std::to_string(cfg_.max_samples) + ": set /output/every to at least " + std::to_string(need),
-                       "scene"};
-    }
-    // Bytes: rows times the widest row bounds the file.
-    const std::int64_t row_bytes = max_trajectory_row_bytes(sim);
-    if (rows > cfg_.max_result_bytes / row_bytes) {
-      const std::int64_t max_rows = std::max<std::int64_t>(3, cfg_.max_result_bytes / row_bytes);
-      const std::int64_t need = (planned + max_rows - 3) / std::max<std::int64_t>(1, max_rows - 2);
-      throw BadRequest{422, "result too large", "/output/every",
-                       "the trajectory could take about " + std::to_string(rows) + " rows of up to " + std::to_string(row_bytes) +
-                           " bytes (" + std::to_string(rows / 1'000'000 * row_bytes) + " MB); this server stores at most " +
-                           std::to_string(cfg_.max_result_bytes) + " bytes per job: set /output/every to at least " + std::to_string(need),
-                       "scene"};
-    }
-    // Streaming needs a sample at least once per period: sample the run more finely than the
-    // trajectory's decimation if needed (the trajectory keeps the scene's own rows).
-    std::int64_t engine_every = every;
-    if (stream.enabled) {
-      const std::int64_t per_period = std::max<std::int64_t>(1, static_cast<std::int64_t>(std::floor(stream.period / sim.h() + 1e-9)));
-      if (every > per_period) {
-        engine_every = std::gcd(every, per_period);
-        limits.output_every = engine_every;
-      }
-    }
-
-    if (stream.enabled) {
-      try {
-        hub_.open();
-      } catch (const std::exception& e) {
-        throw BadRequest{503, "streaming is not available", "/stream", e.what(), "request"};
-      }
-    }
-
     auto job = jobs_.make_job();
-    job->scene_name = sim.name().empty() ? "scene" : sim.name();
-    job->t0 = sim.t0();
-    job->t_end = sim.t_end();
-    job->t_now = sim.t0();
-    job->planned_steps = planned;
-    job->record_every = every;
-    job->stream = stream;
     job->strict = body.contains("strict") && body["strict"].get<bool>();
-    if (stream.enabled) set_channels(job->stream, job->id);
-    job->sim.emplace(sim.with_limits(limits));
+    prepare_run(*job, doc, stream);
     job->load_seconds = std::chrono::duration<double>(Clock::now() - t_load).count();
 
     queue_and_answer(job, doc, nullptr, res);
   });
+}
+
+// What a study needs, from its scene and settings (the request's, or those a job stored), within this
+// server's limits. Throws BadRequest or scene::SceneError.
+void Server::Impl::prepare_study(Job& job, const json& doc, scene::StudySettings st) {
+  // A Lur'e scene is refused here at /system/type, a constrained one by the check below.
+  scene::LagrangianScene sc = scene::load_scene(doc);
+  if (!sc.constraint_names.empty()) {
+    throw BadRequest{400, "invalid scene", "/system/constraints",
+                     "studies compare abl, explicit and regularized, which do not integrate unilateral constraints", "scene"};
+  }
+  const std::int64_t planned = scene::study_planned_steps(sc, st);
+  if (planned > cfg_.max_steps) {
+    throw BadRequest{400, "invalid request", "/study/h",
+                     "this study takes about " + std::to_string(planned) + " integration steps over all its runs (" +
+                         std::to_string(st.schemes.size()) + " schemes, " + std::to_string(st.h.size()) + " step sizes, 1 + " +
+                         std::to_string(st.repeats) + " runs each); this server runs at most " + std::to_string(cfg_.max_steps) +
+                         " steps per job: use larger step sizes, fewer schemes or fewer repeats",
+                     "request"};
+  }
+  // The study's own checks (every h and the reference h positive, finite, within the interval and the
+  // scene's step limit; an exact solution finite on the grid), at submission rather than in the run:
+  // their option names (--reference-h) become pointers into the request (/study/reference_h).
+  try {
+    scene::check_study_settings(sc, st);
+  } catch (const scene::SceneError& e) {
+    std::string pointer = e.pointer();
+    if (pointer.rfind("--", 0) != 0) throw;
+    pointer = "/study/" + pointer.substr(2);
+    std::replace(pointer.begin(), pointer.end(), '-', '_');
+    throw BadRequest{400, "invalid request", pointer, e.reason(), "request"};
+  }
+  // Adaptive step rules may take more steps than planned: each run gets this server's limit.
+  sc.settings.max_steps = std::min<std::int64_t>(sc.settings.max_steps, cfg_.max_steps);
+
+  job.kind = JobKind::kStudy;
+  job.scene_name = sc.name.empty() ? "scene" : sc.name;
+  job.t0 = sc.settings.t0;
+  job.t_end = sc.settings.t_end;
+  job.planned_steps = planned;
+  job.rows_total = static_cast<std::int64_t>(st.schemes.size() * st.h.size());
+  job.study = std::move(st);
+  job.study_scene.emplace(std::move(sc));
 }
 
 void Server::Impl::post_study(const Request&, Response& res, const std::string& text) {
@@ -1145,51 +1238,8 @@ void Server::Impl::post_study(const Request&, Response& res, const std::string& 
   answer_bad_requests(res, [&] {
     const json body = post_body(text, {"scene", "overrides", "study"}, "{scene, overrides?, study?}");
     const json doc = request_scene(body);
-    // A Lur'e scene is refused here at /system/type, a constrained one by the check below.
-    scene::LagrangianScene sc = scene::load_scene(doc);
-    scene::StudySettings st;
-    try {
-      st = scene::study_settings_from_json(body.contains("study") ? body["study"] : json(), "/study");
-    } catch (const scene::SceneError& e) {
-      throw BadRequest{400, "invalid request", e.pointer(), e.reason(), "request"};
-    }
-    if (!sc.constraint_names.empty()) {
-      throw BadRequest{400, "invalid scene", "/system/constraints",
-                       "studies compare abl, explicit and regularized, which do not integrate unilateral constraints", "scene"};
-    }
-    const std::int64_t planned = scene::study_planned_steps(sc, st);
-    if (planned > cfg_.max_steps) {
-      throw BadRequest{400, "invalid request", "/study/h",
-                       "this study takes about " + std::to_string(planned) + " integration steps over all its runs (" +
-                           std::to_string(st.schemes.size()) + " schemes, " + std::to_string(st.h.size()) + " step sizes, 1 + " +
-                           std::to_string(st.repeats) + " runs each); this server runs at most " + std::to_string(cfg_.max_steps) +
-                           " steps per job: use larger step sizes, fewer schemes or fewer repeats",
-                       "request"};
-    }
-    // The study's own checks (every h and the reference h positive, finite, within the interval and the
-    // scene's step limit; an exact solution finite on the grid), at submission rather than in the run:
-    // their option names (--reference-h) become pointers into the request (/study/reference_h).
-    try {
-      scene::check_study_settings(sc, st);
-    } catch (const scene::SceneError& e) {
-      std::string pointer = e.pointer();
-      if (pointer.rfind("--", 0) != 0) throw;
-      pointer = "/study/" + pointer.substr(2);
-      std::replace(pointer.begin(), pointer.end(), '-', '_');
-      throw BadRequest{400, "invalid request", pointer, e.reason(), "request"};
-    }
-    // Adaptive step rules may take more steps than planned: each run gets this server's limit.
-    sc.settings.max_steps = std::min<std::int64_t>(sc.settings.max_steps, cfg_.max_steps);
-
     auto job = jobs_.make_job();
-    job->kind = JobKind::kStudy;
-    job->scene_name = sc.name.empty() ? "scene" : sc.name;
-    job->t0 = sc.settings.t0;
-    job->t_end = sc.settings.t_end;
-    job->planned_steps = planned;
-    job->rows_total = static_cast<std::int64_t>(st.schemes.size() * st.h.size());
-    job->study = std::move(st);
-    job->study_scene.emplace(std::move(sc));
+    prepare_study(*job, doc, study_settings_at(body.contains("study") ? body["study"] : json()));
     job->load_seconds = std::chrono::duration<double>(Clock::now() - t_load).count();
 
     const json settings = scene::study_settings_to_json(job->study);
@@ -1205,6 +1255,51 @@ std::int64_t campaign_bytes_bound(const scene::CampaignSpec& spec, int dof) {
   for (const auto& in : spec.inputs) per_record += 2 * static_cast<std::int64_t>(in.path.size());
   if (spec.full_report) per_record += 16384 + 1024 * dof;
   return per_record * spec.samples;
+}
+
+// What a campaign needs, from its spec with the scene inlined (the request's, or a stored campaign.json),
+// within this server's limits. Throws BadRequest or scene::SceneError.
+void Server::Impl::prepare_campaign(Job& job, const json& spec_doc) {
+  const scene::Simulation sim = scene::Simulation::from_json(spec_doc.at("scene"));  // its errors: 400 invalid scene, at the scene's field
+  scene::CampaignSpec spec;
+  try {
+    spec = scene::CampaignSpec::from_json(spec_doc, "");
+  } catch (const scene::SceneError& e) {
+    throw BadRequest{400, "invalid request", "/campaign" + (e.pointer() == "/" ? std::string() : e.pointer()), e.reason(), "request"};
+  }
+  // Limits: the samples, the steps of each (a job's limit) and of all, the bytes of the records.
+  if (spec.samples > cfg_.max_campaign_samples)
+    throw BadRequest{400, "invalid request", "/campaign/samples",
+                     std::to_string(spec.samples) + " samples; this server runs at most " + std::to_string(cfg_.max_campaign_samples) +
+                         " per campaign (run larger ones with moreau campaign, on one machine or a Slurm cluster)",
+                     "request"};
+  const std::int64_t planned = sim.planned_steps();
+  if (planned > cfg_.max_steps)
+    throw BadRequest{400, "invalid scene", "/integrator/h",
+                     "h = " + fmt_g(sim.h()) + " over [" + fmt_g(sim.t0()) + ", " + fmt_g(sim.t_end()) + "] needs " + std::to_string(planned) +
+                         " steps per sample; this server runs at most " + std::to_string(cfg_.max_steps) + " steps per run",
+                     "scene"};
+  if (planned > cfg_.max_campaign_steps / spec.samples)
+    throw BadRequest{400, "invalid request", "/campaign/samples",
+                     std::to_string(spec.samples) + " samples of " + std::to_string(planned) + " steps each; this server runs at most " +
+                         std::to_string(cfg_.max_campaign_steps) + " steps per campaign",
+                     "request"};
+  const std::int64_t bytes = campaign_bytes_bound(spec, sim.dof());
+  if (bytes > cfg_.max_result_bytes)
+    throw BadRequest{422, "result too large", spec.full_report ? "/campaign/full_report" : "/campaign/samples",
+                     "the records could take about " + std::to_string(bytes) + " bytes; this server stores at most " +
+                         std::to_string(cfg_.max_result_bytes) + " per campaign" +
+                         (spec.full_report ? ": set full_report to false (each record then holds the outcomes without the run's report)"
+                                           : ": run fewer samples"),
+                     "request"};
+
+  job.kind = JobKind::kCampaign;
+  job.scene_name = sim.name().empty() ? "scene" : sim.name();
+  job.t0 = sim.t0();
+  job.t_end = sim.t_end();
+  job.planned_steps = planned * spec.samples;
+  job.rows_total = spec.samples;
+  job.campaign.emplace(std::move(spec));
 }
 
 void Server::Impl::post_campaign(const Request&, Response& res, const std::string& text) {
@@ -1223,50 +1318,11 @@ void Server::Impl::post_campaign(const Request&, Response& res, const std::strin
     if (fields.contains("scene"))
       throw BadRequest{400, "invalid request", "/campaign/scene",
                        "the scene is the request's 'scene' (an object, or the name of a shipped scene), not a field of 'campaign'", "request"};
-    const scene::Simulation sim = scene::Simulation::from_json(doc);  // its errors: 400 invalid scene, at the scene's field
     json spec_doc = fields;
     spec_doc["scene"] = doc;
-    scene::CampaignSpec spec;
-    try {
-      spec = scene::CampaignSpec::from_json(spec_doc, "");
-    } catch (const scene::SceneError& e) {
-      throw BadRequest{400, "invalid request", "/campaign" + (e.pointer() == "/" ? std::string() : e.pointer()), e.reason(), "request"};
-    }
-    // Limits: the samples, the steps of each (a job's limit) and of all, the bytes of the records.
-    if (spec.samples > cfg_.max_campaign_samples)
-      throw BadRequest{400, "invalid request", "/campaign/samples",
-                       std::to_string(spec.samples) + " samples; this server runs at most " + std::to_string(cfg_.max_campaign_samples) +
-                           " per campaign (run larger ones with moreau campaign, on one machine or a Slurm cluster)",
-                       "request"};
-    const std::int64_t planned = sim.planned_steps();
-    if (planned > cfg_.max_steps)
-      throw BadRequest{400, "invalid scene", "/integrator/h",
-                       "h = " + fmt_g(sim.h()) + " over [" + fmt_g(sim.t0()) + ", " + fmt_g(sim.t_end()) + "] needs " + std::to_string(planned) +
-                           " steps per sample; this server runs at most " + std::to_string(cfg_.max_steps) + " steps per run",
-                       "scene"};
-    if (planned > cfg_.max_campaign_steps / spec.samples)
-      throw BadRequest{400, "invalid request", "/campaign/samples",
-                       std::to_string(spec.samples) + " samples of " + std::to_string(planned) + " steps each; this server runs at most " +
-                           std::to_string(cfg_.max_campaign_steps) + " steps per campaign",
-                       "request"};
-    const std::int64_t bytes = campaign_bytes_bound(spec, sim.dof());
-    if (bytes > cfg_.max_result_bytes)
-      throw BadRequest{422, "result too large", spec.full_report ? "/campaign/full_report" : "/campaign/samples",
-                       "the records could take about " + std::to_string(bytes) + " bytes; this server stores at most " +
-                           std::to_string(cfg_.max_result_bytes) + " per campaign" +
-                           (spec.full_report ? ": set full_report to false (each record then holds the outcomes without the run's report)"
-                                             : ": run fewer samples"),
-                       "request"};
-
     auto job = jobs_.make_job();
-    job->kind = JobKind::kCampaign;
-    job->scene_name = sim.name().empty() ? "scene" : sim.name();
-    job->t0 = sim.t0();
-    job->t_end = sim.t_end();
-    job->planned_steps = planned * spec.samples;
-    job->rows_total = spec.samples;
-    const json stored = spec.document;
-    job->campaign.emplace(std::move(spec));
+    prepare_campaign(*job, spec_doc);
+    const json stored = job->campaign->document;
     queue_and_answer(job, doc, &stored, res);
   });
 }

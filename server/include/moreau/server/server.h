@@ -20,8 +20,9 @@ std::string default_scenes_dir();
 class Server {
  public:
   // Opens (or creates) the data directory and recovers the jobs stored there: finished jobs are served
-  // again, jobs that were queued or running are marked failed with the reason. Throws
-  // std::runtime_error if the directory cannot be used or the LCM URL cannot be opened.
+  // again; jobs that were queued, or interrupted by a stop, are queued again, and so is a job the
+  // previous server died under, once (docs/api.md, "Storage and restarts"). Throws std::runtime_error if
+  // the directory cannot be used or the LCM URL cannot be opened.
   explicit Server(ServerConfig config);
   ~Server();
   Server(const Server&) = delete;
@@ -29,8 +30,9 @@ class Server {
 
   // Binds and serves from background threads; returns the bound port. Throws if it cannot bind.
   int start();
-  // Stops accepting requests, ends event streams, marks queued jobs failed and stops running ones
-  // (failed, "server stopped while the job was running"), then joins every thread. Idempotent.
+  // Stops accepting requests, ends event streams, stops running jobs and queues them again (queued jobs
+  // stay queued: a server started on the same data directory runs them), then joins every thread.
+  // Idempotent.
   void stop();
   // Blocks until stop() has been called (from another thread or a signal handler's thread).
   void wait();
