@@ -280,6 +280,64 @@ TEST(LcmStream, FileLogIsWrittenAndReadBack) {
   check_stream(got, id, report, 1.0 / 64, 4.0);
 }
 
+// A stream whose run a clean stop interrupts ends with a "stopped" event saying so; the restarted server
+// runs the job again, from the start, on the same channels: "started", then its states from t = 0, then
+// "finished". Each server writes its own file:// log, so that nothing published is missed.
+TEST(LcmStream, AStopEndsTheStreamWithStoppedAndTheRestartStreamsTheJobAgain) {
+  const TempDir dir("lcmlog-restart");
+  const auto read_log = [](const fs::path& log) {
+    Received got;
+    lcm::LogFile file(log.string(), "r");
+    EXPECT_TRUE(file.good());
+    while (const lcm::LogEvent* e = file.readNextEvent()) got.add(e->channel, e->data, e->datalen);
+    return got;
+  };
+  TempDir data;
+  std::string id;
+  ServerConfig cfg;
+  cfg.workers = 1;
+  cfg.max_steps = 2'000'000'000;
+  {
+    cfg.lcm_url = "file://" + (dir / "first.log").string() + "?mode=w";
+    TestServer first(cfg);
+    auto c = first.client();
+    // About 2e7 steps (a second or two), a state every 100 s of simulated time.
+    auto r = submit(*c, {{"scene", manipulator()},
+                         {"overrides", {"integrator.t_end=2e4", "output.every=100000"}},
+                         {"stream", {{"period", 100}}}});
+    ASSERT_EQ(r->status, 202) << r->body;
+    id = json::parse(r->body)["id"];
+    ASSERT_EQ(wait_running(*c, id), "running");
+    c.reset();
+    first.stop();
+    data = first.release_data();
+  }
+  const Received before = read_log(dir / "first.log");
+  ASSERT_FALSE(before.events.empty());
+  EXPECT_EQ(before.events.front().kind, "started");
+  const auto& last = before.events.back();
+  EXPECT_EQ(last.job_id, id);
+  ASSERT_EQ(last.kind, "stopped") << "the job ended before the stop: make it longer";
+  EXPECT_EQ(last.text, "the server stopped while the job was running: it runs again from the start when the server restarts");
+  EXPECT_FALSE(before.finished());
+  {
+    cfg.lcm_url = "file://" + (dir / "second.log").string() + "?mode=w";
+    TestServer again(cfg, data.path());
+    auto c = again.client();
+    EXPECT_EQ(wait_final(*c, id, 120)["state"], "done");
+    c.reset();
+  }
+  const Received after = read_log(dir / "second.log");
+  ASSERT_FALSE(after.events.empty());
+  EXPECT_EQ(after.events.front().kind, "started");
+  EXPECT_EQ(after.events.back().kind, "finished");
+  for (const auto& ch : after.event_channels) EXPECT_EQ(ch, "MOREAU_EVENT_" + upper(id));
+  ASSERT_FALSE(after.states.empty());
+  EXPECT_EQ(after.states.front().step, 0);
+  EXPECT_EQ(after.states.back().t, 2e4);
+  EXPECT_EQ(after.states.size(), 201u);  // t = 0, 100, ..., 2e4
+}
+
 // A file:// log in a directory that does not exist, or a log to read that does not exist: the server
 // refuses to start and `moreau watch` exits 2, each saying which, not only LCM's "Failed to open".
 TEST(LcmStream, AFileUrlWithoutItsDirectoryOrFileSaysWhich) {
