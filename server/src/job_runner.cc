@@ -44,7 +44,8 @@ void JobRunner::stop() {
     all = store_.list();
   }
   queue_cv_.notify_all();
-  // The queued jobs stay queued, in memory and in their records: a restarted server runs them.
+  // The queued jobs, out of the queue so that no worker starts them, stay queued in their state and
+  // records: a server started on the same data directory runs them (JobStore::recover).
   auto wake = [](Job& job) {
     { std::lock_guard l(job.mu); }  // a waiter is either before its predicate check or blocked
     job.cv.notify_all();
