@@ -68,6 +68,12 @@ struct Job {
   // Campaigns: the validated spec (its scene inlined). The campaign's directory (campaign.h) is the job's:
   // campaign.json, samples.jsonl, samples.csv, summary.json and summary.txt beside job.json.
   std::optional<scene::CampaignSpec> campaign;
+  // Frees what the job was compiled to (run, study or campaign): when it ends, or leaves the queue unrun.
+  void release_compiled() {
+    sim.reset();
+    study_scene.reset();
+    campaign.reset();
+  }
 
   std::atomic<bool> cancel{false};            // the run stops at its next check (every 256 steps: within 50 ms)
   std::atomic<bool> shutdown{false};          // ... because the server is stopping

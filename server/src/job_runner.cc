@@ -22,6 +22,13 @@ const char* kReasonStoppedRunning = "the server stopped while the job was runnin
 
 double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
+// The results a run writes before its commit renames them (JobRunner::commit), removed when they will
+// never be committed.
+void remove_uncommitted_results(const Job& job) {
+  std::error_code ec;
+  for (const char* name : {"trajectory.csv.tmp", "report.json.tmp", "table.csv.tmp", "result.json.tmp"}) fs::remove(job.dir / name, ec);
+}
+
 }  // namespace
 
 JobRunner::JobRunner(const ServerConfig& config, LcmHub& hub) : config_(config), hub_(hub), store_(config) {}
@@ -72,9 +79,7 @@ void JobRunner::stop() {
 
 void JobRunner::requeue(const std::shared_ptr<Job>& job, const std::string& refused) {
   if (!refused.empty()) {
-    job->sim.reset();
-    job->study_scene.reset();
-    job->campaign.reset();
+    job->release_compiled();
     set_state(*job, JobState::kFailed, "the restarted server cannot run the job again: " + refused);
     return;
   }
@@ -177,9 +182,7 @@ JobRunner::Cancel JobRunner::cancel(const std::shared_ptr<Job>& job) {
     }
   }
   if (was_queued) {
-    job->sim.reset();
-    job->study_scene.reset();
-    job->campaign.reset();
+    job->release_compiled();
     job->cancel_requested = true;
     set_state(*job, JobState::kCancelled, "cancelled before it ran");
     return Cancel::kCancelled;
@@ -231,9 +234,7 @@ void JobRunner::worker_loop() {
     } catch (const std::exception& e) {
       // (A stream opened by run() is closed when its Commit, never queued, is destroyed.)
       std::cerr << "moreau-server: job " << job->id << " failed: " << e.what() << "\n";
-      job->sim.reset();
-      job->study_scene.reset();
-      job->campaign.reset();
+      job->release_compiled();
       set_state(*job, JobState::kFailed, std::string("internal error: ") + e.what());
     }
     --busy_;
@@ -243,9 +244,7 @@ void JobRunner::worker_loop() {
 void JobRunner::run(const std::shared_ptr<Job>& job) {
   const auto wall_start = Clock::now();
   if (job->cancel) {
-    job->sim.reset();
-    job->study_scene.reset();
-    job->campaign.reset();
+    job->release_compiled();
     // Taken from the queue as the server stopped: it stays queued, for the restarted server.
     if (!job->shutdown || job->cancel_requested) set_state(*job, JobState::kCancelled, "cancelled before it ran");
     return;
@@ -437,18 +436,15 @@ void JobRunner::run_campaign(const std::shared_ptr<Job>& job, std::unique_ptr<Co
 
 void JobRunner::fail_to_store(Job& job, const std::string& what) {
   // A full or failing disk: the partial results would go on holding the space, and are of no use.
-  std::error_code ec;
-  for (const char* name : {"trajectory.csv.tmp", "report.json.tmp", "table.csv.tmp", "result.json.tmp"}) fs::remove(job.dir / name, ec);
-  job.sim.reset();
+  remove_uncommitted_results(job);
+  job.release_compiled();
   std::cerr << "moreau-server: job " << job.id << ": cannot store the results: " << what << "\n";
   set_state(job, JobState::kFailed, "cannot store the results: " + what);
 }
 
 void JobRunner::queue_again_after_stop(Job& job, const std::string& why) {
-  std::error_code ec;
-  for (const char* name : {"trajectory.csv.tmp", "report.json.tmp", "table.csv.tmp", "result.json.tmp"}) fs::remove(job.dir / name, ec);
-  job.sim.reset();
-  job.study_scene.reset();
+  remove_uncommitted_results(job);
+  job.release_compiled();
   job.t_now = job.t0;
   job.step_now = 0;
   job.rows_done = 0;
