@@ -305,6 +305,56 @@ TEST(GraphInclusionSolver, PinnedComponentsLeaveTheSystem) {
   }
 }
 
+// use_leading: a solver configured for 8 components solves problems of 1 to 8 in the leading block of
+// 8 x 8 arrays (the Moreau-Jean step's rows for the contacts of I_k only), its size changing from one
+// problem to the next as an active set does. Everything outside the block is NaN, so a read there would
+// show in the result and a write there would overwrite a NaN. References: the brute force on the problem
+// alone, and a solver configured for exactly that size (the same bits: the block changes nothing).
+TEST(GraphInclusionSolver, ProblemsInTheLeadingBlockOfLargerArrays) {
+  const int capacity = 8;
+  std::mt19937 rng(31);
+  std::normal_distribution<double> N(0.0, 1.0);
+  const std::vector<MonotoneGraph> pool = {MonotoneGraph::relay(1.0), MonotoneGraph::complementarity(), MonotoneGraph::saturation(2.0, 1.0),
+                                           MonotoneGraph::coulomb(0.5, 1.0), MonotoneGraph::zero()};
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  GraphInclusionSolver<Eigen::Dynamic> solver;
+  solver.configure(capacity);
+  int sizes_seen = 0;
+  for (int trial = 0; trial < 120; ++trial) {
+    const int m = 1 + static_cast<int>(rng() % capacity);
+    sizes_seen |= 1 << m;
+    const Eigen::MatrixXd R = Eigen::MatrixXd::NullaryExpr(m, m, [&] { return N(rng); });
+    const Eigen::MatrixXd K = Eigen::MatrixXd::NullaryExpr(m, m, [&] { return N(rng); });
+    const Eigen::MatrixXd D = R * R.transpose() / m + 0.2 * Eigen::MatrixXd::Identity(m, m) + 0.1 * (K - K.transpose());
+    const Eigen::VectorXd q = Eigen::VectorXd::NullaryExpr(m, [&] { return 2.0 * N(rng); });
+    std::vector<const MonotoneGraph*> g(capacity, nullptr);
+    for (int i = 0; i < m; ++i) g[i] = &pool[rng() % pool.size()];
+
+    Eigen::MatrixXd D_big = Eigen::MatrixXd::Constant(capacity, capacity, nan);
+    Eigen::VectorXd q_big = Eigen::VectorXd::Constant(capacity, nan), u_big = q_big, w_big = q_big;
+    D_big.topLeftCorner(m, m) = D;
+    q_big.head(m) = q;
+    solver.use_leading(m);
+    GraphSolveStats st;
+    ASSERT_TRUE(solver.solve(D_big, q_big, g.data(), u_big, w_big, st)) << "trial " << trial << " m " << m << " residual " << st.residual;
+
+    GraphInclusionSolver<Eigen::Dynamic> exact;
+    exact.configure(m);
+    Eigen::VectorXd u(m), w(m);
+    ASSERT_TRUE(exact.solve(D, q, g.data(), u, w, st)) << "trial " << trial;
+    Eigen::VectorXd ub, wb;
+    ASSERT_TRUE(BruteForce(D, q, std::vector<const MonotoneGraph*>(g.begin(), g.begin() + m), ub, wb)) << "trial " << trial;
+    for (int i = 0; i < m; ++i) {
+      EXPECT_EQ(u_big(i), u(i)) << "trial " << trial << " component " << i;
+      EXPECT_EQ(w_big(i), w(i)) << "trial " << trial << " component " << i;
+      EXPECT_NEAR(w(i), wb(i), 1e-9 * (1.0 + std::abs(wb(i)))) << "trial " << trial << " component " << i;
+      EXPECT_NEAR(u(i), ub(i), 1e-9 * (1.0 + std::abs(ub(i)))) << "trial " << trial << " component " << i;
+    }
+    for (int i = m; i < capacity; ++i) EXPECT_TRUE(std::isnan(u_big(i)) && std::isnan(w_big(i))) << "trial " << trial << " wrote past m at " << i;
+  }
+  EXPECT_EQ(__builtin_popcount(sizes_seen), capacity);  // every size from 1 to 8 came up
+}
+
 // The pure LCP (every graph the corner law): 0 <= u = q + D (-w) perp -w >= 0.
 TEST(GraphInclusionSolver, LinearComplementarityProblem) {
   const int m = 4;

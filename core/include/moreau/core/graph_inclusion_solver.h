@@ -31,6 +31,7 @@
 #pragma once
 
 #include <algorithm>
+#include <cassert>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -57,8 +58,10 @@ class GraphInclusionSolver {
 
   GraphInclusionSolver() = default;
 
+  // Sizes the solver's arrays for problems of up to m components (and sets m as the current size).
   void configure(int m) {
     m_ = m;
+    capacity_ = m;
     pieces_.setZero(m);
     trial_.setZero(m);
     K_.setZero(m, m);
@@ -68,6 +71,14 @@ class GraphInclusionSolver {
     free_.setZero(m);
     pinned_.setZero(m);
     last_graphs_.assign(static_cast<std::size_t>(m), nullptr);
+  }
+
+  // The problems to come have m <= the configured size components, in the leading m rows and columns of
+  // the D, q, u, w given to solve() (which may be larger): nothing is reallocated. The warm start
+  // (solve_coupled) keeps the pattern of each leading component whose graph is unchanged.
+  void use_leading(int m) {
+    assert(m >= 0 && m <= capacity_);
+    m_ = m;
   }
 
   int size() const { return m_; }
@@ -145,8 +156,8 @@ class GraphInclusionSolver {
     return forward_backward(D, q, u, w, st);
   }
 
-  static bool is_diagonal(const Mat<M>& D) {
-    const int n = static_cast<int>(D.rows());
+  bool is_diagonal(const Mat<M>& D) const {
+    const int n = m_;
     for (int j = 0; j < n; ++j)
       for (int i = 0; i < n; ++i)
         if (i != j && D(i, j) != 0.0) return false;
@@ -216,7 +227,7 @@ class GraphInclusionSolver {
     }
     lu_solve_in_place(K_, r_, nf);
     for (int a = 0; a < nf; ++a) w(free_(a)) = r_(a);
-    if (!w.allFinite()) return false;
+    if (!finite(w)) return false;
     for (int i = 0; i < m; ++i) {
       const GraphPiece& g = graphs_[i]->piece(p(i));
       if (g.vertical) {
@@ -225,7 +236,16 @@ class GraphInclusionSolver {
         u(i) = q(i) - row_times(D, i, w, true);
       }
     }
-    return u.allFinite();
+    return finite(u);
+  }
+
+  // The leading m_ entries of x are finite.
+  bool finite(const Vec<M>& x) const {
+    if constexpr (M != Eigen::Dynamic) {
+      return x.allFinite();  // m_ == M
+    } else {
+      return x.head(m_).allFinite();
+    }
   }
 
   // Whether every (u_i, w_i) lies on its piece within round-off; clamps it onto the piece if so.
@@ -287,18 +307,19 @@ class GraphInclusionSolver {
   }
 
   bool forward_backward(const Mat<M>& D, const Vec<M>& q, Vec<M>& u, Vec<M>& w, GraphSolveStats& st) {
-    const Mat<M> Ds = 0.5 * (D + D.transpose());
+    const Mat<M> Dm = D.topLeftCorner(m_, m_);  // the problem's block (use_leading); the fallback may allocate
+    const Mat<M> Ds = 0.5 * (Dm + Dm.transpose());
     Eigen::SelfAdjointEigenSolver<Mat<M>> eig(Ds, Eigen::EigenvaluesOnly);
     const double mu = eig.eigenvalues()(0);
-    Eigen::JacobiSVD<Mat<M>> svd(D);
+    Eigen::JacobiSVD<Mat<M>> svd(Dm);
     const double L = svd.singularValues()(0);
     if (!(mu > 0.0) || !(L > 0.0)) return false;
     const double gamma = mu / (L * L);
-    w.setZero(m_);
+    w.head(m_).setZero();
     for (int it = 1; it <= 200000; ++it) {
-      t_.noalias() = D * w;
-      t_ -= q;
-      z_ = w - gamma * t_;
+      t_.head(m_).noalias() = Dm * w.head(m_);
+      t_.head(m_) -= q.head(m_);
+      z_.head(m_) = w.head(m_) - gamma * t_.head(m_);
       for (int i = 0; i < m_; ++i) {
         double ui = 0.0, wi = 0.0;
         trial_(i) = graphs_[i]->resolve(z_(i) / gamma, 1.0 / gamma, ui, wi);
@@ -313,7 +334,7 @@ class GraphInclusionSolver {
         }
       }
     }
-    u.noalias() = q - D * w;
+    u.head(m_).noalias() = q.head(m_) - Dm * w.head(m_);
     accept(D, q, u, w, trial_, st);
     return false;
   }
@@ -327,10 +348,11 @@ class GraphInclusionSolver {
       res = std::max({res, eq, on});
     }
     st.residual = res;
-    return std::isfinite(res) && res <= st.tolerance && u.allFinite() && w.allFinite();
+    return std::isfinite(res) && res <= st.tolerance && finite(u) && finite(w);
   }
 
-  int m_ = 0;
+  int m_ = 0;         // the current problem's size (use_leading)
+  int capacity_ = 0;  // the size the arrays were configured for
   const MonotoneGraph* const* graphs_ = nullptr;
   std::vector<const MonotoneGraph*> last_graphs_;
   double scale_d_ = 0.0, graph_scale_ = 0.0;

@@ -20,10 +20,10 @@
 // not approaching gets 0 <= U^{k+1} (no rebound out of a resting contact).
 //
 // Writing Phi(v) = 1/2 <W v, v> + sum a_j |v_j|, the step is the generalized equation (GE) of
-// graph_inclusion_solver.h in m = (#a_j > 0) + (#constraints) unknowns: u = G_v V^{k+1} + b, w the impulses,
+// graph_inclusion_solver.h in m = (#a_j > 0) + (#I_k) unknowns: u = G_v V^{k+1} + b, w the impulses,
 // V^{k+1} = V_free - Wm^{-1} G_f^T w, Wm = M + h (C + W), each row either a controlled velocity
-// (u_j = v_j, w_j in a_j Sign(u_j), impulse h w_j) or a contact (u_i = U_i^{k+1} + e_i min(U_i^k, 0),
-// w_i = -P_i in d psi_{R+}(u_i), the corner law, for i in I_k; w_i = 0 otherwise). A contact whose
+// (u_j = v_j, w_j in a_j Sign(u_j), impulse h w_j) or a contact i in I_k (u_i = U_i^{k+1} + e_i min(U_i^k, 0),
+// w_i = -P_i in d psi_{R+}(u_i), the corner law); a contact outside I_k has P_i = 0 and no row. A contact whose
 // gradient is c e_j, on a coordinate j that also has an abs term (a joint limit with joint friction),
 // shares one row with it, whose law is the sum of the two (merge_rows). Solved exactly by
 // GraphInclusionSolver: a velocity at rest is 0.0 (when n rows sit on vertical pieces, V^{k+1} is solved
@@ -156,6 +156,8 @@ class MoreauJeanIntegrator {
     qv_.setZero(m_);
     u_.setZero(m_);
     w_.setZero(m_);
+    P_.setZero(nc_);
+    contact_row_.assign(static_cast<std::size_t>(nc_), -1);
     ptrs_.assign(static_cast<std::size_t>(m_), &zero_);
     for (int r = 0; r < na_; ++r) ptrs_[r] = &relay_[r];
     merged_contact_.assign(static_cast<std::size_t>(na_), -1);
@@ -264,6 +266,9 @@ class MoreauJeanIntegrator {
     }
     d.active_steps += any_active;
     if (m_ > 0 && (na_ > 0 || any_active)) {
+      // The rows of (GE): the controlled coordinates, then the contacts of I_k only. A contact outside
+      // I_k has P_i = 0 (a known impulse), so its row would change no other row's solution; leaving it out
+      // spares its solve with Wm and its row and column of D (a robot's inactive joint limits).
       for (int r = 0; r < na_; ++r) {
         Gv_.row(r).setZero();
         Gv_(r, ctrl_dof_[r]) = 1.0;
@@ -275,23 +280,32 @@ class MoreauJeanIntegrator {
         ptrs_[r] = &relay_[static_cast<std::size_t>(r)];
         merged_contact_[static_cast<std::size_t>(r)] = -1;
       }
+      rows_now_ = na_;
       for (int i = 0; i < nc_; ++i) {
-        const int r = na_ + i;
+        if (!active_[i]) {
+          contact_row_[i] = -1;
+          continue;
+        }
+        const int r = rows_now_++;
+        contact_row_[i] = r;
         Gv_.row(r) = H_.row(i);
         Gf_.row(r) = H_.row(i);
-        b_(r) = active_[i] ? restitution_[i] * std::min(U_(i), 0.0) : 0.0;
-        ptrs_[r] = active_[i] ? &corner_ : &zero_;
-        if (active_[i]) merge_rows(i, h);
+        b_(r) = restitution_[i] * std::min(U_(i), 0.0);
+        ptrs_[r] = &corner_;
+        merge_rows(i, h);
       }
-      // Small dense pieces, column by column with fixed-size N: no dynamic-size GEMM per step.
-      for (int r = 0; r < m_; ++r) {
+      const int m = rows_now_;
+      // Small dense pieces, column by column with fixed-size N: no dynamic-size GEMM per step. D is the
+      // leading m x m block of D_ (the solver's use_leading: no reallocation as I_k changes).
+      for (int r = 0; r < m; ++r) {
         rhs_ = Gf_.row(r).transpose();
         Y_.col(r).noalias() = lu_.solve(rhs_);
       }
-      for (int i = 0; i < m_; ++i) {
-        for (int j = 0; j < m_; ++j) D_(i, j) = Gv_.row(i).dot(Y_.col(j));
+      for (int i = 0; i < m; ++i) {
+        for (int j = 0; j < m; ++j) D_(i, j) = Gv_.row(i).dot(Y_.col(j));
         qv_(i) = Gv_.row(i).dot(vf_) + b_(i);
       }
+      solver_.use_leading(m);
       GraphSolveStats st;
       if (!solver_.solve(D_, qv_, ptrs_.data(), u_, w_, st)) {
         char buf[200];
@@ -301,15 +315,16 @@ class MoreauJeanIntegrator {
       }
       rec.solver_step(st.iterations, st.residual, st.used_fallback);
       vn_ = vf_;
-      for (int j = 0; j < m_; ++j)
+      for (int j = 0; j < m; ++j)
         if (w_(j) != 0.0) vn_ -= w_(j) * Y_.col(j);
       polish(vn_);
       split_merged_impulses(h);
+      for (int i = 0; i < nc_; ++i) P_(i) = contact_row_[i] >= 0 ? -w_(contact_row_[i]) : 0.0;
     } else {
       vn_ = vf_;
       // Not Eigen's setZero, whose dynamic-size assignment loop cost the bouncing ball in flight about 25
       // instructions per step; GCC makes this a memset call of about 12 (callgrind).
-      std::fill_n(w_.data(), w_.size(), 0.0);
+      std::fill_n(P_.data(), P_.size(), 0.0);
       s.solver.total_iterations += 1;
       s.solver.max_iterations = std::max(s.solver.max_iterations, 1);
     }
@@ -324,8 +339,7 @@ class MoreauJeanIntegrator {
       const double vmax = v.cwiseAbs().maxCoeff();
       for (int i = 0; i < nc_; ++i) {
         impacting_[i] = 0;
-        const double P = -w_(na_ + i);
-        if (!(P > 0.0)) continue;
+        if (!(P_(i) > 0.0)) continue;
         any_impulse = true;
         // An impact: the contact was approaching by more than the round-off of U = grad h^T V.
         const double approach = 64.0 * std::numeric_limits<double>::epsilon() * H_.row(i).cwiseAbs().sum() * vmax;
@@ -372,7 +386,7 @@ class MoreauJeanIntegrator {
     v_ = vn_;
 
     for (int i = 0; i < nc_; ++i) {
-      const bool closed = -w_(na_ + i) > 0.0 && Un_(i) == 0.0;
+      const bool closed = P_(i) > 0.0 && Un_(i) == 0.0;
       if (!closed) {
         d.settle_step[i] = -1;
       } else if (d.settle_step[i] < 0) {
@@ -426,12 +440,13 @@ class MoreauJeanIntegrator {
     if (r < 0 || merged_contact_[static_cast<std::size_t>(r)] >= 0) return;  // no abs term, or merged already
     const double c = H_(i, col);
     const double a = relay_[static_cast<std::size_t>(r)].w().back();  // the relay's level a_j
-    const double v0 = -b_(na_ + i) / c;
+    const int row = contact_row_[static_cast<std::size_t>(i)];
+    const double v0 = -b_(row) / c;
     MonotoneGraph& g = c > 0.0 ? merged_left_wall_[static_cast<std::size_t>(r)] : merged_right_wall_[static_cast<std::size_t>(r)];
     g.move_single_vertex(v0, c > 0.0 ? h * a : -h * a);
     Gf_(r, col) = 1.0;  // the row's w is now the whole impulse along e_j (the relay row's was h times it)
     ptrs_[r] = &g;
-    ptrs_[na_ + i] = &zero_;
+    ptrs_[row] = &zero_;
     merged_contact_[static_cast<std::size_t>(r)] = i;
     merged_sign_[static_cast<std::size_t>(r)] = c;
   }
@@ -448,7 +463,7 @@ class MoreauJeanIntegrator {
       const double a = relay_[static_cast<std::size_t>(r)].w().back();
       const double W = w_(r), vj = u_(r), c = merged_sign_[static_cast<std::size_t>(r)];
       const double f = vj != 0.0 ? h * a * (vj > 0.0 ? 1.0 : -1.0) : std::clamp(W, -h * a, h * a);
-      w_(na_ + i) = (W - f) / c;
+      w_(contact_row_[static_cast<std::size_t>(i)]) = (W - f) / c;
       w_(r) = f / h;
     }
   }
@@ -458,7 +473,7 @@ class MoreauJeanIntegrator {
   // row whose velocity map involves one coordinate fixes that coordinate.
   void polish(Vec<N>& v) {
     int nv = 0;
-    for (int r = 0; r < m_ && nv <= n_; ++r) {
+    for (int r = 0; r < rows_now_ && nv <= n_; ++r) {
       if (!solver_.on_vertical_piece(r)) continue;
       if (nv < n_) {
         Gsq_.row(nv) = Gv_.row(r);
@@ -485,7 +500,7 @@ class MoreauJeanIntegrator {
         }
       }
     }
-    for (int r = 0; r < m_; ++r) {
+    for (int r = 0; r < rows_now_; ++r) {
       if (!solver_.on_vertical_piece(r)) continue;
       int nz = 0, col = -1;
       for (int j = 0; j < n_; ++j)
@@ -526,7 +541,7 @@ class MoreauJeanIntegrator {
     int a = 0;
     for (int i = 0; i < nc_; ++i) {
       if (!impacting_[i]) continue;
-      const double P = -w_(na_ + i);
+      const double P = P_(i);
       ++d.impact_count;
       const double reference_impulse = evaluated ? pref_(a) : 0.0;
       ++a;
@@ -665,7 +680,10 @@ class MoreauJeanIntegrator {
   Eigen::VectorXd b_;
   ColsN Y_;
   Eigen::MatrixXd D_;
-  Eigen::VectorXd qv_, u_, w_;
+  Eigen::VectorXd qv_, u_, w_;      // (GE) in its leading rows_now_ rows
+  int rows_now_ = 0;                // this step's rows: na_ controlled coordinates, then the contacts of I_k
+  std::vector<int> contact_row_;    // per contact: its row in (GE) this step, or -1 outside I_k
+  Eigen::VectorXd P_;               // per contact: the impulse P_i^{k+1} of the step (0 outside I_k)
   std::vector<const MonotoneGraph*> ptrs_;
   GraphInclusionSolver<Eigen::Dynamic> solver_;
   ColsN Z_;
