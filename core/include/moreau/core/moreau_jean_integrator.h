@@ -265,7 +265,8 @@ class MoreauJeanIntegrator {
       }
     }
     d.active_steps += any_active;
-    if (m_ > 0 && (na_ > 0 || any_active)) {
+    const bool solves = m_ > 0 && (na_ > 0 || any_active);  // else no impulse at all: V^{k+1} = V_free
+    if (solves) {
       // The rows of (GE): the controlled coordinates, then the contacts of I_k only. A contact outside
       // I_k has P_i = 0 (a known impulse), so its row would change no other row's solution; leaving it out
       // spares its solve with Wm and its row and column of D (a robot's inactive joint limits).
@@ -319,12 +320,8 @@ class MoreauJeanIntegrator {
         if (w_(j) != 0.0) vn_ -= w_(j) * Y_.col(j);
       polish(vn_);
       split_merged_impulses(h);
-      for (int i = 0; i < nc_; ++i) P_(i) = contact_row_[i] >= 0 ? -w_(contact_row_[i]) : 0.0;
     } else {
       vn_ = vf_;
-      // Not Eigen's setZero, whose dynamic-size assignment loop cost the bouncing ball in flight about 25
-      // instructions per step; GCC makes this a memset call of about 12 (callgrind).
-      std::fill_n(P_.data(), P_.size(), 0.0);
       s.solver.total_iterations += 1;
       s.solver.max_iterations = std::max(s.solver.max_iterations, 1);
     }
@@ -339,6 +336,8 @@ class MoreauJeanIntegrator {
       const double vmax = v.cwiseAbs().maxCoeff();
       for (int i = 0; i < nc_; ++i) {
         impacting_[i] = 0;
+        const int r = contact_row_[static_cast<std::size_t>(i)];
+        P_(i) = solves && r >= 0 ? -w_(r) : 0.0;  // P_i^{k+1}: 0 outside I_k
         if (!(P_(i) > 0.0)) continue;
         any_impulse = true;
         // An impact: the contact was approaching by more than the round-off of U = grad h^T V.
