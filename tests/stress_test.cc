@@ -6,6 +6,8 @@
 
 #include <cmath>
 #include <cstdint>
+#include <map>
+#include <string>
 
 namespace moreau::scene {
 
@@ -80,18 +82,20 @@ TEST(Stress, TheTheorem41RuleShrinksTheStep) {
 }
 
 // The robot cases' premises, from the runs' own per-step checks of (4.2): the fixed step does leave
-// Theorem 4.1 (at its first step, where the arm moves fastest), and at ten times the speed the Theorem
-// 4.1 rule keeps every step inside it by shrinking h_k far below the scene's 1e-3.
+// Theorem 4.1 (at its first step, where the arm moves fastest), and at five or ten times the speed the
+// Theorem 4.1 rule keeps every step inside it by shrinking h_k far below the scene's 1e-3.
 TEST(Stress, RobotCasesAreWhereTheySayTheyAre) {
-  int checked = 0;
+  const std::map<std::string, std::size_t> joints = {{"robot-iiwa-fixed-step", 7}, {"robot-iiwa-10x-speed", 7},
+                                                     {"robot-puma560-fixed-step", 6}, {"robot-puma560-5x-speed", 6}};
+  std::size_t checked = 0;
   for (const auto& c : stress_cases()) {
-    if (c.name != "robot-iiwa-fixed-step" && c.name != "robot-iiwa-10x-speed") continue;
+    if (!joints.count(c.name)) continue;
     const StressOutcome o = run_stress_case(c);
     ASSERT_EQ(o.summary.status, RunStatus::kCompleted) << c.name << ": " << o.summary.message;
-    ASSERT_EQ(o.summary.q_final.size(), 7u) << c.name;
+    ASSERT_EQ(o.summary.q_final.size(), joints.at(c.name)) << c.name;
     const StepConditionTrack& r = o.summary.theorem41;
     EXPECT_EQ(r.checked, o.summary.steps) << c.name;
-    if (c.name == "robot-iiwa-fixed-step") {
+    if (c.name.find("fixed-step") != std::string::npos) {
       EXPECT_GT(r.violations, 0) << c.name;
       EXPECT_EQ(r.first_violation_step, 0) << c.name;
       EXPECT_EQ(o.summary.h_min, 1e-3) << c.name;
@@ -101,7 +105,7 @@ TEST(Stress, RobotCasesAreWhereTheySayTheyAre) {
     }
     ++checked;
   }
-  EXPECT_EQ(checked, 2);
+  EXPECT_EQ(checked, joints.size());
 }
 
 }  // namespace

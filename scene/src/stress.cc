@@ -9,8 +9,10 @@
 
 namespace moreau::scene {
 namespace detail {
-extern const std::string_view kIiwa14ControllerScene;  // scenes/iiwa14-controller.json (shipped_robot.cc.in)
-extern const std::string_view kIiwa14Urdf;             // scenes/robots/kuka-iiwa14.urdf
+extern const std::string_view kIiwa14ControllerScene;   // scenes/iiwa14-controller.json (shipped_robot.cc.in)
+extern const std::string_view kIiwa14Urdf;               // scenes/robots/kuka-iiwa14.urdf
+extern const std::string_view kPuma560ControllerScene;  // scenes/puma560-controller.json
+extern const std::string_view kPuma560Urdf;             // scenes/robots/puma560.urdf
 }  // namespace detail
 namespace {
 
@@ -46,13 +48,14 @@ json manipulator(double g, std::vector<double> v0, double h, double t_end, const
   return s;
 }
 
-// The shipped iiwa scene (a 7-joint arm from URDF, the controller on every joint), its initial velocity
-// scaled by speed, with the given step rule.
-json iiwa14(double speed, const std::string& rule, double t_end) {
-  json s = json::parse(detail::kIiwa14ControllerScene);
-  s["name"] = "stress-iiwa14";
+// A shipped robot scene (an arm from URDF, the controller on every joint), its URDF given inline, its
+// initial velocity scaled by speed, with the given step rule.
+json shipped_robot(std::string_view scene, std::string_view urdf, const std::string& name, double speed, const std::string& rule,
+                   double t_end) {
+  json s = json::parse(scene);
+  s["name"] = name;
   s["system"]["urdf"].erase("file");
-  s["system"]["urdf"]["text"] = std::string(detail::kIiwa14Urdf);
+  s["system"]["urdf"]["text"] = std::string(urdf);
   for (auto& v : s["initial"]["v"]) v = speed * v.get<double>();
   s["integrator"]["step_rule"] = rule;
   s["integrator"]["t_end"] = t_end;
@@ -100,12 +103,22 @@ std::vector<StressCase> stress_cases() {
        one_dof(1.0, 1.0, 1.0, 1.0 + 1e-9, 1.0, 1e-3, 30.0), true, std::nullopt, false, true,
        "-F lies outside dPhi(0): no equilibrium at rest; it slides on at the terminal speed (f - a)/c = 1e-9"});
   add({"robot-iiwa-fixed-step", "the 7-joint iiwa (URDF) from its moving start with a fixed h = 1e-3; lambda_min(M) ~ 1e-3 kg m^2",
-       iiwa14(1.0, "fixed", 3.0), true, std::nullopt, std::nullopt, false,
+       shipped_robot(detail::kIiwa14ControllerScene, detail::kIiwa14Urdf, "stress-iiwa14", 1.0, "fixed", 3.0), true, std::nullopt, std::nullopt, false,
        "outside Thm 4.1 where (4.2) fails (its first steps): a step's solution is not guaranteed unique; the report counts those steps"});
   add({"robot-iiwa-10x-speed", "the iiwa at 10 times its scene's initial speed (up to 30 rad/s), the Theorem 4.1 rule",
-       iiwa14(10.0, "theorem-4.1", 3.0), true, std::nullopt, std::nullopt, true,
+       shipped_robot(detail::kIiwa14ControllerScene, detail::kIiwa14Urdf, "stress-iiwa14", 10.0, "theorem-4.1", 3.0), true, std::nullopt, std::nullopt, true,
        "Thm 4.1: the rule keeps each step uniquely solvable, so h_k must shrink; Assumption 4.1 fails under gravity, so "
        "Thms 4.2 and 4.3 promise nothing"});
+  add({"robot-puma560-fixed-step",
+       "the 6-joint PUMA 560 (URDF) from its moving start with a fixed h = 1e-3; its wrist makes lambda_min(M) ~ 4e-5 kg m^2",
+       shipped_robot(detail::kPuma560ControllerScene, detail::kPuma560Urdf, "stress-puma560", 1.0, "fixed", 3.0), true, std::nullopt,
+       std::nullopt, false,
+       "outside Thm 4.1 where (4.2) fails (its first steps): a step's solution is not guaranteed unique; the report counts those steps"});
+  add({"robot-puma560-5x-speed", "the PUMA 560 at 5 times its scene's initial speed (up to 15 rad/s), the Theorem 4.1 rule",
+       shipped_robot(detail::kPuma560ControllerScene, detail::kPuma560Urdf, "stress-puma560", 5.0, "theorem-4.1", 3.0), true,
+       std::nullopt, std::nullopt, true,
+       "Thm 4.1: the rule keeps each step uniquely solvable, so h_k must shrink (to a few us: the wrist's small inertia); "
+       "Assumption 4.1 fails under gravity, so Thms 4.2 and 4.3 promise nothing"});
   {
     json s = one_dof(2.0, 0.5, 1.0, 0.0, 3.0, 1e-7, 10.0);
     s["output"]["every"] = 1000000;
