@@ -48,14 +48,20 @@ json manipulator(double g, std::vector<double> v0, double h, double t_end, const
   return s;
 }
 
-// A shipped robot scene (an arm from URDF, the controller on every joint), its URDF given inline, its
-// initial velocity scaled by speed, with the given step rule.
-json shipped_robot(std::string_view scene, std::string_view urdf, const std::string& name, double speed, const std::string& rule,
-                   double t_end) {
-  json s = json::parse(scene);
-  s["name"] = name;
+// A shipped robot scene (an arm from URDF, the controller on every joint) and its URDF, compiled in.
+struct ShippedRobot {
+  std::string_view scene, urdf;
+  const char* name;
+};
+const ShippedRobot kIiwa14{detail::kIiwa14ControllerScene, detail::kIiwa14Urdf, "stress-iiwa14"};
+const ShippedRobot kPuma560{detail::kPuma560ControllerScene, detail::kPuma560Urdf, "stress-puma560"};
+
+// The robot's scene with its URDF given inline, its initial velocity scaled by speed, with the given step rule.
+json shipped_robot(const ShippedRobot& robot, double speed, const std::string& rule, double t_end) {
+  json s = json::parse(robot.scene);
+  s["name"] = robot.name;
   s["system"]["urdf"].erase("file");
-  s["system"]["urdf"]["text"] = std::string(urdf);
+  s["system"]["urdf"]["text"] = std::string(robot.urdf);
   for (auto& v : s["initial"]["v"]) v = speed * v.get<double>();
   s["integrator"]["step_rule"] = rule;
   s["integrator"]["t_end"] = t_end;
@@ -66,6 +72,9 @@ json shipped_robot(std::string_view scene, std::string_view urdf, const std::str
 }  // namespace
 
 std::vector<StressCase> stress_cases() {
+  // What a robot at a fixed step is: outside Theorem 4.1 at its fast start.
+  const char* kFixedStepRobotTheory =
+      "outside Thm 4.1 where (4.2) fails (its first steps): a step's solution is not guaranteed unique; the report counts those steps";
   std::vector<StressCase> cases;
   auto add = [&](StressCase c) { cases.push_back(std::move(c)); };
   add({"tiny-mass-high-gain", "m = 1e-6, relay gain 1e4, v0 = 1e3: stiffness a/m = 1e10", one_dof(1e-6, 1.0, 1e4, 0.0, 1e3, 1e-3, 1.0),
@@ -103,20 +112,16 @@ std::vector<StressCase> stress_cases() {
        one_dof(1.0, 1.0, 1.0, 1.0 + 1e-9, 1.0, 1e-3, 30.0), true, std::nullopt, false, true,
        "-F lies outside dPhi(0): no equilibrium at rest; it slides on at the terminal speed (f - a)/c = 1e-9"});
   add({"robot-iiwa-fixed-step", "the 7-joint iiwa (URDF) from its moving start with a fixed h = 1e-3; lambda_min(M) ~ 1e-3 kg m^2",
-       shipped_robot(detail::kIiwa14ControllerScene, detail::kIiwa14Urdf, "stress-iiwa14", 1.0, "fixed", 3.0), true, std::nullopt, std::nullopt, false,
-       "outside Thm 4.1 where (4.2) fails (its first steps): a step's solution is not guaranteed unique; the report counts those steps"});
+       shipped_robot(kIiwa14, 1.0, "fixed", 3.0), true, std::nullopt, std::nullopt, false, kFixedStepRobotTheory});
   add({"robot-iiwa-10x-speed", "the iiwa at 10 times its scene's initial speed (up to 30 rad/s), the Theorem 4.1 rule",
-       shipped_robot(detail::kIiwa14ControllerScene, detail::kIiwa14Urdf, "stress-iiwa14", 10.0, "theorem-4.1", 3.0), true, std::nullopt, std::nullopt, true,
+       shipped_robot(kIiwa14, 10.0, "theorem-4.1", 3.0), true, std::nullopt, std::nullopt, true,
        "Thm 4.1: the rule keeps each step uniquely solvable, so h_k must shrink; Assumption 4.1 fails under gravity, so "
        "Thms 4.2 and 4.3 promise nothing"});
   add({"robot-puma560-fixed-step",
        "the 6-joint PUMA 560 (URDF) from its moving start with a fixed h = 1e-3; its wrist makes lambda_min(M) ~ 4e-5 kg m^2",
-       shipped_robot(detail::kPuma560ControllerScene, detail::kPuma560Urdf, "stress-puma560", 1.0, "fixed", 3.0), true, std::nullopt,
-       std::nullopt, false,
-       "outside Thm 4.1 where (4.2) fails (its first steps): a step's solution is not guaranteed unique; the report counts those steps"});
+       shipped_robot(kPuma560, 1.0, "fixed", 3.0), true, std::nullopt, std::nullopt, false, kFixedStepRobotTheory});
   add({"robot-puma560-5x-speed", "the PUMA 560 at 5 times its scene's initial speed (up to 15 rad/s), the Theorem 4.1 rule",
-       shipped_robot(detail::kPuma560ControllerScene, detail::kPuma560Urdf, "stress-puma560", 5.0, "theorem-4.1", 3.0), true,
-       std::nullopt, std::nullopt, true,
+       shipped_robot(kPuma560, 5.0, "theorem-4.1", 3.0), true, std::nullopt, std::nullopt, true,
        "Thm 4.1: the rule keeps each step uniquely solvable, so h_k must shrink (to a few us: the wrist's small inertia); "
        "Assumption 4.1 fails under gravity, so Thms 4.2 and 4.3 promise nothing"});
   {

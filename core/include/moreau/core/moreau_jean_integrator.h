@@ -281,13 +281,13 @@ class MoreauJeanIntegrator {
         ptrs_[r] = &relay_[static_cast<std::size_t>(r)];
         merged_contact_[static_cast<std::size_t>(r)] = -1;
       }
-      rows_now_ = na_;
+      int m = na_;  // this step's rows
       for (int i = 0; i < nc_; ++i) {
         if (!active_[i]) {
           contact_row_[i] = -1;
           continue;
         }
-        const int r = rows_now_++;
+        const int r = m++;
         contact_row_[i] = r;
         Gv_.row(r) = H_.row(i);
         Gf_.row(r) = H_.row(i);
@@ -295,7 +295,6 @@ class MoreauJeanIntegrator {
         ptrs_[r] = &corner_;
         merge_rows(i, h);
       }
-      const int m = rows_now_;
       // Small dense pieces, column by column with fixed-size N: no dynamic-size GEMM per step. D is the
       // leading m x m block of D_ (the solver's use_leading: no reallocation as I_k changes).
       for (int r = 0; r < m; ++r) {
@@ -318,7 +317,7 @@ class MoreauJeanIntegrator {
       vn_ = vf_;
       for (int j = 0; j < m; ++j)
         if (w_(j) != 0.0) vn_ -= w_(j) * Y_.col(j);
-      polish(vn_);
+      polish(vn_, m);
       split_merged_impulses(h);
     } else {
       vn_ = vf_;
@@ -470,9 +469,9 @@ class MoreauJeanIntegrator {
   // Exact values from the rows on vertical pieces (u_r exact): when there are n of them with independent
   // velocity maps they fix V^{k+1} = G_V^{-1} (u_V - b_V) (0.0 exactly for a system at rest); otherwise a
   // row whose velocity map involves one coordinate fixes that coordinate.
-  void polish(Vec<N>& v) {
+  void polish(Vec<N>& v, int m) {
     int nv = 0;
-    for (int r = 0; r < rows_now_ && nv <= n_; ++r) {
+    for (int r = 0; r < m && nv <= n_; ++r) {
       if (!solver_.on_vertical_piece(r)) continue;
       if (nv < n_) {
         Gsq_.row(nv) = Gv_.row(r);
@@ -499,7 +498,7 @@ class MoreauJeanIntegrator {
         }
       }
     }
-    for (int r = 0; r < rows_now_; ++r) {
+    for (int r = 0; r < m; ++r) {
       if (!solver_.on_vertical_piece(r)) continue;
       int nz = 0, col = -1;
       for (int j = 0; j < n_; ++j)
@@ -679,8 +678,7 @@ class MoreauJeanIntegrator {
   Eigen::VectorXd b_;
   ColsN Y_;
   Eigen::MatrixXd D_;
-  Eigen::VectorXd qv_, u_, w_;      // (GE) in its leading rows_now_ rows
-  int rows_now_ = 0;                // this step's rows: na_ controlled coordinates, then the contacts of I_k
+  Eigen::VectorXd qv_, u_, w_;      // (GE) in its leading rows: na_ controlled coordinates, then the contacts of I_k
   std::vector<int> contact_row_;    // per contact: its row in (GE) this step, or -1 outside I_k
   Eigen::VectorXd P_;               // per contact: the impulse P_i^{k+1} of the step (0 outside I_k)
   std::vector<const MonotoneGraph*> ptrs_;
