@@ -40,7 +40,10 @@ TEST(Stress, OneCoordinateCasesFollowTheirDiscreteClosedForm) {
   int checked = 0;
   for (const auto& c : stress_cases()) {
     const nlohmann::json& sc = c.scene;
-    if (sc["system"]["coordinates"].size() != 1 || !sc["parameters"].contains("f")) continue;
+    // Robot cases name a URDF instead of coordinates; at() and contains() never read past a missing key.
+    const nlohmann::json& system = sc.at("system");
+    if (!system.contains("coordinates") || system.at("coordinates").size() != 1) continue;
+    if (!sc.contains("parameters") || !sc.at("parameters").contains("f")) continue;
     const double m = sc["parameters"]["m"], cc = sc["parameters"]["c"], a = sc["parameters"]["a"], f = sc["parameters"]["f"];
     const double h = sc["integrator"]["h"], t_end = sc["integrator"]["t_end"];
     if (t_end / h > 2e7) continue;  // the 1e8-step case: its expectations are checked by Suite/Stress
