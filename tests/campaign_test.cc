@@ -370,6 +370,39 @@ TEST(CampaignRun, APartSeenUnderBothItsNamesIsReadOnce) {
   fs::remove_all(whole);
 }
 
+// The byte limit is on the files as they are on disk, not on what one run adds: a campaign stopped and
+// resumed (as a restarted server resumes it) under the same limit ends where one uninterrupted run
+// would. Reference: the sizes of samples.jsonl and samples.csv, read from the file system.
+TEST(CampaignRun, TheByteLimitCountsWhatEarlierRunsWrote) {
+  const CampaignSpec s = CampaignSpec::from_json(relay_spec("sobol", 50), "");
+  const fs::path dir = fresh_dir("bytes-resumed");
+  auto on_disk = [&] { return static_cast<std::int64_t>(fs::file_size(dir / "samples.jsonl") + fs::file_size(dir / "samples.csv")); };
+  std::atomic<bool> stop{false};
+  CampaignRunOptions first;
+  first.workers = 1;
+  first.stop = &stop;
+  first.progress = [&](std::int64_t done, std::int64_t) {
+    if (done == 20) stop = true;
+  };
+  ASSERT_EQ(run_campaign(s, dir.string(), first).ran, 20);
+  const std::int64_t after_first = on_disk();
+  // Room for about five more records and rows (the first twenty took after_first bytes).
+  CampaignRunOptions resumed;
+  resumed.workers = 1;
+  resumed.max_bytes = after_first + 5 * after_first / 20;
+  try {
+    run_campaign(s, dir.string(), resumed);
+    ADD_FAILURE() << "the resumed run wrote 30 more records under a limit with room for about 5";
+  } catch (const std::runtime_error& e) {
+    EXPECT_THAT(e.what(), HasSubstr("reached the limit of " + std::to_string(resumed.max_bytes) + " bytes"));
+  }
+  EXPECT_LE(on_disk(), resumed.max_bytes);
+  const auto rows = read_campaign_outcomes(s, dir.string());
+  EXPECT_GE(rows.size(), 23u);  // the records that fit were kept
+  EXPECT_LE(rows.size(), 27u);
+  fs::remove_all(dir);
+}
+
 TEST(CampaignRun, AStopAndAKilledWriteResumeWithoutLossOrDuplicates) {
   const CampaignSpec s = CampaignSpec::from_json(relay_spec("sobol", 50), "");
   const fs::path ref = fresh_dir("ref"), dir = fresh_dir("resume");

@@ -1102,7 +1102,9 @@ CampaignRunResult run_campaign(const CampaignSpec& spec, const std::string& dir_
   std::mutex write_mu;
   std::exception_ptr error;
   std::int64_t finished = result.skipped;
-  std::int64_t written_bytes = 0;
+  // The limit is on what the records and the table take on disk, so what a stopped run left there counts:
+  // a campaign resumed any number of times (a restarted server goes on from its records) stays within it.
+  std::int64_t written_bytes = static_cast<std::int64_t>(fs::file_size(own)) + (task ? 0 : static_cast<std::int64_t>(fs::file_size(dir / "samples.csv")));
   std::atomic<bool> failed{false};
   auto work = [&] {
     CampaignSampleRunner runner(spec, design, options.max_steps);

@@ -179,8 +179,9 @@ struct CampaignRunOptions {
   bool part = false;
   const std::atomic<bool>* stop = nullptr;  // set (e.g. by SIGINT) to stop after the samples running now
   std::optional<std::int64_t> max_steps;    // per sample (CampaignSampleRunner)
-  // The bytes this run may add to the records and the table (0: no limit); a record that would pass it
-  // ends the run with std::runtime_error, the records before it kept.
+  // The bytes the files this run writes may take on disk (0: no limit): samples.jsonl and samples.csv,
+  // or a task's own part file, counting what earlier runs of the campaign left in them; a record that
+  // would pass it ends the run with std::runtime_error, the records before it kept.
   std::int64_t max_bytes = 0;
   std::function<void(std::int64_t done, std::int64_t total)> progress;  // after each sample, from one thread
 };
