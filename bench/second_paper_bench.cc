@@ -89,16 +89,31 @@ void BM_BouncingBallCompiled_moving(benchmark::State& state) { BallCompiled(stat
 void BM_BouncingBallCompiled_to_rest(benchmark::State& state) { BallCompiled(state, 3.0); }
 
 // ---- the manipulator of Adly, Brogliato and Le (2016), section 6, under moreau-jean --------------------
-// scenes/manipulator.json with the Moreau-Jean scheme instead of (0.2): the controller's two abs terms are
-// two rows of the one-step generalized equation on every step (graph_inclusion_solver.h), where (0.2)
-// solves them by its own sign patterns. position_update "standard" (q_{k+1} = q_k + h v_{k+1}, the
-// update of Siconos' MoreauJeanOSI). Moving: its first second, before it rests at t = 1.135.
-void BM_ManipulatorMoreauJeanJsonScene_moving(benchmark::State& state) {
-  nlohmann::json doc = Doc("manipulator.json", 1.0);
+// scenes/manipulator.json with the Moreau-Jean scheme instead of (0.2). Without constraints every step's
+// one-step problem is the controller's rows alone, solved as (6.5) by the sign patterns of (0.2)
+// (moreau_jean_integrator.h); the position moves with V^{k+1}. position_update "standard"
+// (q_{k+1} = q_k + h v_{k+1}, the update of Siconos' MoreauJeanOSI; without impacts "mdi" is the same).
+// Moving: its first second, before it rests at t = 1.135; to rest: the 10 s of the scene.
+void ManipulatorMoreauJean(benchmark::State& state, double t_end) {
+  nlohmann::json doc = Doc("manipulator.json", t_end);
   doc["integrator"]["scheme"] = "moreau-jean";
   doc["integrator"]["position_update"] = "standard";
   RunScene(state, scene::load_scene(doc));
 }
+void BM_ManipulatorMoreauJeanJsonScene_moving(benchmark::State& state) { ManipulatorMoreauJean(state, 1.0); }
+void BM_ManipulatorMoreauJeanJsonScene_to_rest(benchmark::State& state) { ManipulatorMoreauJean(state, 10.0); }
+
+// ---- the damped relay (scenes/damped-relay.json) under moreau-jean: the discrete scheme of Siconos'
+// MoreauJeanOSI for this system (docs/siconos-comparison.md). h = 1e-3 over the scene's 6 s (rest at
+// 3.665), and h = 1e-4 over its first 3.6 s (moving).
+void DampedRelayMoreauJean(benchmark::State& state, double h, double t_end) {
+  nlohmann::json doc = Doc("damped-relay.json", t_end);
+  doc["integrator"]["scheme"] = "moreau-jean";
+  doc["integrator"]["h"] = h;
+  RunScene(state, scene::load_scene(doc));
+}
+void BM_DampedRelayMoreauJeanJsonScene_to_rest(benchmark::State& state) { DampedRelayMoreauJean(state, 1e-3, 6.0); }
+void BM_DampedRelayMoreauJeanJsonScene_moving(benchmark::State& state) { DampedRelayMoreauJean(state, 1e-4, 3.6); }
 
 // ---- the two-state relay Lur'e system (y = x1 + 2 x2 slides from t = 0.218 s) ---------------------------
 void RelayScene(benchmark::State& state, double t_end) {
@@ -143,6 +158,9 @@ BENCHMARK(BM_BouncingBallJsonScene_to_rest)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_BouncingBallCompiled_moving)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_BouncingBallCompiled_to_rest)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_ManipulatorMoreauJeanJsonScene_moving)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_ManipulatorMoreauJeanJsonScene_to_rest)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_DampedRelayMoreauJeanJsonScene_to_rest)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_DampedRelayMoreauJeanJsonScene_moving)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_RelayLure2JsonScene_moving)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_RelayLure2JsonScene_sliding)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_RelayLure2Compiled_moving)->Unit(benchmark::kMicrosecond);

@@ -63,6 +63,20 @@ ROWS = [
     dict(id="lure-relay-moving", scene="lure-relay-2state.json", siconos="lure-relay", h=1e-3, t_end=0.2,
          bench=("second_paper_bench", "BM_RelayLure2JsonScene_moving"),
          compiled=("second_paper_bench", "BM_RelayLure2Compiled_moving"), score="lure"),
+    # The manipulator and the damped relay on Moreau's moreau-jean scheme, the discrete scheme of Siconos'
+    # MoreauJeanOSI for the relay (the same velocity recurrence as (0.2), the position moved with V^{k+1}).
+    dict(id="manipulator-mj", scene="manipulator.json", scheme="moreau-jean", siconos="manipulator", h=1e-3,
+         t_end=10.0, bench=("second_paper_bench", "BM_ManipulatorMoreauJeanJsonScene_to_rest"), compiled=None,
+         score="manipulator"),
+    dict(id="manipulator-mj-moving", scene="manipulator.json", scheme="moreau-jean", siconos="manipulator",
+         h=1e-3, t_end=1.0, bench=("second_paper_bench", "BM_ManipulatorMoreauJeanJsonScene_moving"),
+         compiled=None, score="manipulator"),
+    dict(id="damped-relay-mj", scene="damped-relay.json", scheme="moreau-jean", siconos="damped-relay", h=1e-3,
+         t_end=6.0, bench=("second_paper_bench", "BM_DampedRelayMoreauJeanJsonScene_to_rest"), compiled=None,
+         score="damped-relay"),
+    dict(id="damped-relay-mj-moving", scene="damped-relay.json", scheme="moreau-jean", siconos="damped-relay",
+         h=1e-4, t_end=3.6, bench=("second_paper_bench", "BM_DampedRelayMoreauJeanJsonScene_moving"),
+         compiled=None, score="damped-relay"),
 ]
 
 # Samples with |v| <= this are "at rest" when a rest time is read off a trajectory (Moreau's are 0.0
@@ -209,7 +223,10 @@ def moreau_bench(binary, name, reps):
 
 
 def moreau_sets(row):
-    return ["--set", f"integrator.h={row['h']!r}", "--set", f"integrator.t_end={row['t_end']!r}"]
+    sets = ["--set", f"integrator.h={row['h']!r}", "--set", f"integrator.t_end={row['t_end']!r}"]
+    if "scheme" in row:
+        sets += ["--set", f"integrator.scheme={row['scheme']}"]
+    return sets
 
 
 def moreau_run_timing(cli, row, reps):
@@ -228,6 +245,8 @@ def moreau_trajectory(cli, row, path, h=None, every=1):
     if h is not None:
         sets = ["--set", f"integrator.h={h!r}", "--set", f"integrator.t_end={row['t_end']!r}",
                 "--set", f"output.every={every}"]
+        if "scheme" in row:
+            sets += ["--set", f"integrator.scheme={row['scheme']}"]
     run([cli, "run", os.path.join(ROOT, "scenes", row["scene"]), "--out", path, "--json"] + sets)
     return read_csv(path)
 

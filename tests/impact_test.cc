@@ -408,6 +408,108 @@ TEST(Impact, CoulombFrictionOnTheContactCoordinateFollowsTheClosedFormAndRestsEx
   EXPECT_EQ(r.summary.solver.fallback_steps, 0);
 }
 
+// The moreau-jean scheme on a system without constraints: every step's (GE) has only the controlled rows,
+// which is the inclusion of (0.2) in V^{k+1} (the scheme's header), and the position moves with the new
+// velocity. Reference: the paper's closed forms for the manipulator of section 6 (M, C q' and grad V as
+// printed in Adly, Brogliato and Le 2016, not the scene's expressions): at every recorded step,
+// Q^{k+1} = Q^k + h V^{k+1} exactly, and V^{k+1} satisfies
+//   M(Q^k) (V^{k+1} - V^k)/h + C(Q^k, V^k) V^{k+1} + grad V(Q^k) + V^{k+1} in -(Sign(v1), Sign(v2))
+// to round-off (componentwise: equal to -sign where v_j != 0, within [-1, 1] where v_j == 0.0).
+TEST(Impact, WithoutConstraintsAStepIsTheInclusionOfTheSchemeWithAnImplicitPosition) {
+  json doc = Scene("manipulator.json");
+  doc["integrator"]["scheme"] = "moreau-jean";
+  doc["integrator"]["t_end"] = 2.0;
+  const double h = doc["integrator"]["h"];
+  const ContactRun r = RunContacts(doc);
+  const json& p = doc["parameters"];
+  const double m1 = p["m1"], m2 = p["m2"], b = p["b"], I = p["I"], g = p["g"];
+  const std::size_t samples = r.rec.t.size();
+  ASSERT_EQ(samples, 2001u);
+  std::size_t at_rest = 0;
+  for (std::size_t k = 0; k + 1 < samples; ++k) {
+    const double* q0 = &r.rec.q[2 * k];
+    const double* v0 = &r.rec.v[2 * k];
+    const double* q1 = &r.rec.q[2 * k + 2];
+    const double* v1 = &r.rec.v[2 * k + 2];
+    ASSERT_EQ(q1[0], q0[0] + h * v1[0]) << "step " << k;
+    ASSERT_EQ(q1[1], q0[1] + h * v1[1]) << "step " << k;
+    const double c = std::cos(q0[1]), s = std::sin(q0[1]);
+    const double M11 = m1 + m2, M12 = m2 * b * c, M22 = I + m2 * b * b;
+    const double dv0 = (v1[0] - v0[0]) / h, dv1 = (v1[1] - v0[1]) / h;
+    // r = M dv + C(Q^k, V^k) V^{k+1} + grad V + W V^{k+1}, C = [[0, -m2 b sin(th2) th2'], [0, 0]], W = I.
+    const double res[2] = {M11 * dv0 + M12 * dv1 - m2 * b * s * v0[1] * v1[1] + v1[0],
+                           M12 * dv0 + M22 * dv1 + m2 * b * g * s + v1[1]};
+    // Round-off of r: the terms M V/h are about |M| |V| / h.
+    const double tol = 1e-9 * (1.0 + (std::abs(v0[0]) + std::abs(v0[1]) + std::abs(v1[0]) + std::abs(v1[1])) * (M11 + M22) / h);
+    for (int j = 0; j < 2; ++j) {
+      if (v1[j] != 0.0)
+        EXPECT_NEAR(res[j], v1[j] > 0.0 ? -1.0 : 1.0, tol) << "step " << k << ", coordinate " << j;
+      else
+        EXPECT_LE(std::abs(res[j]), 1.0 + tol) << "step " << k << ", coordinate " << j;
+    }
+    at_rest += (v1[0] == 0.0 && v1[1] == 0.0);
+  }
+  // The arm comes to rest exactly and stays (gravity's torque at rest is below the gain 1).
+  EXPECT_GT(at_rest, 800u);
+  EXPECT_EQ(r.summary.v_final[0], 0.0);
+  EXPECT_EQ(r.summary.v_final[1], 0.0);
+}
+
+// One step from the same state: moreau-jean's V^{k+1} is that of the abl scheme (0.2) bit for bit (the
+// same inclusion (6.5), formed with the same roundings and solved by the same solver), and the positions
+// differ only by the update: Q^k + h V^{k+1} against Q^k + h V^k. Reference: the abl integrator, a
+// separate scheme with its own step.
+TEST(Impact, WithoutConstraintsOneStepHasTheVelocityOfTheAblScheme) {
+  const std::vector<std::pair<std::vector<double>, std::vector<double>>> states = {
+      {{3.0, -1.0}, {-1.0, 1.0}}, {{0.2, 0.7}, {2.0, -3.0}}, {{-1.0, 2.5}, {1e-3, 0.0}}, {{0.0, 0.3}, {0.0, 0.0}}};
+  for (const auto& [q0, v0] : states) {
+    json doc = Scene("manipulator.json");
+    doc["initial"]["q"] = q0;
+    doc["initial"]["v"] = v0;
+    const double h = doc["integrator"]["h"];
+    doc["integrator"]["t_end"] = h;
+    const RunSummary abl = run_scene(load_scene(doc), nullptr);
+    doc["integrator"]["scheme"] = "moreau-jean";
+    const ContactRun mj = RunContacts(doc);
+    ASSERT_EQ(abl.steps, 1);
+    ASSERT_EQ(mj.summary.steps, 1);
+    for (int j = 0; j < 2; ++j) {
+      EXPECT_EQ(mj.summary.v_final[j], abl.v_final[j]) << "q0 = (" << q0[0] << ", " << q0[1] << "), coordinate " << j;
+      EXPECT_EQ(abl.q_final[j], q0[j] + h * v0[j]);
+      EXPECT_EQ(mj.summary.q_final[j], q0[j] + h * mj.summary.v_final[j]);
+    }
+  }
+}
+
+// The damped relay m x'' = -c x' - a Sign(x') on moreau-jean: the discrete solution written out (the soft
+// threshold V^{k+1} = S_a(m V^k / h) / (m/h + c), Q^{k+1} = Q^k + h V^{k+1}), step by step, to round-off,
+// with V == 0.0 exactly where the threshold gives 0; it rests exactly from the step the threshold first returns 0.
+TEST(Impact, WithoutConstraintsTheDampedRelayIsItsDiscreteClosedForm) {
+  json doc = Scene("damped-relay.json");
+  doc["integrator"]["scheme"] = "moreau-jean";
+  const ContactRun r = RunContacts(doc);
+  const double m = doc["parameters"]["m"], c = doc["parameters"]["c"], a = doc["parameters"]["a"];
+  const double h = doc["integrator"]["h"];
+  double q = doc["parameters"]["q0"], v = doc["parameters"]["v0"];
+  // The solver forms m/h as m * (1/h): each step rounds differently from the lines below by a few ulps of
+  // v0, and the recurrence contracts by m/h / (m/h + c) = 1 - 2.5e-4 per step, so the differences add up:
+  // at most 8 eps v0 per step in V, and h times that sum in Q.
+  const double eps = std::numeric_limits<double>::epsilon(), v0 = v;
+  double tol_v = 0.0, tol_q = 0.0;
+  ASSERT_GT(r.rec.t.size(), 100u);
+  for (std::size_t k = 1; k < r.rec.t.size(); ++k) {
+    const double p = m * v / h;
+    v = std::abs(p) <= a ? 0.0 : (p - (p > 0.0 ? a : -a)) / (m / h + c);
+    q += h * v;
+    tol_v += 8.0 * eps * v0;
+    tol_q += h * tol_v + eps * std::abs(q);
+    ASSERT_NEAR(r.rec.v[k], v, tol_v) << "step " << k;
+    ASSERT_EQ(r.rec.v[k] == 0.0, v == 0.0) << "step " << k;
+    ASSERT_NEAR(r.rec.q[k], q, tol_q) << "step " << k;
+  }
+  EXPECT_EQ(v, 0.0);
+}
+
 // A curved constraint (inside the unit disc, gap 1 - x^2 - y^2): a closed contact keeps U = 0 but the
 // position moves along the tangent, so each step changes the gap by exactly -h^2 |V+|^2 (grad h = -2 q,
 // q . V+ = 0) and the drift accumulates below 0. With position_correction = projection the gap is

@@ -30,6 +30,16 @@
 // from them; otherwise a vertical row involving one coordinate fixes it), so a system at rest has
 // V == 0.0 exactly. An unsolved step stops the run (RunStatus::kFailed).
 //
+// A step with controlled rows and no contact in I_k (every step of a system without constraints, most
+// steps of a robot between its joint limits) is the one-step inclusion (6.5) of the scheme (0.2) of Adly,
+// Brogliato and Le: (GE) divided by h is P V^{k+1} + x in -d phi(V^{k+1}) with P = M/h + C + W,
+// x = g - M V^k / h, phi(v) = sum a_j |v_j|. It is solved by the same exact solver as that scheme
+// (OneStepSolver: sign patterns, closed forms for n <= 2), without Wm's factorisation, the columns Y and
+// D when the system has no constraints. So on a system without constraints a step computes, from the
+// same (Q^k, V^k), the V^{k+1} of (0.2) bit for bit, and only the position update differs
+// (Q^{k+1} = Q^k + h V^{k+1} here, Q^k + h V^k there). A step that solver does not accept goes through
+// GraphInclusionSolver as above.
+//
 // Position update (`PositionUpdate`):
 //  - kMdi (default): V_pos = V^{k+1}, except that the contacts that carried a positive impulse and
 //    rebound (an impact with e_i > 0: U_i^{k+1} = -e_i U_i^k != 0) move with normal velocity 0, the velocity w = (U+ + e U-)/(1+e)
@@ -70,6 +80,7 @@
 #include "moreau/core/graph_inclusion_solver.h"
 #include "moreau/core/maximal_monotone_graph.h"
 #include "moreau/core/observer.h"
+#include "moreau/core/one_step_solver.h"
 #include "moreau/core/run_diagnostics.h"
 #include "moreau/core/run_summary.h"
 #include "moreau/core/small_lu.h"
@@ -163,6 +174,9 @@ class MoreauJeanIntegrator {
     merged_contact_.assign(static_cast<std::size_t>(na_), -1);
     merged_sign_.assign(static_cast<std::size_t>(na_), 0.0);
     solver_.configure(m_);
+    controlled_solver_.configure(phi.gains, 0.0);
+    inclusion_P_.setZero(n_, n_);
+    inclusion_x_.setZero(n_);
     // Impact steps and position correction.
     Z_.setZero(n_, nc_);
     S_.setZero(nc_, nc_);
@@ -245,14 +259,13 @@ class MoreauJeanIntegrator {
     s.mass.record(lambda_m, exact, k, t);
     if (!(lambda_m > 0.0)) return f.at(k, t, q.data(), v.data(), not_positive_definite(lambda_m, q.data(), n_));
 
-    // Free velocity: Wm V_free = M V^k - h g.
-    Wm_ = terms_.M;
-    Wm_.noalias() += h * terms_.C;
-    Wm_.diagonal() += h * weights_;
-    lu_.compute(Wm_);
-    rhs_.noalias() = terms_.M * v;
-    rhs_ -= h * terms_.g;
-    vf_.noalias() = lu_.solve(rhs_);
+    // The free velocity, for the predicted active set and for a step without any impulse; a system
+    // without constraints whose step has controlled rows never needs it (solve_controlled_rows).
+    bool have_free = false;
+    if (nc_ > 0 || na_ == 0) {
+      free_velocity(v, h);
+      have_free = true;
+    }
 
     // Predicted active set and the rows of (GE).
     bool any_active = false;
@@ -266,7 +279,12 @@ class MoreauJeanIntegrator {
     }
     d.active_steps += any_active;
     const bool solves = m_ > 0 && (na_ > 0 || any_active);  // else no impulse at all: V^{k+1} = V_free
-    if (solves) {
+    // by_rows: the step's impulses are those of the rows of (GE) (w_, contact_row_); not after the
+    // controlled rows alone were solved as (6.5).
+    bool by_rows = solves;
+    if (solves && !any_active && solve_controlled_rows(v, h, rec)) by_rows = false;
+    if (by_rows) {
+      if (!have_free) free_velocity(v, h);
       // The rows of (GE): the controlled coordinates, then the contacts of I_k only. A contact outside
       // I_k has P_i = 0 (a known impulse), so its row would change no other row's solution; leaving it out
       // spares its solve with Wm and its row and column of D (a robot's inactive joint limits).
@@ -319,7 +337,7 @@ class MoreauJeanIntegrator {
         if (w_(j) != 0.0) vn_ -= w_(j) * Y_.col(j);
       polish(vn_, m);
       split_merged_impulses(h);
-    } else {
+    } else if (!solves) {
       vn_ = vf_;
       s.solver.total_iterations += 1;
       s.solver.max_iterations = std::max(s.solver.max_iterations, 1);
@@ -336,7 +354,7 @@ class MoreauJeanIntegrator {
       for (int i = 0; i < nc_; ++i) {
         impacting_[i] = 0;
         const int r = contact_row_[static_cast<std::size_t>(i)];
-        P_(i) = solves && r >= 0 ? -w_(r) : 0.0;  // P_i^{k+1}: 0 outside I_k
+        P_(i) = by_rows && r >= 0 ? -w_(r) : 0.0;  // P_i^{k+1}: 0 outside I_k
         if (!(P_(i) > 0.0)) continue;
         any_impulse = true;
         // An impact: the contact was approaching by more than the round-off of U = grad h^T V.
@@ -464,6 +482,33 @@ class MoreauJeanIntegrator {
       w_(contact_row_[static_cast<std::size_t>(i)]) = (W - f) / c;
       w_(r) = f / h;
     }
+  }
+
+  // Wm V_free = M V^k - h g, Wm = M + h (C + W), factorised in lu_ for the rows of (GE).
+  void free_velocity(const Vec<N>& v, double h) {
+    Wm_ = terms_.M;
+    Wm_.noalias() += h * terms_.C;
+    Wm_.diagonal() += h * weights_;
+    lu_.compute(Wm_);
+    rhs_.noalias() = terms_.M * v;
+    rhs_ -= h * terms_.g;
+    vf_.noalias() = lu_.solve(rhs_);
+  }
+
+  // The step's (GE) with the controlled rows alone (no contact in I_k), as the inclusion (6.5):
+  // P V^{k+1} + x in -d phi(V^{k+1}), P = M/h + C + W, x = g - M V^k / h (the header). P and x are formed
+  // as the abl scheme forms them, entry by entry the same roundings. False, with nothing recorded, when
+  // the solver does not accept a solution: the general path solves the step then.
+  bool solve_controlled_rows(const Vec<N>& v, double h, RunRecorder& rec) {
+    const double inv_h = 1.0 / h;
+    inclusion_P_.noalias() = inv_h * terms_.M + terms_.C;
+    inclusion_P_.diagonal() += weights_;
+    Mv_.noalias() = terms_.M * v;
+    inclusion_x_ = terms_.g - inv_h * Mv_;
+    OneStepStats st;
+    if (!controlled_solver_.solve(inclusion_P_, inclusion_x_, vn_, st)) return false;
+    rec.solver_step(st.iterations, st.residual, st.used_fallback);
+    return true;
   }
 
   // Exact values from the rows on vertical pieces (u_r exact): when there are n of them with independent
@@ -683,6 +728,9 @@ class MoreauJeanIntegrator {
   Eigen::VectorXd P_;               // per contact: the impulse P_i^{k+1} of the step (0 outside I_k)
   std::vector<const MonotoneGraph*> ptrs_;
   GraphInclusionSolver<Eigen::Dynamic> solver_;
+  OneStepSolver<N> controlled_solver_;  // a step's controlled rows when no contact is in I_k (solve_controlled_rows)
+  Mat<N> inclusion_P_;                  // its P = M/h + C + W
+  Vec<N> inclusion_x_;                  // its x = g - M V^k / h
   ColsN Z_;
   Eigen::MatrixXd S_, Sd_;
   Eigen::VectorXd s_, pref_;

@@ -199,7 +199,10 @@ class Tape {
   // Throws std::invalid_argument when the wiring leaves an input the tape reads without a place, or has
   // too few outputs.
   void wire(const Wiring& wiring);
-  void run_wired(double* scratch, const double* const* sources, double* const* sinks) const {
+  // Always inlined: a scene model runs its tapes from every step, and whether GCC inlined this two-line
+  // trampoline there depended on how large the rest of the translation unit was (a larger Moreau-Jean
+  // step made it a call again in the bouncing ball's loop: +8 instructions per step, callgrind).
+  [[gnu::always_inline]] void run_wired(double* scratch, const double* const* sources, double* const* sinks) const {
     if (native_run_wired_ != nullptr) return native_run_wired_(scratch, sources, sinks);
     run_wired_interpreted(scratch, sources, sinks);
   }
