@@ -59,7 +59,8 @@ const json& member(const json& obj, const std::string& ptr, const char* name) {
 }
 
 void only_fields(const json& obj, const std::string& ptr, std::initializer_list<const char*> allowed) {
-  for (const auto& [key, value] : obj.items()) {
+  for (const auto& item : obj.items()) {
+    const std::string& key = item.key();  // a variable, not a structured binding: clang 14 cannot capture those
     if (std::none_of(allowed.begin(), allowed.end(), [&](const char* a) { return key == a; }))
       throw SceneError(ptr + "/" + json_pointer_token(key), "unknown field '" + key + "'");
   }
