@@ -69,6 +69,10 @@ struct Ball {
   }
   bool has_potential() const { return true; }
   double potential(const Vec<1>& q) const { return m * g * q(0); }
+  double evaluate_with_potential(double t, const Vec<1>& q, const Vec<1>& v, LagrangianTerms<1>& out) const {
+    evaluate(t, q, v, out);
+    return potential(q);
+  }
 };
 
 void BallCompiled(benchmark::State& state, double t_end) {

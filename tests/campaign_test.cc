@@ -569,6 +569,7 @@ TEST(CampaignCompileOnce, ABoundSceneEvaluatesNoMoreInstructionsThanTheFoldedCom
   EXPECT_EQ(b.step_tape.num_instructions(), f.step_tape.num_instructions());
   EXPECT_EQ(b.mass_tape.num_instructions(), f.mass_tape.num_instructions());
   EXPECT_EQ(b.potential_tape.num_instructions(), f.potential_tape.num_instructions());
+  EXPECT_EQ(b.step_potential_tape.num_instructions(), f.step_potential_tape.num_instructions());
   EXPECT_EQ(b.split_force_tape.num_instructions(), f.split_force_tape.num_instructions());
   EXPECT_GT(f.step_tape.num_instructions(), 0u);
 }

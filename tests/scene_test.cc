@@ -128,6 +128,43 @@ TEST(Scene, ChristoffelMatrixOfTheManipulatorIsThePapers) {
   }
 }
 
+// evaluate_with_potential() (one tape for M, C, g and V: the Moreau-Jean step at every state) against
+// evaluate() and potential() (their own tapes) bit for bit, and V against the scenes' closed forms.
+TEST(Scene, TermsAndPotentialFromOneTapeAreThoseOfTheirOwnTapes) {
+  const LagrangianScene arm = load_scene(Scene("manipulator.json"));
+  EXPECT_EQ(arm.compiled->step_potential_tape.num_outputs(), arm.compiled->step_tape.num_outputs() + 1);
+  SceneModel<2> model(arm);
+  LagrangianTerms<2> both, terms;
+  both.resize(2);
+  terms.resize(2);
+  for (double th : {-2.0, -0.3, 0.0, 0.7, 2.5}) {
+    const Vec<2> q(0.4, th), v(-1.3, 2.2);
+    const double V = model.evaluate_with_potential(0.0, q, v, both);
+    model.evaluate(0.0, q, v, terms);
+    EXPECT_TRUE((both.M.array() == terms.M.array()).all()) << both.M << "\n vs \n" << terms.M;
+    EXPECT_TRUE((both.C.array() == terms.C.array()).all()) << both.C << "\n vs \n" << terms.C;
+    EXPECT_TRUE((both.g.array() == terms.g.array()).all()) << both.g << "\n vs \n" << terms.g;
+    EXPECT_EQ(V, model.potential(q)) << "th2 = " << th;
+    EXPECT_NEAR(V, -0.5 * 1.0 * 9.81 * std::cos(th), 1e-14) << "th2 = " << th;  // V = -b m2 g cos(th2)
+  }
+
+  // The ball: M, C and g constant (no step tape to run), V = m g y the tape's only output.
+  const LagrangianScene ball = load_scene(Scene("bouncing-ball-e0.5.json"));
+  EXPECT_EQ(ball.compiled->step_tape.num_outputs(), 0u);
+  EXPECT_EQ(ball.compiled->step_potential_tape.num_outputs(), 1u);
+  SceneModel<1> ball_model(ball);
+  LagrangianTerms<1> ball_terms;
+  ball_terms.resize(1);
+  for (double y : {-0.25, 0.0, 1.0, 3.5}) {
+    const Vec<1> q(y), v(0.5);
+    const double V = ball_model.evaluate_with_potential(0.0, q, v, ball_terms);
+    EXPECT_EQ(V, ball_model.potential(q));
+    EXPECT_NEAR(V, 1.0 * 9.81 * y, 1e-14) << "y = " << y;  // m = 1
+    EXPECT_EQ(ball_terms.M(0, 0), 1.0);
+    EXPECT_EQ(ball_terms.g(0), 9.81);
+  }
+}
+
 // (1.3): dM/dt = C + C^T along any motion, for the Christoffel C of a 3-DOF arm with a coupled,
 // configuration-dependent M. dM/dt is taken here by central differences (the library never does).
 TEST(Scene, ChristoffelSatisfiesSkewSymmetryProperty) {

@@ -722,6 +722,12 @@ class LagrangianCompiler : SceneReader {
       expr::Tape::Wiring w = position_wiring();
       w.outputs.push_back({{0, 0}});
       c->potential_tape.wire(w);
+      std::vector<Node> with_potential = step_outputs;
+      with_potential.push_back(potential_);
+      c->step_potential_tape = expr::Tape::compile(graph_, with_potential, 1 + 2 * n_, num_params());
+      expr::Tape::Wiring terms = terms_wiring(step_targets);
+      terms.outputs.push_back({{CompiledLagrangian::kPotential, 0}});
+      c->step_potential_tape.wire(terms);
     }
     if (!gaps_.empty()) {
       std::vector<Node> cons = gaps_;
@@ -876,8 +882,8 @@ LagrangianScene ParametricLagrangianScene::bind(const std::vector<double>& value
   if (!impl_->spare_compiled || impl_->spare_compiled.use_count() > 1) impl_->spare_compiled = std::make_shared<CompiledLagrangian>(*base.compiled);
   const std::shared_ptr<CompiledLagrangian> compiled = impl_->spare_compiled;
   bool generic = true;
-  for (expr::Tape* tape : {&compiled->step_tape, &compiled->mass_tape, &compiled->potential_tape, &compiled->split_force_tape,
-                           &compiled->constraint_tape, &compiled->hessian_tape, &compiled->bound_terms_tape})
+  for (expr::Tape* tape : {&compiled->step_tape, &compiled->mass_tape, &compiled->potential_tape, &compiled->step_potential_tape,
+                           &compiled->split_force_tape, &compiled->constraint_tape, &compiled->hessian_tape, &compiled->bound_terms_tape})
     generic = tape->bind(values.data()) && generic;
   // The entries of M, C and g of the parameters alone: constants of this binding.
   if (!compiled->bound_targets.empty()) {

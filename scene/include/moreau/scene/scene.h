@@ -86,12 +86,16 @@ struct CompiledLagrangian {
   // step_tape and mass_tape are wired (Tape::run_wired) to these arrays: they read t, q and v where the
   // model holds them and write their outputs straight into M, C and g (column-major M and C).
   enum Source : std::int32_t { kTime, kPosition, kVelocity };
-  enum Sink : std::int32_t { kMass, kCoriolis, kForce };
+  enum Sink : std::int32_t { kMass, kCoriolis, kForce, kPotential };
   expr::Tape step_tape;       // the non-constant entries of M, C and g = grad V + F
   expr::Tape mass_tape;       // the non-constant entries of M
   // V(q), if the scene gives a potential. Wired (Tape::run_wired) to read q from sources[0] and write V to
-  // sinks[0][0]: the Moreau-Jean step evaluates it at every step (the Lagrange-Dirichlet check).
+  // sinks[0][0].
   expr::Tape potential_tape;
+  // If the scene gives a potential: step_tape's outputs and V(q) last, wired as step_tape with V written
+  // to sinks[kPotential][0]. The Moreau-Jean step needs M, C, g and V at every Q^{k+1} (the
+  // Lagrange-Dirichlet check); in one tape V shares the sines, cosines and products of M and grad V.
+  expr::Tape step_potential_tape;
   // grad V(q) (n outputs) then F(t, q, v) (n outputs), apart: Assumption 4.1 2)-3) at the recorded states.
   // Wired to read t, q and v from sources[kTime, kPosition, kVelocity] and to write grad V to sinks[0] and
   // F to sinks[1] (ForceTerms::split).

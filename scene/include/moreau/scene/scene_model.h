@@ -2,8 +2,9 @@
 // requirements) and of the Moreau-Jean integrator (moreau_jean_integrator.h: constraints, restitution,
 // potential). evaluate() runs one tape for every non-constant entry of M, C and g = grad V + F, which
 // writes the values over the constant parts; constraints() runs one tape for the gaps h_i(q) and their
-// exact gradients, potential() one for V(q). Each tape is wired to where its caller holds q and wants the
-// results (Tape::run_wired): no copy, no allocation, no virtual call.
+// exact gradients, potential() one for V(q), evaluate_with_potential() one for the terms and V together.
+// Each tape is wired to where its caller holds q and wants the results (Tape::run_wired): no copy, no
+// allocation, no virtual call.
 #pragma once
 
 #include <algorithm>
@@ -58,6 +59,7 @@ class SceneModel {
     step_.wire(c_.step_tape);
     mass_.wire(c_.mass_tape);
     potential_.wire(c_.potential_tape);
+    step_potential_.wire(c_.step_potential_tape);
     constraints_.wire(c_.constraint_tape);
     constant_.resize(n_);
     load_constants(constant_);
@@ -74,17 +76,10 @@ class SceneModel {
   bool constant_terms() const { return !c_.robot && !step_.active; }
 
   void evaluate(double t, const Vec<N>& q, const Vec<N>& v, LagrangianTerms<N>& out) {
-    out.g = constant_.g;
-    if (c_.robot) {
-      // M, C and G = grad V of gravity from the robot (rigid_body.h); the step tape below writes F (and a
-      // potential's gradient) into g, and G is added after it.
-      rigid_body_terms(*c_.robot, *robot_data_, q.data(), v.data(), out.M, out.C, gravity_);
-    } else {
-      out.M = constant_.M;
-      out.C = constant_.C;
-    }
-    if (step_.active) step_.run(c_.step_tape, {&t, q.data(), v.data()}, {out.M.data(), out.C.data(), out.g.data()});  // none when all is constant
-    if (c_.robot) out.g += gravity_;
+    evaluate_terms(q, v, out, [&] {
+      if (step_.active)  // none when all is constant
+        step_.run(c_.step_tape, {&t, q.data(), v.data()}, {out.M.data(), out.C.data(), out.g.data()});
+    });
   }
 
   int num_constraints() const { return c_.num_constraints; }
@@ -94,6 +89,22 @@ class SceneModel {
   double potential(const Vec<N>& q) {
     double value = 0.0;
     if (potential_.active) potential_.run(c_.potential_tape, {q.data()}, {&value});  // CompiledLagrangian::potential_tape
+    if (c_.robot) value += potential_energy(*c_.robot, *robot_data_, q.data());
+    return value;
+  }
+
+  // evaluate() and potential() at one state, the same values: a scene's own potential from one tape with
+  // the terms (CompiledLagrangian::step_potential_tape), which computes the sines, cosines and products
+  // that V shares with M and grad V once.
+  double evaluate_with_potential(double t, const Vec<N>& q, const Vec<N>& v, LagrangianTerms<N>& out) {
+    if (!step_potential_.active) {  // no potential of the scene's own (none, or a robot's gravity alone)
+      evaluate(t, q, v, out);
+      return potential(q);
+    }
+    double value = 0.0;
+    evaluate_terms(q, v, out, [&] {
+      step_potential_.run(c_.step_potential_tape, {&t, q.data(), v.data()}, {out.M.data(), out.C.data(), out.g.data(), &value});
+    });
     if (c_.robot) value += potential_energy(*c_.robot, *robot_data_, q.data());
     return value;
   }
@@ -119,6 +130,23 @@ class SceneModel {
   }
 
  private:
+  // The terms at (q, v): their constant parts, the robot's M, C and gravity, and what run_tape writes
+  // over them (the non-constant entries of M, C and g).
+  template <class RunTape>
+  void evaluate_terms(const Vec<N>& q, const Vec<N>& v, LagrangianTerms<N>& out, RunTape&& run_tape) {
+    out.g = constant_.g;
+    if (c_.robot) {
+      // M, C and G = grad V of gravity from the robot (rigid_body.h); the step tape writes F (and a
+      // potential's gradient) into g, and G is added after it.
+      rigid_body_terms(*c_.robot, *robot_data_, q.data(), v.data(), out.M, out.C, gravity_);
+    } else {
+      out.M = constant_.M;
+      out.C = constant_.C;
+    }
+    run_tape();
+    if (c_.robot) out.g += gravity_;
+  }
+
   void load_constants(LagrangianTerms<N>& t) const {
     const int nn = n_ * n_;
     for (int i = 0; i < nn; ++i) {
@@ -151,7 +179,7 @@ class SceneModel {
       tape.run_wired(scratch.data(), sources, sinks);
     }
   };
-  WiredTape step_, mass_, potential_, constraints_;
+  WiredTape step_, mass_, potential_, step_potential_, constraints_;
   std::unique_ptr<RigidBodyData> robot_data_;  // a URDF system's buffers
   Vec<N> gravity_;
 };
