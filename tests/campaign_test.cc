@@ -371,8 +371,9 @@ TEST(CampaignRun, APartSeenUnderBothItsNamesIsReadOnce) {
 }
 
 // The byte limit is on the files as they are on disk, not on what one run adds: a campaign stopped and
-// resumed (as a restarted server resumes it) under the same limit ends where one uninterrupted run
-// would. Reference: the sizes of samples.jsonl and samples.csv, read from the file system.
+// resumed (as a restarted server resumes it) under the same limit stops when the files, with what the
+// first run wrote, reach it, and keeps the records that fit. Reference: the sizes of samples.jsonl and
+// samples.csv, read from the file system.
 TEST(CampaignRun, TheByteLimitCountsWhatEarlierRunsWrote) {
   const CampaignSpec s = CampaignSpec::from_json(relay_spec("sobol", 50), "");
   const fs::path dir = fresh_dir("bytes-resumed");
