@@ -14,8 +14,9 @@ form where one exists (bouncing ball, damped relay, two-state relay Lur'e system
 of each side (the manipulator: each side against its own fine run; the distance between the two fine
 runs is printed too).
 
-Where Siconos' position error is the smaller at the same h, Moreau is rerun at the h that matches it and
-the ratio is also given at that equal accuracy (Moreau charged for the extra steps).
+The ratio is also given at equal accuracy: the side whose position error is the larger at the same h is
+rerun at the h that brings it down to the other side's, and charged for the extra steps. Moreau is charged
+at its ns/step at h (its benchmarks run that h); Siconos is timed at its smaller h in the same rounds.
 
 Usage:
   scripts/compare-siconos.py [--moreau-build build] [--siconos /tmp/siconos-build/siconos_bench]
@@ -308,6 +309,25 @@ def moreau_equal_accuracy(cli, row, target, ref, tmp):
     return h, err
 
 
+def siconos_equal_accuracy(binary, row, target, ref, tmp, extra):
+    """Siconos' counterpart of moreau_equal_accuracy: the largest h tried (from h * target / error downwards)
+    at which Siconos' headline error is at most target, with that error. Each h divides t_end into whole steps
+    (rounded down from the first-order guess): Siconos' TimeStepping aborts on a last step shorter than h
+    (an assertion that t_{k+1} is a number)."""
+    kind = row["score"]
+    h = row["h"]
+    err = None
+    for attempt in range(6):
+        h = row["t_end"] / math.ceil(row["t_end"] / h - 1e-9)
+        path = os.path.join(tmp, f"siconos-{row['id']}-eq{attempt}.csv")
+        siconos_run(binary, row, 0, path, h=h, extra=extra)
+        err = score(kind, read_csv(path), ref)[headline_error(kind, {})]
+        if err <= target:
+            return h, err
+        h *= 0.98 * target / err
+    return h, err
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--moreau-build", default=os.path.join(ROOT, "build"),
@@ -376,14 +396,18 @@ def main():
             m_err = score(kind, m_cols)
             s_err = score(kind, s_cols)
         key = headline_error(kind, m_err)
-        # Equal accuracy: when Siconos is the more accurate at the same h, Moreau is run at the smaller h
-        # that brings its error down to Siconos' and charged for the extra steps.
+        # Equal accuracy: the side with the larger error at the same h is run at the smaller h that brings
+        # its error down to the other's, and charged for the extra steps.
         h_eq, e_eq = row["h"], m_err[key]
+        s_h_eq, s_e_eq = row["h"], s_err[key]
         if m_err[key] > s_err[key]:
             log(f"{row['id']}: Moreau at equal accuracy")
             h_eq, e_eq = moreau_equal_accuracy(cli, row, s_err[key], refs.get("moreau"), tmp)
+        elif s_err[key] > m_err[key]:
+            log(f"{row['id']}: Siconos at equal accuracy")
+            s_h_eq, s_e_eq = siconos_equal_accuracy(args.siconos, row, m_err[key], refs.get("siconos"), tmp, extra)
 
-        m_runs, c_runs, s_runs = [], [], []
+        m_runs, c_runs, s_runs, s_eq_runs = [], [], [], []
         for rnd in range(args.rounds):
             log(f"{row['id']}: timing, round {rnd + 1}/{args.rounds}")
             if row["bench"]:
@@ -393,7 +417,10 @@ def main():
             if row["compiled"]:
                 c_runs.append(moreau_bench(bins[row["compiled"][0]], row["compiled"][1], args.reps))
             s_runs.append(siconos_run(args.siconos, row, args.reps, extra=extra)["ns_per_step"])
+            if s_h_eq != row["h"]:
+                s_eq_runs.append(siconos_run(args.siconos, row, args.reps, h=s_h_eq, extra=extra)["ns_per_step"])
         m_ns, s_ns = min(m_runs), min(s_runs)
+        s_eq_ns = min(s_eq_runs) if s_eq_runs else s_ns
         m_comp = min(c_runs) if c_runs else None
         results.append(dict(
             row=row["id"], scene=row["scene"], h=row["h"], t_end=row["t_end"],
@@ -404,8 +431,10 @@ def main():
             ratio=s_ns / m_ns, ratio_compiled=(s_ns / m_comp) if m_comp else None,
             moreau_error=m_err, siconos_error=s_err, score=kind, headline=key,
             moreau_h_equal_accuracy=h_eq, moreau_error_equal_accuracy=e_eq,
-            # Same horizon: cost per run is ns/step * t_end / h, so the ratio at equal accuracy scales by h_eq/h.
-            ratio_equal_accuracy=s_ns / m_ns * h_eq / row["h"]))
+            siconos_h_equal_accuracy=s_h_eq, siconos_error_equal_accuracy=s_e_eq,
+            siconos_ns_equal_accuracy=s_eq_ns, siconos_rounds_equal_accuracy=s_eq_runs,
+            # Same horizon: a run costs ns/step * t_end / h on each side, each at its equal-accuracy h.
+            ratio_equal_accuracy=(s_eq_ns * row["t_end"] / s_h_eq) / (m_ns * row["t_end"] / h_eq)))
 
     head = ["workload", "h", "t_end", "Moreau ns/step (scene)", "Moreau ns/step (compiled)", "Siconos ns/step",
             "Siconos/Moreau", "at equal accuracy", "Moreau error", "Siconos error"]
@@ -414,6 +443,9 @@ def main():
         eq = f"{r['ratio_equal_accuracy']:.0f}x"
         if r["moreau_h_equal_accuracy"] != r["h"]:
             eq += f" (Moreau h {r['moreau_h_equal_accuracy']:.3g})"
+        if r["siconos_h_equal_accuracy"] != r["h"]:
+            eq += (f" (Siconos h {r['siconos_h_equal_accuracy']:.3g}: {fmt(r['siconos_ns_equal_accuracy'])} ns/step, "
+                   f"error {fmt(r['siconos_error_equal_accuracy'])})")
         lines.append([r["row"], f"{r['h']:g}", f"{r['t_end']:g}", fmt(r["moreau_ns"]), fmt(r["moreau_compiled_ns"]),
                       fmt(r["siconos_ns"]),
                       f"{r['ratio']:.0f}x" + (f" ({r['ratio_compiled']:.0f}x compiled)" if r["ratio_compiled"] else ""),
@@ -431,8 +463,9 @@ def main():
     print()
     print("errors: max over the run's samples; ball y and damped relay q, v against the closed form, rest = |rest time - "
           "exact|, min y = deepest penetration; Lur'e x against the closed form; manipulator q against each side's own "
-          "fine run. 'at equal accuracy': where Siconos' position error is the smaller, Moreau is rerun at the h that "
-          "matches it (shown) and charged for the extra steps at the same ns/step.")
+          "fine run. 'at equal accuracy': the side whose position error is the larger is rerun at the h that "
+          "matches the other's (shown) and charged for the extra steps: Moreau at its ns/step at h, Siconos at its "
+          "ns/step timed at that h in the same rounds.")
     if refs:
         print(f"manipulator references: Moreau h = {args.moreau_ref_h:g}, Siconos h = {args.siconos_ref_h:g}; they differ "
               f"by {fmt(refs['distance'])} (max |q|).")
