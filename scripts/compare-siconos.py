@@ -293,35 +293,17 @@ def headline(kind, s):
     return f"q {fmt(s['max_err_q'])}"
 
 
-def moreau_equal_accuracy(cli, row, target, ref, tmp):
-    """The largest h (tried from h * target / error downwards) at which Moreau's headline error is at most
-    target, with that error. First order: a step of h * target / error is expected to do; it is checked."""
-    kind = row["score"]
+def equal_accuracy_h(row, target, error_at, whole_steps):
+    """The largest h tried (from h * target / error downwards, first order) at which a side's headline
+    error, error_at(h, attempt), is at most target, with that error; each guess is checked by a run.
+    whole_steps: h divides t_end into whole steps (rounded down from the guess), for Siconos, whose
+    TimeStepping aborts on a last step shorter than h (an assertion that t_{k+1} is a number)."""
     h = row["h"]
     err = None
     for attempt in range(6):
-        path = os.path.join(tmp, f"moreau-{row['id']}-eq{attempt}.csv")
-        cols = moreau_trajectory(cli, row, path, h=h, every=1)
-        err = score(kind, cols, ref)[headline_error(kind, {})]
-        if err <= target:
-            return h, err
-        h *= 0.98 * target / err
-    return h, err
-
-
-def siconos_equal_accuracy(binary, row, target, ref, tmp, extra):
-    """Siconos' counterpart of moreau_equal_accuracy: the largest h tried (from h * target / error downwards)
-    at which Siconos' headline error is at most target, with that error. Each h divides t_end into whole steps
-    (rounded down from the first-order guess): Siconos' TimeStepping aborts on a last step shorter than h
-    (an assertion that t_{k+1} is a number)."""
-    kind = row["score"]
-    h = row["h"]
-    err = None
-    for attempt in range(6):
-        h = row["t_end"] / math.ceil(row["t_end"] / h - 1e-9)
-        path = os.path.join(tmp, f"siconos-{row['id']}-eq{attempt}.csv")
-        siconos_run(binary, row, 0, path, h=h, extra=extra)
-        err = score(kind, read_csv(path), ref)[headline_error(kind, {})]
+        if whole_steps:
+            h = row["t_end"] / math.ceil(row["t_end"] / h - 1e-9)
+        err = error_at(h, attempt)
         if err <= target:
             return h, err
         h *= 0.98 * target / err
@@ -400,12 +382,22 @@ def main():
         # its error down to the other's, and charged for the extra steps.
         h_eq, e_eq = row["h"], m_err[key]
         s_h_eq, s_e_eq = row["h"], s_err[key]
+
+        def moreau_error_at(h, attempt):
+            path = os.path.join(tmp, f"moreau-{row['id']}-eq{attempt}.csv")
+            return score(kind, moreau_trajectory(cli, row, path, h=h, every=1), refs.get("moreau"))[key]
+
+        def siconos_error_at(h, attempt):
+            path = os.path.join(tmp, f"siconos-{row['id']}-eq{attempt}.csv")
+            siconos_run(args.siconos, row, 0, path, h=h, extra=extra)
+            return score(kind, read_csv(path), refs.get("siconos"))[key]
+
         if m_err[key] > s_err[key]:
             log(f"{row['id']}: Moreau at equal accuracy")
-            h_eq, e_eq = moreau_equal_accuracy(cli, row, s_err[key], refs.get("moreau"), tmp)
+            h_eq, e_eq = equal_accuracy_h(row, s_err[key], moreau_error_at, whole_steps=False)
         elif s_err[key] > m_err[key]:
             log(f"{row['id']}: Siconos at equal accuracy")
-            s_h_eq, s_e_eq = siconos_equal_accuracy(args.siconos, row, m_err[key], refs.get("siconos"), tmp, extra)
+            s_h_eq, s_e_eq = equal_accuracy_h(row, m_err[key], siconos_error_at, whole_steps=True)
 
         m_runs, c_runs, s_runs, s_eq_runs = [], [], [], []
         for rnd in range(args.rounds):
