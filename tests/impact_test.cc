@@ -11,6 +11,8 @@
 #include <set>
 #include <vector>
 
+#include "moreau/core/moreau_jean_integrator.h"
+#include "moreau/core/one_step_solver.h"
 #include "moreau/scene/scene.h"
 #include "moreau/scene/simulation.h"
 
@@ -479,6 +481,89 @@ TEST(Impact, WithoutConstraintsOneStepHasTheVelocityOfTheAblScheme) {
       EXPECT_EQ(mj.summary.q_final[j], q0[j] + h * mj.summary.v_final[j]);
     }
   }
+}
+
+// A compiled two-coordinate model whose one-step matrix P = M/h + C is not a P-matrix: M = I, C = [[0, k],
+// [k, 0]] with k = 30 (a compiled model may give any C; this one is no Christoffel form), g constant,
+// phi(v) = |v_1| + |v_2|, h = 0.1, so P = [[10, 30], [30, 10]] has det P < 0 (and (4.2) fails:
+// r_k = 2 h ||C||_2 / lambda_min(M) = 6). The sign-pattern solver of (6.5) declines some of its steps, and
+// moreau-jean then solves them through the general rows (GraphInclusionSolver). Reference: the step's
+// inclusion itself, M (V+ - V) + h C V+ + h g in -h a Sgn(V+), checked coordinate by coordinate at every
+// step, and Q+ = Q + h V+; the declined steps are counted by a separate OneStepSolver on the same P and x,
+// so the test fails if the general path is never reached.
+struct CrossCoupled {
+  static constexpr int kDof = 2;
+  Mat<2> C = (Mat<2>() << 0.0, 30.0, 30.0, 0.0).finished();
+  Vec<2> g = Vec<2>(0.5, -0.3);
+  Controller<2> phi = [] {
+    Controller<2> c = Controller<2>::zero(2);
+    c.gains << 1.0, 1.0;
+    return c;
+  }();
+  int dof() const { return 2; }
+  const Controller<2>& controller() const { return phi; }
+  bool constant_mass() const { return true; }
+  bool constant_terms() const { return true; }
+  void mass(const Vec<2>&, Mat<2>& M) const { M.setIdentity(); }
+  void evaluate(double, const Vec<2>&, const Vec<2>&, LagrangianTerms<2>& out) const {
+    out.M.setIdentity();
+    out.C = C;
+    out.g = g;
+  }
+  int num_constraints() const { return 0; }
+  double restitution(int) const { return 0.0; }
+  template <class Rows>
+  void constraints(const Vec<2>&, Eigen::VectorXd&, Rows&) const {}
+  bool has_potential() const { return false; }
+  double potential(const Vec<2>&) const { return 0.0; }
+  double evaluate_with_potential(double t, const Vec<2>& q, const Vec<2>& v, LagrangianTerms<2>& out) const {
+    evaluate(t, q, v, out);
+    return 0.0;
+  }
+};
+
+TEST(Impact, StepsThatTheSolverOf65DeclinesSolveTheInclusionThroughTheGeneralRows) {
+  CrossCoupled model;
+  MoreauJeanSettings settings;
+  settings.h = 0.1;
+  settings.t_end = 2.0;
+  MoreauJeanIntegrator<CrossCoupled> integrator(model, settings);
+  Recorder rec;
+  const RunSummary s = integrator.run(Vec<2>(0.0, 0.0), Vec<2>(2.0, -1.0), &rec);
+  ASSERT_EQ(s.status, RunStatus::kCompleted) << s.message;
+  const std::size_t steps = rec.t.size() - 1;
+  ASSERT_EQ(steps, 20u);
+
+  const double h = settings.h, eps = std::numeric_limits<double>::epsilon();
+  const Mat<2> P = (1.0 / h) * Mat<2>::Identity() + model.C;
+  ASSERT_LT(P.determinant(), 0.0);
+  OneStepSolver<2> independent;
+  independent.configure(model.phi.gains, 0.0);
+  int declined = 0;
+  for (std::size_t k = 0; k < steps; ++k) {
+    const Vec<2> q0(rec.q[2 * k], rec.q[2 * k + 1]), v0(rec.v[2 * k], rec.v[2 * k + 1]);
+    const Vec<2> q1(rec.q[2 * k + 2], rec.q[2 * k + 3]), v1(rec.v[2 * k + 2], rec.v[2 * k + 3]);
+    const Vec<2> x = model.g - (1.0 / h) * v0;
+    Vec<2> y;
+    OneStepStats st;
+    declined += !independent.solve(P, x, y, st);
+    // (GE) with M = I: r = V+ - V + h C V+ + h g must lie in -h a Sgn(V+).
+    const Vec<2> cv = model.C * v1;
+    for (int i = 0; i < 2; ++i) {
+      const double r = v1(i) - v0(i) + h * cv(i) + h * model.g(i);
+      const double a = h * model.phi.gains(i);
+      const double tol = 64.0 * eps * (std::abs(v1(i)) + std::abs(v0(i)) + h * model.C.cwiseAbs().row(i).dot(v1.cwiseAbs()) + h * std::abs(model.g(i)) + a);
+      if (v1(i) > 0.0) {
+        EXPECT_NEAR(r, -a, tol) << "step " << k << ", coordinate " << i;
+      } else if (v1(i) < 0.0) {
+        EXPECT_NEAR(r, a, tol) << "step " << k << ", coordinate " << i;
+      } else {
+        EXPECT_LE(std::abs(r), a + tol) << "step " << k << ", coordinate " << i;
+      }
+      EXPECT_EQ(q1(i), q0(i) + h * v1(i)) << "step " << k;
+    }
+  }
+  EXPECT_GT(declined, 0) << "no step went through the general rows";
 }
 
 // The damped relay m x'' = -c x' - a Sign(x') on moreau-jean: the discrete solution written out (the soft
