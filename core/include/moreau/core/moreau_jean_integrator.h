@@ -219,7 +219,7 @@ class MoreauJeanIntegrator {
     return 64.0 * std::numeric_limits<double>::epsilon() * std::max(kinetic_, e_initial);
   }
 
-  // <M x, x> with M = M(Q^k) of terms_.
+  // <M x, x> with M = M(Q^k) of terms_; M x is left in Mv_.
   double m_norm2(const Vec<N>& x) {
     Mv_.noalias() = terms_.M * x;
     return x.dot(Mv_);
@@ -264,7 +264,7 @@ class MoreauJeanIntegrator {
     // without constraints whose step has controlled rows needs it only where the solver of (6.5) does not
     // accept its solution (solve_controlled_rows).
     const bool free_first = nc_ > 0 || na_ == 0;
-    if (free_first) free_velocity(v, h);
+    if (free_first) free_velocity(h);
 
     // Predicted active set and the rows of (GE).
     bool any_active = false;
@@ -281,9 +281,9 @@ class MoreauJeanIntegrator {
     // by_rows: the step's impulses are those of the rows of (GE) (w_, contact_row_); not after the
     // controlled rows alone were solved as (6.5).
     bool by_rows = solves;
-    if (solves && !any_active && solve_controlled_rows(v, h, rec)) by_rows = false;
+    if (solves && !any_active && solve_controlled_rows(h, rec)) by_rows = false;
     if (by_rows) {
-      if (!free_first) free_velocity(v, h);  // (6.5) was not accepted: the general rows need V_free
+      if (!free_first) free_velocity(h);  // (6.5) was not accepted: the general rows need V_free
       // The rows of (GE): the controlled coordinates, then the contacts of I_k only. A contact outside
       // I_k has P_i = 0 (a known impulse), so its row would change no other row's solution; leaving it out
       // spares its solve with Wm and its row and column of D (a robot's inactive joint limits).
@@ -504,12 +504,16 @@ class MoreauJeanIntegrator {
   }
 
   // Wm V_free = M V^k - h g, Wm = M + h (C + W), factorised in lu_ for the rows of (GE).
-  void free_velocity(const Vec<N>& v, double h) {
+  void free_velocity(double h) {
     Wm_ = terms_.M;
     Wm_.noalias() += h * terms_.C;
     Wm_.diagonal() += h * weights_;
     lu_.compute(Wm_);
-    rhs_.noalias() = terms_.M * v;
+    // M V^k is Mv_ (m_norm2 of the last arrive()), but computed again here: reading Mv_ cost the bouncing
+    // ball 9 more instructions per step than the 1 x 1 product (callgrind; GCC 12 allocates the step's
+    // registers differently); at larger n the product (n^2 multiplications) is the smaller part beside
+    // Wm's factorisation (n^3 / 3).
+    rhs_.noalias() = terms_.M * v_;
     rhs_ -= h * terms_.g;
     vf_.noalias() = lu_.solve(rhs_);
   }
@@ -518,12 +522,11 @@ class MoreauJeanIntegrator {
   // P V^{k+1} + x in -d phi(V^{k+1}), P = M/h + C + W, x = g - M V^k / h (the header). P and x are formed
   // as the abl scheme forms them, entry by entry the same roundings. False, with nothing recorded, when
   // the solver does not accept a solution: the general path solves the step then.
-  bool solve_controlled_rows(const Vec<N>& v, double h, RunRecorder& rec) {
+  bool solve_controlled_rows(double h, RunRecorder& rec) {
     const double inv_h = 1.0 / h;
     inclusion_P_.noalias() = inv_h * terms_.M + terms_.C;
     inclusion_P_.diagonal() += weights_;
-    Mv_.noalias() = terms_.M * v;
-    inclusion_x_ = terms_.g - inv_h * Mv_;
+    inclusion_x_ = terms_.g - inv_h * Mv_;  // Mv_ = M V^k
     OneStepStats st;
     if (!controlled_solver_.solve(inclusion_P_, inclusion_x_, vn_, st)) return false;
     rec.solver_step(st.iterations, st.residual, st.used_fallback);
@@ -597,9 +600,7 @@ class MoreauJeanIntegrator {
     double eq9 = 0.0;
     const bool evaluated = solve_impact_law(simultaneous, eq9);
     rhs_.noalias() = terms_.M * vn_;
-    double measured = 0.5 * vn_.dot(rhs_);
-    rhs_.noalias() = terms_.M * v_;
-    measured -= 0.5 * v_.dot(rhs_);
+    const double measured = 0.5 * vn_.dot(rhs_) - kinetic_;  // kinetic_ = 1/2 <M V^k, V^k>
     int a = 0;
     for (int i = 0; i < nc_; ++i) {
       if (!impacting_[i]) continue;
@@ -733,7 +734,10 @@ class MoreauJeanIntegrator {
   double kinetic_ = 0.0, potential_ = 0.0;  // 1/2 <M V^k, V^k> and U(Q^k)
   ContactDiagnostics* d_ = nullptr;         // where the running run records
   Vec<N> vf_, vn_, vpos_, rhs_, qn_, dq_, rsq_, vsq_;
-  Vec<N> Mv_;  // M v for the kinetic energies: a product nested in dot() would be a heap temporary at dynamic sizes
+  // M(Q^k) V^k from the kinetic energy of begin() and arrive() (m_norm2), used by the next step's (6.5)
+  // instead of a second product (correct() uses it as scratch before arrive() sets it). A member: a
+  // product nested in dot() would be a heap temporary at dynamic sizes.
+  Vec<N> Mv_;
   Mat<N> Gsq_;
   Eigen::VectorXd gap_, U_, Un_;
   RowsN H_;
