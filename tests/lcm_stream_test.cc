@@ -19,6 +19,7 @@
 
 #include "server_fixture.h"
 
+#include "moreau/core/models/manipulator.h"
 #include "moreau/core/run_summary.h"
 
 #include <lcm/lcm-cpp.hpp>
@@ -37,6 +38,7 @@ using moreau::test_support::TempDir;
 using moreau::server::testing::TestServer;
 using moreau::server::testing::wait_final;
 using moreau::server::testing::wait_running;
+using moreau::server::testing::wait_step;
 using json = nlohmann::json;
 using Clock = std::chrono::steady_clock;
 namespace fs = std::filesystem;
@@ -117,13 +119,20 @@ void check_stream(const Received& got, const std::string& id, const json& report
     ASSERT_GE(b.utime, a.utime) << i;
     EXPECT_LE(b.t - a.t, period + 1.5e-3) << i;
   }
+  // Each state's energy against 1/2 <M(q) v, v> of its own q and v, with the paper's M(q) written apart
+  // from the scene's expressions (models::Manipulator, whose defaults are the scene's parameters).
+  const moreau::models::Manipulator model;
   for (const auto& s : got.states) {
     EXPECT_EQ(s.job_id, id);
     EXPECT_EQ(s.n, 2);
-    EXPECT_EQ(s.q.size(), 2u);
-    EXPECT_EQ(s.v.size(), 2u);
+    ASSERT_EQ(s.q.size(), 2u);
+    ASSERT_EQ(s.v.size(), 2u);
     EXPECT_DOUBLE_EQ(s.h, 1e-3);
-    EXPECT_GE(s.energy, 0.0);
+    moreau::Mat<2> M;
+    model.mass(moreau::Vec<2>(s.q[0], s.q[1]), M);
+    const moreau::Vec<2> v(s.v[0], s.v[1]);
+    const double kinetic = 0.5 * v.dot(M * v);
+    EXPECT_NEAR(s.energy, kinetic, 1e-12 * (1.0 + kinetic)) << "step " << s.step;
   }
   const auto& last = got.states.back();
   EXPECT_EQ(last.step, report["steps"]);
@@ -391,20 +400,29 @@ TEST(LcmStream, RealtimeIsPacedAndStillCancelsQuickly) {
   ASSERT_GE(col.got.descriptions.size(), 1u) << "a description when the stream starts";
   const std::size_t first_job_descriptions = col.got.descriptions.size();
 
-  // A paced job sleeps between states; cancelling it wakes it.
-  r = submit(*c, {{"scene", manipulator()}, {"overrides", {"integrator.t_end=100"}}, {"stream", {{"realtime", true}}}});
+  // A paced job sleeps until each sample's time; cancelling it wakes it. With a stream period of 60 s and
+  // a trajectory row every 60,000 steps of 1e-3 s, the run's samples are 60,000 steps apart (a stream
+  // samples the run at least once per period), and its second is due 60 s of wall-clock time after its
+  // start. Once its progress shows its last cancellation check before that sample (step 59,904 =
+  // 234 x 256), it is asleep or about to be: woken, it stops at its next check (step 60,160); not woken,
+  // it would sleep until the 60 s are up. The 20 s given to wait_final tell the two apart with a wide
+  // margin (nothing is timed).
+  json paced = manipulator();
+  paced["integrator"]["t_end"] = 100.0;
+  paced["output"]["every"] = 60000;
+  r = submit(*c, {{"scene", paced}, {"stream", {{"realtime", true}, {"period", 60.0}}}});
+  ASSERT_EQ(r->status, 202) << r->body;
   const std::string id = json::parse(r->body)["id"];
   ASSERT_EQ(wait_running(*c, id), "running");
-  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  constexpr std::int64_t kInterval = moreau::RunObserver::kControlInterval;
+  constexpr std::int64_t kLastCheckBefore = 60000 / kInterval * kInterval;
+  ASSERT_GE(wait_step(*c, id, kLastCheckBefore), kLastCheckBefore);
   auto d = c->Delete("/v1/jobs/" + id);
   ASSERT_EQ(d->status, 202) << d->body;
   EXPECT_EQ(json::parse(d->body)["state"], "cancelling");
-  // Woken from its pacing, the run ends at its next check (every 256 steps, where it publishes its step),
-  // long before the 100 s of simulated time it would take (stated in steps, not milliseconds).
-  const std::int64_t seen = json::parse(c->Get("/v1/jobs/" + id)->body)["progress"]["step"].get<std::int64_t>();
-  const json job = wait_final(*c, id);
-  EXPECT_EQ(job["state"], "cancelled");
-  EXPECT_LE(job["report"]["steps"].get<std::int64_t>(), seen + moreau::RunObserver::kControlInterval);
+  const json job = wait_final(*c, id, 20);
+  EXPECT_EQ(job["state"], "cancelled") << "the paced run was not woken by its cancellation: " << job.dump();
+  EXPECT_EQ(job["report"]["steps"].get<std::int64_t>(), kLastCheckBefore + kInterval);
 
   // A long paced stream repeats its description about once a second of wall-clock time, for viewers
   // that join late: wait (on the messages, not a clock) until a second one comes, and check the spacing.

@@ -26,6 +26,7 @@ using moreau::test_support::TempDir;
 using moreau::server::testing::TestServer;
 using moreau::server::testing::wait_final;
 using moreau::server::testing::wait_running;
+using moreau::server::testing::wait_step;
 using json = nlohmann::json;
 using Clock = std::chrono::steady_clock;
 namespace fs = std::filesystem;
@@ -371,7 +372,8 @@ TEST(ServerApi, CancellingARunningJobStopsAtItsNextCheck) {
   ASSERT_EQ(r->status, 202) << r->body;
   const std::string id = json::parse(r->body)["id"];
   ASSERT_EQ(wait_running(*c, id), "running");
-  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  // Into its run (past its first check), so that what follows is the cancellation of a stepping run.
+  ASSERT_GE(wait_step(*c, id, moreau::RunObserver::kControlInterval), moreau::RunObserver::kControlInterval);
 
   // DELETE answers at once: 202, cancelling; the run stops at its next check (every 256 steps) and
   // the job is then cancelled, with what it computed stored.

@@ -6,6 +6,7 @@
 #include <stdlib.h>
 
 #include <chrono>
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -121,6 +122,23 @@ inline std::string wait_running(httplib::Client& c, const std::string& id, doubl
     std::this_thread::sleep_for(std::chrono::milliseconds(2));
   }
   return "queued";
+}
+
+// Polls a running job until its progress shows at least `step` (a run publishes its step at each
+// cancellation check, every RunObserver::kControlInterval steps). Returns the step seen, or -1 when the
+// deadline passes first.
+inline std::int64_t wait_step(httplib::Client& c, const std::string& id, std::int64_t step, double seconds = 10) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+  while (std::chrono::steady_clock::now() < deadline) {
+    auto r = c.Get("/v1/jobs/" + id);
+    if (r && r->status == 200) {
+      const nlohmann::json j = nlohmann::json::parse(r->body);
+      const std::int64_t seen = j["progress"]["step"].get<std::int64_t>();
+      if (seen >= step) return seen;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  return -1;
 }
 
 }  // namespace moreau::server::testing
