@@ -247,7 +247,7 @@ TEST(Impact, SimultaneousImpactsOfABarOnTwoSupportsFollowMoreausLaw) {
     // The step's dT, from its own velocities. (Later impacts, with the bar tilted or one end resting,
     // differ from the law by what the step adds over h.)
     EXPECT_NEAR(a.kinetic_change, dT_law, 1e-9 * std::abs(dT_law));
-    EXPECT_EQ(b.kinetic_change, a.kinetic_change);
+    EXPECT_NEAR(b.kinetic_change, dT_law, 1e-9 * std::abs(dT_law));  // one step, one change: both events carry it
   }
 }
 
@@ -457,10 +457,12 @@ TEST(Impact, WithoutConstraintsAStepIsTheInclusionOfTheSchemeWithAnImplicitPosit
   EXPECT_EQ(r.summary.v_final[1], 0.0);
 }
 
-// One step from the same state: moreau-jean's V^{k+1} is that of the abl scheme (0.2) bit for bit (the
-// same inclusion (6.5), formed with the same roundings and solved by the same solver), and the positions
-// differ only by the update: Q^k + h V^{k+1} against Q^k + h V^k. Reference: the abl integrator, a
-// separate scheme with its own step.
+// One step from the same state: moreau-jean's V^{k+1} is that of the abl scheme (0.2) bit for bit, and the
+// positions differ only by the update: Q^k + h V^{k+1} against Q^k + h V^k. What this guards is the claim
+// the docs make of the two schemes (docs/second-paper.md, docs/siconos-comparison.md) and that a step
+// without contacts takes the (6.5) path; it is not an independent check of the velocity: both schemes form
+// (6.5) with the same roundings and solve it with the same OneStepSolver. The velocity itself is checked
+// against the paper's inclusion by WithoutConstraintsAStepIsTheInclusionOfTheSchemeWithAnImplicitPosition.
 TEST(Impact, WithoutConstraintsOneStepHasTheVelocityOfTheAblScheme) {
   const std::vector<std::pair<std::vector<double>, std::vector<double>>> states = {
       {{3.0, -1.0}, {-1.0, 1.0}}, {{0.2, 0.7}, {2.0, -3.0}}, {{-1.0, 2.5}, {1e-3, 0.0}}, {{0.0, 0.3}, {0.0, 0.0}}};
