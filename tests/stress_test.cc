@@ -9,6 +9,11 @@
 #include <map>
 #include <string>
 
+#include <Eigen/Eigenvalues>
+#include <Eigen/SVD>
+
+#include "moreau/core/models/manipulator.h"
+
 namespace moreau::scene {
 
 // Test names and failure messages show the case's name, not its bytes.
@@ -76,12 +81,30 @@ TEST(Stress, OneCoordinateCasesFollowTheirDiscreteClosedForm) {
   EXPECT_GE(checked, 4);  // tiny mass, huge mass, tiny step, the two perturbations
 }
 
-TEST(Stress, TheTheorem41RuleShrinksTheStep) {
+// The manipulator at |v0| ~ 100 with a scene step of 0.1 under the Theorem 4.2 rule: every step it takes
+// is shorter than 0.1, and each satisfies Theorem 4.1's (4.2), r_k <= 1 (the run's own per-step check,
+// itself checked against eigenvalue solvers in step_conditions_test.cc), which the scene's h = 0.1 breaks
+// at the start (r_0 = 2 h ||C||_2 / lambda_min(M) computed here from the paper's closed forms).
+TEST(Stress, TheTheorem42RuleShrinksTheStep) {
+  bool found = false;
   for (const auto& c : stress_cases()) {
-    if (c.name != "theorem-4.1-shrinks-h") continue;
+    if (c.name != "theorem-4.2-rule-shrinks-h") continue;
+    found = true;
     const StressOutcome o = run_stress_case(c);
     EXPECT_LT(o.summary.h_max, 0.1);
+    EXPECT_GT(o.summary.theorem41.checked, 0);
+    EXPECT_EQ(o.summary.theorem41.violations, 0);
   }
+  EXPECT_TRUE(found) << "no stress case theorem-4.2-rule-shrinks-h";
+  // At the case's initial state (q = (3, -1), v = (60, 80), g = 0.9), h = 0.1 would break (4.2).
+  moreau::models::ManipulatorParameters p;
+  p.gravity_m_s2 = 0.9;
+  const moreau::models::Manipulator model(p);
+  moreau::LagrangianTerms<2> terms;
+  model.evaluate(0.0, moreau::Vec<2>(3.0, -1.0), moreau::Vec<2>(60.0, 80.0), terms);
+  const double lambda_min = Eigen::SelfAdjointEigenSolver<moreau::Mat<2>>(terms.M).eigenvalues()(0);
+  const double c_norm = Eigen::JacobiSVD<moreau::Mat<2>>(terms.C).singularValues()(0);
+  EXPECT_GT(2.0 * 0.1 * c_norm / lambda_min, 1.0);
 }
 
 // The robot cases' premises, from the runs' own per-step checks of (4.2): the fixed step does leave

@@ -102,7 +102,7 @@ std::vector<StressCase> stress_cases() {
     add({"near-singular-mass", "M with condition number 1e12 (eigenvalues 1 and 1e-12), coupled", s, true, true, true, true,
          "constant M, F = 0: Thms 4.2 and 4.3 hold; the one-step solver must stay at round-off"});
   }
-  add({"theorem-4.1-shrinks-h", "the manipulator at |v0| ~ 100 with h = 0.1 under the Theorem 4.2 rule, g = 0.9",
+  add({"theorem-4.2-rule-shrinks-h", "the manipulator at |v0| ~ 100 with h = 0.1 under the Theorem 4.2 rule, g = 0.9",
        manipulator(0.9, {60, 80}, 0.1, 60.0, "theorem-4.2"), true, true, true, true,
        "Assumption 4.1 holds (b m2 g = 0.45 <= 1/2): E_k non-increasing, finite-step rest; h_k must shrink"});
   add({"perturbation-just-below-gain", "a constant force f = a (1 - 1e-9) against the relay a, with damping c = 1",
