@@ -223,6 +223,24 @@ std::vector<Case> cases() {
                    "unknown function 'foo'"));
   t.push_back(post("VelocityInMassMatrix", scene_body([](json& s) { s["system"]["mass"] = {{"1 + v1^2"}}; }), 400, "/system/mass/0/0",
                    "'v1' cannot appear in the mass matrix"));
+  // A URDF whose joints are not a tree: link a hangs from base (j1) and from b (j3), and b from a (j2).
+  // It once sent the walk down the robot's tree round the loop without end, holding a worker and growing
+  // its memory (urdf_module.cc, check_tree).
+  t.push_back(post("UrdfJointsThatLoop", scene_body([](json& s) {
+                     const std::string lim =
+                         "<limit lower=\"-1\" upper=\"1\" effort=\"1\" velocity=\"1\"/><axis xyz=\"0 0 1\"/>";
+                     const std::string in =
+                         "<inertial><mass value=\"1\"/><inertia ixx=\"0.1\" ixy=\"0\" ixz=\"0\" iyy=\"0.1\" iyz=\"0\" izz=\"0.1\"/></inertial>";
+                     const std::string urdf =
+                         "<robot name=\"r\"><link name=\"base\"/>\n"
+                         "<joint name=\"j1\" type=\"revolute\"><parent link=\"base\"/><child link=\"a\"/>" + lim + "</joint>\n"
+                         "<link name=\"a\">" + in + "</link>\n<link name=\"b\">" + in + "</link>\n"
+                         "<joint name=\"j2\" type=\"revolute\"><parent link=\"a\"/><child link=\"b\"/>" + lim + "</joint>\n"
+                         "<joint name=\"j3\" type=\"revolute\"><parent link=\"b\"/><child link=\"a\"/>" + lim + "</joint>\n</robot>\n";
+                     s["system"] = {{"type", "lagrangian"}, {"urdf", {{"text", urdf}}}};
+                     s["initial"] = {{"q", {0, 0}}, {"v", {0, 0}}};
+                   }),
+                   400, "/system/urdf/text", "link 'a' is the child of two joints, 'j1' (line 2) and 'j3' (line 6)"));
   t.push_back(post("UnknownControllerTerm", scene_body([](json& s) {
                      s["system"]["controller"] = {{{"type", "pid"}}};
                    }),

@@ -354,6 +354,7 @@ std::string inertial(const std::string& mass, const std::string& diag) {
 
 TEST(Urdf, BadUrdfGetsAnErrorNamingTheElement) {
   const std::string good = inertial("1", "0.1 0.1 0.1");
+  const std::string limit = "<limit lower=\"-1\" upper=\"1\" effort=\"1\" velocity=\"1\"/>";
   ASSERT_EQ(error_of(one_link(good)), "(no error)");
   struct Case {
     std::string name, text, expected;
@@ -368,11 +369,26 @@ TEST(Urdf, BadUrdfGetsAnErrorNamingTheElement) {
       {"triangle inequality", one_link(inertial("1", "0.1 0.1 0.5")), "link 'l1' (line 6): <inertia> breaks the triangle inequality"},
       {"unknown joint type", one_link(good, "helical"), "no known type"},
       {"floating joint", one_link(good, "floating"), "joint 'j1' (line 3) is floating: joints of more than one degree of freedom"},
+      // Joints that are not a tree, refused before urdfdom builds one: it would keep a loop's links forever
+      // (shared pointers in a cycle), and a link with two parent joints on a loop sent the walk from the
+      // root round it without end (a scene that never loaded).
       {"joint loop",
        one_link(good, "revolute",
                 "<joint name=\"j2\" type=\"revolute\"><parent link=\"l1\"/><child link=\"base\"/><limit lower=\"-1\" upper=\"1\" effort=\"1\" "
                 "velocity=\"1\"/></joint>\n"),
-       "root"},
+       "the joints 'j1' (line 3), 'j2' (line 9) form a loop"},
+      {"a link with two parent joints, on a loop",
+       one_link(good, "revolute",
+                "<link name=\"b\">" + good + "</link>\n"
+                "<joint name=\"j2\" type=\"revolute\"><parent link=\"l1\"/><child link=\"b\"/>" + limit + "</joint>\n"
+                "<joint name=\"j3\" type=\"revolute\"><parent link=\"b\"/><child link=\"l1\"/>" + limit + "</joint>\n"),
+       "link 'l1' is the child of two joints, 'j1' (line 3) and 'j3' (line 11)"},
+      {"a loop apart from the root",
+       one_link(good, "revolute",
+                "<link name=\"x\"/>\n<link name=\"y\"/>\n"
+                "<joint name=\"j2\" type=\"fixed\"><parent link=\"x\"/><child link=\"y\"/></joint>\n"
+                "<joint name=\"j3\" type=\"fixed\"><parent link=\"y\"/><child link=\"x\"/></joint>\n"),
+       "the joints 'j2' (line 11), 'j3' (line 12) form a loop"},
       {"joint to a missing link",
        one_link(good, "revolute",
                 "<joint name=\"j2\" type=\"revolute\"><parent link=\"l1\"/><child link=\"nowhere\"/><limit lower=\"-1\" upper=\"1\" "

@@ -3,13 +3,18 @@
 // never reads one never maps urdfdom, console_bridge and TinyXML.
 //
 // Before urdfdom sees the text, TinyXML parses it once more to name the line of a syntax error and of each
-// <link> and <joint> (urdfdom reports neither), and to refuse a robot of more than kMaxUrdfLinks links
-// before urdfdom builds it. urdfdom prints its errors through console_bridge; a handler collects them for
-// the message instead (console_bridge's handler is global: one parse at a time).
+// <link> and <joint> (urdfdom reports neither), to refuse a robot of more than kMaxUrdfLinks links or
+// joints before urdfdom builds it, and to refuse joints that do not form a tree (check_tree). urdfdom prints
+// its errors through console_bridge; a handler collects them for the message instead (console_bridge's
+// handler is global: one parse at a time).
+#include <algorithm>
 #include <cstddef>
 #include <map>
 #include <mutex>
+#include <set>
+#include <stdexcept>
 #include <string>
+#include <vector>
 
 #include <console_bridge/console.h>
 #include <tinyxml.h>
@@ -66,6 +71,51 @@ struct ElementLines {
   std::size_t link_count = 0;
 };
 
+// A <joint> as the file gives it: its parent and child link names (empty where the element has none).
+struct JointEdge {
+  std::string name, parent, child;
+  int line = 0;
+};
+
+std::string named(const JointEdge& j) { return "'" + j.name + "' (line " + std::to_string(j.line) + ")"; }
+
+// The joints must form a tree: each link the child of at most one joint, and no loop. urdfdom does not
+// check either before it links its tree, and both break what follows. It links each parent to its
+// children with shared pointers (Link::child_links), so a loop of joints is a cycle of shared pointers
+// that is never freed, whether urdfdom then refuses the model ("no root link") or accepts it with the
+// loop apart from the root; and a link with two parent joints under a loop sends the walk down the tree
+// in describe() round the loop without end. Each link is walked up once.
+void check_tree(const std::vector<JointEdge>& joints) {
+  std::map<std::string, const JointEdge*> parent_joint;  // child link -> the joint it hangs from
+  for (const JointEdge& j : joints) {
+    if (j.parent.empty() || j.child.empty()) continue;  // urdfdom names the joint itself
+    const auto [it, fresh] = parent_joint.emplace(j.child, &j);
+    if (!fresh)
+      throw std::runtime_error("link '" + j.child + "' is the child of two joints, " + named(*it->second) + " and " + named(j) +
+                               ": the joints of a URDF form a tree");
+  }
+  std::set<std::string> done;  // links whose chain of parents is known to end at a root
+  for (const JointEdge& start : joints) {
+    std::vector<std::string> path;  // links walked up from start.child, not yet known to end at a root
+    std::set<std::string> on_path;
+    std::string link = start.child;
+    while (!done.count(link)) {
+      if (on_path.count(link)) {
+        std::string loop;
+        for (auto it = std::find(path.begin(), path.end(), link); it != path.end(); ++it)
+          loop += (loop.empty() ? "" : ", ") + named(*parent_joint.at(*it));
+        throw std::runtime_error("the joints " + loop + " form a loop: the joints of a URDF form a tree");
+      }
+      const auto up = parent_joint.find(link);
+      if (up == parent_joint.end()) break;  // a root (or a link urdfdom will find missing)
+      path.push_back(link);
+      on_path.insert(link);
+      link = up->second->parent;
+    }
+    done.insert(path.begin(), path.end());
+  }
+}
+
 void describe(const std::string& text, UrdfDescription& out) {
   TiXmlDocument doc;
   doc.Parse(text.c_str(), nullptr, TIXML_ENCODING_UTF8);
@@ -76,6 +126,13 @@ void describe(const std::string& text, UrdfDescription& out) {
   if (!robot || std::string(robot->Value()) != "robot")
     throw std::runtime_error("the document element is not <robot> (line " + std::to_string(robot ? robot->Row() : 0) + ")");
   ElementLines lines;
+  std::vector<JointEdge> edges;
+  // The name of the `link` attribute of e's first <tag> child, or "".
+  auto link_of = [](const TiXmlElement* e, const char* tag) {
+    const TiXmlElement* c = e->FirstChildElement(tag);
+    const char* link = c ? c->Attribute("link") : nullptr;
+    return std::string(link ? link : "");
+  };
   for (const TiXmlElement* e = robot->FirstChildElement(); e; e = e->NextSiblingElement()) {
     const std::string tag = e->Value();
     const char* name = e->Attribute("name");
@@ -84,10 +141,15 @@ void describe(const std::string& text, UrdfDescription& out) {
         throw std::runtime_error("more than " + std::to_string(moreau::scene::kMaxUrdfLinks) + " links (the " +
                                  std::to_string(moreau::scene::kMaxUrdfLinks + 1) + "th is at line " + std::to_string(e->Row()) + ")");
       if (name) lines.links.emplace(name, e->Row());
-    } else if (tag == "joint" && name) {
-      lines.joints.emplace(name, e->Row());
+    } else if (tag == "joint") {
+      if (edges.size() == moreau::scene::kMaxUrdfLinks)
+        throw std::runtime_error("more than " + std::to_string(moreau::scene::kMaxUrdfLinks) + " joints (the " +
+                                 std::to_string(moreau::scene::kMaxUrdfLinks + 1) + "th is at line " + std::to_string(e->Row()) + ")");
+      if (name) lines.joints.emplace(name, e->Row());
+      edges.push_back(JointEdge{name ? name : "", link_of(e, "parent"), link_of(e, "child"), e->Row()});
     }
   }
+  check_tree(edges);
 
   urdf::ModelInterfaceSharedPtr model;
   {
@@ -107,9 +169,11 @@ void describe(const std::string& text, UrdfDescription& out) {
 
   // Depth first, without recursion (a chain can be as long as kMaxUrdfLinks).
   std::vector<urdf::LinkConstSharedPtr> stack{root};
+  std::set<std::string> visited;  // check_tree made the joints a tree; this keeps the walk finite regardless
   while (!stack.empty()) {
     const urdf::LinkConstSharedPtr link = stack.back();
     stack.pop_back();
+    if (!visited.insert(link->name).second) throw std::runtime_error("link '" + link->name + "' is reached twice from the root");
     // Children pushed in reverse, so that they come out in the order the file gives them.
     for (auto it = link->child_joints.rbegin(); it != link->child_joints.rend(); ++it) {
       const urdf::Joint& j = **it;
