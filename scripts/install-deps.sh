@@ -28,6 +28,7 @@ packages=(
   libboost-dev                       # Boost.Odeint (rosenbrock4), the stiff peer of studies; Boost.Random's Sobol
                                      # sequence and Boost.Math's normal quantile for campaigns
   liburdfdom-dev                     # robots from URDF (the URDF module)
+  libexpat1-dev                      # the URDF module: nesting and size checked by a non-recursive XML parser first
   liborocos-kdl-dev                  # tests: KDL, the independent reference for the rigid-body algorithms
   libgtest-dev libgmock-dev libbenchmark-dev  # tests, benchmarks
   iproute2                           # `ip`, for tests/lcm_udpm_netns.sh (multicast in a private netns)

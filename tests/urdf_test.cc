@@ -10,6 +10,8 @@
 // - bad URDF of every kind named in the issue: a clear error naming the element, no crash, no hang.
 #include <gtest/gtest.h>
 
+#include <pthread.h>
+
 #include <cmath>
 #include <fstream>
 #include <random>
@@ -24,6 +26,7 @@
 #include "moreau/scene/scene.h"
 #include "moreau/scene/urdf.h"
 #include "support/planar_arm.h"
+#include "xml_shape.h"  // scene/src: the URDF module's shape check
 
 namespace moreau::scene {
 namespace {
@@ -419,6 +422,68 @@ TEST(Urdf, HugeAndDeepUrdfAreRefusedBeforeParsing) {
             std::to_string(k) + "\"/></joint>\n<link name=\"l" + std::to_string(k) + "\">" + inertial("1", "0.1 0.1 0.1") + "</link>\n";
   deep += "</robot>\n";
   EXPECT_NE(error_of(deep).find("more than 1024 links"), std::string::npos) << error_of(deep).substr(0, 200);
+}
+
+// XML nested deeper than kMaxXmlDepth is refused before TinyXML or urdfdom, both of which recurse once per
+// level: 40,000 levels overflowed the stack (SIGSEGV) of the thread that read them.
+TEST(Urdf, DeepXmlIsRefusedBeforeAnyRecursiveParser) {
+  auto nested = [](int depth, const std::string& inner = "") {
+    std::string text = "<robot name=\"r\">";  // depth 1
+    for (int k = 1; k < depth; ++k) text += "<a>";
+    text += inner;
+    for (int k = 1; k < depth; ++k) text += "</a>";
+    return text + "</robot>";
+  };
+  EXPECT_EQ(error_of(nested(40000)).rfind("elements nested deeper than 64 levels (line 1)", 0), 0u) << error_of(nested(40000)).substr(0, 200);
+  EXPECT_EQ(error_of(nested(65)).rfind("elements nested deeper than 64 levels", 0), 0u);
+  // 64 levels pass the shape check: what refuses this one is urdfdom (no link), not the depth.
+  EXPECT_EQ(error_of(nested(64)).find("nested deeper"), std::string::npos) << error_of(nested(64));
+  EXPECT_EQ(detail::check_xml_shape(nested(64)).depth, 64);
+  EXPECT_EQ(detail::check_xml_shape(nested(64)).elements, 64u);
+  // Self-closing siblings are not nesting, and a '>' inside an attribute value closes nothing.
+  std::string wide = "<robot>";
+  for (int k = 0; k < 5000; ++k) wide += "<link name='x>y'/>";
+  EXPECT_EQ(detail::check_xml_shape(wide + "</robot>").depth, 2);
+  // Element count: bounded too (each element costs TinyXML memory).
+  std::string many = "<robot>";
+  for (std::size_t k = 0; k < detail::kMaxXmlElements; ++k) many += "<b/>";
+  EXPECT_EQ(error_of(many + "</robot>").rfind("more than 100000 XML elements", 0), 0u) << error_of(many + "</robot>").substr(0, 200);
+}
+
+TEST(Urdf, DoctypeIsRefusedByName) {
+  const std::string e = error_of("<?xml version=\"1.0\"?>\n<!DOCTYPE robot SYSTEM \"file:///etc/passwd\">\n<robot name=\"r\"/>");
+  EXPECT_EQ(e, "a DOCTYPE declaration (line 2): DOCTYPE and entity declarations are not accepted in a URDF");
+}
+
+// The worst text the shape check lets through (64 levels, the most elements) is read without trouble on a
+// thread with a small stack: 256 KiB, a 32nd of the default 8 MiB that the server's and the campaigns'
+// worker threads get.
+TEST(Urdf, TheDeepestAcceptedUrdfReadsOnASmallStack) {
+  std::string gazebo;  // levels 2 to 64 under <robot>
+  for (int k = 1; k < detail::kMaxXmlDepth; ++k) gazebo += "<gazebo reference=\"x\" a=\"1\" b=\"2\">";
+  for (int k = 1; k < detail::kMaxXmlDepth; ++k) gazebo += "</gazebo>";
+  const std::string text = one_link(inertial("1", "0.1 0.1 0.1"), "revolute", gazebo + "\n");
+  ASSERT_EQ(detail::check_xml_shape(text).depth, detail::kMaxXmlDepth);
+  struct Arg {
+    const std::string* text;
+    std::string error;
+  } arg{&text, ""};
+  pthread_attr_t attr;
+  ASSERT_EQ(pthread_attr_init(&attr), 0);
+  ASSERT_EQ(pthread_attr_setstacksize(&attr, 256u << 10), 0);
+  pthread_t thread;
+  ASSERT_EQ(pthread_create(
+                &thread, &attr,
+                [](void* p) -> void* {
+                  Arg& a = *static_cast<Arg*>(p);
+                  a.error = error_of(*a.text);
+                  return nullptr;
+                },
+                &arg),
+            0);
+  ASSERT_EQ(pthread_join(thread, nullptr), 0);
+  pthread_attr_destroy(&attr);
+  EXPECT_EQ(arg.error, "(no error)");
 }
 
 TEST(Urdf, SceneErrorsNameTheirField) {

@@ -2,6 +2,10 @@
 // records (urdf_description.h). It is loaded at the first URDF scene (urdf.cc), so that a process that
 // never reads one never maps urdfdom, console_bridge and TinyXML.
 //
+// Before any of that, Expat checks the text's shape (xml_shape.h): well-formed, at most kMaxXmlDepth levels
+// of nesting and kMaxXmlElements elements, no DOCTYPE. TinyXML and urdfdom's parser recurse once per level
+// of nesting, so without that bound a deeply nested text overflows the reading thread's stack.
+//
 // Before urdfdom sees the text, TinyXML parses it once more to name the line of a syntax error and of each
 // <link> and <joint> (urdfdom reports neither), to refuse a robot of more than kMaxUrdfLinks links or
 // joints before urdfdom builds it, and to refuse joints that do not form a tree (check_tree). urdfdom prints
@@ -21,6 +25,7 @@
 #include <urdf_parser/urdf_parser.h>
 
 #include "urdf_description.h"
+#include "xml_shape.h"
 #include "moreau/scene/urdf.h"
 
 namespace {
@@ -117,6 +122,7 @@ void check_tree(const std::vector<JointEdge>& joints) {
 }
 
 void describe(const std::string& text, UrdfDescription& out) {
+  moreau::scene::detail::check_xml_shape(text);  // before TinyXML and urdfdom recurse over it
   TiXmlDocument doc;
   doc.Parse(text.c_str(), nullptr, TIXML_ENCODING_UTF8);
   if (doc.Error())
