@@ -1,5 +1,6 @@
 // moreau-server over HTTP, in-process on an ephemeral port: the life of a job, bad requests, limits,
 // cancellation, a full queue and authentication.
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -391,6 +392,40 @@ TEST(ServerApi, CancellingARunningJobStopsAtItsNextCheck) {
   // A cancelled job keeps the trajectory it had; cancelling again is harmless.
   EXPECT_EQ(c->Get("/v1/jobs/" + id + "/trajectory?format=csv")->status, 200);
   EXPECT_EQ(c->Delete("/v1/jobs/" + id)->status, 200);
+}
+
+// --max-job-seconds bounds the work one job can take, whatever its step count: a run of 1e9 manipulator
+// steps (minutes of work, within --max-steps) is stopped at its deadline, ends failed with the reason, and
+// keeps the trajectory it wrote. Without the limit the same job is still running when the test stops it
+// (CancellingARunningJobStopsAtItsNextCheck shows it runs past this test's deadline).
+TEST(ServerApi, AJobPastMaxJobSecondsEndsFailedAndKeepsWhatItWrote) {
+  ServerConfig cfg;
+  cfg.max_steps = 2'000'000'000;
+  cfg.max_samples = 1'000'000;
+  cfg.max_job_seconds = 0.5;
+  TestServer ts(cfg);
+  auto c = ts.client();
+  json scene = manipulator();
+  scene["integrator"]["t_end"] = 1e6;  // 1e9 steps
+  scene["output"]["every"] = 10000;
+  auto r = submit(*c, {{"scene", scene}});
+  ASSERT_EQ(r->status, 202) << r->body;
+  const std::string id = json::parse(r->body)["id"];
+  const json job = wait_final(*c, id, 60);
+  EXPECT_EQ(job["state"], "failed");
+  EXPECT_THAT(job["reason"].get<std::string>(),
+              ::testing::HasSubstr("ran longer than this server's limit of 0.5 s of wall-clock time (--max-job-seconds)"));
+  EXPECT_EQ(job["report"]["status"], "failed");
+  EXPECT_GT(job["report"]["steps"].get<std::int64_t>(), 0);
+  EXPECT_LT(job["report"]["t_final"].get<double>(), 1e6);
+  auto csv = c->Get("/v1/jobs/" + id + "/trajectory?format=csv");
+  ASSERT_EQ(csv->status, 200);
+  EXPECT_GT(std::count(csv->body.begin(), csv->body.end(), '\n'), 1);  // the header and at least one row
+  // The next job gets its own deadline: a short one completes.
+  json small = manipulator();
+  auto r2 = submit(*c, {{"scene", small}});
+  ASSERT_EQ(r2->status, 202) << r2->body;
+  EXPECT_EQ(wait_final(*c, json::parse(r2->body)["id"])["state"], "done");
 }
 
 TEST(ServerApi, FullQueueAnswers429WithRetryAfter) {

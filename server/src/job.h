@@ -78,6 +78,7 @@ struct Job {
   std::atomic<bool> cancel{false};            // the run stops at its next check (every 256 steps: within 50 ms)
   std::atomic<bool> shutdown{false};          // ... because the server is stopping
   std::atomic<bool> cancel_requested{false};  // ... because a client asked (DELETE): it ends cancelled
+  std::atomic<bool> timed_out{false};         // ... because it ran longer than --max-job-seconds: it ends failed
 
   // The job's files: readers hold it shared while they check `deleted` and open what they read; pruning
   // holds it exclusively while it deletes them. An open file stays readable after its deletion.

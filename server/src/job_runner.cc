@@ -22,6 +22,14 @@ const char* kReasonStoppedRunning = "the server stopped while the job was runnin
 
 double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
+// Why a job stopped by --max-job-seconds failed; `where` says how far it got.
+std::string timed_out_reason(double max_job_seconds, const std::string& where) {
+  char limit[32];
+  std::snprintf(limit, sizeof limit, "%g", max_job_seconds);
+  return std::string("the job ran longer than this server's limit of ") + limit + " s of wall-clock time (--max-job-seconds) and was stopped " +
+         where + "; what it wrote is kept";
+}
+
 // The results a run writes before its commit renames them (JobRunner::commit), removed when they will
 // never be committed.
 void remove_uncommitted_results(const Job& job) {
@@ -39,6 +47,31 @@ void JobRunner::start() {
   const int n = config_.workers > 0 ? config_.workers : std::max(1u, std::thread::hardware_concurrency());
   for (int i = 0; i < n; ++i) workers_.emplace_back([this] { worker_loop(); });
   for (int i = 0; i < std::max(1, config_.io_threads); ++i) committers_.emplace_back([this] { committer_loop(); });
+  if (config_.max_job_seconds > 0) watchdog_ = std::thread([this] { watchdog_loop(); });
+}
+
+void JobRunner::watchdog_loop() {
+  std::unique_lock lock(watchdog_mu_);
+  while (!watchdog_stop_) {
+    auto next = Clock::time_point::max();
+    const auto now = Clock::now();
+    for (auto it = deadlines_.begin(); it != deadlines_.end();) {
+      if (it->second <= now) {
+        // The run, study or campaign stops at its next check (every 256 steps, or between samples and
+        // rows), as for a cancellation; timed_out makes it end failed, with the reason.
+        it->first->timed_out = true;
+        it->first->cancel = true;
+        it = deadlines_.erase(it);
+      } else {
+        next = std::min(next, it->second);
+        ++it;
+      }
+    }
+    if (next == Clock::time_point::max())
+      watchdog_cv_.wait(lock);
+    else
+      watchdog_cv_.wait_until(lock, next);
+  }
 }
 
 void JobRunner::stop() {
@@ -65,6 +98,12 @@ void JobRunner::stop() {
   for (auto& w : workers_)
     if (w.joinable()) w.join();
   workers_.clear();
+  {
+    std::lock_guard lock(watchdog_mu_);
+    watchdog_stop_ = true;
+  }
+  watchdog_cv_.notify_all();
+  if (watchdog_.joinable()) watchdog_.join();
   // The runs that ended are stored before the I/O threads stop.
   {
     std::lock_guard lock(commit_mu_);
@@ -229,6 +268,13 @@ void JobRunner::worker_loop() {
       queue_.pop_front();
     }
     ++busy_;
+    if (config_.max_job_seconds > 0) {
+      {
+        std::lock_guard lock(watchdog_mu_);
+        deadlines_[job] = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(config_.max_job_seconds));
+      }
+      watchdog_cv_.notify_all();
+    }
     try {
       run(job);
     } catch (const std::exception& e) {
@@ -236,6 +282,10 @@ void JobRunner::worker_loop() {
       std::cerr << "moreau-server: job " << job->id << " failed: " << e.what() << "\n";
       job->release_compiled();
       set_state(*job, JobState::kFailed, std::string("internal error: ") + e.what());
+    }
+    if (config_.max_job_seconds > 0) {
+      std::lock_guard lock(watchdog_mu_);
+      deadlines_.erase(job);
     }
     --busy_;
   }
@@ -286,6 +336,11 @@ void JobRunner::run(const std::shared_ptr<Job>& job) {
   if (summary.status == RunStatus::kCancelled && job->shutdown && !job->cancel_requested) {
     if (commit->stream) commit->stream->push_event("stopped", summary.steps, summary.t_final, kReasonStoppedRunning);
     return queue_again_after_stop(*job, kReasonStoppedRunning);
+  }
+  if (summary.status == RunStatus::kCancelled && job->timed_out && !job->cancel_requested) {
+    summary.status = RunStatus::kFailed;
+    summary.message = timed_out_reason(config_.max_job_seconds,
+                                       "at step " + std::to_string(summary.steps) + " (t = " + std::to_string(summary.t_final) + ")");
   }
   if (stream_observer) {
     stream_observer->flush_last(summary);
@@ -363,8 +418,13 @@ void JobRunner::run_study(const std::shared_ptr<Job>& job, std::unique_ptr<Commi
     result = scene::run_study(sc, st);
   } catch (const scene::StudyCancelled&) {
     if (job->shutdown && !job->cancel_requested) return queue_again_after_stop(*job, kReasonStoppedRunning);
-    commit->state = JobState::kCancelled;
-    commit->reason = "cancelled by request";
+    if (job->timed_out && !job->cancel_requested) {
+      commit->state = JobState::kFailed;
+      commit->reason = timed_out_reason(config_.max_job_seconds, "after " + std::to_string(job->rows_done.load()) + " rows of its table");
+    } else {
+      commit->state = JobState::kCancelled;
+      commit->reason = "cancelled by request";
+    }
   } catch (const scene::SceneError& e) {
     commit->state = JobState::kFailed;
     commit->reason = e.what();
@@ -395,6 +455,7 @@ void JobRunner::run_campaign(const std::shared_ptr<Job>& job, std::unique_ptr<Co
   options.stop = &job->cancel;
   options.max_steps = config_.max_steps;
   options.max_bytes = config_.max_result_bytes;
+  options.max_total_steps = config_.max_campaign_steps;  // stops the run at the budget, whatever the samples take
   // Progress at most ten times a second (and at the last sample): the event stream's bound keeps the
   // latest progress events, and a client needs no more.
   Clock::time_point last_event{};
@@ -417,6 +478,10 @@ void JobRunner::run_campaign(const std::shared_ptr<Job>& job, std::unique_ptr<Co
       return queue_again_after_stop(*job, "the server stopped while the campaign was running (" + std::to_string(have) + " of " +
                                               std::to_string(spec.samples) +
                                               " samples finished; their records are kept): it goes on from them when the server restarts");
+    } else if (result.stopped && job->timed_out && !job->cancel_requested) {
+      commit->state = JobState::kFailed;
+      commit->reason = timed_out_reason(config_.max_job_seconds, "after " + std::to_string(have) + " of " + std::to_string(spec.samples) +
+                                                                     " samples (their records are kept)");
     } else if (result.stopped) {
       commit->state = JobState::kCancelled;
       commit->reason = "cancelled by request (" + std::to_string(have) + " of " + std::to_string(spec.samples) +

@@ -109,6 +109,8 @@ class JobRunner {
   };
 
   void worker_loop();
+  // --max-job-seconds: one thread sets a running job's timed_out and cancel flags at its deadline.
+  void watchdog_loop();
   void run(const std::shared_ptr<Job>& job);
   void run_study(const std::shared_ptr<Job>& job, std::unique_ptr<Commit> commit);
   void run_campaign(const std::shared_ptr<Job>& job, std::unique_ptr<Commit> commit);
@@ -143,6 +145,13 @@ class JobRunner {
   bool commit_stop_ = false;
   std::vector<std::thread> committers_;
   std::atomic<std::int64_t> busy_{0};
+
+  // Deadlines of the running jobs (--max-job-seconds), by job; the watchdog waits for the earliest.
+  std::mutex watchdog_mu_;
+  std::condition_variable watchdog_cv_;
+  std::map<std::shared_ptr<Job>, std::chrono::steady_clock::time_point> deadlines_;
+  bool watchdog_stop_ = false;
+  std::thread watchdog_;
 
   mutable std::mutex stats_mu_;
   std::int64_t submitted_ = 0, rejected_ = 0, steps_total_ = 0;

@@ -46,6 +46,10 @@ struct ServerConfig {
   // The largest stored trajectory a figure is drawn from (it is read whole, and held as numbers while
   // drawn: about 1.4 times its size); larger gets 422, with the window parameters to use instead.
   std::int64_t max_figure_source_bytes = std::int64_t{256} << 20;
+  // Wall-clock seconds one job (a run, a study or a campaign) may hold its worker: past it the job stops at
+  // its next check and ends failed, keeping what it wrote. Steps are not cost (a 64-joint arm's step costs
+  // about 400 times a ball's), so this is the bound on the work a job can take. 0: no limit.
+  double max_job_seconds = 3600;
   std::int64_t max_steps = 100'000'000;  // integration steps per job
   std::int64_t max_samples = 2'000'000;  // trajectory rows per job
   // Campaigns (POST /v1/campaigns): samples of one campaign at most, integration steps of all its samples
