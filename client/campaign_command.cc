@@ -13,7 +13,10 @@
 #include <cstring>
 #include <filesystem>
 #include <sstream>
+#include <string_view>
 #include <tuple>
+#include <optional>
+#include <cctype>
 #include <vector>
 #include <chrono>
 #include <csignal>
@@ -80,6 +83,77 @@ std::string shell_quote(const std::string& text) {
   return q + "'";
 }
 
+// A word of an #SBATCH line. sbatch reads those lines with rules of its own (Slurm's _get_argument):
+// whitespace ends a word unless quoted ("..." or '...'), a backslash takes the next character as it is
+// (but does not keep a space), an unquoted '#' ends the line, and a line holding "hetjob" or "packjob"
+// anywhere separates the components of a heterogeneous job. A word of other characters than
+// [A-Za-z0-9/._%=:,+@-] is written in double quotes, its '"' and '\' escaped; nullopt for a word that
+// cannot be written (a control character, or one of those two words): the option then goes on sbatch's
+// command line alone. The command line has every option anyway, and overrides the script's.
+std::optional<std::string> sbatch_word(const std::string& text) {
+  std::string lower;
+  bool plain = true;
+  for (const char c : text) {
+    const auto u = static_cast<unsigned char>(c);
+    if (u < 0x20 || u == 0x7f) return std::nullopt;
+    lower += static_cast<char>(std::tolower(u));
+    plain = plain && ((c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') ||
+                      std::string_view("/._%=:,+@-").find(c) != std::string_view::npos);
+  }
+  if (lower.find("hetjob") != std::string::npos || lower.find("packjob") != std::string::npos) return std::nullopt;
+  if (plain) return text;
+  std::string w = "\"";
+  for (const char c : text) {
+    if (c == '"' || c == '\\') w += '\\';
+    w += c;
+  }
+  return w + "\"";
+}
+
+// A path as a literal part of Slurm's --output file name pattern, where '%' starts a replacement
+// symbol (%A, %a, %j): '%%' is a '%'.
+std::string slurm_pattern_literal(const std::string& path) {
+  std::string out;
+  for (const char c : path) out += c == '%' ? std::string("%%") : std::string(1, c);
+  return out;
+}
+
+// --out for a Slurm campaign: any path a file system takes, but for control characters (a newline would
+// end a line of the batch script) and backslashes (in an --output file name a backslash turns off
+// Slurm's replacement symbols, so every task would write one log). Everything else is quoted.
+void check_slurm_path(const std::string& path) {
+  for (const char c : path) {
+    const auto u = static_cast<unsigned char>(c);
+    if (u < 0x20 || u == 0x7f)
+      throw std::runtime_error("--out: the directory's path holds a control character (a newline, a tab, ...), which a Slurm batch "
+                               "script cannot carry: use another directory");
+    if (c == '\\')
+      throw std::runtime_error("--out: the directory's path holds a backslash, which turns off Slurm's file name patterns "
+                               "(%A, %a, %j) of the task logs: use another directory");
+  }
+}
+
+// --account, --partition, --time: passed to sbatch as they are, so held to the characters Slurm's
+// names and times use.
+void check_sbatch_value(const char* option, const std::string& value) {
+  if (value.empty()) return;
+  const bool ok = value.size() <= 128 && std::all_of(value.begin(), value.end(), [](char c) {
+                    return (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') ||
+                           std::string_view("._,:+@-").find(c) != std::string_view::npos;
+                  });
+  if (!ok)
+    throw std::runtime_error(std::string(option) + " must be 1 to 128 of the letters, digits and . _ , : + @ - (a Slurm name or time), got '" +
+                             value.substr(0, 64) + "'");
+}
+
+// The job id `sbatch --parsable` prints (ID or ID;CLUSTER): digits, or an error.
+std::string job_id_of(const std::string& out, const char* what) {
+  const std::string id = out.substr(0, out.find_first_of(";\n"));
+  if (id.empty() || id.size() > 20 || !std::all_of(id.begin(), id.end(), [](char c) { return c >= '0' && c <= '9'; }))
+    throw std::runtime_error(std::string("sbatch printed no job id for ") + what + " (got '" + out.substr(0, 80) + "')");
+  return id;
+}
+
 // Runs argv (no shell) and returns its exit status and standard output.
 std::pair<int, std::string> run_capture(const std::vector<std::string>& argv) {
   int fds[2];
@@ -115,6 +189,14 @@ int submit_to_slurm(const CampaignOptions& opt) {
   if (opt.cpus_per_task < 1) throw std::runtime_error("--cpus-per-task must be at least 1");
   const std::int64_t tasks = std::min<std::int64_t>(opt.tasks, spec.samples);
   const fs::path dir = fs::absolute(opt.out_dir);
+  // What reaches the batch script and sbatch's command line: the name is one of the spec's safe set
+  // (the spec reader refuses others at /name), the paths are checked and quoted, sbatch's own options
+  // are checked. Nothing is written or submitted before.
+  if (!scene::is_campaign_name(spec.name)) throw std::runtime_error("/name: not a campaign name");
+  check_slurm_path(dir.string());
+  check_sbatch_value("--account", opt.account);
+  check_sbatch_value("--partition", opt.partition);
+  check_sbatch_value("--time", opt.time_limit);
   // The directory is claimed now (a different campaign there is refused before anything is submitted).
   scene::claim_campaign_directory(spec, dir.string());
   const std::vector<std::int64_t> missing = scene::missing_per_task(dir.string(), spec, tasks);
@@ -129,15 +211,20 @@ int submit_to_slurm(const CampaignOptions& opt) {
   const std::string moreau = fs::read_symlink("/proc/self/exe").string();
   fs::create_directories(dir / "slurm");
   const fs::path script = dir / "slurm" / "campaign.sbatch";
+  // The array's options: on sbatch's command line (an argument each, no shell between), and the same in
+  // the script's #SBATCH lines, escaped for sbatch's reader, for a resubmission by hand.
+  const std::vector<std::string> array_options = {
+      "--job-name=moreau-" + spec.name, "--output=" + slurm_pattern_literal((dir / "slurm").string()) + "/task-%A_%a.out",
+      "--cpus-per-task=" + std::to_string(opt.cpus_per_task), "--requeue"};
   {
     std::ofstream out(script, std::ios::trunc);
     out << "#!/bin/bash\n"
-        << "# Written by moreau campaign --slurm: task K of the array runs block K of " << tasks << " (docs/campaigns.md).\n"
-        << "#SBATCH --job-name=moreau-" << spec.name << "\n"
-        << "#SBATCH --output=" << (dir / "slurm" / "task-%A_%a.out").string() << "\n"
-        << "#SBATCH --cpus-per-task=" << opt.cpus_per_task << "\n"
-        << "#SBATCH --requeue\n"
-        << "set -euo pipefail\n"
+        << "# Written by moreau campaign --slurm: task K of the array runs block K of " << tasks << " (docs/campaigns.md).\n";
+    for (const std::string& o : array_options) {
+      if (const auto word = sbatch_word(o)) out << "#SBATCH " << *word << "\n";
+      else out << "# " << o.substr(0, o.find('=')) << " is on sbatch's command line (sbatch cannot read its value in this script)\n";
+    }
+    out << "set -euo pipefail\n"
         << "exec " << shell_quote(moreau) << " campaign " << shell_quote((dir / "campaign.json").string()) << " --out " << shell_quote(dir.string())
         << " --task \"${SLURM_ARRAY_TASK_ID}/" << tasks << "\" --quiet\n";
     if (!out) throw std::runtime_error("cannot write '" + script.string() + "'");
@@ -149,20 +236,21 @@ int submit_to_slurm(const CampaignOptions& opt) {
   std::string array_job;
   if (to_run > 0) {
     std::vector<std::string> argv = {"sbatch", "--parsable", "--array=" + array};
+    argv.insert(argv.end(), array_options.begin(), array_options.end());
     argv.insert(argv.end(), common.begin(), common.end());
     argv.push_back(script.string());
     const auto [rc, out] = run_capture(argv);
     if (rc != 0) throw std::runtime_error("sbatch failed (exit " + std::to_string(rc) + ") for the job array");
-    array_job = out.substr(0, out.find_first_of(";\n"));
+    array_job = job_id_of(out, "the job array");
   }
   std::vector<std::string> argv = {"sbatch", "--parsable", "--job-name=moreau-" + spec.name + "-collect",
-                                   "--output=" + (dir / "slurm" / "collect-%j.out").string()};
+                                   "--output=" + slurm_pattern_literal((dir / "slurm").string()) + "/collect-%j.out"};
   if (!array_job.empty()) argv.push_back("--dependency=afterok:" + array_job);
   argv.insert(argv.end(), common.begin(), common.end());
   argv.push_back("--wrap=exec " + shell_quote(moreau) + " campaign --collect " + shell_quote(dir.string()));
   const auto [rc, out] = run_capture(argv);
   if (rc != 0) throw std::runtime_error("sbatch failed (exit " + std::to_string(rc) + ") for the collect job");
-  const std::string collect_job = out.substr(0, out.find_first_of(";\n"));
+  const std::string collect_job = job_id_of(out, "the collect job");
   if (to_run > 0)
     std::printf("moreau campaign: submitted job array %s: %lld of %lld tasks (%lld samples missing of %lld), and collect job %s after it\n",
                 array_job.c_str(), static_cast<long long>(to_run), static_cast<long long>(tasks), static_cast<long long>(samples_missing),
@@ -243,7 +331,11 @@ std::string write_grid_spec(const CampaignOptions& opt) {
   if (opt.vary.empty()) throw std::runtime_error("--scene needs at least one --vary PATH=VALUES");
   nlohmann::json scene = scene::read_scene_file(opt.scene_path);
   for (const std::string& o : opt.overrides) scene::apply_override(scene, o);
-  nlohmann::json doc = {{"name", fs::path(opt.scene_path).stem().string() + "-sweep"},
+  // The name: the scene file's, held to the names a spec takes (other characters become '_').
+  std::string stem = fs::path(opt.scene_path).stem().string().substr(0, scene::kMaxCampaignNameLength - 6);
+  for (char& c : stem)
+    if (!scene::is_campaign_name(std::string(1, c))) c = '_';
+  nlohmann::json doc = {{"name", (stem.empty() ? std::string("scene") : stem) + "-sweep"},
                         {"description", "a parameter sweep of " + opt.scene_path + ": the grid over the --vary lists"},
                         {"scene", std::move(scene)},
                         {"inputs", nlohmann::json::array()},

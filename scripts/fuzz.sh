@@ -2,14 +2,16 @@
 # Builds the libFuzzer targets with clang (ASan + UBSan + coverage) into build-fuzz/ and runs each for
 # SECONDS (default 60) from a copy of its checked-in seed corpus. Prints executions and whether a crash
 # was found; a crash leaves its input as build-fuzz/crash-* and fails the script.
+# TARGETS (default: all five) picks some: TARGETS="urdf campaign" scripts/fuzz.sh 600
 set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds=${1:-60}
 CC=clang CXX=clang++ cmake -S . -B build-fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DMOREAU_FUZZ=ON \
   -DMOREAU_BUILD_TESTS=OFF -DMOREAU_BUILD_BENCH=OFF >/dev/null
-cmake --build build-fuzz -j "$(nproc)" --target expression_fuzzer scene_fuzzer http_fuzzer
+targets=${TARGETS:-expression scene http urdf campaign}
+cmake --build build-fuzz -j "$(nproc)" --target $(for t in $targets; do printf '%s_fuzzer ' "$t"; done)
 status=0
-for target in expression scene http; do
+for target in $targets; do
   work=build-fuzz/corpus-$target
   mkdir -p "$work"
   cp -n fuzz/corpus/$target/* "$work"/ 2>/dev/null || true

@@ -14,6 +14,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <functional>
 #include <fstream>
 #include <map>
 #include <set>
@@ -222,6 +223,12 @@ TEST(CampaignSpec, EveryBadFieldIsNamed) {
       {"map of one input twice", [](json& s) { s["map"] = {"/parameters/f", "parameters.f"}; }, "/map/1", "same input"},
       {"full_report not a boolean", [](json& s) { s["full_report"] = "no"; }, "/full_report", "true or false"},
       {"name not a string", [](json& s) { s["name"] = 5; }, "/name", "expected a string"},
+      // Names are data (they reach Slurm's batch script and command lines): 1 to 64 of [A-Za-z0-9._-].
+      {"name with a newline", [](json& s) { s["name"] = "x\ntouch FILE\n#"; }, "/name", "is not a campaign name"},
+      {"name with spaces", [](json& s) { s["name"] = "a --output=/tmp/x --wrap=true"; }, "/name", "is not a campaign name"},
+      {"name with a dollar", [](json& s) { s["name"] = "$(touch x)"; }, "/name", "is not a campaign name"},
+      {"empty name", [](json& s) { s["name"] = ""; }, "/name", "is not a campaign name"},
+      {"name of 65 characters", [](json& s) { s["name"] = std::string(65, 'a'); }, "/name", "is not a campaign name"},
       {"overlapping inputs", [](json& s) { s["inputs"][1]["path"] = "/parameters"; }, "/inputs/1/path", "overlap"},
   };
   for (const Case& c : cases) {
@@ -236,6 +243,110 @@ TEST(CampaignSpec, EveryBadFieldIsNamed) {
       EXPECT_THAT(e.reason(), HasSubstr(c.reason));
     }
   }
+}
+
+// The longest name and every allowed character are taken as they are.
+TEST(CampaignSpec, NamesOfTheSafeSetAreKept) {
+  for (const std::string& name : {std::string(64, 'z'), std::string("Relay_2.v-3"), std::string("-"), std::string("campaign")}) {
+    json spec = relay_spec("monte-carlo", 4);
+    spec["name"] = name;
+    EXPECT_EQ(CampaignSpec::from_json(spec, "").name, name);
+  }
+  json unnamed = relay_spec("monte-carlo", 4);
+  unnamed.erase("name");
+  EXPECT_EQ(CampaignSpec::from_json(unnamed, "").name, "campaign");
+}
+
+// FNV-1a (64 bits), written out here from its definition, checked against the published test vectors.
+std::string fnv1a64(const std::string& text) {
+  std::uint64_t h = 0xcbf29ce484222325ull;
+  for (unsigned char c : text) {
+    h ^= c;
+    h *= 0x100000001b3ull;
+  }
+  char hex[17];
+  std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(h));
+  return hex;
+}
+
+// The spec's hash is FNV-1a of its document's compact JSON text (keys sorted), whole doubles written as
+// integers: documents equal as JSON values have one hash, any other change gives another.
+TEST(CampaignSpec, TheHashIsFnv1aOfTheCanonicalDocument) {
+  ASSERT_EQ(fnv1a64(""), "cbf29ce484222325");
+  ASSERT_EQ(fnv1a64("a"), "af63dc4c8601ec8c");
+  ASSERT_EQ(fnv1a64("foobar"), "85944171f73967e8");
+  // A document of integers, strings and non-whole doubles is its own canonical form.
+  const json doc = {{"b", 1}, {"a", {{"y", "text"}, {"x", 0.25}}}, {"c", {1, 2, 3}}};
+  EXPECT_EQ(campaign_spec_hash(doc), fnv1a64(R"({"a":{"x":0.25,"y":"text"},"b":1,"c":[1,2,3]})"));
+  json as_doubles = doc;
+  as_doubles["b"] = 1.0;
+  as_doubles["c"] = {1.0, 2.0, 3.0};
+  EXPECT_EQ(campaign_spec_hash(as_doubles), campaign_spec_hash(doc));
+  json other = doc;
+  other["a"]["x"] = 0.5;
+  EXPECT_NE(campaign_spec_hash(other), campaign_spec_hash(doc));
+  // A spec's hash is that of its document (the scene inlined), and every record carries it.
+  const CampaignSpec s = CampaignSpec::from_json(relay_spec("sobol", 4), "");
+  EXPECT_EQ(s.hash, campaign_spec_hash(s.document));
+  EXPECT_EQ(s.hash.size(), 16u);
+  const CampaignDesign design(s);
+  EXPECT_EQ(CampaignSampleRunner(s, design).run(2)["spec_hash"], s.hash);
+  json reseeded = relay_spec("sobol", 4);
+  reseeded["seed"] = 8;
+  EXPECT_NE(CampaignSpec::from_json(reseeded, "").hash, s.hash);
+}
+
+// ---- the steps of the samples ----
+
+// Each sample's bound is ceil((t_end - t0) / h) of its own settings: inputs on t_end, on h, or on a
+// parameter h is an expression of change it; others do not. Reference: the step counts by hand.
+TEST(CampaignSteps, EachSampleIsBoundedByItsOwnSettings) {
+  // The relay at h = 1e-3 over [0, 1]: 1000 steps; f and v0 do not touch the settings.
+  const CampaignSpec plain = CampaignSpec::from_json(relay_spec("sobol", 8), "");
+  CampaignStepBound b = campaign_step_bound(plain);
+  EXPECT_FALSE(b.inputs_change_steps);
+  EXPECT_EQ(b.base, 1000);
+  EXPECT_EQ(b.total, 8000);
+  EXPECT_EQ(b.input, -1);
+  // The issue's case: a 50-step scene whose 8 samples each set t_end = 2000: 2,000,000 steps each.
+  json raised = relay_spec("monte-carlo", 8);
+  raised["scene"]["integrator"]["t_end"] = 0.05;
+  raised["inputs"].push_back({{"path", "/integrator/t_end"}, {"distribution", {{"type", "discrete"}, {"values", {2000.0}}}}});
+  b = campaign_step_bound(CampaignSpec::from_json(raised, ""));
+  EXPECT_TRUE(b.inputs_change_steps);
+  EXPECT_EQ(b.base, 50);
+  EXPECT_EQ(b.largest, 2'000'000);
+  EXPECT_EQ(b.total, 16'000'000);
+  EXPECT_EQ(b.input, 2);
+  EXPECT_FALSE(b.stopped);
+  // Capped by a caller's per-run limit (the runner stops a sample there), and summed no further than asked.
+  b = campaign_step_bound(CampaignSpec::from_json(raised, ""), 100'000);
+  EXPECT_EQ(b.largest, 100'000);
+  EXPECT_EQ(b.total, 800'000);
+  b = campaign_step_bound(CampaignSpec::from_json(raised, ""), std::nullopt, 3'000'000);
+  EXPECT_TRUE(b.stopped);
+  EXPECT_GT(b.total, 3'000'000);
+  // A grid over t_end and h: 0.5 / 1e-3, 0.5 / 1e-4, 2 / 1e-3, 2 / 1e-4; h = 10 is longer than the
+  // interval (an invalid sample: no step).
+  json grid = relay_spec("grid", 0);
+  grid.erase("samples");
+  grid["inputs"] = {{{"path", "/integrator/t_end"}, {"distribution", {{"type", "discrete"}, {"values", {0.5, 2.0}}}}},
+                    {{"path", "integrator.h"}, {"distribution", {{"type", "discrete"}, {"values", {1e-3, 1e-4, 10.0}}}}}};
+  b = campaign_step_bound(CampaignSpec::from_json(grid, ""));
+  EXPECT_EQ(b.largest, 20'000);
+  EXPECT_EQ(b.largest_sample, 4);  // t_end = 2, h = 1e-4
+  EXPECT_EQ(b.total, 500 + 5'000 + 0 + 2'000 + 20'000 + 0);
+  EXPECT_EQ(b.input, 1);  // h alone makes sample 4's 10,000 steps; t_end alone 2000
+  // h an expression of a parameter: the parameter's input changes the steps.
+  json param = relay_spec("grid", 0);
+  param.erase("samples");
+  param["scene"]["parameters"]["dt"] = 1e-3;
+  param["scene"]["integrator"]["h"] = "dt";
+  param["inputs"] = {{{"path", "/parameters/dt"}, {"distribution", {{"type", "discrete"}, {"values", {1e-3, 1e-5}}}}}};
+  b = campaign_step_bound(CampaignSpec::from_json(param, ""));
+  EXPECT_TRUE(b.inputs_change_steps);
+  EXPECT_EQ(b.total, 1000 + 100'000);
+  EXPECT_EQ(b.input, 0);
 }
 
 // ---- the campaign directory ----
@@ -482,6 +593,114 @@ TEST(CampaignRun, AStopAndAKilledWriteResumeWithoutLossOrDuplicates) {
   }
   fs::remove_all(ref);
   fs::remove_all(dir);
+}
+
+// A run stops once its count of integration steps (the records already there, then each finished
+// sample) reaches CampaignRunOptions::max_total_steps, keeping its records; run again under the same
+// limit it runs nothing more; without it, it finishes. Reference: every relay sample takes 1000 steps,
+// so a limit of 10,500 lets ceil(10500 / 1000) = 11 samples start.
+TEST(CampaignRun, TheStepLimitStopsTheRunAndCountsWhatEarlierRunsRan) {
+  const CampaignSpec s = CampaignSpec::from_json(relay_spec("sobol", 30), "");
+  const fs::path dir = fresh_dir("step-limit");
+  CampaignRunOptions limited;
+  limited.workers = 1;
+  limited.max_total_steps = 10'500;
+  try {
+    run_campaign(s, dir.string(), limited);
+    ADD_FAILURE() << "30 samples of 1000 steps ran under a limit of 10500 steps";
+  } catch (const std::runtime_error& e) {
+    EXPECT_THAT(e.what(), HasSubstr("reached the limit of 10500 integration steps"));
+  }
+  auto records = records_of(dir);
+  for (const auto& [i, r] : records) ASSERT_EQ(r["steps"], 1000) << i;
+  EXPECT_EQ(records.size(), 11u);
+  EXPECT_FALSE(fs::exists(dir / "summary.json"));
+  // Resumed under the same limit: the 11,000 steps of the records count, nothing more runs.
+  EXPECT_THROW(run_campaign(s, dir.string(), limited), std::runtime_error);
+  EXPECT_EQ(records_of(dir).size(), 11u);
+  // A limit the whole campaign fits in (30,000 steps) lets it finish.
+  limited.max_total_steps = 30'000;
+  const CampaignRunResult r = run_campaign(s, dir.string(), limited);
+  EXPECT_EQ(r.ran, 19);
+  EXPECT_TRUE(r.summarized);
+  fs::remove_all(dir);
+}
+
+// A record is sample i of this campaign only if it carries the spec's hash, the inputs the sampler draws
+// for i (exactly: one ulp off is another input) and the success its own fields make. Resume, --collect,
+// the outcomes the figures read and a Slurm resubmission's count all refuse an edited or a foreign record,
+// naming the file and the line; the genuine records, put back, are taken again.
+TEST(CampaignRun, EditedOrForeignRecordsAreRefusedNamingTheFileAndLine) {
+  const CampaignSpec s = CampaignSpec::from_json(relay_spec("sobol", 12), "");
+  // Another campaign with the same samples (Sobol ignores the seed) but another spec: its records differ
+  // from these by their spec_hash alone.
+  json other_doc = relay_spec("sobol", 12);
+  other_doc["description"] = "another campaign";
+  const CampaignSpec other = CampaignSpec::from_json(other_doc, "");
+  ASSERT_NE(other.hash, s.hash);
+  const fs::path dir = fresh_dir("edited"), foreign = fresh_dir("foreign");
+  CampaignRunOptions one;
+  one.workers = 1;  // line k + 1 holds sample k
+  ASSERT_TRUE(run_campaign(s, dir.string(), one).summarized);
+  ASSERT_TRUE(run_campaign(other, foreign.string(), one).summarized);
+  const json summary = read_scene_file((dir / "summary.json").string());
+  auto lines_of = [](const fs::path& file) {
+    std::vector<std::string> lines;
+    std::ifstream in(file);
+    for (std::string line; std::getline(in, line);) lines.push_back(line);
+    return lines;
+  };
+  const std::vector<std::string> genuine = lines_of(dir / "samples.jsonl"), theirs = lines_of(foreign / "samples.jsonl");
+  ASSERT_EQ(genuine.size(), 12u);
+  ASSERT_EQ(json::parse(genuine[6])["inputs"], json::parse(theirs[6])["inputs"]);
+  auto write = [&](const std::vector<std::string>& lines) {
+    std::ofstream out(dir / "samples.jsonl", std::ios::trunc);
+    for (const std::string& l : lines) out << l << "\n";
+  };
+  struct Edit {
+    const char* what;
+    std::size_t line;  // 1-based
+    std::function<std::string(json)> edit;
+    const char* phrase;
+  };
+  const std::vector<Edit> edits = {
+      {"an input changed", 3, [](json r) { r["inputs"]["/parameters/f"] = r["inputs"]["/parameters/f"].get<double>() + 0.125; return r.dump(); },
+       "input /parameters/f"},
+      {"an input one ulp off", 4,
+       [](json r) { r["inputs"]["/parameters/v0"] = std::nextafter(r["inputs"]["/parameters/v0"].get<double>(), 10.0); return r.dump(); },
+       "input /parameters/v0"},
+      {"success flipped", 5, [](json r) { r["success"] = !r["success"].get<bool>(); return r.dump(); }, "its success is"},
+      {"another sample's index", 6, [](json r) { r["index"] = 7; return r.dump(); }, "sample 7's input"},
+      {"another campaign's record", 7, [&](json) { return theirs[6]; }, "spec_hash"},
+      {"no spec_hash", 2, [](json r) { r.erase("spec_hash"); return r.dump(); }, "no spec_hash"},
+  };
+  for (const Edit& e : edits) {
+    SCOPED_TRACE(e.what);
+    std::vector<std::string> lines = genuine;
+    lines[e.line - 1] = e.edit(json::parse(lines[e.line - 1]));
+    write(lines);
+    const std::string where = "samples.jsonl' line " + std::to_string(e.line) + " is not a record of this campaign";
+    const std::vector<std::pair<const char*, std::function<void()>>> readers = {
+        {"collect", [&] { collect_campaign(dir.string()); }},
+        {"resume", [&] { run_campaign(s, dir.string(), one); }},
+        {"outcomes", [&] { read_campaign_outcomes(s, dir.string()); }},
+        {"missing per task", [&] { missing_per_task(dir.string(), s, 3); }}};
+    for (const auto& [name, read] : readers) {
+      SCOPED_TRACE(name);
+      try {
+        read();
+        ADD_FAILURE() << "the record was taken";
+      } catch (const std::runtime_error& err) {
+        EXPECT_THAT(err.what(), HasSubstr(where));
+        EXPECT_THAT(err.what(), HasSubstr(e.phrase));
+      }
+    }
+    EXPECT_EQ(read_scene_file((dir / "summary.json").string()), summary) << "the summary was rewritten";
+  }
+  write(genuine);
+  EXPECT_EQ(collect_campaign(dir.string()), summary);
+  fs::remove_all(dir);
+  fs::remove_all(foreign);
 }
 
 std::size_t resident_bytes() {

@@ -194,6 +194,12 @@ TEST(ServerCampaign, BadCampaignsNameTheField) {
   };
   json no_campaign = body_of(8, false, 1.0);
   no_campaign.erase("campaign");
+  // One more input, after the shipped campaign's five (/campaign/inputs/5).
+  auto with_input = [](const json& input) {
+    json b = body_of(8, false, 1.0);
+    b["campaign"]["inputs"].push_back(input);
+    return b;
+  };
   const BadCampaign cases[] = {
       {"no_campaign", no_campaign, 400, "/campaign", "request", "missing required field 'campaign'"},
       {"campaign_type", with("/campaign", "fast"), 400, "/campaign", "request", "expected an object"},
@@ -204,6 +210,18 @@ TEST(ServerCampaign, BadCampaignsNameTheField) {
       {"zero_samples", with("/campaign/samples", 0), 400, "/campaign/samples", "request", ">= 1"},
       {"unknown_field", with("/campaign/workers", 4), 400, "/campaign/workers", "request", "unknown field"},
       {"over_the_sample_limit", with("/campaign/samples", 1001), 400, "/campaign/samples", "request", "at most 1000 per campaign"},
+      // This server's limit, not the command line's (10,000,000), whatever the number's form.
+      {"samples_1e12", with("/campaign/samples", 1e12), 400, "/campaign/samples", "request", "at most 1000 per campaign"},
+      {"samples_10_to_the_12", with("/campaign/samples", std::int64_t{1'000'000'000'000}), 400, "/campaign/samples", "request",
+       "at most 1000 per campaign"},
+      // Names are data: a newline would have put a command into a Slurm script.
+      {"name_with_a_newline", with("/campaign/name", "x\ntouch FILE\n#"), 400, "/campaign/name", "request", "is not a campaign name"},
+      // Inputs that raise each sample's steps count: t_end = 2000 (2,000,000 steps, held to --max-steps'
+      // 1,000,000), h = 1e-5 (100,000 each), against 160,000 per campaign.
+      {"t_end_raised_by_an_input", with_input({{"path", "/integrator/t_end"}, {"distribution", {{"type", "discrete"}, {"values", {2000.0}}}}}), 400,
+       "/campaign/inputs/5", "request", "/integrator/t_end = 2000.0, needs 1000000;"},
+      {"h_lowered_by_an_input", with_input({{"path", "/integrator/h"}, {"distribution", {{"type", "discrete"}, {"values", {1e-5}}}}}), 400,
+       "/campaign/inputs/5", "request", "needs 100000;"},
       {"over_the_step_limit", with("/overrides", {"integrator.h=1e-7"}), 400, "/integrator/h", "scene", "steps per sample"},
       {"over_the_campaign_step_limit", with("/overrides", {"integrator.t_end=30"}), 400, "/campaign/samples", "request",
        "steps per campaign"},
@@ -235,6 +253,45 @@ TEST(ServerCampaign, BadCampaignsNameTheField) {
   auto ok = post_campaign(*c, body_of(8, false, 1.0));
   ASSERT_EQ(ok->status, 202) << ok->body;
   EXPECT_EQ(wait_final(*c, json::parse(ok->body)["id"], 120, "/v1/campaigns/")["state"], "done");
+}
+
+// The issue's case: a 50-step scene whose inputs set t_end = 2000 in each of 8 samples would run
+// 16,000,000 steps under a budget of 100,000; it is refused at its input. Inputs that keep every sample
+// within the budget are taken, and each sample's record has the steps its own t_end makes,
+// ceil(t_end / h), all of them within the budget.
+TEST(ServerCampaign, InputsThatChangeEachSamplesStepsCountAgainstTheBudget) {
+  ServerConfig cfg;
+  cfg.max_campaign_steps = 100'000;
+  TestServer ts(cfg);
+  auto c = ts.client();
+  auto body = [](const json& t_end) {
+    json b = body_of(8, false, 0.05);  // h = 1e-3: 50 steps
+    b["campaign"]["inputs"].push_back({{"path", "/integrator/t_end"}, {"distribution", t_end}});
+    return b;
+  };
+  auto r = post_campaign(*c, body({{"type", "discrete"}, {"values", {2000.0}}}));
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 400) << r->body;
+  const json e = json::parse(r->body);
+  EXPECT_EQ(e["pointer"], "/campaign/inputs/5") << e.dump();
+  EXPECT_THAT(e["reason"].get<std::string>(), ::testing::HasSubstr("/integrator/t_end = 2000.0, needs 2000000;")) << e.dump();
+  EXPECT_THAT(e["reason"].get<std::string>(), ::testing::HasSubstr("at most 100000 steps per campaign")) << e.dump();
+  EXPECT_EQ(json::parse(c->Get("/v1/campaigns")->body)["count"], 0);
+
+  auto ok = post_campaign(*c, body({{"type", "discrete"}, {"values", {0.05, 0.1, 0.25}}}));
+  ASSERT_EQ(ok->status, 202) << ok->body;
+  const std::string id = json::parse(ok->body)["id"];
+  ASSERT_EQ(wait_final(*c, id, 120, "/v1/campaigns/")["state"], "done");
+  const auto records = records_by_index(c->Get("/v1/campaigns/" + id + "/samples?format=jsonl")->body);
+  ASSERT_EQ(records.size(), 8u);
+  std::int64_t total = 0;
+  for (const auto& [i, record] : records) {
+    const double t_end = record["inputs"]["/integrator/t_end"].get<double>();
+    const std::int64_t expected = t_end == 0.05 ? 50 : t_end == 0.1 ? 100 : 250;
+    EXPECT_EQ(record["steps"].get<std::int64_t>(), expected) << "sample " << i << " at t_end = " << t_end;
+    total += record["steps"].get<std::int64_t>();
+  }
+  EXPECT_LE(total, 100'000);
 }
 
 // The records of a campaign that ended early: every sample once, at least the `at_least` the campaign

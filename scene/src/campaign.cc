@@ -29,9 +29,11 @@
 #include <boost/random/sobol.hpp>
 
 #include "moreau/core/observer.h"
+#include "moreau/core/stepping_driver.h"
 #include "moreau/scene/line_reader.h"
 #include "moreau/scene/scene.h"
 #include "moreau/scene/simulation.h"
+#include "scene_reader.h"
 
 namespace moreau::scene {
 namespace fs = std::filesystem;
@@ -187,6 +189,47 @@ json InputDistribution::at(double u) const {
   return nullptr;
 }
 
+bool is_campaign_name(const std::string& name) {
+  if (name.empty() || name.size() > kMaxCampaignNameLength) return false;
+  return std::all_of(name.begin(), name.end(), [](char c) {
+    return (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '.' || c == '_' || c == '-';
+  });
+}
+
+namespace {
+// Whole doubles below 2^53 as integers (exact there), everything else as it is: one text for documents
+// that are equal as JSON values.
+json canonical(const json& j) {
+  if (j.is_object()) {
+    json out = json::object();
+    for (auto it = j.begin(); it != j.end(); ++it) out[it.key()] = canonical(it.value());
+    return out;
+  }
+  if (j.is_array()) {
+    json out = json::array();
+    for (const json& e : j) out.push_back(canonical(e));
+    return out;
+  }
+  if (j.is_number_float()) {
+    const double x = j.get<double>();
+    if (std::isfinite(x) && std::trunc(x) == x && std::abs(x) < 0x1.0p53) return json(static_cast<std::int64_t>(x));
+  }
+  return j;
+}
+}  // namespace
+
+std::string campaign_spec_hash(const json& document) {
+  // FNV-1a, 64 bits (offset basis 14695981039346656037, prime 1099511628211).
+  std::uint64_t h = 14695981039346656037ull;
+  for (const unsigned char c : canonical(document).dump(-1, ' ', false, json::error_handler_t::replace)) {
+    h ^= c;
+    h *= 1099511628211ull;
+  }
+  char hex[17];
+  std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(h));
+  return hex;
+}
+
 CampaignSpec CampaignSpec::from_json(const json& spec, const std::string& base_dir) {
   if (!spec.is_object()) throw SceneError("/", "a campaign spec is a JSON object");
   only_fields(spec, "", {"name", "description", "scene", "inputs", "sampler", "seed", "samples", "target", "full_report", "map"});
@@ -194,6 +237,10 @@ CampaignSpec CampaignSpec::from_json(const json& spec, const std::string& base_d
   s.document = spec;
   if (spec.contains("name") && !spec["name"].is_string()) throw SceneError("/name", "expected a string");
   s.name = spec.value("name", "campaign");
+  // Names are data: they reach Slurm's batch script and command lines, file names and messages.
+  if (!is_campaign_name(s.name))
+    throw SceneError("/name", detail::brief(json(s.name)) + " is not a campaign name: 1 to " + std::to_string(kMaxCampaignNameLength) +
+                                  " characters, each a letter A-Z or a-z, a digit, '.', '_' or '-'");
   // The scene: inline, or a file relative to the spec's directory.
   const json& scene = member(spec, "", "scene");
   if (scene.is_string()) {
@@ -340,6 +387,7 @@ CampaignSpec CampaignSpec::from_json(const json& spec, const std::string& base_d
     s.target_tolerance = finite_number(member(t, "/target", "tolerance"), "/target/tolerance");
     if (s.target_tolerance < 0.0) throw SceneError("/target/tolerance", "expected a number >= 0");
   }
+  s.hash = campaign_spec_hash(s.document);
   return s;
 }
 
@@ -416,6 +464,118 @@ std::vector<json> CampaignDesign::values(std::int64_t i) const {
   return v;
 }
 
+// ---- the steps of the samples ----
+
+namespace {
+
+// A scene document's integrator settings, read as both compilers read them (read_interval, read_max_steps,
+// check_step_count) without compiling the system: ceil((t_end - t0) / h). Throws as the compilers would
+// for settings they refuse (the sample is then invalid and runs no step).
+class IntegratorReader : public detail::SceneReader {
+ public:
+  explicit IntegratorReader(const json& doc) : SceneReader(doc) {}
+  std::int64_t steps() {
+    return detail::compile_scene([&] {
+      declare_parameters();
+      if (!doc_.contains("integrator")) throw SceneError("/integrator", "missing required field 'integrator' (h and t_end)");
+      const json& in = doc_["integrator"];
+      detail::require_object(in, "/integrator");
+      double h = 0, t0 = 0, t_end = 0;
+      read_interval(in, h, t0, t_end);
+      const std::int64_t max_steps = read_max_steps(in);
+      check_step_count(t0, t_end, h, max_steps, true);  // beyond max_steps the compilers refuse the scene
+      return std::min(fixed_step_count(t0, t_end, h), max_steps);
+    });
+  }
+};
+
+// The bound of one document: its integrator's steps, or 0 when the settings are refused (the compilers
+// read them with the same functions, after more checks, so they refuse the sample too: it runs no step),
+// or the compiled scene's should the reader fail otherwise; capped by `cap`.
+std::int64_t steps_of(const json& doc, std::optional<std::int64_t> cap) {
+  std::int64_t n = 0;
+  try {
+    n = IntegratorReader(doc).steps();
+  } catch (const SceneError&) {
+    n = 0;
+  } catch (const std::exception&) {
+    try {
+      const Simulation sim = Simulation::from_json(doc);
+      n = std::min(sim.planned_steps(), sim.max_steps());
+    } catch (const std::exception&) {
+      n = 0;
+    }
+  }
+  return cap ? std::min(n, *cap) : n;
+}
+
+bool under(const std::string& path, const std::string& root) {
+  return path == root || (path.size() > root.size() && path.compare(0, root.size(), root) == 0 && path[root.size()] == '/');
+}
+
+}  // namespace
+
+CampaignStepBound campaign_step_bound(const CampaignSpec& spec, std::optional<std::int64_t> cap, std::int64_t stop_above) {
+  CampaignStepBound b;
+  b.base = steps_of(spec.scene, cap);
+  // Which inputs can change a sample's steps: an integrator setting, or a parameter when the settings
+  // are expressions (which may use parameters, and parameters other parameters).
+  bool settings_are_numbers = true;
+  if (spec.scene.contains("integrator") && spec.scene["integrator"].is_object())
+    for (const char* field : {"h", "t0", "t_end", "max_steps"})
+      if (spec.scene["integrator"].contains(field) && !spec.scene["integrator"][field].is_number()) settings_are_numbers = false;
+  std::vector<int> changing;
+  for (std::size_t k = 0; k < spec.inputs.size(); ++k) {
+    const std::string& path = spec.inputs[k].path;
+    if (under(path, "/integrator") || (!settings_are_numbers && under(path, "/parameters"))) changing.push_back(static_cast<int>(k));
+  }
+  b.inputs_change_steps = !changing.empty();
+  const auto add = [&](std::int64_t n) {
+    b.total = n > std::numeric_limits<std::int64_t>::max() - b.total ? std::numeric_limits<std::int64_t>::max() : b.total + n;
+  };
+  if (!b.inputs_change_steps) {
+    b.largest = b.base;
+    b.largest_sample = spec.samples > 0 ? 0 : -1;
+    b.total = b.base > 0 && spec.samples > std::numeric_limits<std::int64_t>::max() / b.base ? std::numeric_limits<std::int64_t>::max()
+                                                                                              : b.base * spec.samples;
+    b.stopped = false;
+    return b;
+  }
+  // Sample by sample, from its own document (every input's path written, as the runner writes them).
+  const CampaignDesign design(spec);
+  json doc = spec.scene;
+  std::vector<json::json_pointer> paths;
+  for (const CampaignInput& in : spec.inputs) paths.emplace_back(in.path);
+  std::vector<json> worst_values;
+  for (std::int64_t i = 0; i < spec.samples; ++i) {
+    std::vector<json> values = design.values(i);
+    for (std::size_t k = 0; k < values.size(); ++k) doc[paths[k]] = values[k];
+    const std::int64_t n = steps_of(doc, cap);
+    add(n);
+    if (n > b.largest || b.largest_sample < 0) {
+      b.largest = n;
+      b.largest_sample = i;
+      worst_values = std::move(values);
+    }
+    if (b.total > stop_above && i + 1 < spec.samples) {
+      b.stopped = true;
+      break;
+    }
+  }
+  // Which input raises the worst sample most: each changing input's value alone on the scene.
+  std::int64_t most = -1;
+  for (int k : changing) {
+    json alone = spec.scene;
+    alone[paths[static_cast<std::size_t>(k)]] = worst_values[static_cast<std::size_t>(k)];
+    const std::int64_t n = steps_of(alone, cap);
+    if (n > most) {
+      most = n;
+      b.input = k;
+    }
+  }
+  return b;
+}
+
 // ---- one sample ----
 
 namespace {
@@ -476,7 +636,7 @@ CampaignSampleRunner::~CampaignSampleRunner() = default;
 json CampaignSampleRunner::record_head(std::int64_t i, const std::vector<json>& values) const {
   json inputs = json::object();
   for (std::size_t k = 0; k < values.size(); ++k) inputs[spec_.inputs[k].path] = values[k];
-  return {{"index", i}, {"inputs", std::move(inputs)}};
+  return {{"index", i}, {"inputs", std::move(inputs)}, {"spec_hash", spec_.hash}};
 }
 
 json CampaignSampleRunner::record_of(std::int64_t i, const std::vector<json>& values, const Simulation& sim) const {
@@ -826,8 +986,8 @@ enum class CutLine {
   kError,   // refuse the file, naming it and the line
 };
 
-// Calls `each` with every record of a records file, read one bounded line at a time (a million records
-// never sit in memory together).
+// Calls `each(record, where)` with every record of a records file, read one bounded line at a time (a
+// million records never sit in memory together); `where` is "'FILE' line N", for errors.
 template <class Each>
 void for_each_record(const fs::path& file, CutLine cut, Each each) {
   if (!fs::exists(file)) return;
@@ -853,7 +1013,7 @@ void for_each_record(const fs::path& file, CutLine cut, Each each) {
       }
       if (!r.is_object() || !r.contains("index") || !r["index"].is_number_integer()) throw std::runtime_error(where + " is not a sample record (no index)");
       good_end += line.size() + 1;
-      each(std::move(r));
+      each(std::move(r), where);
     }
   }
   if (partial && cut == CutLine::kRepair) fs::resize_file(file, good_end);
@@ -994,11 +1154,65 @@ void write_summary(const fs::path& dir, const json& summary) {
 
 namespace {
 
+// A record's value for a message: its serialization, at most about 200 bytes of it (whole UTF-8 characters).
+std::string quoted(const json& j) { return j.is_null() ? std::string("nothing") : detail::brief(j); }
+
+// Refuses (std::runtime_error at `where`, "'FILE' line N") a record that is not sample i of this campaign
+// as the spec defines it: another spec's hash (or none), inputs other than those the sampler draws for
+// its index, or an outcome its own fields contradict. `i` is in range. Returns its steps (0 for none).
+std::int64_t check_record(const CampaignSpec& spec, const CampaignDesign& design, const json& r, std::int64_t i, const std::string& where) {
+  const auto bad = [&](const std::string& what) {
+    return std::runtime_error(where + " is not a record of this campaign: " + what +
+                              " (a record of another campaign or an edited one; remove it, or run the campaign in another directory)");
+  };
+  const auto hash = r.find("spec_hash");
+  if (hash == r.end() || !hash->is_string())
+    throw bad("it has no spec_hash (records carry the hash of the spec they were run for)");
+  if (hash->get<std::string>() != spec.hash)
+    throw bad("its spec_hash " + quoted(*hash) + " is not this spec's \"" + spec.hash + "\" (campaign.json)");
+  // The inputs exactly as drawn: a double is written with round-trip precision, so it reads back equal;
+  // a value that is not a finite number is written as null.
+  const std::vector<json> drawn = design.values(i);
+  const auto inputs = r.find("inputs");
+  if (inputs == r.end() || !inputs->is_object() || inputs->size() != drawn.size())
+    throw bad("sample " + std::to_string(i) + "'s inputs are not the spec's " + std::to_string(drawn.size()) + " inputs");
+  for (std::size_t k = 0; k < drawn.size(); ++k) {
+    const std::string& path = spec.inputs[k].path;
+    const json want = drawn[k].is_number_float() && !std::isfinite(drawn[k].get<double>()) ? json(nullptr) : drawn[k];
+    const auto got = inputs->find(path);
+    if (got == inputs->end() || *got != want)
+      throw bad("sample " + std::to_string(i) + "'s input " + path + " is " + (got == inputs->end() ? std::string("missing") : quoted(*got)) +
+                ", the sampler draws " + quoted(want) + " for it");
+  }
+  // The outcome as the record's own fields define it (record_of): success means completed, converged and,
+  // with a target, within its tolerance.
+  const auto status = r.find("status");
+  const auto success = r.find("success");
+  if (status == r.end() || !status->is_string() || success == r.end() || !success->is_boolean())
+    throw bad("it has no status (a string) or no success (true or false)");
+  const auto converged = r.find("converged");
+  if (converged != r.end() && !converged->is_boolean()) throw bad("its converged is not true or false");
+  const auto distance = r.find("target_distance");
+  const bool within = spec.target_q.empty() ||
+                      (distance != r.end() && distance->is_number() && distance->get<double>() <= spec.target_tolerance);
+  const bool expected = *status == "completed" && converged != r.end() && converged->get<bool>() && within;
+  if (success->get<bool>() != expected)
+    throw bad(std::string("its success is ") + (success->get<bool>() ? "true" : "false") + ", but its status, convergence and target distance make it " +
+              (expected ? "true" : "false"));
+  const auto steps = r.find("steps");
+  if (steps == r.end()) return 0;
+  if (!steps->is_number_integer() || steps->get<std::int64_t>() < 0) throw bad("its steps " + quoted(*steps) + " is not a whole number >= 0");
+  return steps->get<std::int64_t>();
+}
+
 // Every record of the directory in `wanted`, each index once and inside the campaign, as summary rows
 // (and as rows of `csv` when given); present[i] says whether sample i has a record. `own` (a file this
 // process writes) has a cut last line repaired; the others' cut lines are handled as `others` says.
-std::vector<CampaignOutcome> load_rows(const CampaignSpec& spec, const fs::path& dir, const fs::path& own, CutLine others, std::vector<bool>& present,
-                                 std::ofstream* csv, int dof, SampleRange wanted = {}) {
+// Each is checked to be one of this campaign's (check_record); `steps`, when given, gets the sum of
+// their steps.
+std::vector<CampaignOutcome> load_rows(const CampaignSpec& spec, const CampaignDesign& design, const fs::path& dir, const fs::path& own,
+                                       CutLine others, std::vector<bool>& present, std::ofstream* csv, int dof, SampleRange wanted = {},
+                                       std::int64_t* steps = nullptr) {
   present.assign(static_cast<std::size_t>(spec.samples), false);
   std::vector<CampaignOutcome> rows;
   std::vector<fs::path> files = record_files(dir, wanted);
@@ -1010,12 +1224,14 @@ std::vector<CampaignOutcome> load_rows(const CampaignSpec& spec, const fs::path&
       file.replace_extension();
       if (std::find(files.begin(), files.end(), file) != files.end()) continue;
     }
-    for_each_record(file, file == own ? CutLine::kRepair : others, [&](json&& r) {
+    for_each_record(file, file == own ? CutLine::kRepair : others, [&](json&& r, const std::string& where) {
       const auto i = r["index"].get<std::int64_t>();
       if (i < 0 || i >= spec.samples)
-        throw std::runtime_error("'" + file.string() + "' holds sample " + std::to_string(i) + ", outside the campaign's " +
+        throw std::runtime_error(where + " holds sample " + std::to_string(i) + ", outside the campaign's " +
                                  std::to_string(spec.samples) + " samples");
       if (!wanted.contains(i)) return;
+      const std::int64_t record_steps = check_record(spec, design, r, i, where);
+      if (steps) *steps = record_steps > std::numeric_limits<std::int64_t>::max() - *steps ? std::numeric_limits<std::int64_t>::max() : *steps + record_steps;
       if (present[static_cast<std::size_t>(i)])
         throw std::runtime_error("sample " + std::to_string(i) + " is present twice (the second time in '" + file.string() + "')");
       present[static_cast<std::size_t>(i)] = true;
@@ -1053,12 +1269,14 @@ CampaignRunResult run_campaign(const CampaignSpec& spec, const std::string& dir_
     own = own_done;
     own += ".partial";
   }
+  const CampaignDesign design(spec);
   std::vector<bool> done;
   std::int64_t present = 0;  // samples with a record before this run
+  std::int64_t steps_before = 0;  // the steps of their records
   CampaignRunResult result;
   if (task) {
     // A block that is complete is left as it is: nothing is opened, created or renamed.
-    load_rows(spec, dir, fs::path(), CutLine::kIgnore, done, nullptr, dof, SampleRange{begin, end});
+    load_rows(spec, design, dir, fs::path(), CutLine::kIgnore, done, nullptr, dof, SampleRange{begin, end});
     bool complete = true;
     for (std::int64_t i = begin; i < end && complete; ++i) complete = done[static_cast<std::size_t>(i)];
     if (complete) {
@@ -1080,14 +1298,15 @@ CampaignRunResult run_campaign(const CampaignSpec& spec, const std::string& dir_
     throw std::runtime_error("'" + own.string() + "' is being written by another process (the same samples run twice at once?)");
   std::ofstream out_csv;
   if (task) {
-    present = static_cast<std::int64_t>(load_rows(spec, dir, own, CutLine::kIgnore, done, nullptr, dof, SampleRange{begin, end}).size());
+    present = static_cast<std::int64_t>(
+        load_rows(spec, design, dir, own, CutLine::kIgnore, done, nullptr, dof, SampleRange{begin, end}, &steps_before).size());
   } else {
     // The table is rewritten from the records: it may have been cut at another point than they were.
     const fs::path csv = dir / "samples.csv";
     {
       std::ofstream table(csv, std::ios::trunc);
       table << csv_header(spec, dof);
-      present = static_cast<std::int64_t>(load_rows(spec, dir, own, CutLine::kIgnore, done, &table, dof).size());
+      present = static_cast<std::int64_t>(load_rows(spec, design, dir, own, CutLine::kIgnore, done, &table, dof, {}, &steps_before).size());
       if (!table) throw std::runtime_error("cannot write '" + csv.string() + "'");
     }
     out_csv.open(csv, std::ios::app);
@@ -1098,8 +1317,10 @@ CampaignRunResult run_campaign(const CampaignSpec& spec, const std::string& dir_
   std::ofstream out_jsonl(own, std::ios::app | std::ios::binary);
   if (!out_jsonl) throw std::runtime_error("cannot write '" + own.string() + "'");
 
-  const CampaignDesign design(spec);
   std::atomic<std::int64_t> next{begin};
+  // The integration steps so far (the records present, then every finished sample), for max_total_steps.
+  std::atomic<std::int64_t> steps_so_far{steps_before};
+  std::string step_limit;  // why the run stopped at max_total_steps (under write_mu)
   std::mutex write_mu;
   std::exception_ptr error;
   std::int64_t finished = result.skipped;
@@ -1113,6 +1334,17 @@ CampaignRunResult run_campaign(const CampaignSpec& spec, const std::string& dir_
       std::int64_t i = next.fetch_add(1);
       while (i < end && done[static_cast<std::size_t>(i)]) i = next.fetch_add(1);  // done[] of a skipped sample never changes
       if (i >= end) return;
+      if (options.max_total_steps > 0 && steps_so_far.load() >= options.max_total_steps) {
+        // No sample starts once the count reaches the limit; the samples running now finish and their
+        // records are written (their steps are taken), then the run ends with the reason.
+        std::lock_guard lock(write_mu);
+        if (step_limit.empty())
+          step_limit = "the campaign reached the limit of " + std::to_string(options.max_total_steps) + " integration steps (its samples ran " +
+                       std::to_string(steps_so_far.load()) + ") with samples still to run, from sample " + std::to_string(i) +
+                       "; the records of the finished samples are kept";
+        failed = true;
+        return;
+      }
       json r = runner.run(i);
       const std::int64_t steps = r.value("steps", std::int64_t{0});  // an invalid sample has none
       const std::string line = r.dump() + '\n', row = task ? std::string() : csv_row(spec, r, dof);
@@ -1140,6 +1372,7 @@ CampaignRunResult run_campaign(const CampaignSpec& spec, const std::string& dir_
       }
       ++result.ran;
       result.steps += steps;
+      steps_so_far += steps;
       if (options.progress) options.progress(++finished, end - begin);
     }
   };
@@ -1168,6 +1401,7 @@ CampaignRunResult run_campaign(const CampaignSpec& spec, const std::string& dir_
     worker();
   }
   if (error) std::rethrow_exception(error);
+  if (!step_limit.empty() && result.ran + result.skipped < end - begin) throw std::runtime_error(step_limit);
   result.stopped = result.ran + result.skipped < end - begin;
   out_jsonl.close();
   if (task) {
@@ -1182,7 +1416,7 @@ CampaignRunResult run_campaign(const CampaignSpec& spec, const std::string& dir_
   } else if (present + result.ran == spec.samples) {
     // Every sample is present: the summary's rows are read back from the records (while samples run,
     // memory does not grow with them).
-    std::vector<CampaignOutcome> rows = load_rows(spec, dir, fs::path(), CutLine::kError, done, nullptr, dof);
+    std::vector<CampaignOutcome> rows = load_rows(spec, design, dir, fs::path(), CutLine::kError, done, nullptr, dof);
     summarize_and_write(spec, dir, rows);
     result.summarized = true;
   }
@@ -1200,7 +1434,8 @@ std::pair<std::int64_t, std::int64_t> task_range(std::int64_t samples, std::int6
 
 std::vector<std::int64_t> missing_per_task(const std::string& dir_name, const CampaignSpec& spec, std::int64_t tasks) {
   std::vector<bool> present;
-  load_rows(spec, dir_name, fs::path(), CutLine::kIgnore, present, nullptr, 0);
+  const CampaignDesign design(spec);
+  load_rows(spec, design, dir_name, fs::path(), CutLine::kIgnore, present, nullptr, 0);
   std::vector<std::int64_t> missing(static_cast<std::size_t>(tasks), 0);
   for (std::int64_t k = 0; k < tasks; ++k) {
     const auto [b, e] = task_range(spec.samples, k, tasks);
@@ -1211,7 +1446,8 @@ std::vector<std::int64_t> missing_per_task(const std::string& dir_name, const Ca
 
 std::vector<CampaignOutcome> read_campaign_outcomes(const CampaignSpec& spec, const std::string& dir) {
   std::vector<bool> present;
-  std::vector<CampaignOutcome> rows = load_rows(spec, dir, fs::path(), CutLine::kError, present, nullptr, 0);
+  const CampaignDesign design(spec);
+  std::vector<CampaignOutcome> rows = load_rows(spec, design, dir, fs::path(), CutLine::kError, present, nullptr, 0);
   std::sort(rows.begin(), rows.end(), [](const CampaignOutcome& a, const CampaignOutcome& b) { return a.index < b.index; });
   return rows;
 }
@@ -1229,7 +1465,7 @@ json collect_campaign(const std::string& dir_name) {
   {
     std::ofstream table(csv_tmp, std::ios::trunc);
     table << csv_header(spec, dof);
-    rows = load_rows(spec, dir, fs::path(), CutLine::kError, present, &table, dof);
+    rows = load_rows(spec, CampaignDesign(spec), dir, fs::path(), CutLine::kError, present, &table, dof);
     table.close();
     if (!table) throw std::runtime_error("cannot write '" + csv_tmp.string() + "'");
   }

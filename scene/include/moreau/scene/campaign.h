@@ -22,6 +22,7 @@
 #include <atomic>
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <string>
@@ -66,6 +67,17 @@ inline constexpr std::int64_t kMaxLatinHypercubeSamples = 2'000'000;
 inline constexpr int kMaxCampaignWorkers = 1024;
 // Uncertain inputs at most (Sobol's table has more; a campaign over more inputs is not a robustness check).
 inline constexpr int kMaxCampaignInputs = 64;
+// A campaign's name: 1 to 64 of [A-Za-z0-9._-]. It goes into Slurm job names and batch scripts, file
+// names and messages, where any other character (a space, a newline, a quote, '$', '#') could be read as
+// an option or a command; the spec reader refuses other names at /name.
+inline constexpr std::size_t kMaxCampaignNameLength = 64;
+bool is_campaign_name(const std::string& name);
+
+// The identity of a campaign spec: FNV-1a (64-bit) of the canonical JSON text of its document (the spec
+// with its scene inlined), as 16 lowercase hex digits. Canonical: nlohmann's compact dump (object keys
+// sorted) after every number that is a whole double below 2^53 in magnitude is written as an integer, so
+// that two documents equal as JSON values (1 and 1.0) have one hash. Every record carries it.
+std::string campaign_spec_hash(const nlohmann::json& document);
 
 struct CampaignSpec {
   std::string name;
@@ -85,6 +97,7 @@ struct CampaignSpec {
   // records to their outcomes (about 300 bytes), for campaigns of millions of samples.
   bool full_report = true;
   nlohmann::json document;  // the spec as given, with the scene inlined: what campaign.json stores
+  std::string hash;          // campaign_spec_hash(document): the "spec_hash" of every record
 
   // Validates a spec. `base_dir` resolves a scene given as a file path. Throws SceneError naming the
   // field (a JSON pointer into the spec) and what is wrong.
@@ -147,7 +160,9 @@ class CampaignSampleRunner {
   nlohmann::json run_compiled(std::int64_t i, const std::vector<nlohmann::json>& values);
   std::optional<nlohmann::json> run_bound(std::int64_t i, const std::vector<nlohmann::json>& values);
   nlohmann::json record_of(std::int64_t i, const std::vector<nlohmann::json>& values, const Simulation& sim) const;
-  // What every record of sample i starts with, run or not: {"index": i, "inputs": {path: value, ...}}.
+  // What every record of sample i starts with, run or not: {"index": i, "inputs": {path: value, ...},
+  // "spec_hash": the spec's hash}: what identifies it as sample i of this campaign (resume and collect
+  // refuse a record whose hash or inputs differ from the spec's).
   nlohmann::json record_head(std::int64_t i, const std::vector<nlohmann::json>& values) const;
 
   const CampaignSpec& spec_;
@@ -183,6 +198,12 @@ struct CampaignRunOptions {
   // or a task's own part file, counting what earlier runs of the campaign left in them; a record that
   // would pass it ends the run with std::runtime_error, the records before it kept.
   std::int64_t max_bytes = 0;
+  // The integration steps the campaign may take (0: no limit), counting the steps of the records already
+  // in the files this run reads (a campaign resumed after a restart) and those of every sample it runs:
+  // once the count reaches the limit with samples still to run, the run ends with std::runtime_error
+  // ("reached the limit of N integration steps"), the records so far kept. No sample starts once the
+  // count has reached the limit; samples running then finish and are recorded (each bounded by max_steps).
+  std::int64_t max_total_steps = 0;
   std::function<void(std::int64_t done, std::int64_t total)> progress;  // after each sample, from one thread
 };
 
@@ -194,9 +215,35 @@ struct CampaignRunResult {
   bool summarized = false;   // every sample present: summary.json written
 };
 
+// The integration steps a campaign's samples can take, bounded sample by sample: sample i's bound is
+// ceil((t_end - t0) / h) of its own integrator settings, its inputs applied (an input may be an integrator
+// setting, or a parameter the settings' expressions use), capped by its max_steps and by `cap` (a caller's
+// per-run limit: the runner stops a sample there). A sample whose settings are invalid runs no step (0).
+// For the adaptive step rules h is the largest step, so the bound is their least count: a run may take
+// more, up to its max_steps (CampaignRunOptions::max_total_steps holds a run to a total whatever the
+// samples take).
+struct CampaignStepBound {
+  std::int64_t base = 0;             // the scene without the inputs: ceil((t_end - t0) / h), capped
+  bool inputs_change_steps = false;  // some input is an integrator setting, or a parameter they may use
+  std::int64_t largest = 0;          // the largest bound of one sample
+  std::int64_t largest_sample = -1;  // the first sample with it
+  std::int64_t total = 0;            // the sum over the samples (saturating), or the part summed when it passed stop_above
+  bool stopped = false;              // the sum passed stop_above and was not finished
+  int input = -1;                    // when inputs change steps: the input whose value alone raises largest_sample's bound most
+};
+CampaignStepBound campaign_step_bound(const CampaignSpec& spec, std::optional<std::int64_t> cap = std::nullopt,
+                                      std::int64_t stop_above = std::numeric_limits<std::int64_t>::max());
+
 // Runs the campaign's samples in the range that the directory does not hold yet, appending each record as
 // it finishes, and writes the summary when every sample is present. Throws std::runtime_error (a
-// directory that holds another campaign, an unreadable record) naming the file.
+// directory that holds another campaign, an unreadable record, a record that is not this campaign's)
+// naming the file (and the line).
+//
+// Every record read (resume, --collect, the figures, a Slurm resubmission's count) must be one of this
+// campaign's: its spec_hash equal to the spec's, its inputs exactly those the sampler draws for its index
+// (compared as JSON values: the doubles are written with round-trip precision), and its success what its
+// own status, convergence and target distance make it. Otherwise the error is "'FILE' line N: ..." and
+// nothing is run or summarized: a foreign or edited record never enters a summary.
 CampaignRunResult run_campaign(const CampaignSpec& spec, const std::string& dir, const CampaignRunOptions& options);
 
 // Makes `dir` the campaign's directory: writes campaign.json, or checks that the one there is this spec's
