@@ -494,6 +494,19 @@ INSTANTIATE_TEST_SUITE_P(
                   d["system"]["states"] = {"x", "1y"};
                 },
                 "/system/states/1", "expected a name"},
+        // State names are the trajectory's column names (t, h, <states>, <states>_dot, energy): none may
+        // be one of its own columns or another state's rate, whatever the order.
+        BadLure{"StateNamedAsTheStepColumn", [](json& d) { d["system"]["states"] = {"h", "y"}; }, "/system/states/0",
+                "the trajectory has its own column 'h'"},
+        BadLure{"StateNamedAsTheEnergyColumn", [](json& d) { d["system"]["states"] = {"x", "energy"}; }, "/system/states/1",
+                "the trajectory has its own column 'energy'"},
+        BadLure{"StateNamedAsTheTimeColumn", [](json& d) { d["system"]["states"] = {"t", "y"}; }, "/system/states/0",
+                "the trajectory has its own column 't'"},
+        BadLure{"StateNamedAsAnotherStatesRate", [](json& d) { d["system"]["states"] = {"x", "x_dot"}; }, "/system/states/1",
+                "'x_dot' is the name of the velocity of state 'x'"},
+        BadLure{"StateNamedAsTheRateOfALaterState", [](json& d) { d["system"]["states"] = {"y_dot", "y"}; }, "/system/states/0",
+                "'y_dot' is the name of the velocity of state 'y'"},
+        BadLure{"DuplicateStateName", [](json& d) { d["system"]["states"] = {"x", "x"}; }, "/system/states/1", "duplicate name 'x'"},
         // Every slope of a graph must be a finite number: near the largest double the rise and the run of a
         // segment overflow (2e308 / 2e308 = inf / inf = NaN), on a short steep segment the slope does.
         BadLure{"GraphSlopeOverflowsNearTheLargestDouble",

@@ -422,6 +422,23 @@ INSTANTIATE_TEST_SUITE_P(
         BadCase{"MissingIntegrator", [](json& d) { d.erase("integrator"); }, "/integrator", "missing"},
         BadCase{"Theorem42WithoutEta", [](json& d) { d["system"]["controller"] = {{{"type", "abs"}, {"gains", {1, 1}}}}; d["integrator"]["step_rule"] = "theorem-4.2"; }, "/integrator/step_rule", "eta"},
         BadCase{"BadSystemType", [](json& d) { d["system"]["type"] = "hamiltonian"; }, "/system/type", "unknown system type"},
+        // Coordinate names are the trajectory's column names (t, h, <q>, <q>_dot, energy) and the
+        // expressions' variables: none may be one of the trajectory's own columns or another
+        // coordinate's velocity, whatever the order (CSV header t,h,h,... and duplicate JSON keys before).
+        BadCase{"CoordinateNamedAsTheStepColumn", [](json& d) { d["system"]["coordinates"] = {"h", "th2"}; }, "/system/coordinates/0",
+                "the trajectory has its own column 'h' (the step size)"},
+        BadCase{"CoordinateNamedAsTheEnergyColumn", [](json& d) { d["system"]["coordinates"] = {"x1", "energy"}; }, "/system/coordinates/1",
+                "the trajectory has its own column 'energy'"},
+        BadCase{"CoordinateNamedAsTheTimeColumn", [](json& d) { d["system"]["coordinates"] = {"t", "th2"}; }, "/system/coordinates/0",
+                "the trajectory has its own column 't'"},
+        BadCase{"CoordinateNamedAsAFunction", [](json& d) { d["system"]["coordinates"] = {"x1", "sin"}; }, "/system/coordinates/1",
+                "'sin' is reserved"},
+        BadCase{"CoordinateNamedAsAnotherCoordinatesVelocity", [](json& d) { d["system"]["coordinates"] = {"x1", "x1_dot"}; },
+                "/system/coordinates/1", "'x1_dot' is the name of the velocity of coordinate 'x1'"},
+        BadCase{"CoordinateNamedAsTheVelocityOfALaterCoordinate", [](json& d) { d["system"]["coordinates"] = {"th2_dot", "th2"}; },
+                "/system/coordinates/0", "'th2_dot' is the name of the velocity of coordinate 'th2'"},
+        BadCase{"DuplicateCoordinateName", [](json& d) { d["system"]["coordinates"] = {"x1", "x1"}; }, "/system/coordinates/1",
+                "duplicate name 'x1'"},
         // A run must take at least one step and its step count must fit the limit, checked in double
         // before any conversion to an integer (a double beyond 2^63 converts to int64 with undefined
         // behaviour). For the adaptive rules h is the largest step, so (t_end - t0) / h bounds their count.
@@ -580,6 +597,70 @@ TEST(Scene, FrictionBarRunsOnBandedLuAndMatchesDenseLu) {
     vmax = std::max(vmax, std::abs(a.v_final[i]));
   }
   EXPECT_GT(vmax, 1e-3) << "still moving at t = 0.3: every step solved a real system";
+}
+
+
+// A URDF robot's joints name its coordinates, under the same rule as system.coordinates: a joint whose
+// (sanitized) name is one of the trajectory's own columns, or another joint's velocity <name>_dot, is
+// refused at /system/urdf/text, naming the joint and the line of its <joint> element.
+std::string two_joint_urdf(const std::string& first, const std::string& second) {
+  const std::string inertial =
+      "<inertial><mass value=\"1\"/><inertia ixx=\"0.1\" ixy=\"0\" ixz=\"0\" iyy=\"0.1\" iyz=\"0\" izz=\"0.1\"/></inertial>";
+  const std::string limit = "<limit lower=\"-1\" upper=\"1\" effort=\"1\" velocity=\"1\"/>";
+  return "<robot name=\"two\">\n"                                                                          // line 1
+         "<!-- <joint name=\"" + second + "\" type=\"revolute\"> in a comment is not the joint -->\n"     // line 2
+         "<link name=\"base\"/>\n"                                                                         // line 3
+         "<joint name=\"" + first + "\" type=\"revolute\">\n"                                              // line 4
+         "<parent link=\"base\"/><child link=\"l1\"/><axis xyz=\"0 0 1\"/>" + limit + "\n</joint>\n"      // lines 5-6
+         "<link name=\"l1\">" + inertial + "</link>\n"                                                     // line 7
+         "<joint name=\"" + second + "\" type=\"revolute\">\n"                                             // line 8
+         "<parent link=\"l1\"/><child link=\"l2\"/><origin xyz=\"1 0 0\"/><axis xyz=\"0 0 1\"/>" + limit + "\n</joint>\n"
+         "<link name=\"l2\">" + inertial + "</link>\n"
+         "</robot>\n";
+}
+
+json two_joint_scene(const std::string& first, const std::string& second) {
+  return {{"name", "two joints"},
+          {"system", {{"type", "lagrangian"}, {"urdf", {{"text", two_joint_urdf(first, second)}}}}},
+          {"initial", {{"q", {0.1, 0.2}}}},
+          {"integrator", {{"h", 1e-3}, {"t_end", 0.01}}}};
+}
+
+std::string scene_error(const json& doc) {
+  try {
+    load_scene(doc);
+  } catch (const SceneError& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+TEST(Scene, UrdfJointNamesFollowTheCoordinateNameRule) {
+  // Names that are free: the coordinates are the joints, their velocities <joint>_dot.
+  const LagrangianScene ok = load_scene(two_joint_scene("a", "b"));
+  EXPECT_EQ(ok.coordinates, (std::vector<std::string>{"a", "b"}));
+  EXPECT_EQ(ok.velocities, (std::vector<std::string>{"a_dot", "b_dot"}));
+
+  EXPECT_EQ(scene_error(two_joint_scene("h", "energy")),
+            "/system/urdf/text: joint 'h' (line 4): 'h' is reserved: the trajectory has its own column 'h' (the step size)");
+  EXPECT_EQ(scene_error(two_joint_scene("j1", "energy")),
+            "/system/urdf/text: joint 'energy' (line 8): 'energy' is reserved: the trajectory has its own column 'energy' (the energy)");
+  EXPECT_EQ(scene_error(two_joint_scene("t", "j2")),
+            "/system/urdf/text: joint 't' (line 4): 't' is reserved: the trajectory has its own column 't' (the time)");
+  EXPECT_EQ(scene_error(two_joint_scene("a", "a_dot")),
+            "/system/urdf/text: joint 'a_dot' (line 8): 'a_dot' is the name of the velocity of coordinate 'a' (its column in the "
+            "trajectory and its name in expressions): give this coordinate another name");
+  EXPECT_EQ(scene_error(two_joint_scene("b_dot", "b")).rfind("/system/urdf/text: joint 'b_dot' (line 4): 'b_dot' is the name of the "
+                                                               "velocity of coordinate 'b'", 0),
+            0u)
+      << scene_error(two_joint_scene("b_dot", "b"));
+  // A joint name an expression cannot use is sanitized first ('-' becomes '_'); the rule holds for the
+  // name it gives, and the error says both.
+  EXPECT_EQ(scene_error(two_joint_scene("a", "a-dot")).rfind("/system/urdf/text: joint 'a-dot' (line 8) gives the coordinate name "
+                                                               "'a_dot': 'a_dot' is the name of the velocity of coordinate 'a'", 0),
+            0u)
+      << scene_error(two_joint_scene("a", "a-dot"));
+  EXPECT_EQ(scene_error(two_joint_scene("a-b", "a_b")), "/system/urdf/text: joint 'a_b' (line 8): duplicate name 'a_b'");
 }
 
 }  // namespace

@@ -24,6 +24,49 @@ using expr::Graph;
 using expr::Node;
 using expr::Op;
 
+// The line of the <joint> element named `name` in a URDF text, as " (line N)"; empty when it is not found
+// as written (a name spelled with character references, say). The robot model keeps the joints' names,
+// not their lines. Comments are skipped, and so are <joint name> references without a type (those of a
+// <transmission>).
+std::string joint_line(const std::string& text, const std::string& name) {
+  auto space = [](char c) { return c == ' ' || c == '\t' || c == '\n' || c == '\r'; };
+  for (std::size_t p = 0;;) {
+    const std::size_t j = text.find("<joint", p), comment = text.find("<!--", p);
+    if (j == std::string::npos) return "";
+    if (comment < j) {
+      const std::size_t end = text.find("-->", comment + 4);
+      if (end == std::string::npos) return "";
+      p = end + 3;
+      continue;
+    }
+    p = j + 6;
+    const std::size_t end = text.find('>', p);
+    if (end == std::string::npos) return "";
+    if (!space(text[p])) continue;  // <jointx ...>
+    const std::string tag = text.substr(p, end - p);
+    std::optional<std::string> value;
+    bool typed = false;
+    for (std::size_t a = 0; a < tag.size();) {
+      // An attribute: its name, '=', a quoted value.
+      while (a < tag.size() && space(tag[a])) ++a;
+      const std::size_t key = a;
+      while (a < tag.size() && !space(tag[a]) && tag[a] != '=') ++a;
+      const std::string attribute = tag.substr(key, a - key);
+      while (a < tag.size() && space(tag[a])) ++a;
+      if (a >= tag.size() || tag[a] != '=') break;
+      ++a;
+      while (a < tag.size() && space(tag[a])) ++a;
+      if (a >= tag.size() || (tag[a] != '"' && tag[a] != '\'')) break;
+      const std::size_t close = tag.find(tag[a], a + 1);
+      if (close == std::string::npos) break;
+      if (attribute == "name") value = tag.substr(a + 1, close - a - 1);
+      if (attribute == "type") typed = true;
+      a = close + 1;
+    }
+    if (typed && value == name) return " (line " + std::to_string(1 + std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(j), '\n')) + ")";
+  }
+}
+
 class LagrangianCompiler : SceneReader {
  public:
   explicit LagrangianCompiler(const json& doc) : SceneReader(doc) {}
@@ -54,17 +97,30 @@ class LagrangianCompiler : SceneReader {
       n_ = robot_->model.dof();
       if (n_ > kMaxDof)
         throw SceneError("/system/urdf", "more than " + std::to_string(kMaxDof) + " moving joints (got " + std::to_string(n_) + ")");
-      std::set<std::string> seen;
+      // Joint names as coordinate names: characters an expression cannot use become '_', and a name that
+      // starts with a digit (or is empty) gets the prefix j_. The names then follow the rule of every
+      // coordinate name (column_name_conflict): the error names the joint, and its line in the URDF.
+      std::vector<std::string> names;
       for (int i = 0; i < n_; ++i) {
-        // Joint names as coordinate names: characters an expression cannot use become '_'.
-        const std::string& joint = robot_->model.bodies[static_cast<std::size_t>(i)].joint_name;
-        std::string q = joint;
+        std::string q = robot_->model.bodies[static_cast<std::size_t>(i)].joint_name;
         for (char& ch : q)
           if (!(std::isalnum(static_cast<unsigned char>(ch)) || ch == '_')) ch = '_';
         if (q.empty() || std::isdigit(static_cast<unsigned char>(q[0]))) q = "j_" + q;
-        if (function_names().count(q) || q == "t" || params_.count(q) || params_.count(q + "_dot") || !seen.insert(q).second)
-          throw SceneError("/system/urdf", "joint '" + joint + "' gives the coordinate name '" + q +
-                                               "', which is reserved, a parameter's name or another joint's");
+        names.push_back(q);
+      }
+      if (const auto conflict = column_name_conflict(names, "coordinate")) {
+        const std::string& joint = robot_->model.bodies[conflict->index].joint_name;
+        const std::string& q = names[conflict->index];
+        throw SceneError("/system/urdf/text", "joint '" + utf8_prefix(joint, 200) + "'" + joint_line(system["urdf"]["text"].get<std::string>(), joint) +
+                                                  (q == joint ? "" : " gives the coordinate name '" + q + "'") + ": " + conflict->reason);
+      }
+      for (int i = 0; i < n_; ++i) {
+        const std::string& q = names[static_cast<std::size_t>(i)];
+        for (const std::string& name : {q, q + "_dot"})
+          if (params_.count(name))
+            throw SceneError("/parameters/" + json_pointer_token(name), "'" + name + "' is also the name of a coordinate or velocity (joint '" +
+                                                                            utf8_prefix(robot_->model.bodies[static_cast<std::size_t>(i)].joint_name, 200) +
+                                                                            "' of the URDF)");
         coord_names_.push_back(q);
         vel_names_.push_back(q + "_dot");
         coord_slot_[q] = 1 + i;
@@ -86,23 +142,26 @@ class LagrangianCompiler : SceneReader {
     if (n_ > kMaxDof)
       throw SceneError(system.contains("coordinates") ? "/system/coordinates" : "/system/mass",
                        "more than " + std::to_string(kMaxDof) + " degrees of freedom (got " + std::to_string(n_) + ")");
-    std::set<std::string> seen;
+    if (system.contains("coordinates")) {
+      std::vector<std::string> names;
+      for (int i = 0; i < n_; ++i) {
+        const json& name = system["coordinates"][i];
+        if (!name.is_string() || !is_identifier(name.get<std::string>()))
+          throw SceneError("/system/coordinates/" + std::to_string(i), "expected a name (letters, digits, _), got " + brief(name));
+        names.push_back(name.get<std::string>());
+      }
+      if (const auto conflict = column_name_conflict(names, "coordinate"))
+        throw SceneError("/system/coordinates/" + std::to_string(conflict->index), conflict->reason);
+    }
     for (int i = 0; i < n_; ++i) {
       std::string q = "q" + std::to_string(i + 1), v = "v" + std::to_string(i + 1);
       if (system.contains("coordinates")) {
-        const std::string ptr = "/system/coordinates/" + std::to_string(i);
-        const json& name = system["coordinates"][i];
-        if (!name.is_string() || !is_identifier(name.get<std::string>()))
-          throw SceneError(ptr, "expected a name (letters, digits, _), got " + brief(name));
-        q = name.get<std::string>();
+        q = system["coordinates"][i].get<std::string>();
         v = q + "_dot";
-        if (function_names().count(q) || q == "t") throw SceneError(ptr, "'" + q + "' is reserved");
       }
       for (const std::string& name : {q, v})
         if (params_.count(name))
           throw SceneError("/parameters/" + json_pointer_token(name), "'" + name + "' is also the name of a coordinate or velocity");
-      if (!seen.insert(q).second || !seen.insert(v).second)
-        throw SceneError("/system/coordinates/" + std::to_string(i), "duplicate name '" + q + "'");
       coord_names_.push_back(q);
       vel_names_.push_back(v);
       coord_slot_[q] = 1 + i;

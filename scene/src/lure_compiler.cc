@@ -86,7 +86,6 @@ LureScene LureCompiler::compile() {
                                                  [this](const json& j, const std::string& p) { return constant(j, p); }));
     scene.feedback_types.push_back(type);
   }
-  std::set<std::string> seen;
   for (int i = 0; i < n; ++i) {
     std::string name = "x" + std::to_string(i + 1);
     if (system.contains("states")) {
@@ -98,10 +97,12 @@ LureScene LureCompiler::compile() {
         throw SceneError(ptr, "expected a name (letters, digits, _), got " + brief(st[i]));
       name = st[i].get<std::string>();
     }
-    if (!seen.insert(name).second) throw SceneError("/system/states/" + std::to_string(i), "duplicate name '" + name + "'");
     scene.states.push_back(name);
     scene.state_rates.push_back(name + "_dot");
   }
+  // State names name the trajectory's columns as coordinate names do: the same rule.
+  if (const auto conflict = column_name_conflict(scene.states, "state"))
+    throw SceneError("/system/states/" + std::to_string(conflict->index), conflict->reason);
   if (system.contains("P")) scene.P = constant_matrix(system["P"], "/system/P", n, n, "P is n x n");
 
   if (!doc_.contains("initial")) throw SceneError("/initial", "missing required field 'initial' (x)");

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string_view>
 
 #include "moreau/core/stepping_driver.h"
 
@@ -23,6 +24,30 @@ const std::set<std::string>& function_names() {
   static const std::set<std::string> names = {"sin",  "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh",
                                               "tanh", "exp", "log", "sqrt", "abs",  "min",  "max",   "pow"};
   return names;
+}
+
+std::optional<NameConflict> column_name_conflict(const std::vector<std::string>& names, const std::string& what) {
+  static const std::map<std::string, std::string> kColumns = {
+      {"t", "the time"}, {"h", "the step size"}, {"energy", "the energy"}};
+  std::map<std::string, std::size_t> first;  // name -> index of its first use
+  for (std::size_t i = 0; i < names.size(); ++i) first.emplace(names[i], i);
+  for (std::size_t i = 0; i < names.size(); ++i) {
+    const std::string& q = names[i];
+    if (const auto c = kColumns.find(q); c != kColumns.end())
+      return NameConflict{i, "'" + q + "' is reserved: the trajectory has its own column '" + q + "' (" + c->second + ")"};
+    if (function_names().count(q)) return NameConflict{i, "'" + q + "' is reserved (a function of the expression language)"};
+    if (first.at(q) != i) return NameConflict{i, "duplicate name '" + q + "'"};
+    // q == <other>_dot: the velocity of the other names the same column and the same variable.
+    constexpr std::string_view kDot = "_dot";
+    if (q.size() > kDot.size() && q.compare(q.size() - kDot.size(), kDot.size(), kDot) == 0) {
+      const std::string base = q.substr(0, q.size() - kDot.size());
+      if (first.count(base))
+        return NameConflict{i, "'" + q + "' is the name of the velocity of " + what + " '" + base +
+                                   "' (its column in the trajectory and its name in expressions): give this " + what +
+                                   " another name"};
+    }
+  }
+  return std::nullopt;
 }
 
 std::string SceneReader::read_top_level() {

@@ -24,6 +24,21 @@ bool is_identifier(const std::string& s);
 // The functions of the expression language: reserved, so no parameter or coordinate takes their name.
 const std::set<std::string>& function_names();
 
+// Coordinate and state names (system.coordinates, a URDF robot's joints, a Lur'e system's states) name
+// the columns of the trajectory: t, h, the n names, their velocities <name>_dot, energy (the CSV header,
+// trajectory_csv.h, and the keys of the JSON trajectory), and the variables of the expressions. So that
+// each column and each variable has one meaning, a name may not be
+//   - t, h or energy (the trajectory's own columns; t is also the time of the expressions),
+//   - a function of the expression language (function_names()),
+//   - another coordinate's name (duplicate), or another coordinate's velocity <other>_dot.
+// The first name that breaks the rule (in the order given) and why; nullopt when all may be used.
+// `what` is "coordinate" or "state", as the message calls them.
+struct NameConflict {
+  std::size_t index;
+  std::string reason;
+};
+std::optional<NameConflict> column_name_conflict(const std::vector<std::string>& names, const std::string& what);
+
 // What an expression may depend on.
 enum Depends : unsigned { kParamsOnly = 0, kTime = 1, kPosition = 2, kVelocity = 4 };
 
