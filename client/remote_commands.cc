@@ -20,6 +20,7 @@
 
 #include "commands.h"
 #include "remote_command_list.h"
+#include "terminal_text.h"
 #include "moreau/scene/scene.h"
 
 // After Eigen (through scene.h): httplib.h brings <resolv.h>, whose `_res` macro breaks Eigen.
@@ -78,7 +79,8 @@ int report_failure(const Remote& remote, const httplib::Result& r, const std::st
     message += remote.token.empty() && !std::getenv("MOREAU_TOKEN")
                    ? " (this server needs a token: pass it with --token or the environment variable MOREAU_TOKEN)"
                    : " (the token given by --token or MOREAU_TOKEN was not accepted)";
-  std::cerr << "moreau: " << what << ": " << message << "\n";
+  // The error, pointer, reason and Retry-After are the server's: shown as visible text (terminal_text.h).
+  std::cerr << "moreau: " << terminal_safe(what) << ": " << terminal_safe(message) << "\n";
   return r->status == 400 || r->status == 404 || r->status == 409 || r->status == 413 || r->status == 415 ? 2 : 1;
 }
 
@@ -103,13 +105,17 @@ const json& field(const json& j, const char* key) {
   return it == j.end() ? null : *it;
 }
 
+// j[key] as a string for a person to read: the server's text with control and bidirectional characters
+// shown as escapes (terminal_safe), `otherwise` when absent.
+std::string text(const json& j, const char* key, const char* otherwise) { return terminal_safe(j.value(key, std::string(otherwise))); }
+
 // Runs a remote command; an exception (an answer of an unexpected shape) is a failed request: exit 1.
 template <class F>
 int guarded(F&& command) {
   try {
     return command();
   } catch (const std::exception& e) {
-    std::cerr << "moreau: " << e.what() << "\n";
+    std::cerr << "moreau: " << terminal_safe(e.what()) << "\n";  // may quote an answer's text
     return 1;
   }
 }
@@ -124,8 +130,8 @@ bool is_final(const std::string& state) { return state == "done" || state == "fa
 
 // A few lines for a person: state, progress, and the report's main facts.
 void print_job(const json& job) {
-  std::cout << "job " << job.value("id", "?") << "  " << job.value("scene", "") << "  " << job.value("state", "?");
-  if (job.contains("reason")) std::cout << " (" << job.value("reason", "") << ")";
+  std::cout << "job " << text(job, "id", "?") << "  " << text(job, "scene", "") << "  " << text(job, "state", "?");
+  if (job.contains("reason")) std::cout << " (" << text(job, "reason", "") << ")";
   std::cout << "\n";
   if (job.contains("progress")) {
     const json& p = field(job, "progress");
@@ -136,15 +142,16 @@ void print_job(const json& job) {
     }
   }
   if (field(job, "stream").is_object()) {
-    std::cout << "  stream        " << job["stream"].value("state_channel", "") << ", " << job["stream"].value("event_channel", "") << "\n";
+    std::cout << "  stream        " << text(job["stream"], "state_channel", "") << ", " << text(job["stream"], "event_channel", "") << "\n";
   }
   if (!field(job, "report").is_object()) return;
   const json& r = job["report"];
-  std::cout << "  status        " << r.value("status", "?") << ": " << r.value("steps", std::int64_t{0})
+  std::cout << "  status        " << text(r, "status", "?") << ": " << r.value("steps", std::int64_t{0})
             << " steps to t = " << (field(r, "t_final").is_number() ? fmt(r["t_final"].get<double>()) : "?") << "\n";
-  if (r.contains("message")) std::cout << "  message       " << r.value("message", "") << "\n";
+  if (r.contains("message")) std::cout << "  message       " << text(r, "message", "") << "\n";
   if (r.contains("final"))
-    std::cout << "  final state   q = " << field(field(r, "final"), "q").dump() << ", v = " << field(field(r, "final"), "v").dump() << "\n";
+    std::cout << "  final state   q = " << terminal_safe_json(field(field(r, "final"), "q").dump())
+              << ", v = " << terminal_safe_json(field(field(r, "final"), "v").dump()) << "\n";
   if (field(r, "converged_step").is_number() && field(r, "converged_time").is_number()) {
     std::cout << "  convergence   v == 0.0 exactly from step " << r["converged_step"].get<std::int64_t>()
               << " (t = " << fmt(r["converged_time"].get<double>()) << ") to the end\n";
@@ -171,6 +178,7 @@ std::optional<json> wait_for(const Remote& remote, httplib::Client& c, const std
     }
     json job = body_json(r);
     const std::string state = job.value("state", "");
+    const std::string shown = terminal_safe(state);
     if (is_final(state)) {
       if (drawn) std::fprintf(stderr, "\r%*s\r", 72, "");
       return job;
@@ -179,10 +187,10 @@ std::optional<json> wait_for(const Remote& remote, httplib::Client& c, const std
       const json& p = job["progress"];
       const double f = p["fraction"].is_number() ? p["fraction"].get<double>() : 0.0;
       if (p.contains("rows"))
-        std::fprintf(stderr, "\r%-8s %5.1f%%  rows %lld of %lld", state.c_str(), 100.0 * f, p["rows"].is_number() ? p["rows"].get<long long>() : 0LL,
+        std::fprintf(stderr, "\r%-8s %5.1f%%  rows %lld of %lld", shown.c_str(), 100.0 * f, p["rows"].is_number() ? p["rows"].get<long long>() : 0LL,
                      p["rows_total"].is_number() ? p["rows_total"].get<long long>() : 0LL);
       else
-        std::fprintf(stderr, "\r%-8s %5.1f%%  t = %-12.6g", state.c_str(), 100.0 * f, p["t"].is_number() ? p["t"].get<double>() : 0.0);
+        std::fprintf(stderr, "\r%-8s %5.1f%%  t = %-12.6g", shown.c_str(), 100.0 * f, p["t"].is_number() ? p["t"].get<double>() : 0.0);
       std::fflush(stderr);
       drawn = true;
     }
@@ -208,14 +216,14 @@ struct SubmitOptions {
 
 // A finished study in a few lines: its state, and each scheme's fitted order with the theory that applies.
 void print_study(const json& study) {
-  std::cout << "study " << study.value("id", "?") << "  " << study.value("scene", "?") << "  " << study.value("state", "?") << "\n";
-  if (study.contains("reason")) std::cout << "  reason        " << study.value("reason", "") << "\n";
+  std::cout << "study " << text(study, "id", "?") << "  " << text(study, "scene", "?") << "  " << text(study, "state", "?") << "\n";
+  if (study.contains("reason")) std::cout << "  reason        " << text(study, "reason", "") << "\n";
   const json& result = field(study, "result");
   if (!result.is_object()) return;
-  std::cout << "  rows          " << field(result, "rows").size() << " (reference: " << result.value("reference", "?") << ")\n";
+  std::cout << "  rows          " << field(result, "rows").size() << " (reference: " << text(result, "reference", "?") << ")\n";
   for (const auto& o : field(result, "orders")) {
-    std::cout << "  order " << o.value("scheme", "?") << ": q_max " << (o["q_max"].is_number() ? fmt(o["q_max"].get<double>()) : "n/a")
-              << " (theory: " << o.value("theory", "?") << ")\n";
+    std::cout << "  order " << text(o, "scheme", "?") << ": q_max " << (o["q_max"].is_number() ? fmt(o["q_max"].get<double>()) : "n/a")
+              << " (theory: " << text(o, "theory", "?") << ")\n";
   }
 }
 
@@ -282,12 +290,12 @@ int submit(const SubmitOptions& o) {
   const std::string id = accepted.value("id", "");
   if (!o.wait) {
     if (o.remote.json_output)
-      std::cout << accepted.dump(2) << "\n";
+      std::cout << terminal_safe_json(accepted.dump(2)) << "\n";
     else
-      std::cout << id << "\n";
+      std::cout << terminal_safe(id) << "\n";
     return 0;
   }
-  if (!o.remote.json_output) std::cerr << "submitted " << (o.study ? "study " : "") << id << "\n";
+  if (!o.remote.json_output) std::cerr << "submitted " << (o.study ? "study " : "") << terminal_safe(id) << "\n";
   int code = 0;
   auto job = wait_for(o.remote, *c, collection, id, code);
   if (!job) return code;
@@ -303,7 +311,7 @@ int submit(const SubmitOptions& o) {
     }
   }
   if (o.remote.json_output)
-    std::cout << job->dump(2) << "\n";
+    std::cout << terminal_safe_json(job->dump(2)) << "\n";
   else if (o.study)
     print_study(*job);
   else
@@ -332,7 +340,7 @@ int status(const IdOptions& o) {
     job = body_json(r);
   }
   if (o.remote.json_output)
-    std::cout << job->dump(2) << "\n";
+    std::cout << terminal_safe_json(job->dump(2)) << "\n";
   else
     print_job(*job);
   const std::string state = job->value("state", "");
@@ -364,7 +372,7 @@ int result(const ResultOptions& o) {
   if (o.out.empty()) {
     auto r = c->Get("/v1/jobs/" + o.id + "/report");
     if (!ok(r)) return report_failure(o.remote, r, "report of " + o.id);
-    std::cout << r->body;
+    std::cout << terminal_safe_json(r->body);  // the stored report.json: the same JSON, unsafe characters as \uNNNN
     return 0;
   }
   std::string format = o.format;
@@ -415,9 +423,9 @@ int cancel(const IdOptions& o) {
   if (!ok(r)) return report_failure(o.remote, r, "cancel " + o.id);
   const json job = body_json(r);
   if (o.remote.json_output)
-    std::cout << job.dump(2) << "\n";
+    std::cout << terminal_safe_json(job.dump(2)) << "\n";
   else
-    std::cout << o.id << " " << job.value("state", "?") << "\n";
+    std::cout << terminal_safe(o.id) << " " << text(job, "state", "?") << "\n";
   return 0;
 }
 
@@ -438,14 +446,14 @@ int jobs(const ListOptions& o) {
   if (!ok(r)) return report_failure(o.remote, r, "list jobs");
   const json list = body_json(r);
   if (o.remote.json_output) {
-    std::cout << list.dump(2) << "\n";
+    std::cout << terminal_safe_json(list.dump(2)) << "\n";
     return 0;
   }
   for (const auto& job : field(list, "jobs")) {
     const json& fraction = field(field(job, "progress"), "fraction");
     const double f = fraction.is_number() ? fraction.get<double>() : 0.0;
-    std::printf("%s  %-9s %5.1f%%  %s\n", job.value("id", "?").c_str(), job.value("state", "?").c_str(), 100.0 * f,
-                job.value("scene", "").c_str());
+    std::printf("%s  %-9s %5.1f%%  %s\n", text(job, "id", "?").c_str(), text(job, "state", "?").c_str(), 100.0 * f,
+                text(job, "scene", "").c_str());
   }
   return 0;
 }
@@ -456,13 +464,17 @@ int scenes(const ListOptions& o) {
   if (!ok(r)) return report_failure(o.remote, r, "list scenes");
   const json list = body_json(r);
   if (o.remote.json_output) {
-    std::cout << list.dump(2) << "\n";
+    std::cout << terminal_safe_json(list.dump(2)) << "\n";
     return 0;
   }
   for (const auto& s : field(list, "scenes")) {
     std::string d = s.value("description", "");
-    if (d.size() > 90) d = d.substr(0, 87) + "...";
-    std::printf("%-24s %s\n", s.value("name", "?").c_str(), d.c_str());
+    if (d.size() > 90) {
+      std::size_t cut = 87;  // not inside a UTF-8 sequence
+      while (cut > 0 && (static_cast<unsigned char>(d[cut]) & 0xC0) == 0x80) --cut;
+      d = d.substr(0, cut) + "...";
+    }
+    std::printf("%-24s %s\n", text(s, "name", "?").c_str(), terminal_safe(d).c_str());
   }
   return 0;
 }

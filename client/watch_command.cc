@@ -25,6 +25,7 @@
 
 #include "commands.h"
 #include "remote_command_list.h"
+#include "terminal_text.h"
 #include "moreau/render/figures.h"
 #include "moreau/render/render.h"
 
@@ -222,7 +223,8 @@ class Watcher {
     }
     if (!tty_ && Clock::now() - last_plain_[s.job_id] >= std::chrono::seconds(1)) {
       last_plain_[s.job_id] = Clock::now();
-      std::printf("%s  step %-10lld t = %-12s h = %-10s E = %-12s q = %s  v = %s\n", s.job_id.substr(0, 8).c_str(),
+      // Job ids, kinds and texts come from whoever publishes on the channel: shown as visible text.
+      std::printf("%s  step %-10lld t = %-12s h = %-10s E = %-12s q = %s  v = %s\n", terminal_safe(s.job_id.substr(0, 8)).c_str(),
                   static_cast<long long>(s.step), fmt(s.t).c_str(), fmt(s.h, 3).c_str(), fmt(s.energy).c_str(), vec(s.q).c_str(),
                   vec(s.v).c_str());
       std::fflush(stdout);
@@ -254,8 +256,8 @@ class Watcher {
     if (e.kind == "converged") j.converged_time = e.t;
     if (e.kind == "convergence_withdrawn") j.converged_time.reset();
     clear_table();
-    std::printf("%s  %-9s step %lld, t = %s: %s\n", e.job_id.substr(0, 8).c_str(), e.kind.c_str(), static_cast<long long>(e.step),
-                fmt(e.t).c_str(), e.text.c_str());
+    std::printf("%s  %-9s step %lld, t = %s: %s\n", terminal_safe(e.job_id.substr(0, 8)).c_str(), terminal_safe(e.kind).c_str(),
+                static_cast<long long>(e.step), fmt(e.t).c_str(), terminal_safe(e.text).c_str());
     std::fflush(stdout);
     dirty_ = true;
     figure_dirty_ = figure_dirty_ || !o_.figure.empty();
@@ -279,7 +281,7 @@ class Watcher {
     for (const auto& id : order_) {
       const JobView& j = jobs_.at(id);
       if (!j.has_state) continue;
-      std::printf("%-8s  %-10s %10lld %12s %10s %12s  %s / %s\n", id.substr(0, 8).c_str(), j.status.c_str(),
+      std::printf("%-8s  %-10s %10lld %12s %10s %12s  %s / %s\n", terminal_safe(id.substr(0, 8)).c_str(), terminal_safe(j.status).c_str(),
                   static_cast<long long>(j.last.step), fmt(j.last.t).c_str(), fmt(j.last.h, 3).c_str(), fmt(j.last.energy).c_str(),
                   vec(j.last.q).c_str(), vec(j.last.v).c_str());
       ++lines;

@@ -241,6 +241,52 @@ std::vector<Case> cases() {
                      s["initial"] = {{"q", {0, 0}}, {"v", {0, 0}}};
                    }),
                    400, "/system/urdf/text", "link 'a' is the child of two joints, 'j1' (line 2) and 'j3' (line 6)"));
+  // A URDF string nested 40,000 elements deep (280 KB, under the body limit) overflowed the stack of the
+  // thread that parsed it (TinyXML and urdfdom recurse once per level) and killed the server. The nesting
+  // is inside a JSON string, so the JSON depth limit never saw it: the URDF's own shape check refuses it
+  // before any recursive parser runs (xml_shape.h).
+  t.push_back(post("UrdfNested40000Deep", scene_body([](json& s) {
+                     std::string urdf = "<robot name=\"r\">";
+                     for (int k = 0; k < 40000; ++k) urdf += "<a>";
+                     for (int k = 0; k < 40000; ++k) urdf += "</a>";
+                     s["system"] = {{"type", "lagrangian"}, {"urdf", {{"text", urdf + "</robot>"}}}};
+                   }),
+                   400, "/system/urdf/text", "elements nested deeper than 64 levels (line 1)"));
+  // The same without closing tags (not even well-formed): refused by depth at the 65th level, not parsed on.
+  t.push_back(post("UrdfNestedDeepUnclosed", scene_body([](json& s) {
+                     std::string urdf = "<robot>";
+                     for (int k = 0; k < 50000; ++k) urdf += "<a x='>'>";
+                     s["system"] = {{"type", "lagrangian"}, {"urdf", {{"text", urdf}}}};
+                   }),
+                   400, "/system/urdf/text", "elements nested deeper than 64 levels"));
+  t.push_back(post("UrdfWithDoctype", scene_body([](json& s) {
+                     s["system"] = {{"type", "lagrangian"},
+                                    {"urdf", {{"text", "<?xml version=\"1.0\"?>\n<!DOCTYPE robot [<!ENTITY x \"y\">]>\n<robot name=\"r\"/>"}}}};
+                   }),
+                   400, "/system/urdf/text", "a DOCTYPE declaration (line 2): DOCTYPE and entity declarations are not accepted"));
+  // Names that collide with the trajectory's own columns (t, h, <q>, <q>_dot, energy): a CSV header
+  // t,h,h,... and duplicate JSON keys before. Refused for each way coordinates are named.
+  t.push_back(post("CoordinateNamedH", scene_body([](json& s) { s["system"]["coordinates"] = {"h"}; }), 400, "/system/coordinates/0",
+                   "'h' is reserved: the trajectory has its own column 'h' (the step size)"));
+  t.push_back(post("CoordinateNamedAsAnotherCoordinatesVelocity", scene_body([](json& s) {
+                     s["system"]["coordinates"] = {"a", "a_dot"};
+                     s["system"]["mass"] = {{1, 0}, {0, 1}};
+                     s["system"].erase("controller");
+                     s["initial"] = {{"q", {0, 0}}};
+                   }),
+                   400, "/system/coordinates/1", "'a_dot' is the name of the velocity of coordinate 'a'"));
+  t.push_back(post("UrdfJointNamedEnergy", scene_body([](json& s) {
+                     const std::string urdf =
+                         "<robot name=\"r\"><link name=\"base\"/>\n"
+                         "<joint name=\"energy\" type=\"continuous\"><parent link=\"base\"/><child link=\"a\"/><axis xyz=\"0 0 1\"/></joint>\n"
+                         "<link name=\"a\"><inertial><mass value=\"1\"/><inertia ixx=\"0.1\" ixy=\"0\" ixz=\"0\" iyy=\"0.1\" iyz=\"0\" "
+                         "izz=\"0.1\"/></inertial></link>\n</robot>\n";
+                     s["system"] = {{"type", "lagrangian"}, {"urdf", {{"text", urdf}}}};
+                     s["initial"] = {{"q", {0}}, {"v", {0}}};
+                   }),
+                   400, "/system/urdf/text", "joint 'energy' (line 2): 'energy' is reserved: the trajectory has its own column 'energy'"));
+  t.push_back(post("LureStateNamedT", lure_body([](json& s) { s["system"]["states"] = {"t"}; }), 400, "/system/states/0",
+                   "'t' is reserved: the trajectory has its own column 't' (the time)"));
   t.push_back(post("UnknownControllerTerm", scene_body([](json& s) {
                      s["system"]["controller"] = {{{"type", "pid"}}};
                    }),

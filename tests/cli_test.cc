@@ -19,6 +19,9 @@
 #include <chrono>
 #include <thread>
 #include <set>
+#include <tuple>
+#include <cctype>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -128,6 +131,26 @@ TEST(Cli, BadSceneNamesTheFieldAndExitsWith2) {
   r = Moreau("run /nonexistent.json");
   EXPECT_EQ(r.status, 2);
   EXPECT_NE(r.out.find("cannot open"), std::string::npos) << r.out;
+}
+
+// A URDF file nested 40,000 elements deep made `moreau run` and `moreau inspect` die of a stack overflow
+// (exit 139) in the recursive XML parsers: now both refuse it, naming the field and the depth, with exit 2.
+TEST(Cli, DeeplyNestedUrdfFileIsRefusedWithExit2) {
+  const std::filesystem::path dir = moreau::test_support::scratch_dir();
+  {
+    std::ofstream urdf(dir / "deep.urdf");
+    urdf << "<robot name=\"r\">";
+    for (int k = 0; k < 40000; ++k) urdf << "<a>";
+    for (int k = 0; k < 40000; ++k) urdf << "</a>";
+    urdf << "</robot>\n";
+    std::ofstream scene(dir / "deep.json");
+    scene << R"({"system": {"type": "lagrangian", "urdf": {"file": "deep.urdf"}}, "initial": {"q": [0]}, "integrator": {"h": 0.01, "t_end": 1}})";
+  }
+  for (const char* command : {"run", "inspect"}) {
+    const Result r = Moreau(std::string(command) + " " + (dir / "deep.json").string());
+    EXPECT_EQ(r.status, 2) << command << ": " << r.out;
+    EXPECT_NE(r.out.find("/system/urdf/text: elements nested deeper than 64 levels (line 1)"), std::string::npos) << command << ": " << r.out;
+  }
 }
 
 TEST(Cli, FiguresArePngOfTheRequestedSize) {
@@ -311,6 +334,244 @@ TEST(Cli, SweepIsAGridCampaignOverTasks) {
   EXPECT_EQ(missing.status, 2);
   EXPECT_NE(missing.out.find("samples are missing"), std::string::npos) << missing.out;
 }
+
+// 'text' for sh: how this test passes paths on its own command lines.
+std::string ShQuote(const std::string& text) {
+  std::string q = "'";
+  for (char c : text) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+
+// The words sbatch reads from an #SBATCH line (after the magic word), by the rules of Slurm's
+// _get_argument (src/sbatch/opt.c): whitespace separates words outside '...' and "...", a backslash takes
+// the next character as it is, an unquoted '#' ends the line, an unmatched quote is fatal.
+std::vector<std::string> SbatchWords(const std::string& line) {
+  std::vector<std::string> words;
+  std::size_t p = 0;
+  while (true) {
+    while (p < line.size() && std::isspace(static_cast<unsigned char>(line[p]))) ++p;
+    if (p >= line.size()) break;
+    std::string word;
+    bool quoted = false, escaped = false, comment = false;
+    char quote = 0;
+    while (p < line.size() && (quoted || !std::isspace(static_cast<unsigned char>(line[p])))) {
+      const char c = line[p];
+      if (escaped) {
+        escaped = false;
+      } else if (c == '\\') {
+        escaped = true;
+        ++p;
+        continue;
+      } else if (quoted) {
+        if (c == quote) {
+          quoted = false;
+          ++p;
+          continue;
+        }
+      } else if (c == '"' || c == '\'') {
+        quoted = true;
+        quote = c;
+        ++p;
+        continue;
+      } else if (c == '#') {
+        comment = true;
+        break;
+      }
+      word += c;
+      ++p;
+    }
+    EXPECT_FALSE(quoted) << "sbatch: unmatched quote in " << line;
+    if (!word.empty()) words.push_back(word);
+    if (comment) break;
+  }
+  return words;
+}
+
+// moreau campaign --slurm against a fake sbatch that records its arguments. A hostile name (a newline
+// and a command, spaces and options, $(...)) is refused at /name with exit 2 before anything is written
+// or submitted. A directory whose path holds spaces, both quotes, $(...), backquotes, ';', '#' and '%'
+// reaches the batch script, its #SBATCH lines and sbatch's arguments as data: the script passes bash -n,
+// sbatch's reading of its #SBATCH lines gives exactly the array's options, every option is on sbatch's
+// command line with '%' doubled in the log paths (Slurm's pattern for '%'), and running the script as the
+// array's tasks and the collect job's --wrap command with sh (as Slurm would) completes the campaign in
+// that directory, while none of the commands written into the path runs.
+TEST(Cli, SlurmScriptsCarryHostileNamesAndPathsAsData) {
+  namespace fs = std::filesystem;
+  const fs::path root = fs::path(moreau::test_support::scratch_dir()) / "slurm-hostile";
+  fs::remove_all(root);
+  for (const char* d : {"bin", "calls", "work"}) fs::create_directories(root / d);
+  {
+    std::ofstream fake(root / "bin" / "sbatch");
+    fake << "#!/bin/bash\n"
+         << "calls=" << ShQuote((root / "calls").string()) << "\n"
+         << "n=$(ls \"$calls\" | wc -l)\n"
+         << "printf '%s\\0' \"$@\" > \"$calls/$n\"\n"
+         << "echo $((4242 + n))\n";
+  }
+  fs::permissions(root / "bin" / "sbatch", fs::perms::owner_all);
+  // Every call's arguments, in order.
+  auto calls = [&] {
+    std::vector<std::vector<std::string>> all;
+    for (int n = 0; fs::exists(root / "calls" / std::to_string(n)); ++n) {
+      std::ifstream in(root / "calls" / std::to_string(n), std::ios::binary);
+      std::vector<std::string> args;
+      for (std::string a; std::getline(in, a, '\0');) args.push_back(a);
+      all.push_back(args);
+    }
+    return all;
+  };
+  const std::string prefix = "cd " + ShQuote((root / "work").string()) + " && PATH=" + ShQuote((root / "bin").string()) + ":\"$PATH\" ";
+  nlohmann::json scene = nlohmann::json::parse(std::ifstream(std::string(MOREAU_SOURCE_DIR) + "/scenes/forced-relay.json"));
+  scene.erase("exact");
+  scene["integrator"]["t_end"] = 0.5;
+  auto spec_named = [&](const std::string& name) {
+    const fs::path file = root / "spec.json";
+    nlohmann::json spec = {{"name", name},
+                           {"scene", scene},
+                           {"inputs", {{{"path", "/parameters/f"}, {"distribution", {{"type", "uniform"}, {"low", 0.0}, {"high", 1.0}}}}}},
+                           {"samples", 6},
+                           {"seed", 3}};
+    std::ofstream(file) << spec.dump();
+    return file.string();
+  };
+
+  for (const std::string& name : {std::string("x\ntouch injected\n#"), std::string("a --output=/tmp/x --wrap=touch injected"),
+                                 std::string("$(touch injected)"), std::string(""), std::string(65, 'a')}) {
+    SCOPED_TRACE(name);
+    const Result r = Shell(prefix + MOREAU_BINARY + " campaign " + ShQuote(spec_named(name)) + " --out " + ShQuote((root / "named").string()) +
+                           " --slurm --tasks 2 2>&1");
+    EXPECT_EQ(r.status, 2) << r.out;
+    EXPECT_NE(r.out.find("/name: "), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("is not a campaign name"), std::string::npos) << r.out;
+    EXPECT_TRUE(calls().empty()) << "sbatch was called";
+    EXPECT_FALSE(fs::exists(root / "named")) << "something was written";
+  }
+
+  const std::string hostile = "out 'q' \"dq\" $(touch cs) `touch bq` ; touch semi #h %j 100%";
+  const fs::path dir = root / hostile;
+  const Result r = Shell(prefix + MOREAU_BINARY + " campaign " + ShQuote(spec_named("relay-hostile")) + " --out " + ShQuote(dir.string()) +
+                         " --slurm --tasks 2 2>&1");
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_NE(r.out.find("submitted job array 4242: 2 of 2 tasks (6 samples missing of 6), and collect job 4243 after it"), std::string::npos)
+      << r.out;
+  // Slurm's file name patterns take '%%' for a '%'.
+  std::string logs;
+  for (char c : (dir / "slurm").string()) logs += c == '%' ? std::string("%%") : std::string(1, c);
+  const std::vector<std::string> array_options = {"--job-name=moreau-relay-hostile", "--output=" + logs + "/task-%A_%a.out", "--cpus-per-task=1",
+                                                  "--requeue"};
+  const auto all = calls();
+  ASSERT_EQ(all.size(), 2u);
+  const std::vector<std::string>& array = all[0];
+  const std::vector<std::string>& collect = all[1];
+  const fs::path script = dir / "slurm" / "campaign.sbatch";
+  ASSERT_FALSE(array.empty());
+  EXPECT_EQ(array.back(), script.string());
+  for (const std::string& o : array_options) EXPECT_EQ(std::count(array.begin(), array.end(), o), 1) << o;
+  EXPECT_EQ(std::count(array.begin(), array.end(), "--array=0,1"), 1);
+  for (const std::string& o : {std::string("--job-name=moreau-relay-hostile-collect"), "--output=" + logs + "/collect-%j.out",
+                               std::string("--dependency=afterok:4242")})
+    EXPECT_EQ(std::count(collect.begin(), collect.end(), o), 1) << o;
+  const auto wrap = std::find_if(collect.begin(), collect.end(), [](const std::string& a) { return a.rfind("--wrap=", 0) == 0; });
+  ASSERT_NE(wrap, collect.end());
+
+  // The script: valid bash; its #SBATCH lines, as sbatch reads them (up to its first command), are the
+  // array's options and nothing else.
+  EXPECT_EQ(Shell("bash -n " + ShQuote(script.string()) + " 2>&1").status, 0);
+  std::vector<std::string> words;
+  {
+    std::ifstream in(script);
+    for (std::string line; std::getline(in, line);) {
+      if (line.rfind("#SBATCH", 0) == 0) {
+        for (std::string& w : SbatchWords(line.substr(7))) words.push_back(std::move(w));
+        continue;
+      }
+      const auto first = line.find_first_not_of(" \t");
+      if (first != std::string::npos && line[first] != '#') break;  // sbatch stops at the first command
+    }
+  }
+  std::vector<std::string> want = array_options;
+  std::sort(words.begin(), words.end());
+  std::sort(want.begin(), want.end());
+  EXPECT_EQ(words, want);
+
+  // The array's two tasks, then the collect job, run as Slurm would run them.
+  for (int k = 0; k < 2; ++k) {
+    const Result task = Shell(prefix + "SLURM_ARRAY_TASK_ID=" + std::to_string(k) + " bash " + ShQuote(script.string()) + " 2>&1");
+    EXPECT_EQ(task.status, 0) << task.out;
+  }
+  const Result collected = Shell(prefix + "sh -c " + ShQuote(wrap->substr(7)) + " 2>&1");
+  EXPECT_EQ(collected.status, 0) << collected.out;
+  EXPECT_NE(collected.out.find("relay-hostile: "), std::string::npos) << collected.out;
+  EXPECT_NE(collected.out.find("of 6 samples succeeded"), std::string::npos) << collected.out;
+  EXPECT_TRUE(fs::exists(dir / "summary.json"));
+  // Nothing written into the path ran: no file beside the test's own.
+  EXPECT_TRUE(fs::is_empty(root / "work"));
+  std::set<std::string> entries;
+  for (const auto& e : fs::directory_iterator(root)) entries.insert(e.path().filename().string());
+  EXPECT_EQ(entries, (std::set<std::string>{"bin", "calls", "work", "spec.json", hostile})) << "a command hidden in the path ran";
+}
+
+// An edited or foreign record stops resume and --collect with exit 2, naming the file and the line, and
+// leaves the summary as it was; put back, the genuine record is taken again.
+TEST(Cli, EditedOrForeignCampaignRecordsAreRefusedWithExit2) {
+  namespace fs = std::filesystem;
+  const fs::path root = fs::path(moreau::test_support::scratch_dir()) / "campaign-edited";
+  fs::remove_all(root);
+  fs::create_directories(root);
+  nlohmann::json scene = nlohmann::json::parse(std::ifstream(std::string(MOREAU_SOURCE_DIR) + "/scenes/forced-relay.json"));
+  scene.erase("exact");
+  scene["integrator"]["t_end"] = 0.5;
+  nlohmann::json spec = {{"name", "relay-records"},
+                         {"scene", scene},
+                         {"inputs", {{{"path", "/parameters/f"}, {"distribution", {{"type", "uniform"}, {"low", 0.0}, {"high", 1.0}}}}}},
+                         {"samples", 6},
+                         {"seed", 3}};
+  std::ofstream(root / "spec.json") << spec.dump();
+  spec["seed"] = 4;  // another campaign: other draws, another spec
+  std::ofstream(root / "other.json") << spec.dump();
+  const std::string dir = (root / "dir").string(), other = (root / "other").string();
+  ASSERT_EQ(Moreau("campaign " + (root / "spec.json").string() + " --out " + dir + " -j 1 --quiet").status, 0);
+  ASSERT_EQ(Moreau("campaign " + (root / "other.json").string() + " --out " + other + " -j 1 --quiet").status, 0);
+  auto lines_of = [](const std::string& file) {
+    std::vector<std::string> lines;
+    std::ifstream in(file);
+    for (std::string line; std::getline(in, line);) lines.push_back(line);
+    return lines;
+  };
+  const std::vector<std::string> genuine = lines_of(dir + "/samples.jsonl"), theirs = lines_of(other + "/samples.jsonl");
+  ASSERT_EQ(genuine.size(), 6u);
+  ASSERT_EQ(theirs.size(), 6u);
+  std::ifstream summary_in(dir + "/summary.json");
+  const std::string summary((std::istreambuf_iterator<char>(summary_in)), std::istreambuf_iterator<char>());
+  auto write = [&](const std::vector<std::string>& lines) {
+    std::ofstream out(dir + "/samples.jsonl", std::ios::trunc);
+    for (const std::string& l : lines) out << l << "\n";
+  };
+  nlohmann::json edited = nlohmann::json::parse(genuine[2]);
+  edited["inputs"]["/parameters/f"] = 0.5;
+  nlohmann::json flipped = nlohmann::json::parse(genuine[3]);
+  flipped["success"] = !flipped["success"].get<bool>();
+  const std::vector<std::tuple<std::size_t, std::string, std::string>> cases = {
+      {3, edited.dump(), "input /parameters/f"}, {4, flipped.dump(), "its success is"}, {5, theirs[4], "spec_hash"}};
+  for (const auto& [line, text, phrase] : cases) {
+    SCOPED_TRACE(phrase);
+    std::vector<std::string> lines = genuine;
+    lines[line - 1] = text;
+    write(lines);
+    const std::string where = "samples.jsonl' line " + std::to_string(line) + " is not a record of this campaign";
+    for (const std::string& command : {"campaign --collect " + dir, "campaign " + (root / "spec.json").string() + " --out " + dir + " --quiet"}) {
+      const Result r = Moreau(command);
+      EXPECT_EQ(r.status, 2) << command << "\n" << r.out;
+      EXPECT_NE(r.out.find(where), std::string::npos) << command << "\n" << r.out;
+      EXPECT_NE(r.out.find(phrase), std::string::npos) << command << "\n" << r.out;
+    }
+    std::ifstream now_in(dir + "/summary.json");
+    EXPECT_EQ(std::string((std::istreambuf_iterator<char>(now_in)), std::istreambuf_iterator<char>()), summary);
+  }
+  write(genuine);
+  const Result again = Moreau("campaign --collect " + dir);
+  EXPECT_EQ(again.status, 0) << again.out;
+}
 }  // namespace
 
 namespace {
@@ -337,8 +598,18 @@ std::string BadInputDir() {
     std::ofstream(d + "/records/campaign.json")
         << R"({"scene": ")" << MOREAU_SOURCE_DIR << R"(/scenes/damped-relay.json", "samples": 2,
               "inputs": [{"path": "/parameters/m", "distribution": {"type": "uniform", "low": 1, "high": 3}}]})";
-    std::ofstream(d + "/records/samples.jsonl") << R"({"index": 0, "success": true})" << "\n"
-                                                << R"({"index": 1, "steps": 1e999})" << "\n";
+    // Line 1 overflows: a record is checked against the spec once it is read (a line 1 that is not this
+    // campaign's record would be refused first, as the row ForeignCampaignRecord shows).
+    std::ofstream(d + "/records/samples.jsonl") << R"({"index": 1, "steps": 1e999})" << "\n"
+                                                << R"({"index": 0, "success": true})" << "\n";
+    std::filesystem::create_directories(d + "/foreign");
+    std::filesystem::copy_file(d + "/records/campaign.json", d + "/foreign/campaign.json");
+    std::ofstream(d + "/foreign/samples.jsonl")
+        << R"({"index": 0, "spec_hash": "0123456789abcdef", "inputs": {"/parameters/m": 2.0}, "status": "completed", "success": true})" << "\n";
+    // A name that would end the #SBATCH line and run a command in every array task.
+    nlohmann::json hostile = nlohmann::json::parse(std::ifstream(d + "/records/campaign.json"));
+    hostile["name"] = "x\ntouch " + d + "/injected\n#";
+    std::ofstream(d + "/hostile-name.json") << hostile.dump();
     return d;
   }();
   return dir;
@@ -381,7 +652,15 @@ INSTANTIATE_TEST_SUITE_P(
         BadInput{"NumberOutOfRangeInAnOverride", "run {scenes}/manipulator.json --set 'initial.v=[0,1e999]'",
                  "/initial/v/1: ", "number out of range"},
         BadInput{"NumberOutOfRangeInAStudysScene", "study {tmp}/overflow.json", "/integrator/h: ", "number out of range"},
-        BadInput{"NumberOutOfRangeInACampaignRecord", "campaign --collect {tmp}/records", "samples.jsonl' line 2", "number overflow"},
+        BadInput{"NumberOutOfRangeInACampaignRecord", "campaign --collect {tmp}/records", "samples.jsonl' line 1", "number overflow"},
+        // Records: each must be one of this campaign's (its spec's hash, the inputs drawn for its index).
+        BadInput{"ForeignCampaignRecord", "campaign --collect {tmp}/foreign", "samples.jsonl' line 1 is not a record of this campaign",
+                 "its spec_hash \"0123456789abcdef\" is not this spec's"},
+        // Names and paths that reach a Slurm batch script: refused before anything is written or submitted.
+        BadInput{"CampaignNameWithANewline", "campaign {tmp}/hostile-name.json --out {tmp}/hostile-name --slurm", "/name: ",
+                 "is not a campaign name"},
+        BadInput{"SlurmDirectoryWithANewline", "campaign {tmp}/records/campaign.json --out \"$(printf '{tmp}/slurm\\nout')\" --slurm",
+                 "--out: ", "control character"},
         // Size: endless or huge input is refused at the limit, not read to the end.
         BadInput{"SceneFromDevZero", "run /dev/zero", "/: ", "larger than 64 MiB"},
         BadInput{"StudySceneFromDevZero", "study /dev/zero", "/: ", "larger than 64 MiB"},

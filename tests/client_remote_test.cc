@@ -13,6 +13,7 @@
 #include <sys/wait.h>
 
 #include "server_fixture.h"
+#include "../client/terminal_text.h"  // client/: the escaping the remote commands print through
 
 namespace moreau::server {
 namespace {
@@ -118,6 +119,91 @@ TEST(ClientRemote, FigureIsSvgOrPngByTheFileName) {
   };
   EXPECT_THAT(read(dir / "state.svg"), ::testing::HasSubstr("<svg"));
   EXPECT_EQ(read(dir / "state.png").substr(0, 8), std::string("\x89PNG\r\n\x1a\n", 8));
+}
+
+
+// ---- Server text on the reader's terminal -----------------------------------------------------------
+
+// The escaping itself, against expectations written out by hand.
+TEST(TerminalSafe, ControlBidiBackslashAndInvalidUtf8BecomeVisibleText) {
+  using moreau::cli::terminal_safe;
+  using moreau::cli::terminal_safe_json;
+  EXPECT_EQ(terminal_safe("manipulator"), "manipulator");
+  EXPECT_EQ(terminal_safe("caf\xc3\xa9 \xe2\x88\x9a"), "caf\xc3\xa9 \xe2\x88\x9a");  // other UTF-8 kept as it is
+  EXPECT_EQ(terminal_safe(std::string("a\0b", 3)), R"(a\x00b)");
+  EXPECT_EQ(terminal_safe("\x1b]0;t\x07\x1b[2J\t\n\r\x7f"), R"(\x1b]0;t\x07\x1b[2J\x09\x0a\x0d\x7f)");
+  EXPECT_EQ(terminal_safe("\xc2\x9b" "31m \xc2\x80 \xc2\x9f \xc2\xa0"), "\\u{9b}31m \\u{80} \\u{9f} \xc2\xa0");  // C1; U+00A0 is not one
+  EXPECT_EQ(terminal_safe("\xe2\x80\xaa\xe2\x80\xae\xe2\x81\xa6\xe2\x81\xa9\xe2\x80\xa9"),
+            "\\u{202a}\\u{202e}\\u{2066}\\u{2069}\xe2\x80\xa9");  // U+2029 is not a bidirectional control
+  EXPECT_EQ(terminal_safe("back\\slash"), R"(back\\slash)");
+  // Not UTF-8: a lone continuation byte, a truncated sequence, an overlong ESC, a UTF-8 surrogate.
+  EXPECT_EQ(terminal_safe("\x80|\xe2\x80|\xc0\x9b|\xed\xa0\x80"), R"(\x80|\xe2\x80|\xc0\x9b|\xed\xa0\x80)");
+  // JSON text stays the same JSON: unsafe characters as \uNNNN, its own white space kept.
+  const std::string json_text = "{\"a\": \"x\xe2\x80\xaey\xc2\x9bz\x7f\"}\n";
+  EXPECT_EQ(terminal_safe_json(json_text), "{\"a\": \"x\\u202ey\\u009bz\\u007f\"}\n");
+  EXPECT_EQ(nlohmann::json::parse(terminal_safe_json(json_text)), nlohmann::json::parse(json_text));
+  EXPECT_EQ(terminal_safe_json("\"\xff\""), "\"\\ufffd\"");
+}
+
+// Bytes a terminal acts on, or that reorder what it shows, in text the client printed: ESC, BEL, DEL,
+// other C0 controls (newline and tab aside), C1 controls (U+0080-U+009F in UTF-8) and the bidirectional
+// controls U+202A-U+202E, U+2066-U+2069. The offset of the first, or npos.
+std::size_t first_unsafe_byte(const std::string& s) {
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    const unsigned char c = static_cast<unsigned char>(s[i]);
+    if ((c < 0x20 && c != '\n' && c != '\t') || c == 0x7f) return i;
+    if (c == 0xc2 && i + 1 < s.size() && static_cast<unsigned char>(s[i + 1]) >= 0x80 && static_cast<unsigned char>(s[i + 1]) <= 0x9f)
+      return i;
+    if (c == 0xe2 && i + 2 < s.size()) {
+      const unsigned char b = static_cast<unsigned char>(s[i + 1]), d = static_cast<unsigned char>(s[i + 2]);
+      if ((b == 0x80 && d >= 0xaa && d <= 0xae) || (b == 0x81 && d >= 0xa6 && d <= 0xa9)) return i;
+    }
+  }
+  return std::string::npos;
+}
+
+// A scene named to retitle (OSC 0 ... BEL) and clear (CSI 2 J) another user's terminal, to show "evil" as
+// "live" (U+202E), with a C1 CSI (U+009B) and DEL: `moreau jobs` and `moreau status` show each of those
+// characters as an escape, never the character; --json and `moreau result` print JSON that means the
+// same name, with the characters as \uNNNN.
+TEST(ClientRemote, HostileSceneNamesArePrintedAsVisibleEscapes) {
+  TestServer ts;
+  auto c = ts.client();
+  const std::string hostile = "\x1b]0;pwned\x07\x1b[2Jctl\xe2\x80\xae" "evil\xc2\x9b" "31m\x7f back\\slash";
+  const std::string shown = R"(\x1b]0;pwned\x07\x1b[2Jctl\u{202e}evil\u{9b}31m\x7f back\\slash)";
+  auto posted = c->Post("/v1/jobs", nlohmann::json({{"scene", "damped-relay"}, {"overrides", {{"name", hostile}}}}).dump(), "application/json");
+  ASSERT_TRUE(posted);
+  ASSERT_EQ(posted->status, 202) << posted->body;
+  const std::string id = nlohmann::json::parse(posted->body).at("id");
+  const auto waited = nlohmann::json::parse(c->Get("/v1/jobs/" + id + "?wait=30")->body);
+  ASSERT_EQ(waited.at("state"), "done") << waited.dump();
+  ASSERT_EQ(waited.at("scene"), hostile);  // the server keeps the name as sent: the client must escape it
+
+  const std::string server = " --server http://127.0.0.1:" + std::to_string(ts.port());
+  const Outcome jobs = run_client("jobs" + server);
+  ASSERT_EQ(jobs.status, 0) << jobs.output;
+  EXPECT_EQ(first_unsafe_byte(jobs.output), std::string::npos) << jobs.output;
+  EXPECT_THAT(jobs.output, ::testing::HasSubstr(id + "  done      100.0%  " + shown + "\n"));
+
+  const Outcome status = run_client("status " + id + server);
+  ASSERT_EQ(status.status, 0) << status.output;
+  EXPECT_EQ(first_unsafe_byte(status.output), std::string::npos) << status.output;
+  EXPECT_THAT(status.output, ::testing::HasSubstr("job " + id + "  " + shown + "  done\n"));
+
+  for (const std::string& args : {"status " + id + " --json", std::string("jobs --json")}) {
+    const Outcome json_out = run_client(args + server);
+    ASSERT_EQ(json_out.status, 0) << json_out.output;
+    EXPECT_EQ(first_unsafe_byte(json_out.output), std::string::npos) << args << "\n" << json_out.output;
+    const auto parsed = nlohmann::json::parse(json_out.output, nullptr, false);
+    ASSERT_FALSE(parsed.is_discarded()) << args << "\n" << json_out.output;
+    EXPECT_EQ(parsed.contains("jobs") ? parsed["jobs"].at(0).at("scene") : parsed.at("scene"), hostile) << args;
+  }
+  const Outcome report = run_client("result " + id + server);
+  ASSERT_EQ(report.status, 0) << report.output;
+  EXPECT_EQ(first_unsafe_byte(report.output), std::string::npos) << report.output;
+  const auto parsed = nlohmann::json::parse(report.output, nullptr, false);
+  ASSERT_FALSE(parsed.is_discarded()) << report.output;
+  EXPECT_EQ(parsed.at("scene"), hostile);
 }
 
 }  // namespace

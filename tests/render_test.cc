@@ -7,6 +7,7 @@
 #include <csetjmp>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -18,6 +19,7 @@
 #include "moreau/render/render.h"
 
 #include "support/scratch_dir.h"
+#include "support/xml_chars.h"
 
 using namespace moreau::render;
 using ::testing::HasSubstr;
@@ -307,6 +309,22 @@ TEST(RenderSvg, OnePolylinePerSeries) {
   EXPECT_THAT(svg, HasSubstr("clip-path=\"url(#plot0)\""));
   EXPECT_THAT(svg, HasSubstr("stroke=\"#0072b2\""));
   EXPECT_EQ(svg.substr(svg.size() - 7), "</svg>\n");
+}
+
+// A figure's title is a scene name a client chose. Control bytes, bytes that are not UTF-8, U+FFFE and
+// C1 controls in it once made the SVG invalid XML (no viewer or parser opens it): each becomes U+FFFD,
+// and the markup characters stay references.
+TEST(RenderSvg, ControlBytesInTextStillGiveXml10) {
+  Figure f = three_series_figure(200);
+  f.title = std::string("ctl\x01\x1b[2J\x7f|\xc2\x9b|\xef\xbf\xbe|\xff|\xed\xa0\x80|<&>\"|\0|", 30) + "caf\xc3\xa9";
+  f.panels[0].title = "panel\x07";
+  const std::string svg = render_svg(f);
+  EXPECT_EQ(moreau::test_support::xml_1_0_problem(svg), "");
+  const std::string r = "\xef\xbf\xbd";  // U+FFFD
+  // \xed\xa0\x80 (a surrogate) is three bytes that are not UTF-8: three replacements.
+  EXPECT_THAT(svg, HasSubstr(">ctl" + r + r + "[2J" + r + "|" + r + "|" + r + "|" + r + "|" + r + r + r + "|&lt;&amp;&gt;&quot;|" + r +
+                             "|caf\xc3\xa9</text>"));
+  EXPECT_THAT(svg, HasSubstr(">panel" + r + "</text>"));
 }
 
 TEST(RenderSvg, DenseSeriesIsDecimatedAndLogLabelsUseSuperscripts) {

@@ -19,6 +19,7 @@
 #include "loopback_socket.h"
 #include "server_fixture.h"
 #include "storage.h"
+#include "support/xml_chars.h"
 
 namespace {
 
@@ -473,6 +474,118 @@ TEST(Hostile, RequestLogEscapesControlBytes) {
   EXPECT_THAT(log, ::testing::HasSubstr("\\x0d\\x0amoreau-server: FORGED\\x1b[31m"));
   EXPECT_EQ(log.find("\nmoreau-server: FORGED"), std::string::npos) << log;
   EXPECT_EQ(log.find('\x1b'), std::string::npos);
+}
+
+// Every answer carries "X-Content-Type-Options: nosniff", and every answer but the web page's files a
+// Content-Security-Policy under which nothing it holds runs, loads or is framed if a browser opens it
+// (a figure, a CSV, a report, an error quoting a client's text): results, errors, conditional answers
+// and streams alike. The page keeps its own policy, on its 304 too.
+TEST(Hostile, EveryAnswerSaysNosniffAndCarriesARestrictivePolicy) {
+  const std::string api_policy = "default-src 'none'; frame-ancestors 'none'; sandbox";
+  TestServer ts;
+  auto c = ts.client();
+  auto r = submit(*c, {{"scene", "damped-relay"}});
+  ASSERT_EQ(r->status, 202) << r->body;
+  EXPECT_EQ(r->get_header_value("X-Content-Type-Options"), "nosniff");
+  const std::string id = json::parse(r->body)["id"];
+  ASSERT_EQ(wait_final(*c, id)["state"], "done");
+  const std::string job = "/v1/jobs/" + id;
+  const auto report = c->Get(job + "/report");
+  ASSERT_EQ(report->status, 200);
+  struct Case {
+    std::string path;
+    int status;
+    httplib::Headers headers;
+  };
+  const std::vector<Case> cases = {
+      {job + "/figure?kind=state", 200, {}},                  // PNG
+      {job + "/figure?kind=phase&format=svg", 200, {}},       // SVG
+      {job + "/trajectory?format=csv", 200, {}},              // CSV, streamed
+      {job + "/trajectory", 200, {}},                         // JSON, streamed
+      {job + "/report", 200, {}},                             // the report
+      {job + "/report", 304, {{"If-None-Match", report->get_header_value("ETag")}}},
+      {job, 200, {}},
+      {job + "/events", 200, {}},                             // server-sent events (a final job: replayed, then the end)
+      {"/v1/jobs", 200, {}},
+      {"/metrics", 200, {}},
+      {"/healthz", 200, {}},
+      {"/v1/openapi.json", 200, {}},
+      {"/v1/nothing", 404, {}},                               // an error
+      {job + "/figure?kind=<svg>", 400, {}},
+  };
+  for (const Case& k : cases) {
+    const auto a = c->Get(k.path, k.headers);
+    ASSERT_TRUE(a) << k.path;
+    EXPECT_EQ(a->status, k.status) << k.path << "\n" << a->body.substr(0, 300);
+    EXPECT_EQ(a->get_header_value_count("X-Content-Type-Options"), 1u) << k.path;
+    EXPECT_EQ(a->get_header_value("X-Content-Type-Options"), "nosniff") << k.path;
+    EXPECT_EQ(a->get_header_value_count("Content-Security-Policy"), 1u) << k.path;
+    EXPECT_EQ(a->get_header_value("Content-Security-Policy"), api_policy) << k.path;
+  }
+  // Refused while screening (a body on a GET), and answered by the transport itself (a request line
+  // too long to read): the same headers.
+  for (const std::string& raw : {std::string("GET /healthz HTTP/1.1\r\nHost: x\r\nContent-Length: 5\r\n\r\nhello"),
+                                 "GET /" + std::string(100000, 'a') + " HTTP/1.1\r\nHost: x\r\n\r\n"}) {
+    const RawResponse a = round_trip(ts.port(), raw);
+    EXPECT_NE(a.status, 0) << raw.substr(0, 40);
+    EXPECT_THAT(a.head, ::testing::HasSubstr("\r\nX-Content-Type-Options: nosniff")) << a.head;
+    EXPECT_THAT(a.head, ::testing::HasSubstr("\r\nContent-Security-Policy: " + api_policy)) << a.head;
+  }
+  // The page: its own policy (its script and style), once, on 200 and 304.
+  const auto page = c->Get("/");
+  ASSERT_EQ(page->status, 200);
+  const auto page_304 = c->Get("/", {{"If-None-Match", page->get_header_value("ETag")}});
+  ASSERT_EQ(page_304->status, 304);
+  for (const auto* a : {&page, &page_304}) {
+    EXPECT_EQ((*a)->get_header_value_count("Content-Security-Policy"), 1u);
+    EXPECT_THAT((*a)->get_header_value("Content-Security-Policy"), ::testing::HasSubstr("script-src 'self'"));
+    EXPECT_EQ((*a)->get_header_value("X-Content-Type-Options"), "nosniff");
+  }
+}
+
+// A request line longer than httplib reads (8192 bytes, fixed when the library was built) is answered
+// 414 with the error as JSON and the connection closed, also when it is too long to reach its end within
+// the 64 KiB the request line and headers may take (a 100,000-character path was answered by a closed
+// connection, nothing said). Shorter ones are routed as usual; the server stays healthy.
+TEST(Hostile, LongRequestLinesAreAnswered414) {
+  TestServer ts;
+  const int port = ts.port();
+  for (const std::size_t n : {std::size_t{9000}, std::size_t{60000}, std::size_t{100000}}) {
+    const RawResponse r = round_trip(port, "GET /v1/jobs/" + std::string(n, 'a') + " HTTP/1.1\r\nHost: x\r\n\r\n");
+    EXPECT_EQ(r.status, 414) << n << "\n" << r.head;
+    EXPECT_TRUE(r.closed) << n;
+    const json body = json::parse(r.body, nullptr, false);
+    ASSERT_TRUE(body.is_object()) << n << ": " << r.body;
+    EXPECT_EQ(body.value("error", ""), "URI too long") << n;
+    EXPECT_EQ(body.value("reason", ""), "the request line may take at most 8192 bytes") << n;
+  }
+  // A long query is the same request line.
+  EXPECT_EQ(round_trip(port, "GET /v1/jobs?state=" + std::string(100000, 'x') + " HTTP/1.1\r\nHost: x\r\n\r\n").status, 414);
+  // Under the limit: routed (no such job; the id is not one).
+  EXPECT_EQ(round_trip(port, "GET /v1/jobs/" + std::string(8000, 'a') + " HTTP/1.1\r\nHost: x\r\n\r\n").status, 404);
+  EXPECT_EQ(ts.client()->Get("/healthz")->status, 200);
+  const std::string metrics = ts.client()->Get("/metrics")->body;
+  EXPECT_THAT(metrics, ::testing::HasSubstr("moreau_http_responses_total{code=\"414\"} 4")) << metrics;
+}
+
+// A control byte in a scene name (the figure's title) made the job's SVG figures invalid XML. Each
+// character XML 1.0 forbids or discourages is drawn as U+FFFD, and the figure is XML 1.0 text.
+TEST(Hostile, FiguresOfScenesNamedWithControlBytesAreXml) {
+  TestServer ts;
+  auto c = ts.client();
+  const std::string name = "ctl\x01\x1b[2J\x7f\xc2\x9b evil\xef\xbf\xbe";
+  auto r = submit(*c, {{"scene", "damped-relay"}, {"overrides", {{"name", name}}}});
+  ASSERT_EQ(r->status, 202) << r->body;
+  const std::string id = json::parse(r->body)["id"];
+  ASSERT_EQ(wait_final(*c, id)["state"], "done");
+  const std::string fffd = "\xef\xbf\xbd";
+  for (const char* kind : {"state", "energy", "step", "phase"}) {
+    const auto f = c->Get("/v1/jobs/" + id + "/figure?kind=" + kind + "&format=svg");
+    ASSERT_EQ(f->status, 200) << kind << ": " << f->body;
+    EXPECT_EQ(f->get_header_value("Content-Type"), "image/svg+xml");
+    EXPECT_EQ(moreau::test_support::xml_1_0_problem(f->body), "") << kind;
+    EXPECT_THAT(f->body, ::testing::HasSubstr("ctl" + fffd + fffd + "[2J" + fffd + fffd + " evil" + fffd)) << kind;
+  }
 }
 
 // Pruning (--keep-jobs) while clients read and delete: every answer is the job's (200) or its absence

@@ -3,6 +3,7 @@
 
 #include <exception>
 #include <string>
+#include <string_view>
 
 #include "moreau/render/render.h"
 #include "scene.h"
@@ -14,6 +15,13 @@ namespace moreau::render::detail {
 Image rasterize(const Scene& scene);
 Image rasterize_with_opengl(const Scene& scene);
 std::string write_svg(const Scene& scene);  // svg_backend.cc
+
+// Text as XML 1.0 character data or an attribute value (svg_backend.cc), whatever it holds: & < > "
+// as references, and every character XML 1.0 forbids (C0 controls but tab, newline and carriage return;
+// U+FFFE, U+FFFF; bytes that are not UTF-8, surrogates included) or discourages (DEL, C1 controls) as
+// U+FFFD, the replacement character. A figure's title is a scene name a client chose: a control byte in
+// it made the SVG invalid XML that no viewer would open. Every text the SVG writer puts out goes through it.
+std::string xml_text(std::string_view text);
 
 // The body of an entry point of the raster module (gl_backend.cc, png.cc): runs f and returns 0, or 1
 // with the message of what it threw in *error. No exception leaves the module: the executable that loads

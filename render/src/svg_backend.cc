@@ -2,6 +2,7 @@
 // (decimated like the raster output, so dense series stay small), clipped to their plot area.
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <map>
 #include <sstream>
@@ -10,22 +11,61 @@
 #include "backends.h"
 
 namespace moreau::render::detail {
-namespace {
 
-std::string escape(const std::string& s) {
+std::string xml_text(std::string_view s) {
+  static const char kReplacement[] = "\xEF\xBF\xBD";  // U+FFFD
   std::string out;
   out.reserve(s.size());
-  for (char c : s) {
-    switch (c) {
-      case '&': out += "&amp;"; break;
-      case '<': out += "&lt;"; break;
-      case '>': out += "&gt;"; break;
-      case '"': out += "&quot;"; break;
-      default: out += c;
+  const auto byte = [&](std::size_t k) { return static_cast<unsigned char>(s[k]); };
+  for (std::size_t i = 0; i < s.size();) {
+    const unsigned char c = byte(i);
+    if (c < 0x80) {
+      switch (c) {
+        case '&': out += "&amp;"; break;
+        case '<': out += "&lt;"; break;
+        case '>': out += "&gt;"; break;
+        case '"': out += "&quot;"; break;
+        case '\t': case '\n': case '\r': out += static_cast<char>(c); break;
+        default:
+          if (c < 0x20 || c == 0x7F)
+            out += kReplacement;
+          else
+            out += static_cast<char>(c);
+      }
+      ++i;
+      continue;
     }
+    // A UTF-8 sequence: its length, and its code point if it is valid (shortest form, no surrogate).
+    std::size_t len = 0;
+    std::uint32_t cp = 0, min = 0;
+    if ((c & 0xE0) == 0xC0) {
+      len = 2, cp = c & 0x1Fu, min = 0x80;
+    } else if ((c & 0xF0) == 0xE0) {
+      len = 3, cp = c & 0x0Fu, min = 0x800;
+    } else if ((c & 0xF8) == 0xF0) {
+      len = 4, cp = c & 0x07u, min = 0x10000;
+    }
+    bool valid = len > 0 && i + len <= s.size();
+    for (std::size_t k = 1; valid && k < len; ++k) {
+      valid = (byte(i + k) & 0xC0) == 0x80;
+      cp = (cp << 6) | (byte(i + k) & 0x3Fu);
+    }
+    valid = valid && cp >= min && cp <= 0x10FFFF && !(cp >= 0xD800 && cp <= 0xDFFF);
+    if (!valid) {
+      out += kReplacement;  // this byte; the next one starts afresh
+      ++i;
+      continue;
+    }
+    if ((cp >= 0x80 && cp <= 0x9F) || cp == 0xFFFE || cp == 0xFFFF)
+      out += kReplacement;
+    else
+      out.append(s.substr(i, len));
+    i += len;
   }
   return out;
 }
+
+namespace {
 
 std::string num(double v) {
   // Pixel coordinates: two decimals are far below what any viewer resolves.
@@ -132,10 +172,10 @@ class Writer {
         << "\" fill=\"" << color(t.color) << "\"";
     if (t.bold) os_ << " font-weight=\"bold\"";
     if (t.vertical) os_ << " transform=\"rotate(-90 " << num(t.x) << " " << num(t.y) << ")\"";
-    os_ << ">" << escape(t.text);
+    os_ << ">" << xml_text(t.text);
     if (!t.superscript.empty())
       os_ << "<tspan dy=\"" << -superscript_rise(t.size_px) << "\" font-size=\"" << superscript_px(t.size_px) << "\">"
-          << escape(t.superscript) << "</tspan>";
+          << xml_text(t.superscript) << "</tspan>";
     os_ << "</text>\n";
   }
 

@@ -73,6 +73,8 @@ class GuardedStream final : public httplib::Stream {
     deadline_ = Clock::now() + limits_.header_timeout;
     budget_ = limits_.max_header_bytes;
     in_headers_ = true;
+    line_complete_ = false;
+    written_ = 0;
   }
   // The headers are parsed: the body (if any) has the body timeout and the raw body limit.
   void begin_body() {
@@ -83,6 +85,10 @@ class GuardedStream final : public httplib::Stream {
     budget_ = buffered() > budget_ ? 0 : budget_ - buffered();
   }
   std::size_t buffered() const { return end_ - begin_; }
+  // Whether the request line has been read to its end (a newline went to the parser), and how many bytes
+  // were written since the request began (0: nothing was answered).
+  bool request_line_complete() const { return line_complete_; }
+  std::size_t written() const { return written_; }
 
   bool is_readable() const override { return buffered() > 0 || wait_for(fd_, POLLIN, deadline_); }
   bool is_writable() const override { return wait_for(fd_, POLLOUT, Clock::now() + limits_.write_timeout); }
@@ -92,6 +98,7 @@ class GuardedStream final : public httplib::Stream {
     const std::size_t n = std::min(size, buffered());
     std::memcpy(ptr, buf_ + begin_, n);
     begin_ += n;
+    if (in_headers_ && !line_complete_ && std::memchr(ptr, '\n', n)) line_complete_ = true;
     return static_cast<ssize_t>(n);
   }
 
@@ -110,6 +117,7 @@ class GuardedStream final : public httplib::Stream {
       }
       return -1;
     }
+    written_ += size;
     return static_cast<ssize_t>(size);
   }
 
@@ -149,19 +157,25 @@ class GuardedStream final : public httplib::Stream {
   ConnectionContext& ctx_;
   Clock::time_point deadline_ = Clock::now();
   bool in_headers_ = true;
+  bool line_complete_ = false;
+  std::size_t written_ = 0;
   std::size_t budget_ = 0;  // bytes this phase of the request (headers, or body) may still read
   char buf_[16 << 10];
   std::size_t begin_ = 0, end_ = 0;
 };
 
-// Answers a refused connection without waiting on it: a write that does not fit the socket buffer is
-// dropped, and the connection closed.
-void refuse(int fd, int status, const char* reason, const std::string& detail) {
-  const std::string body = std::string("{\"error\":\"") + reason + "\",\"reason\":\"" + detail + "\"}\n";
-  const std::string head = "HTTP/1.1 " + std::to_string(status) + " " + (status == 503 ? "Service Unavailable" : "Error") +
-                           "\r\nContent-Type: application/json\r\nRetry-After: 1\r\nConnection: close\r\n"
-                           "Content-Length: " +
-                           std::to_string(body.size()) + "\r\n\r\n";
+// Answers a request the transport ends itself (a connection over a limit, a request line or headers over
+// their byte limit), without waiting on the client: a write that does not fit the socket buffer is dropped,
+// and the connection is closed. `error` and `detail` are the transport's own text (no quote or backslash
+// to escape). The headers every answer of the server carries (server.cc, set_post_routing_handler) are
+// written here too: httplib's handlers never see these answers.
+void answer_and_close(int fd, int status, const char* error, const std::string& detail) {
+  const std::string body = std::string("{\"error\":\"") + error + "\",\"reason\":\"" + detail + "\"}\n";
+  const char* phrase = status == 503 ? "Service Unavailable" : status == 414 ? "URI Too Long" : status == 431 ? "Request Header Fields Too Large" : "Error";
+  const std::string head = "HTTP/1.1 " + std::to_string(status) + " " + phrase + "\r\nContent-Type: application/json\r\n" +
+                           (status == 503 ? "Retry-After: 1\r\n" : "") + "Connection: close\r\n" +
+                           "X-Content-Type-Options: nosniff\r\nContent-Security-Policy: " + kApiContentSecurityPolicy + "\r\n" +
+                           "Content-Length: " + std::to_string(body.size()) + "\r\n\r\n";
   const std::string all = head + body;
   [[maybe_unused]] const ssize_t ignored = ::send(fd, all.data(), all.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
 }
@@ -254,7 +268,7 @@ void GuardedHttpServer::shut_down_connections() {
 bool GuardedHttpServer::process_and_close_socket(socket_t sock) {
   const std::string client = peer_address(sock, nullptr);
   if (const std::string why = admit(client, sock); !why.empty()) {
-    refuse(sock, 503, "too many connections", why);
+    answer_and_close(sock, 503, "too many connections", why);
     if (on_refused) on_refused(503);
     ::shutdown(sock, SHUT_RDWR);
     ::close(sock);
@@ -275,6 +289,18 @@ bool GuardedHttpServer::process_and_close_socket(socket_t sock) {
     t_connection = &ctx;
     ok = process_request(stream, last, connection_closed, [&](httplib::Request&) { stream.begin_body(); });
     t_connection = nullptr;
+    // A request line or headers that ran past max_header_bytes before their end: httplib's line reader
+    // fails, and process_request returns without a word (a 100,000-character path was answered by a
+    // closed connection). httplib itself answers 414 to a complete request line longer than
+    // CPPHTTPLIB_REQUEST_URI_MAX_LENGTH (8192, fixed when the library was built); one too long to reach
+    // its end within the header limit is answered 414 here, as are headers cut there 431.
+    if (!ok && ctx.headers_too_large && stream.written() == 0) {
+      const int status = stream.request_line_complete() ? 431 : 414;
+      answer_and_close(sock, status, status == 414 ? "URI too long" : "request headers too large",
+                       status == 414 ? "the request line may take at most " + std::to_string(kMaxRequestLineBytes) + " bytes"
+                                     : "the request line and headers may take at most " + std::to_string(limits_.max_header_bytes) + " bytes");
+      if (on_refused) on_refused(status);
+    }
     if (ctx.timed_out) {
       std::lock_guard lock(mu_);
       ++timed_out_;

@@ -32,6 +32,15 @@
 
 namespace moreau::server {
 
+// The Content-Security-Policy of every answer but the web page's own files (which carry theirs): nothing
+// the server sends (a figure, a CSV, a report, an error that quotes a client's text) loads or runs
+// anything, or is framed, if a browser opens it. Sent with "X-Content-Type-Options: nosniff".
+inline constexpr char kApiContentSecurityPolicy[] = "default-src 'none'; frame-ancestors 'none'; sandbox";
+
+// The longest request line httplib parses (CPPHTTPLIB_REQUEST_URI_MAX_LENGTH, fixed when the library was
+// built: 8192 in Debian's libcpp-httplib 0.11.4); a longer one is answered 414 URI Too Long.
+inline constexpr std::size_t kMaxRequestLineBytes = CPPHTTPLIB_REQUEST_URI_MAX_LENGTH;
+
 struct TransportLimits {
   int max_connections = 512;                         // open connections in all (each holds one thread)
   int max_connections_per_client = 64;               // open connections from one client address
@@ -69,7 +78,9 @@ class GuardedHttpServer : public httplib::Server {
 
   const TransportLimits& limits() const { return limits_; }
   TransportStats stats() const;
-  // Called with the status of each connection refused over a limit (for the response metrics).
+  // Called with the status of each answer the transport writes itself, outside httplib (a connection
+  // refused over a limit: 503; a request line or headers past max_header_bytes: 414, 431), for the
+  // response metrics.
   std::function<void(int status)> on_refused;
 
   // Wakes every connection blocked in a read (used when stopping: idle keep-alive connections and slow

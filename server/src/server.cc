@@ -740,6 +740,10 @@ void Server::Impl::setup_routes() {
     }
     switch (res.status) {
       case 404: send_error(res, 404, "not found", "", no_endpoint(req)); break;
+      case 414:  // httplib's own answer to a request line over its limit; its headers were skipped, not read
+        close_connection_after(res);
+        send_error(res, 414, "URI too long", "", "the request line may take at most " + std::to_string(kMaxRequestLineBytes) + " bytes");
+        break;
       case 413: body_too_large(res); break;
       case 400: send_error(res, 400, "bad request"); break;
       default: send_error(res, res.status, "error " + std::to_string(res.status)); break;
@@ -755,6 +759,15 @@ void Server::Impl::setup_routes() {
     }
     std::cerr << "moreau-server: internal error: " << log_escaped(what) << "\n";
     send_error(res, 500, "internal error", "", what);
+  });
+  // Every answer (routed, refused while screening, errors, streams): no content sniffing, and unless the
+  // answer carries a policy of its own (the web page's files, page_file below) one under which nothing it
+  // holds (a figure, a CSV, a report, an error quoting a client's text) loads or runs anything, or is
+  // framed, when a browser opens it. The answers the transport writes itself carry the same
+  // (http_transport.cc). httplib calls this as it writes each response, after the error handler.
+  http_.set_post_routing_handler([](const Request&, Response& res) {
+    if (!res.has_header("X-Content-Type-Options")) res.set_header("X-Content-Type-Options", "nosniff");
+    if (!res.has_header("Content-Security-Policy")) res.set_header("Content-Security-Policy", kApiContentSecurityPolicy);
   });
   http_.set_logger([this](const Request& req, const Response& res) {
     {
@@ -777,14 +790,16 @@ void Server::Impl::setup_routes() {
   // empty icon (data:, which spares the browser a /favicon.ico request).
   auto page_file = [](std::string_view text, const char* type) {
     return [text, type, etag = strong_etag(text)](const Request& req, Response& res) {
-      if (not_modified(req, res, etag)) return;
-      res.status = 200;
+      // Before the conditional answer: a 304 carries the page's policy too (a cache may update the stored
+      // answer's headers from it), never the API's, which would forbid the page its own script.
       res.set_header("Content-Security-Policy",
                      "default-src 'none'; script-src 'self'; style-src 'self'; img-src 'self' blob: data:; connect-src 'self'; "
                      "base-uri 'none'; form-action 'none'; frame-ancestors 'none'");
       res.set_header("X-Content-Type-Options", "nosniff");
       res.set_header("Referrer-Policy", "no-referrer");
       res.set_header("Cache-Control", "no-cache");
+      if (not_modified(req, res, etag)) return;
+      res.status = 200;
       res.set_content(std::string(text), type);
     };
   };
@@ -1261,6 +1276,14 @@ std::int64_t campaign_bytes_bound(const scene::CampaignSpec& spec, int dof) {
 // within this server's limits. Throws BadRequest or scene::SceneError.
 void Server::Impl::prepare_campaign(Job& job, const json& spec_doc) {
   const scene::Simulation sim = scene::Simulation::from_json(spec_doc.at("scene"));  // its errors: 400 invalid scene, at the scene's field
+  // This server's sample limit first, whatever the number's form (1e12 is a float in JSON): the spec
+  // reader's own limit is the command line's, far above it.
+  if (spec_doc.contains("samples") && spec_doc["samples"].is_number() && spec_doc["samples"].get<double>() > static_cast<double>(cfg_.max_campaign_samples))
+    throw BadRequest{400, "invalid request", "/campaign/samples",
+                     (spec_doc["samples"].is_number_float() ? fmt_g(spec_doc["samples"].get<double>()) : spec_doc["samples"].dump()) +
+                         " samples; this server runs at most " + std::to_string(cfg_.max_campaign_samples) +
+                         " per campaign (run larger ones with moreau campaign, on one machine or a Slurm cluster)",
+                     "request"};
   scene::CampaignSpec spec;
   try {
     spec = scene::CampaignSpec::from_json(spec_doc, "");
@@ -1284,6 +1307,25 @@ void Server::Impl::prepare_campaign(Job& job, const json& spec_doc) {
                      std::to_string(spec.samples) + " samples of " + std::to_string(planned) + " steps each; this server runs at most " +
                          std::to_string(cfg_.max_campaign_steps) + " steps per campaign",
                      "request"};
+  // Each sample by its own settings: an input may be t_end, h or a parameter they use. Sample i's bound is
+  // ceil((t_end - t0) / h) of its scene, capped by --max-steps (the runner stops a sample there); the
+  // run itself stops at --max-campaign-steps whatever the samples take (job_runner).
+  const scene::CampaignStepBound steps = scene::campaign_step_bound(spec, cfg_.max_steps, cfg_.max_campaign_steps);
+  if (steps.total > cfg_.max_campaign_steps) {
+    const std::string pointer = steps.input >= 0 ? "/campaign/inputs/" + std::to_string(steps.input) : std::string("/campaign/samples");
+    std::string values;
+    if (steps.input >= 0) {
+      const std::vector<json> drawn = scene::CampaignDesign(spec).values(steps.largest_sample);
+      const std::string shown = drawn[static_cast<std::size_t>(steps.input)].dump();
+      values = ", with " + spec.inputs[static_cast<std::size_t>(steps.input)].path + " = " + (shown.size() > 40 ? shown.substr(0, 37) + "..." : shown);
+    }
+    throw BadRequest{400, "invalid request", pointer,
+                     "with their inputs applied, the samples need " + std::string(steps.stopped ? "more than " : "") + std::to_string(steps.total) +
+                         " steps in all (sample " + std::to_string(steps.largest_sample) + values + ", needs " + std::to_string(steps.largest) +
+                         "; the scene alone " + std::to_string(planned) + " per sample); this server runs at most " +
+                         std::to_string(cfg_.max_campaign_steps) + " steps per campaign",
+                     "request"};
+  }
   const std::int64_t bytes = campaign_bytes_bound(spec, sim.dof());
   if (bytes > cfg_.max_result_bytes)
     throw BadRequest{422, "result too large", spec.full_report ? "/campaign/full_report" : "/campaign/samples",
@@ -1297,7 +1339,7 @@ void Server::Impl::prepare_campaign(Job& job, const json& spec_doc) {
   job.scene_name = sim.name().empty() ? "scene" : sim.name();
   job.t0 = sim.t0();
   job.t_end = sim.t_end();
-  job.planned_steps = planned * spec.samples;
+  job.planned_steps = steps.total;
   job.rows_total = spec.samples;
   job.campaign.emplace(std::move(spec));
 }

@@ -3,7 +3,10 @@
 // moreau-server from files compiled into it (server/web/).
 //
 // Everything shown comes from the server or the user and is put in the page as text (textContent,
-// element.append(string)), never as HTML: a scene named "<script>..." shows those characters.
+// element.append(string)), never as HTML: a scene named "<script>..." shows those characters. And as
+// visible text (visible()): a bidirectional override reorders what follows it (a name shown as
+// "ctl...live" was "ctl", U+202E, "...evil"), so the overrides and the control characters are shown as
+// escapes: "ctl\u{202e}...evil".
 // The token, when the server has one, is kept in this tab's sessionStorage and sent as a bearer header;
 // that is why figures, downloads and event streams are fetched (an <img src> or EventSource cannot send
 // a header) and shown from blob: URLs.
@@ -75,18 +78,33 @@ const jobUrl = (id) => '/v1/jobs/' + encodeURIComponent(id);
 
 // ---- small DOM helpers --------------------------------------------------------------------------
 
+// Text made visible: control characters (C0 but tab and newline, DEL, C1) and the bidirectional
+// embeddings, overrides and isolates (U+202A-U+202E, U+2066-U+2069) as \u{1b}, \u{202e}. Every string
+// the page shows goes through it (el(), setText()).
+const INVISIBLE = /[\u0000-\u0008\u000b-\u001f\u007f-\u009f\u202a-\u202e\u2066-\u2069]/g;
+function visible(s) {
+  return String(s).replace(INVISIBLE, (c) => '\\u{' + c.charCodeAt(0).toString(16) + '}');
+}
+
+function setText(element, s) {
+  element.textContent = visible(s);
+}
+
 function el(tag, attrs, ...children) {
   const e = document.createElement(tag);
   for (const [k, v] of Object.entries(attrs || {})) {
     if (k === 'class') e.className = v;
     else e.setAttribute(k, v);
   }
-  for (const c of children) if (c !== null && c !== undefined) e.append(c);  // strings become text nodes
+  for (const c of children) {
+    if (c === null || c === undefined) continue;
+    e.append(typeof c === 'string' ? visible(c) : c);  // strings become text nodes
+  }
   return e;
 }
 
 function showError(id, err) {
-  $(id).textContent = err ? (err.message || String(err)) : '';
+  setText($(id), err ? (err.message || String(err)) : '');
 }
 
 function fraction(job) {
@@ -233,7 +251,7 @@ async function select(id) {
 
 function showJob(job) {
   $('job-section').hidden = false;
-  $('job-id').textContent = job.id;
+  setText($('job-id'), job.id);
   const r = job.report;
   const facts = [['scene', job.scene], ['state', job.state + (job.reason ? ` (${job.reason})` : '')]];
   if (r) {
@@ -266,7 +284,7 @@ function showJob(job) {
   }
   if (!ul.children.length) ul.append(el('li', {}, r ? 'none listed' : 'when the job is final'));
 
-  $('job-report').textContent = r ? JSON.stringify(r, null, 2) : '';
+  setText($('job-report'), r ? JSON.stringify(r, null, 2) : '');
   showFigures(job);
   showDownloads(job);
 }
@@ -314,7 +332,7 @@ function showFigures(job) {
     request('GET', `${jobUrl(job.id)}/figure?kind=${kind}`)
       .then((r) => r.blob())
       .then((blob) => { const u = URL.createObjectURL(blob); figureUrls.push(u); img.src = u; })
-      .catch((e) => { caption.textContent = `${kind}: ${e.message}`; caption.className = 'error'; });
+      .catch((e) => { setText(caption, `${kind}: ${e.message}`); caption.className = 'error'; });
   }
 }
 
@@ -357,7 +375,7 @@ async function loadScenes() {
     select.replaceChildren();
     for (const s of list.scenes) {
       const option = el('option', { value: s.name }, s.title ? `${s.name}: ${s.title}` : s.name);
-      if (s.description) option.title = s.description;
+      if (s.description) option.title = visible(s.description);
       select.append(option);
     }
     if (list.scenes.some((s) => s.name === 'manipulator')) select.value = 'manipulator';
@@ -394,7 +412,7 @@ async function submit(ev) {
 // ---- start --------------------------------------------------------------------------------------
 
 function showTokenState() {
-  $('token-state').textContent = token ? 'token set for this tab' : 'no token';
+  setText($('token-state'), token ? 'token set for this tab' : 'no token');
 }
 
 document.addEventListener('DOMContentLoaded', () => {

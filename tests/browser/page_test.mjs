@@ -140,6 +140,21 @@ async function main() {
     check(ran.xss === undefined && ran.scripts === 1 && ran.injectedImg === 0,
           'a scene named with HTML and a script is shown as text and nothing in it ran: ' + JSON.stringify(ran));
 
+    // A scene named with a bidirectional override and control characters: shown as visible escapes
+    // (a name shown as "ctl...live" was "ctl", U+202E, "...evil"), in the list and in the job's summary.
+    scene.name = 'ctl\u202e...evil\u001b[2J\u2066';
+    const shownName = 'ctl\\u{202e}...evil\\u{1b}[2J\\u{2066}';
+    await page.evaluate((text) => {
+      document.querySelector('input[value=pasted]').checked = true;
+      document.getElementById('scene-text').value = text;
+      document.getElementById('overrides').value = '';
+    }, JSON.stringify(scene));
+    await page.click('#submit-button');
+    await page.waitForFunction((name) => [...document.querySelectorAll('#jobs td.scene')].some((td) => td.textContent === name), WAIT, shownName);
+    await page.waitForFunction((name) => document.getElementById('job-summary').textContent.includes(name), WAIT, shownName);
+    const bidi = await page.evaluate(() => /[\u202a-\u202e\u2066-\u2069\u0000-\u0008\u000b-\u001f\u007f-\u009f]/.test(document.body.textContent));
+    check(!bidi, 'a scene named with a bidirectional override and control characters is shown with them as visible escapes');
+
     // An error whose text is HTML (an override path): shown as text.
     await page.evaluate(() => {
       document.querySelector('input[value=shipped]').checked = true;
