@@ -3,22 +3,31 @@
 # are left alone, and apt is not even called when nothing is missing. Installing needs root or sudo;
 # without either, the script names the missing packages and the apt-get command to run as root.
 #
-# --browser-test also installs what the web page's browser test needs (CI passes it): Debian's chromium,
-# and puppeteer-core from the npm registry into tests/browser/node_modules (npm ci, from the lock file),
-# with the machine's Node.js. Without it that test is not registered (CMake says so).
+# Options (CI passes both; a user needs neither):
+#   --browser-test  what the web page's browser test needs: Debian's chromium, and puppeteer-core from the
+#                   npm registry into tests/browser/node_modules (npm ci, from the lock file), with the
+#                   machine's Node.js. Without it that test is not registered (CMake says so).
+#   --slurm-test    slurmctld, slurmd, slurm-client and munge, for the test that runs a campaign through a
+#                   real single-node Slurm cluster (tests/slurm/). On a machine with systemd, Debian enables
+#                   and starts those daemons when it installs them, so they are not installed by default;
+#                   without them that test is skipped (exit 77), unless MOREAU_REQUIRE_SLURM=1.
+# apt's output goes to a log, shown only if apt fails.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 browser_test=false
+slurm_test=false
 for arg in "$@"; do
   case $arg in
     --browser-test) browser_test=true ;;
-    *) echo "install-deps: unknown argument $arg (the only one is --browser-test)" >&2; exit 2 ;;
+    --slurm-test) slurm_test=true ;;
+    *) echo "install-deps: unknown argument $arg (the options are --browser-test and --slurm-test)" >&2; exit 2 ;;
   esac
 done
 
 packages=(
   build-essential cmake ninja-build pkg-config
+  ccache                             # scripts/build.sh compiles through it: a rebuild of unchanged sources takes seconds
   libeigen3-dev                      # core numerics
   libxbyak-dev                       # native code for the expression tapes (x86-64)
   nlohmann-json3-dev libcli11-dev    # scene format, command line
@@ -36,9 +45,9 @@ packages=(
   python3-jsonschema                 # tests/check_openapi.py (server/openapi.json against the OpenAPI 3.1 schema)
   python3-numpy                      # tests/python_client_test.py (the Python client returns numpy arrays when it can)
   python3-yaml                       # tests/k8s_indexed_job_test.py (reads the Kubernetes manifest)
-  slurmctld slurmd slurm-client munge  # tests/slurm/: a campaign through a real single-node Slurm cluster
 )
 if $browser_test; then packages+=(chromium); fi
+if $slurm_test; then packages+=(slurmctld slurmd slurm-client munge); fi  # tests/slurm/: a real single-node cluster
 
 # puppeteer-core for the browser test, once the packages are there (it drives /usr/bin/chromium).
 install_browser_driver() {
@@ -83,11 +92,16 @@ if [ "$(id -u)" -ne 0 ]; then
   sudo_cmd=(sudo)
 fi
 
-echo "install-deps: installing ${missing[*]}"
-if ! "${sudo_cmd[@]}" apt-get update -qq ||
-   ! "${sudo_cmd[@]}" env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${missing[@]}"; then
-  echo "install-deps: apt-get failed (see above); the packages still missing are among: ${missing[*]}" >&2
+echo "install-deps: installing ${#missing[@]} packages: ${missing[*]}"
+apt_log=$(mktemp)
+if ! "${sudo_cmd[@]}" apt-get update -qq >"$apt_log" 2>&1 ||
+   ! "${sudo_cmd[@]}" env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${missing[@]}" >>"$apt_log" 2>&1; then
+  cat "$apt_log" >&2
+  rm -f "$apt_log"
+  echo "install-deps: apt-get failed (its output is above); the packages still missing are among: ${missing[*]}" >&2
   print_root_command
   exit 1
 fi
+rm -f "$apt_log"
+echo "install-deps: installed ${#missing[@]} packages"
 install_browser_driver
