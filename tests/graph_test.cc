@@ -300,7 +300,9 @@ TEST(GraphInclusionSolver, PinnedComponentsLeaveTheSystem) {
     for (int i = 0; i < m; ++i) {
       EXPECT_NEAR(w(i), w_ref(i), 1e-9 * (1.0 + std::abs(w_ref(i)))) << "trial " << trial << " component " << i;
       EXPECT_NEAR(u(i), u_ref(i), 1e-9 * (1.0 + std::abs(u_ref(i)))) << "trial " << trial << " component " << i;
-      if (g[i] == &zero) EXPECT_EQ(w(i), 0.0);  // pinned: exactly
+      if (g[i] == &zero) {
+        EXPECT_EQ(w(i), 0.0);  // pinned: exactly
+      }
     }
   }
 }

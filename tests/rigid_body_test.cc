@@ -88,7 +88,7 @@ RigidBodyModel branched_tree() {
   for (int k = 0; k < 8; ++k) {
     RigidBody b;
     b.parent = parents[k];
-    b.joint_name = "j" + std::to_string(k);
+    b.joint_name = std::string("j").append(std::to_string(k));  // not "j" + ...: GCC 12's false -Wrestrict (bug 105329)
     b.joint = (k == 3 || k == 6) ? JointType::kPrismatic : JointType::kRevolute;
     b.rotation_in_parent = Eigen::AngleAxisd(u(rng) * 3.0, Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized()).toRotationMatrix();
     b.position_in_parent_m = Eigen::Vector3d(u(rng), u(rng), u(rng));

@@ -414,7 +414,9 @@ TEST(ServerFault, KillNineWhileJobsRunThenRestart) {
     for (const auto& id : longs) {
       const json job = get_json(*c2, "/v1/jobs/" + id);
       EXPECT_THAT(job.value("state", ""), AnyOf("queued", "running")) << job.dump();
-      if (running_at_kill.count(id)) EXPECT_EQ(job.value("reason", ""), job.value("state", "") == "queued" ? kReasonCrashed : "");
+      if (running_at_kill.count(id)) {
+        EXPECT_EQ(job.value("reason", ""), job.value("state", "") == "queued" ? kReasonCrashed : "");
+      }
       auto d = c2->Delete("/v1/jobs/" + id);
       ASSERT_TRUE(d);
       EXPECT_TRUE(d->status == 200 || d->status == 202) << d->body;
@@ -469,7 +471,9 @@ TEST(ServerFault, KillNineWhileJobsRunThenRestart) {
       EXPECT_EQ(digest(slurp(data / "jobs" / id / "trajectory.csv").value_or("")), f.csv);
       EXPECT_EQ(get_json(*c2, "/v1/jobs/" + id)["state"], "done");
       const auto [it, first] = trajectory_of_body.emplace(body_of.at(id), f.csv);
-      if (!first) EXPECT_EQ(it->second, f.csv) << "a job of the same body gave another trajectory";
+      if (!first) {
+        EXPECT_EQ(it->second, f.csv) << "a job of the same body gave another trajectory";
+      }
       ++verified;
     }
     seen_done_total += static_cast<int>(seen_done.size());

@@ -53,7 +53,7 @@ XmlShape check_xml_shape(std::string_view text, int max_depth, std::size_t max_e
   // The encoding is fixed to UTF-8, whatever the text declares: the parsers after this one read it so.
   std::unique_ptr<XML_ParserStruct, void (*)(XML_Parser)> parser(XML_ParserCreate("UTF-8"), XML_ParserFree);
   if (!parser) throw XmlShapeError("out of memory while reading the XML text");
-  State s{parser.get(), max_depth, max_elements};
+  State s{parser.get(), max_depth, max_elements, 0, XmlShape{}, std::string()};
   XML_SetUserData(s.parser, &s);
   XML_SetElementHandler(s.parser, on_start, on_end);
   XML_SetStartDoctypeDeclHandler(s.parser, on_doctype);

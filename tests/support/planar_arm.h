@@ -25,7 +25,7 @@ struct PlanarArm {
     r.gravity_m_s2 = Eigen::Vector3d(0.0, -g, 0.0);
     for (int k = 0; k < n(); ++k) {
       RigidBody b;
-      b.joint_name = "j" + std::to_string(k);
+      b.joint_name = std::string("j").append(std::to_string(k));  // not "j" + ...: GCC 12's false -Wrestrict (bug 105329)
       b.parent = k - 1;
       b.position_in_parent_m = Eigen::Vector3d(k == 0 ? 0.0 : l[k - 1], 0.0, 0.0);
       b.axis = Eigen::Vector3d::UnitZ();
