@@ -259,6 +259,14 @@ std::vector<Case> cases() {
                      s["system"] = {{"type", "lagrangian"}, {"urdf", {{"text", urdf}}}};
                    }),
                    400, "/system/urdf/text", "elements nested deeper than 64 levels"));
+  // Nesting hidden inside a processing instruction, which TinyXML ends at its first '>' and Expat at "?>"
+  // (found by the URDF fuzzer): processing instructions are refused.
+  t.push_back(post("UrdfNestingHiddenInAProcessingInstruction", scene_body([](json& s) {
+                     std::string urdf = "<robot name=\"r\"><?pi <a\"r\">";
+                     for (int k = 0; k < 40000; ++k) urdf += "<a>";
+                     s["system"] = {{"type", "lagrangian"}, {"urdf", {{"text", urdf + "?></robot>"}}}};
+                   }),
+                   400, "/system/urdf/text", "a processing instruction <?pi ...?> (line 1): processing instructions are not accepted"));
   t.push_back(post("UrdfWithDoctype", scene_body([](json& s) {
                      s["system"] = {{"type", "lagrangian"},
                                     {"urdf", {{"text", "<?xml version=\"1.0\"?>\n<!DOCTYPE robot [<!ENTITY x \"y\">]>\n<robot name=\"r\"/>"}}}};

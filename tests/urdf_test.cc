@@ -450,6 +450,19 @@ TEST(Urdf, DeepXmlIsRefusedBeforeAnyRecursiveParser) {
   EXPECT_EQ(error_of(many + "</robot>").rfind("more than 100000 XML elements", 0), 0u) << error_of(many + "</robot>").substr(0, 200);
 }
 
+// Found by the URDF fuzzer: TinyXML ends a processing instruction at its first '>', Expat at "?>", so
+// nesting inside a PI was invisible to the shape check and recursed in TinyXML. PIs are refused; the XML
+// declaration still passes.
+TEST(Urdf, ProcessingInstructionsCannotHideNesting) {
+  std::string hidden = "<robot name=\"r\"><?pi <a\"r\">";
+  for (int k = 0; k < 40000; ++k) hidden += "<gazebo>";
+  hidden += "?></robot>";
+  EXPECT_EQ(error_of(hidden).rfind("a processing instruction <?pi ...?> (line 1): processing instructions are not accepted in a URDF", 0), 0u)
+      << error_of(hidden).substr(0, 200);
+  const std::string declared = "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n" + one_link(inertial("1", "0.1 0.1 0.1"));
+  EXPECT_EQ(error_of(declared), "(no error)");
+}
+
 TEST(Urdf, DoctypeIsRefusedByName) {
   const std::string e = error_of("<?xml version=\"1.0\"?>\n<!DOCTYPE robot SYSTEM \"file:///etc/passwd\">\n<robot name=\"r\"/>");
   EXPECT_EQ(e, "a DOCTYPE declaration (line 2): DOCTYPE and entity declarations are not accepted in a URDF");

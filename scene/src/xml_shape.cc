@@ -41,6 +41,16 @@ void XMLCALL on_start(void* data, const XML_Char*, const XML_Char**) {
 
 void XMLCALL on_end(void* data, const XML_Char*) { --static_cast<State*>(data)->depth; }
 
+// TinyXML reads a processing instruction <?target ...?> (any but the XML declaration) as an unknown node
+// that ends at the first '>', where Expat reads on to "?>": elements inside one are markup to TinyXML and
+// invisible here, so a PI could hide any nesting from this check (the URDF fuzzer found it). A URDF has
+// no use for one: refused.
+void XMLCALL on_processing_instruction(void* data, const XML_Char* target, const XML_Char*) {
+  State& s = *static_cast<State*>(data);
+  stop(s, "a processing instruction <?" + std::string(target).substr(0, 40) + " ...?> (" + at_line(s.parser) +
+              "): processing instructions are not accepted in a URDF");
+}
+
 void XMLCALL on_doctype(void* data, const XML_Char*, const XML_Char*, const XML_Char*, int) {
   State& s = *static_cast<State*>(data);
   stop(s, "a DOCTYPE declaration (" + at_line(s.parser) + "): DOCTYPE and entity declarations are not accepted in a URDF");
@@ -57,6 +67,7 @@ XmlShape check_xml_shape(std::string_view text, int max_depth, std::size_t max_e
   XML_SetUserData(s.parser, &s);
   XML_SetElementHandler(s.parser, on_start, on_end);
   XML_SetStartDoctypeDeclHandler(s.parser, on_doctype);
+  XML_SetProcessingInstructionHandler(s.parser, on_processing_instruction);
   // No external entity is ever read (Expat reads none unless a handler is set; none is).
   const XML_Status status = XML_Parse(s.parser, text.data(), static_cast<int>(text.size()), XML_TRUE);
   if (!s.refusal.empty()) throw XmlShapeError(s.refusal);

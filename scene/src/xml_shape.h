@@ -5,7 +5,8 @@
 // stack of the thread that read it and killed the process. JSON's nesting limit never sees it, because the
 // nesting is inside a string. So every URDF text first goes through Expat, a parser that keeps its own
 // stack on the heap, with callbacks that stop it at the first element deeper than kMaxXmlDepth or beyond
-// kMaxXmlElements, and at any DOCTYPE. A text that passes is well-formed XML 1.0 with at most those
+// kMaxXmlElements, and at any DOCTYPE or processing instruction (TinyXML ends a PI at its first '>', Expat
+// at "?>", so elements inside one would be seen by one parser and not the other). A text that passes is well-formed XML 1.0 with at most those
 // numbers, so the recursive parsers after it nest at most kMaxXmlDepth frames deep (a few kilobytes), on
 // any thread, whatever its stack size.
 #pragma once
@@ -35,8 +36,9 @@ struct XmlShape {
 };
 
 // Parses `text` (UTF-8) as XML 1.0 and returns its shape, or throws XmlShapeError naming the line:
-// malformed XML, nesting deeper than max_depth, more than max_elements elements, or a DOCTYPE (a
-// document type declaration, and with it every entity declaration, is not accepted).
+// malformed XML, nesting deeper than max_depth, more than max_elements elements, a DOCTYPE (a document
+// type declaration, and with it every entity declaration, is not accepted), or a processing instruction
+// (the XML declaration <?xml version="1.0"?> is not one, and is accepted).
 XmlShape check_xml_shape(std::string_view text, int max_depth = kMaxXmlDepth, std::size_t max_elements = kMaxXmlElements);
 
 }  // namespace moreau::scene::detail
