@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "moreau/scene/campaign.h"
+#include "moreau/analysis/campaign.h"
 #include "moreau/scene/scene.h"
 #include "moreau/scene/simulation.h"
 

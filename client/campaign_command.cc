@@ -2,7 +2,7 @@
 // moreau campaign --scene SCENE --vary PATH=VALUES... [--set PATH=VALUE]... --out DIR : a parameter sweep,
 //   which is the grid campaign over the --vary lists (written as DIR/campaign.json, then run as any spec);
 // moreau campaign --collect DIR : checks that every sample is present once and writes the summary.
-// The spec, the files and the statistics: scene/include/moreau/scene/campaign.h and docs/campaigns.md.
+// The spec, the files and the statistics: analysis/include/moreau/analysis/campaign.h and docs/campaigns.md.
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -29,8 +29,8 @@
 
 #include "commands.h"
 #include "moreau/render/render.h"
-#include "moreau/scene/campaign.h"
-#include "moreau/scene/campaign_figures.h"
+#include "moreau/analysis/campaign.h"
+#include "moreau/analysis/campaign_figures.h"
 #include "moreau/scene/simulation.h"
 #include "moreau/scene/scene.h"
 

@@ -6,7 +6,7 @@
 #include <stdexcept>
 
 #include "moreau/render/render.h"
-#include "moreau/scene/figures.h"
+#include "moreau/analysis/figures.h"
 
 namespace moreau::cli {
 

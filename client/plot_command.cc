@@ -4,7 +4,7 @@
 
 #include "commands.h"
 #include "figure_output.h"
-#include "moreau/scene/figures.h"
+#include "moreau/analysis/figures.h"
 
 namespace moreau::cli {
 

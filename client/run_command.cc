@@ -11,7 +11,7 @@
 
 #include "commands.h"
 #include "figure_output.h"
-#include "moreau/scene/figures.h"
+#include "moreau/analysis/figures.h"
 #include "moreau/scene/simulation.h"
 #include "moreau/scene/trajectory_csv.h"
 #include "progress_bar.h"

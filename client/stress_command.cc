@@ -2,7 +2,7 @@
 #include <iostream>
 
 #include "commands.h"
-#include "moreau/scene/stress.h"
+#include "moreau/analysis/stress.h"
 
 namespace moreau::cli {
 

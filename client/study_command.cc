@@ -7,8 +7,8 @@
 #include "commands.h"
 #include "figure_output.h"
 #include "moreau/render/render.h"
-#include "moreau/scene/figures.h"
-#include "moreau/scene/study.h"
+#include "moreau/analysis/figures.h"
+#include "moreau/analysis/study.h"
 
 namespace moreau::cli {
 namespace {

@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "moreau/scene/campaign.h"
+#include "moreau/analysis/campaign.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   using namespace moreau::scene;

@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "moreau/scene/expression.h"
+#include "moreau/expr/expression.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   using namespace moreau::expr;

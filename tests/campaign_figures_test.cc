@@ -1,7 +1,7 @@
-// The figures of a robustness campaign (scene/include/moreau/scene/campaign_figures.h) from outcomes
+// The figures of a robustness campaign (analysis/include/moreau/analysis/campaign_figures.h) from outcomes
 // whose figures are known: the CDF's steps at the convergence times, levelling at the fraction that
 // converged; the samples that did not succeed drawn apart at t_end; the success map's two groups.
-#include "moreau/scene/campaign_figures.h"
+#include "moreau/analysis/campaign_figures.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>

@@ -1,9 +1,9 @@
-// Robustness campaigns (scene/include/moreau/scene/campaign.h): the samplers against their defining
+// Robustness campaigns (analysis/include/moreau/analysis/campaign.h): the samplers against their defining
 // properties (Sobol's known first points and stratification, one Latin-hypercube point per stratum,
 // order-independent Monte Carlo), the distributions' inverse CDFs against closed forms, the statistics
 // against hand-computed values, the spec's errors, and the campaign directory: the same records however
 // the samples are split, a stop and a killed write resumed without loss or duplicates.
-#include "moreau/scene/campaign.h"
+#include "moreau/analysis/campaign.h"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>

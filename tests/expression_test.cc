@@ -1,4 +1,4 @@
-#include "moreau/scene/expression.h"
+#include "moreau/expr/expression.h"
 
 #include <gtest/gtest.h>
 

@@ -1,11 +1,11 @@
-// scene/figures: the bridge from a scene's results to render/'s series, labelled for the kind of system.
+// analysis/figures: the bridge from a scene's results to render/'s series, labelled for the kind of system.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <string>
 #include <vector>
 
-#include "moreau/scene/figures.h"
+#include "moreau/analysis/figures.h"
 #include "moreau/scene/simulation.h"
 
 using moreau::render::TimeSeriesData;

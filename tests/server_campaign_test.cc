@@ -15,7 +15,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
-#include "moreau/scene/campaign.h"
+#include "moreau/analysis/campaign.h"
 #include "server_fixture.h"
 
 namespace {

@@ -9,7 +9,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
-#include "moreau/scene/study.h"
+#include "moreau/analysis/study.h"
 #include "server_fixture.h"
 
 namespace {

@@ -1,6 +1,6 @@
 // The stress suite as a test: every case runs without NaN or Inf, completes, and meets what the theory
 // promises for it (non-increasing energy, finite-step rest, or the absence of rest).
-#include "moreau/scene/stress.h"
+#include "moreau/analysis/stress.h"
 
 #include <gtest/gtest.h>
 

@@ -1,6 +1,6 @@
 // Studies against a scene's exact solution: the ABL scheme's measured order on constant M is 1 and it
 // never chatters; the explicit peer chatters; the timing protocol and the table's shape.
-#include "moreau/scene/study.h"
+#include "moreau/analysis/study.h"
 
 #include <gtest/gtest.h>
 

@@ -26,7 +26,7 @@
 #include "moreau/scene/scene.h"
 #include "moreau/scene/urdf.h"
 #include "support/planar_arm.h"
-#include "xml_shape.h"  // scene/src: the URDF module's shape check
+#include "xml_shape.h"  // scene/input: the URDF module's shape check
 
 namespace moreau::scene {
 namespace {

@@ -6,14 +6,14 @@
 
 #include <nlohmann/json.hpp>
 
-#include "moreau/scene/campaign.h"
-#include "moreau/scene/study.h"
+#include "moreau/analysis/campaign.h"
+#include "moreau/analysis/study.h"
 
 #ifdef MOREAU_SERVER_HAVE_RENDER
-#include "moreau/scene/campaign_figures.h"
+#include "moreau/analysis/campaign_figures.h"
 #include "moreau/render/figures.h"
 #include "moreau/render/render.h"
-#include "moreau/scene/figures.h"
+#include "moreau/analysis/figures.h"
 #endif
 
 namespace moreau::server {

@@ -15,9 +15,9 @@
 #include <nlohmann/json.hpp>
 
 #include "lcm_stream.h"
-#include "moreau/scene/campaign.h"
+#include "moreau/analysis/campaign.h"
 #include "moreau/scene/simulation.h"
-#include "moreau/scene/study.h"
+#include "moreau/analysis/study.h"
 #include "moreau/server/server_config.h"
 
 namespace moreau::server {

@@ -24,7 +24,7 @@
 #include "figures.h"
 #include "job_runner.h"
 #include "lcm_stream.h"
-#include "moreau/scene/campaign.h"
+#include "moreau/analysis/campaign.h"
 #include "moreau/scene/scene.h"
 #include "moreau/scene/simulation.h"
 #include "conditional.h"

@@ -23,7 +23,7 @@
 #include "moreau/core/run_diagnostics.h"
 #include "moreau/core/rigid_body.h"
 #include "moreau/core/run_summary.h"
-#include "moreau/scene/expression.h"
+#include "moreau/expr/expression.h"
 #include "moreau/scene/scheme.h"
 
 namespace moreau::scene {

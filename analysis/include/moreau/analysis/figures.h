@@ -9,7 +9,7 @@
 
 #include "moreau/render/figures.h"
 #include "moreau/scene/simulation.h"
-#include "moreau/scene/study.h"
+#include "moreau/analysis/study.h"
 #include "moreau/scene/trajectory_csv.h"
 
 namespace moreau::scene {

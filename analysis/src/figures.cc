@@ -1,4 +1,4 @@
-#include "moreau/scene/figures.h"
+#include "moreau/analysis/figures.h"
 
 #include "moreau/scene/scene.h"
 

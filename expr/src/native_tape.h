@@ -2,7 +2,7 @@
 // Tape::run_interpreted does, bit for bit. Private to the expression library.
 #pragma once
 
-#include "moreau/scene/expression.h"
+#include "moreau/expr/expression.h"
 
 namespace moreau::expr {
 

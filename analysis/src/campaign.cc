@@ -1,4 +1,4 @@
-#include "moreau/scene/campaign.h"
+#include "moreau/analysis/campaign.h"
 
 #include <fcntl.h>
 #include <sys/file.h>

@@ -1,4 +1,4 @@
-#include "moreau/scene/stress.h"
+#include "moreau/analysis/stress.h"
 
 #include <chrono>
 #include <cmath>

@@ -7,7 +7,7 @@
 #include <vector>
 
 #include "moreau/render/figure.h"
-#include "moreau/scene/campaign.h"
+#include "moreau/analysis/campaign.h"
 
 namespace moreau::scene {
 

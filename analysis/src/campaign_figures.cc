@@ -1,4 +1,4 @@
-#include "moreau/scene/campaign_figures.h"
+#include "moreau/analysis/campaign_figures.h"
 
 #include <algorithm>
 #include <cmath>

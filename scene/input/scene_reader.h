@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "moreau/scene/expression.h"
+#include "moreau/expr/expression.h"
 #include "moreau/scene/scene.h"
 
 #include "json_checks.h"

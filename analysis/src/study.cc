@@ -1,6 +1,6 @@
 // Studies (see study.h). Built as C++17: it instantiates the regularized peer, whose Boost 1.74 uBLAS
 // does not compile as C++20.
-#include "moreau/scene/study.h"
+#include "moreau/analysis/study.h"
 
 #include <algorithm>
 #include <chrono>
