@@ -204,6 +204,10 @@ TEST(CampaignSpec, EveryBadFieldIsNamed) {
   };
   const std::vector<Case> cases = {
       {"unknown path", [](json& s) { s["inputs"][0]["path"] = "/parameters/nope"; }, "/inputs/0/path", "nothing at"},
+      // An array index beyond size_t: nlohmann::json's contains() threw instead of answering (the campaign
+      // fuzzer's find: the process aborted).
+      {"array index past size_t", [](json& s) { s["inputs"][0]["path"] = "/initial/q/66666666666666666666666666666666"; }, "/inputs/0/path",
+       "nothing at"},
       {"inverted bounds", [](json& s) { s["inputs"][0]["distribution"]["low"] = 2.0; }, "/inputs/0/distribution/high", "inverted"},
       {"non-finite", [](json& s) { s["inputs"][1]["distribution"]["high"] = std::numeric_limits<double>::infinity(); },
        "/inputs/1/distribution/high", "finite"},
