@@ -25,6 +25,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "support/sanitizers.h"
 #include "support/scratch_dir.h"
 
 namespace {
@@ -580,7 +581,7 @@ namespace {
 // 4 GB address-space limit, so that input read without bound fails fast instead of exhausting the
 // machine. `before` runs first in the same shell.
 Result MoreauBounded(const std::string& args, const std::string& before = "") {
-#if defined(__SANITIZE_ADDRESS__)
+#if MOREAU_UNDER_ASAN
   const std::string limits = "timeout 60 ";
 #else
   const std::string limits = "ulimit -v 4000000; timeout 60 ";
@@ -715,7 +716,10 @@ TEST(Cli, SceneFromAnEndlessFifoIsRefusedAtTheSizeLimit) {
   const std::string fifo = moreau::test_support::scratch_dir() + "/endless.fifo";
   std::filesystem::remove(fifo);
   ASSERT_EQ(mkfifo(fifo.c_str(), 0600), 0);
-  const Result r = MoreauBounded("run " + fifo, "(yes '[1, 2, 3]' > " + fifo + " &); ");
+  // The writer's shell gets /dev/null for output before it forks the writer: a writer blocked opening the
+  // FIFO (when moreau died before reading it) would otherwise hold the pipe this test reads to its end,
+  // and the test would wait for ever.
+  const Result r = MoreauBounded("run " + fifo, "(yes '[1, 2, 3]' > " + fifo + " &) >/dev/null 2>&1; ");
   // Unblock the writer if the reader never opened the FIFO, so that it cannot outlive the test.
   if (const int fd = open(fifo.c_str(), O_RDONLY | O_NONBLOCK); fd >= 0) close(fd);
   std::filesystem::remove(fifo);

@@ -1,4 +1,5 @@
 #include "allocation_counter.h"
+#include "sanitizers.h"
 
 #include <atomic>
 #include <cerrno>
@@ -11,15 +12,8 @@
 // that follows it). The C functions are interposed (glibc lets a program define them) and forward to
 // glibc's own implementation, so free() stays glibc's. Under AddressSanitizer (scripts/sanitize.sh), which
 // owns the C allocator, only operator new is counted.
-// (GCC says AddressSanitizer with __SANITIZE_ADDRESS__, clang with __has_feature(address_sanitizer).)
-#if defined(__SANITIZE_ADDRESS__)
+#if MOREAU_UNDER_ASAN
 #define MOREAU_COUNT_C_ALLOCATOR 0
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define MOREAU_COUNT_C_ALLOCATOR 0
-#else
-#define MOREAU_COUNT_C_ALLOCATOR 1
-#endif
 #else
 #define MOREAU_COUNT_C_ALLOCATOR 1
 #endif
