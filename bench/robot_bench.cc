@@ -21,7 +21,6 @@ using bench::RunScene;
 using test_support::chain_scene;
 using test_support::chain_urdf_text;
 
-
 // The arm of iiwa14-controller.json at a fixed h = 1e-3 until t = 0.15, before it comes to rest (0.19 s).
 void BM_Iiwa14Controller_moving(benchmark::State& state) {
   nlohmann::json doc = scene::read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/iiwa14-controller.json");

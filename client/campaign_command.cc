@@ -125,11 +125,13 @@ void check_slurm_path(const std::string& path) {
   for (const char c : path) {
     const auto u = static_cast<unsigned char>(c);
     if (u < 0x20 || u == 0x7f)
-      throw std::runtime_error("--out: the directory's path holds a control character (a newline, a tab, ...), which a Slurm batch "
-                               "script cannot carry: use another directory");
+      throw std::runtime_error(
+          "--out: the directory's path holds a control character (a newline, a tab, ...), which a Slurm batch "
+          "script cannot carry: use another directory");
     if (c == '\\')
-      throw std::runtime_error("--out: the directory's path holds a backslash, which turns off Slurm's file name patterns "
-                               "(%A, %a, %j) of the task logs: use another directory");
+      throw std::runtime_error(
+          "--out: the directory's path holds a backslash, which turns off Slurm's file name patterns "
+          "(%A, %a, %j) of the task logs: use another directory");
   }
 }
 
@@ -142,7 +144,8 @@ void check_sbatch_value(const char* option, const std::string& value) {
                            std::string_view("._,:+@-").find(c) != std::string_view::npos;
                   });
   if (!ok)
-    throw std::runtime_error(std::string(option) + " must be 1 to 128 of the letters, digits and . _ , : + @ - (a Slurm name or time), got '" +
+    throw std::runtime_error(std::string(option) +
+                             " must be 1 to 128 of the letters, digits and . _ , : + @ - (a Slurm name or time), got '" +
                              value.substr(0, 64) + "'");
 }
 
@@ -213,20 +216,22 @@ int submit_to_slurm(const CampaignOptions& opt) {
   const fs::path script = dir / "slurm" / "campaign.sbatch";
   // The array's options: on sbatch's command line (an argument each, no shell between), and the same in
   // the script's #SBATCH lines, escaped for sbatch's reader, for a resubmission by hand.
-  const std::vector<std::string> array_options = {
-      "--job-name=moreau-" + spec.name, "--output=" + slurm_pattern_literal((dir / "slurm").string()) + "/task-%A_%a.out",
-      "--cpus-per-task=" + std::to_string(opt.cpus_per_task), "--requeue"};
+  const std::vector<std::string> array_options = {"--job-name=moreau-" + spec.name,
+                                                  "--output=" + slurm_pattern_literal((dir / "slurm").string()) + "/task-%A_%a.out",
+                                                  "--cpus-per-task=" + std::to_string(opt.cpus_per_task), "--requeue"};
   {
     std::ofstream out(script, std::ios::trunc);
     out << "#!/bin/bash\n"
         << "# Written by moreau campaign --slurm: task K of the array runs block K of " << tasks << " (docs/campaigns.md).\n";
     for (const std::string& o : array_options) {
-      if (const auto word = sbatch_word(o)) out << "#SBATCH " << *word << "\n";
-      else out << "# " << o.substr(0, o.find('=')) << " is on sbatch's command line (sbatch cannot read its value in this script)\n";
+      if (const auto word = sbatch_word(o))
+        out << "#SBATCH " << *word << "\n";
+      else
+        out << "# " << o.substr(0, o.find('=')) << " is on sbatch's command line (sbatch cannot read its value in this script)\n";
     }
     out << "set -euo pipefail\n"
-        << "exec " << shell_quote(moreau) << " campaign " << shell_quote((dir / "campaign.json").string()) << " --out " << shell_quote(dir.string())
-        << " --task \"${SLURM_ARRAY_TASK_ID}/" << tasks << "\" --quiet\n";
+        << "exec " << shell_quote(moreau) << " campaign " << shell_quote((dir / "campaign.json").string()) << " --out "
+        << shell_quote(dir.string()) << " --task \"${SLURM_ARRAY_TASK_ID}/" << tasks << "\" --quiet\n";
     if (!out) throw std::runtime_error("cannot write '" + script.string() + "'");
   }
   std::vector<std::string> common;
@@ -340,7 +345,8 @@ std::string write_grid_spec(const CampaignOptions& opt) {
                         {"scene", std::move(scene)},
                         {"inputs", nlohmann::json::array()},
                         {"sampler", "grid"}};
-  for (const std::string& v : opt.vary) doc["inputs"].push_back({{"path", v.substr(0, v.find('='))}, {"distribution", grid_distribution(v)}});
+  for (const std::string& v : opt.vary)
+    doc["inputs"].push_back({{"path", v.substr(0, v.find('='))}, {"distribution", grid_distribution(v)}});
   scene::CampaignSpec spec;
   try {
     spec = scene::CampaignSpec::from_json(doc, fs::path(opt.scene_path).parent_path().string());
@@ -412,8 +418,8 @@ int run(const CampaignOptions& opt) {
     const double rate = static_cast<double>(done - first_done) / std::max(elapsed, 1e-9);
     const double left = rate > 0 ? static_cast<double>(total - done) / rate : 0.0;
     const int width = 30, filled = total ? static_cast<int>(width * done / total) : width;
-    std::fprintf(stderr, "\r[%.*s%*s] %lld/%lld samples  %.0f/s  %.0f s left   ", filled, "##############################", width - filled, "",
-                 static_cast<long long>(done), static_cast<long long>(total), rate, left);
+    std::fprintf(stderr, "\r[%.*s%*s] %lld/%lld samples  %.0f/s  %.0f s left   ", filled, "##############################", width - filled,
+                 "", static_cast<long long>(done), static_cast<long long>(total), rate, left);
     std::fflush(stderr);
   };
   std::signal(SIGINT, on_interrupt);
@@ -427,7 +433,8 @@ int run(const CampaignOptions& opt) {
                static_cast<long long>(begin), static_cast<long long>(end), static_cast<long long>(r.ran), seconds,
                static_cast<long long>(r.skipped));
   if (r.stopped) {
-    std::fprintf(stderr, "moreau campaign: stopped; every finished sample is kept in %s: run the same command again to go on\n", opt.out_dir.c_str());
+    std::fprintf(stderr, "moreau campaign: stopped; every finished sample is kept in %s: run the same command again to go on\n",
+                 opt.out_dir.c_str());
     return 130;
   }
   if (r.summarized) {
@@ -445,9 +452,11 @@ int run(const CampaignOptions& opt) {
 
 void register_campaign_command(CLI::App& app, Actions& actions) {
   auto opt = std::make_shared<CampaignOptions>();
-  auto* cmd = app.add_subcommand("campaign", "Run a robustness campaign: a scene over sampled uncertain inputs, with a verdict (docs/campaigns.md)");
+  auto* cmd = app.add_subcommand("campaign",
+                                 "Run a robustness campaign: a scene over sampled uncertain inputs, with a verdict (docs/campaigns.md)");
   cmd->add_option("spec", opt->spec_path, "Campaign spec (JSON)");
-  cmd->add_option("--scene", opt->scene_path, "A parameter sweep of this scene: the grid campaign over the --vary lists (in place of SPEC)");
+  cmd->add_option("--scene", opt->scene_path,
+                  "A parameter sweep of this scene: the grid campaign over the --vary lists (in place of SPEC)");
   cmd->add_option("--vary", opt->vary, "With --scene: PATH=v1,v2,... or PATH=FIRST:LAST:COUNT (repeatable; the last varies fastest)");
   cmd->add_option("--set", opt->overrides, "With --scene: PATH=VALUE applied to the scene first (repeatable)");
   cmd->add_option("--out", opt->out_dir, "Directory of the campaign's results (resumable: run again to go on)");
@@ -477,7 +486,8 @@ void register_campaign_command(CLI::App& app, Actions& actions) {
       } else if (!opt->vary.empty() || !opt->overrides.empty()) {
         throw std::runtime_error("--vary and --set go with --scene SCENE (a spec names its inputs itself)");
       }
-      if (opt->spec_path.empty() || opt->out_dir.empty()) throw std::runtime_error("a campaign needs SPEC and --out DIR (or --collect DIR)");
+      if (opt->spec_path.empty() || opt->out_dir.empty())
+        throw std::runtime_error("a campaign needs SPEC and --out DIR (or --collect DIR)");
       return opt->slurm ? submit_to_slurm(*opt) : run(*opt);
     } catch (const scene::SceneError& e) {
       std::cerr << "moreau campaign: " << (opt->scene_path.empty() ? opt->spec_path : opt->scene_path) << ": " << e.what() << "\n";

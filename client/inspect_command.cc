@@ -36,8 +36,8 @@ std::string linear_solver(const scene::LagrangianScene& sc) {
 
 void inspect_lagrangian(const scene::LagrangianScene& sc, std::ostream& os) {
   const RigidBodyModel* robot = sc.compiled ? sc.compiled->robot.get() : nullptr;
-  os << "scene        " << sc.name << ": lagrangian, " << sc.n << " coordinates" << (robot ? " from URDF robot '" + sc.robot_name + "'" : "")
-     << "\n";
+  os << "scene        " << sc.name << ": lagrangian, " << sc.n << " coordinates"
+     << (robot ? " from URDF robot '" + sc.robot_name + "'" : "") << "\n";
   if (robot) {
     os << "gravity      " << vec3(robot->gravity_m_s2) << " m/s^2 (base frame)\n";
     os << "joints       (coordinate, type, moves link, parent body, axis in joint frame, mass moved kg, Phi: w_i, a_i)\n";
@@ -45,8 +45,9 @@ void inspect_lagrangian(const scene::LagrangianScene& sc, std::ostream& os) {
       const RigidBody& b = robot->bodies[static_cast<std::size_t>(i)];
       os << "  " << std::left << std::setw(18) << sc.coordinates[static_cast<std::size_t>(i)] << std::setw(10)
          << (b.joint == JointType::kRevolute ? "revolute" : "prismatic") << std::setw(18) << b.link_name << std::setw(18)
-         << (b.parent < 0 ? std::string("(base)") : robot->bodies[static_cast<std::size_t>(b.parent)].link_name) << std::setw(30) << vec3(b.axis)
-         << std::setw(10) << b.inertia.mass_kg << sc.controller.weights(i) << ", " << sc.controller.gains(i) << std::right << "\n";
+         << (b.parent < 0 ? std::string("(base)") : robot->bodies[static_cast<std::size_t>(b.parent)].link_name) << std::setw(30)
+         << vec3(b.axis) << std::setw(10) << b.inertia.mass_kg << sc.controller.weights(i) << ", " << sc.controller.gains(i) << std::right
+         << "\n";
     }
   } else {
     os << "coordinates  ";
@@ -59,8 +60,8 @@ void inspect_lagrangian(const scene::LagrangianScene& sc, std::ostream& os) {
   os << "model        M " << (sc.compiled && sc.compiled->constant_mass ? "constant" : "depends on q") << ", C " << sc.coriolis
      << (robot ? " (rigid-body algorithms)" : "") << ", M and C zero beyond " << (sc.compiled ? sc.compiled->bandwidth : -1)
      << " from the diagonal" << (sc.has_force ? ", F given" : ", no F") << "\n";
-  os << "scheme       " << scene::scheme_name(sc.scheme) << ", h = " << sc.settings.h << ", t in [" << sc.settings.t0 << ", " << sc.settings.t_end
-     << "]\n";
+  os << "scheme       " << scene::scheme_name(sc.scheme) << ", h = " << sc.settings.h << ", t in [" << sc.settings.t0 << ", "
+     << sc.settings.t_end << "]\n";
   if (sc.scheme == scene::Scheme::kMoreauJean)
     os << "solver       the Moreau-Jean one-step problem (graph_inclusion_solver.h) over dense LU of M + h (C + W)\n";
   else

@@ -53,8 +53,8 @@ int main(int argc, char** argv) {
   moreau::cli::Actions actions;
   using Register = void (*)(CLI::App&, moreau::cli::Actions&);
   constexpr std::pair<std::string_view, Register> kLocalCommands[] = {
-      {"run", moreau::cli::register_run_command},       {"plot", moreau::cli::register_plot_command},
-      {"study", moreau::cli::register_study_command},   {"stress", moreau::cli::register_stress_command},
+      {"run", moreau::cli::register_run_command},         {"plot", moreau::cli::register_plot_command},
+      {"study", moreau::cli::register_study_command},     {"stress", moreau::cli::register_stress_command},
       {"inspect", moreau::cli::register_inspect_command}, {"campaign", moreau::cli::register_campaign_command}};
   // Only the command named first is registered when there is one: building every command's options is a
   // visible share of a short run's start-up (README, "Performance"). --help, --version, a mistyped name:

@@ -187,7 +187,8 @@ std::optional<json> wait_for(const Remote& remote, httplib::Client& c, const std
       const json& p = job["progress"];
       const double f = p["fraction"].is_number() ? p["fraction"].get<double>() : 0.0;
       if (p.contains("rows"))
-        std::fprintf(stderr, "\r%-8s %5.1f%%  rows %lld of %lld", shown.c_str(), 100.0 * f, p["rows"].is_number() ? p["rows"].get<long long>() : 0LL,
+        std::fprintf(stderr, "\r%-8s %5.1f%%  rows %lld of %lld", shown.c_str(), 100.0 * f,
+                     p["rows"].is_number() ? p["rows"].get<long long>() : 0LL,
                      p["rows_total"].is_number() ? p["rows_total"].get<long long>() : 0LL);
       else
         std::fprintf(stderr, "\r%-8s %5.1f%%  t = %-12.6g", shown.c_str(), 100.0 * f, p["t"].is_number() ? p["t"].get<double>() : 0.0);

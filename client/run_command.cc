@@ -116,7 +116,7 @@ int run(const RunOptions& opt) {
   if (recorder) {
     const auto t_fig = Clock::now();
     if (summary.converged_time) recorder->data().converged_time = *summary.converged_time;
-    scene::label_for_system(recorder->data(), *sim);  // a Lur'e system: state x, output y, storage W
+    scene::label_for_system(recorder->data(), *sim);                  // a Lur'e system: state x, output y, storage W
     if (const ContactDiagnostics* contacts = diagnostics.contacts())  // impacts are marked on the time axis
       for (const auto& impact : contacts->impacts) recorder->data().impact_times.push_back(impact.t);
     for (const auto& spec : opt.figures) {
@@ -160,7 +160,7 @@ void register_run_command(CLI::App& app, Actions& actions) {
                   "Draw a figure: FILE (state figure) or KIND=FILE, KIND one of state, energy, step, phase; "
                   ".png through OSMesa or .svg");
   cmd->add_flag("--strict", opt->strict,
-                 "Exit with status 3 when a hypothesis of a theorem the run relies on fails (see the report's guarantees)");
+                "Exit with status 3 when a hypothesis of a theorem the run relies on fails (see the report's guarantees)");
   opt->figure_flags.add_to(cmd);
   actions[cmd] = [opt] { return run(*opt); };
 }

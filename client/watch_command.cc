@@ -154,8 +154,8 @@ class Watcher {
   void summarize(const std::string& why) const {
     int ended = 0;
     for (const auto& [id, j] : jobs_) ended += j.status == "done" || j.status == "failed" || j.status == "cancelled";
-    std::cerr << "moreau watch: " << why << "; received " << states_received_ << " states and " << events_received_
-              << " events of " << jobs_.size() << (jobs_.size() == 1 ? " job" : " jobs") << " (" << ended << " ended)\n";
+    std::cerr << "moreau watch: " << why << "; received " << states_received_ << " states and " << events_received_ << " events of "
+              << jobs_.size() << (jobs_.size() == 1 ? " job" : " jobs") << " (" << ended << " ended)\n";
   }
 
   static void on_message(const lcm::ReceiveBuffer* rbuf, const std::string& channel, Watcher* self) { self->handle(rbuf, channel); }

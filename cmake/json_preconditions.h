@@ -11,8 +11,6 @@
 #include <cstdio>
 #include <cstdlib>
 
-#define JSON_ASSERT(condition)                                                                    \
-  ((condition) ? static_cast<void>(0)                                                             \
-               : (std::fprintf(stderr, "%s:%d: nlohmann::json precondition failed: %s\n", __FILE__, \
-                               __LINE__, #condition),                                             \
-                  std::abort()))
+#define JSON_ASSERT(condition)        \
+  ((condition) ? static_cast<void>(0) \
+               : (std::fprintf(stderr, "%s:%d: nlohmann::json precondition failed: %s\n", __FILE__, __LINE__, #condition), std::abort()))

@@ -226,21 +226,28 @@ std::vector<Case> cases() {
   // A URDF whose joints are not a tree: link a hangs from base (j1) and from b (j3), and b from a (j2).
   // It once sent the walk down the robot's tree round the loop without end, holding a worker and growing
   // its memory (urdf_module.cc, check_tree).
-  t.push_back(post("UrdfJointsThatLoop", scene_body([](json& s) {
-                     const std::string lim =
-                         "<limit lower=\"-1\" upper=\"1\" effort=\"1\" velocity=\"1\"/><axis xyz=\"0 0 1\"/>";
-                     const std::string in =
-                         "<inertial><mass value=\"1\"/><inertia ixx=\"0.1\" ixy=\"0\" ixz=\"0\" iyy=\"0.1\" iyz=\"0\" izz=\"0.1\"/></inertial>";
-                     const std::string urdf =
-                         "<robot name=\"r\"><link name=\"base\"/>\n"
-                         "<joint name=\"j1\" type=\"revolute\"><parent link=\"base\"/><child link=\"a\"/>" + lim + "</joint>\n"
-                         "<link name=\"a\">" + in + "</link>\n<link name=\"b\">" + in + "</link>\n"
-                         "<joint name=\"j2\" type=\"revolute\"><parent link=\"a\"/><child link=\"b\"/>" + lim + "</joint>\n"
-                         "<joint name=\"j3\" type=\"revolute\"><parent link=\"b\"/><child link=\"a\"/>" + lim + "</joint>\n</robot>\n";
-                     s["system"] = {{"type", "lagrangian"}, {"urdf", {{"text", urdf}}}};
-                     s["initial"] = {{"q", {0, 0}}, {"v", {0, 0}}};
-                   }),
-                   400, "/system/urdf/text", "link 'a' is the child of two joints, 'j1' (line 2) and 'j3' (line 6)"));
+  t.push_back(
+      post("UrdfJointsThatLoop", scene_body([](json& s) {
+             const std::string lim = "<limit lower=\"-1\" upper=\"1\" effort=\"1\" velocity=\"1\"/><axis xyz=\"0 0 1\"/>";
+             const std::string in =
+                 "<inertial><mass value=\"1\"/><inertia ixx=\"0.1\" ixy=\"0\" ixz=\"0\" iyy=\"0.1\" iyz=\"0\" izz=\"0.1\"/></inertial>";
+             const std::string urdf =
+                 "<robot name=\"r\"><link name=\"base\"/>\n"
+                 "<joint name=\"j1\" type=\"revolute\"><parent link=\"base\"/><child link=\"a\"/>" +
+                 lim +
+                 "</joint>\n"
+                 "<link name=\"a\">" +
+                 in + "</link>\n<link name=\"b\">" + in +
+                 "</link>\n"
+                 "<joint name=\"j2\" type=\"revolute\"><parent link=\"a\"/><child link=\"b\"/>" +
+                 lim +
+                 "</joint>\n"
+                 "<joint name=\"j3\" type=\"revolute\"><parent link=\"b\"/><child link=\"a\"/>" +
+                 lim + "</joint>\n</robot>\n";
+             s["system"] = {{"type", "lagrangian"}, {"urdf", {{"text", urdf}}}};
+             s["initial"] = {{"q", {0, 0}}, {"v", {0, 0}}};
+           }),
+           400, "/system/urdf/text", "link 'a' is the child of two joints, 'j1' (line 2) and 'j3' (line 6)"));
   // A URDF string nested 40,000 elements deep (280 KB, under the body limit) overflowed the stack of the
   // thread that parsed it (TinyXML and urdfdom recurse once per level) and killed the server. The nesting
   // is inside a JSON string, so the JSON depth limit never saw it: the URDF's own shape check refuses it
@@ -268,8 +275,9 @@ std::vector<Case> cases() {
                    }),
                    400, "/system/urdf/text", "a processing instruction <?pi ...?> (line 1): processing instructions are not accepted"));
   t.push_back(post("UrdfWithDoctype", scene_body([](json& s) {
-                     s["system"] = {{"type", "lagrangian"},
-                                    {"urdf", {{"text", "<?xml version=\"1.0\"?>\n<!DOCTYPE robot [<!ENTITY x \"y\">]>\n<robot name=\"r\"/>"}}}};
+                     s["system"] = {
+                         {"type", "lagrangian"},
+                         {"urdf", {{"text", "<?xml version=\"1.0\"?>\n<!DOCTYPE robot [<!ENTITY x \"y\">]>\n<robot name=\"r\"/>"}}}};
                    }),
                    400, "/system/urdf/text", "a DOCTYPE declaration (line 2): DOCTYPE and entity declarations are not accepted"));
   // Names that collide with the trajectory's own columns (t, h, <q>, <q>_dot, energy): a CSV header
@@ -283,16 +291,17 @@ std::vector<Case> cases() {
                      s["initial"] = {{"q", {0, 0}}};
                    }),
                    400, "/system/coordinates/1", "'a_dot' is the name of the velocity of coordinate 'a'"));
-  t.push_back(post("UrdfJointNamedEnergy", scene_body([](json& s) {
-                     const std::string urdf =
-                         "<robot name=\"r\"><link name=\"base\"/>\n"
-                         "<joint name=\"energy\" type=\"continuous\"><parent link=\"base\"/><child link=\"a\"/><axis xyz=\"0 0 1\"/></joint>\n"
-                         "<link name=\"a\"><inertial><mass value=\"1\"/><inertia ixx=\"0.1\" ixy=\"0\" ixz=\"0\" iyy=\"0.1\" iyz=\"0\" "
-                         "izz=\"0.1\"/></inertial></link>\n</robot>\n";
-                     s["system"] = {{"type", "lagrangian"}, {"urdf", {{"text", urdf}}}};
-                     s["initial"] = {{"q", {0}}, {"v", {0}}};
-                   }),
-                   400, "/system/urdf/text", "joint 'energy' (line 2): 'energy' is reserved: the trajectory has its own column 'energy'"));
+  t.push_back(
+      post("UrdfJointNamedEnergy", scene_body([](json& s) {
+             const std::string urdf =
+                 "<robot name=\"r\"><link name=\"base\"/>\n"
+                 "<joint name=\"energy\" type=\"continuous\"><parent link=\"base\"/><child link=\"a\"/><axis xyz=\"0 0 1\"/></joint>\n"
+                 "<link name=\"a\"><inertial><mass value=\"1\"/><inertia ixx=\"0.1\" ixy=\"0\" ixz=\"0\" iyy=\"0.1\" iyz=\"0\" "
+                 "izz=\"0.1\"/></inertial></link>\n</robot>\n";
+             s["system"] = {{"type", "lagrangian"}, {"urdf", {{"text", urdf}}}};
+             s["initial"] = {{"q", {0}}, {"v", {0}}};
+           }),
+           400, "/system/urdf/text", "joint 'energy' (line 2): 'energy' is reserved: the trajectory has its own column 'energy'"));
   t.push_back(post("LureStateNamedT", lure_body([](json& s) { s["system"]["states"] = {"t"}; }), 400, "/system/states/0",
                    "'t' is reserved: the trajectory has its own column 't' (the time)"));
   t.push_back(post("UnknownControllerTerm", scene_body([](json& s) {
@@ -548,8 +557,8 @@ std::vector<Case> cases() {
   t.push_back(get("TrajectoryFormatXml", "/v1/jobs/{id}/trajectory?format=xml", 400, "format must be json or csv"));
 
   // Job ids: unknown, malformed, path traversal (plain and percent-encoded), and scene names.
-  t.push_back(get("UnknownJobId", "/v1/jobs/0123456789abcdef0123456789abcdef", 404,
-                  "no job 0123456789abcdef0123456789abcdef on this server"));
+  t.push_back(
+      get("UnknownJobId", "/v1/jobs/0123456789abcdef0123456789abcdef", 404, "no job 0123456789abcdef0123456789abcdef on this server"));
   t.push_back(get("UppercaseJobId", "/v1/jobs/0123456789ABCDEF0123456789ABCDEF/report", 404,
                   "'0123456789ABCDEF0123456789ABCDEF' is not a job id: job ids are 32 lowercase hex digits"));
   t.push_back(get("JobIdTooLong", "/v1/jobs/{id}0/trajectory", 404, "no such job"));

@@ -44,8 +44,8 @@ CampaignOutcome outcome(std::int64_t i, bool success, double t, double m, double
 TEST(CampaignFigures, CdfInputsAndSuccessMapFromKnownOutcomes) {
   const CampaignSpec spec = two_input_spec();
   // Three of four converge, at t = 3, 1, 2; the fourth (m = 2, v0 = 5) does not.
-  const std::vector<CampaignOutcome> outcomes = {outcome(0, true, 3.0, 1.0, 3.0), outcome(1, true, 1.0, 1.5, 1.0), outcome(2, true, 2.0, 1.2, 2.0),
-                                                 outcome(3, false, 0.0, 2.0, 5.0)};
+  const std::vector<CampaignOutcome> outcomes = {outcome(0, true, 3.0, 1.0, 3.0), outcome(1, true, 1.0, 1.5, 1.0),
+                                                 outcome(2, true, 2.0, 1.2, 2.0), outcome(3, false, 0.0, 2.0, 5.0)};
   const auto figures = campaign_figures(spec, outcomes, 4.0);
   ASSERT_EQ(figures.size(), 3u);
   EXPECT_EQ(figures[0].first, "convergence-cdf");

@@ -151,7 +151,7 @@ TEST(CampaignDistribution, InverseCdfsAgreeWithClosedForms) {
   lu.kind = InputDistribution::Kind::kLogUniform;
   lu.low = 0.01;
   lu.high = 100;
-  EXPECT_NEAR(lu.at(0.5).get<double>(), 1.0, 1e-12);   // the geometric mean
+  EXPECT_NEAR(lu.at(0.5).get<double>(), 1.0, 1e-12);  // the geometric mean
   EXPECT_NEAR(lu.at(0.75).get<double>(), 10.0, 1e-12);
   InputDistribution n;
   n.kind = InputDistribution::Kind::kNormal;
@@ -219,12 +219,26 @@ TEST(CampaignSpec, EveryBadFieldIsNamed) {
       {"unknown field", [](json& s) { s["sample"] = 3; }, "/sample", "unknown field"},
       {"duplicate input", [](json& s) { s["inputs"][1]["path"] = "/parameters/f"; }, "/inputs/1/path", "already"},
       {"bad scene", [](json& s) { s["scene"]["integrator"]["h"] = -1; }, "/scene/integrator/h", ""},
-      {"normal without mass", [](json& s) {
+      {"normal without mass",
+       [](json& s) {
          s["inputs"][0]["distribution"] = {{"type", "normal"}, {"mean", 0}, {"std", 1e-3}, {"low", 5}, {"high", 6}};
-       }, "/inputs/0/distribution/low", "no probability"},
-      {"target size", [](json& s) { s["target"] = {{"q", {1, 2}}, {"tolerance", 0.1}}; }, "/target/q", "1 numbers"},
-      {"map of a non-input", [](json& s) { s["map"] = {"/parameters/f", "/parameters/m"}; }, "/map/1", "not one of the inputs"},
-      {"map of one input twice", [](json& s) { s["map"] = {"/parameters/f", "parameters.f"}; }, "/map/1", "same input"},
+       },
+       "/inputs/0/distribution/low", "no probability"},
+      {"target size",
+       [](json& s) {
+         s["target"] = {{"q", {1, 2}}, {"tolerance", 0.1}};
+       },
+       "/target/q", "1 numbers"},
+      {"map of a non-input",
+       [](json& s) {
+         s["map"] = {"/parameters/f", "/parameters/m"};
+       },
+       "/map/1", "not one of the inputs"},
+      {"map of one input twice",
+       [](json& s) {
+         s["map"] = {"/parameters/f", "parameters.f"};
+       },
+       "/map/1", "same input"},
       {"full_report not a boolean", [](json& s) { s["full_report"] = "no"; }, "/full_report", "true or false"},
       {"name not a string", [](json& s) { s["name"] = 5; }, "/name", "expected a string"},
       // Names are data (they reach Slurm's batch script and command lines): 1 to 64 of [A-Za-z0-9._-].
@@ -668,15 +682,37 @@ TEST(CampaignRun, EditedOrForeignRecordsAreRefusedNamingTheFileAndLine) {
     const char* phrase;
   };
   const std::vector<Edit> edits = {
-      {"an input changed", 3, [](json r) { r["inputs"]["/parameters/f"] = r["inputs"]["/parameters/f"].get<double>() + 0.125; return r.dump(); },
+      {"an input changed", 3,
+       [](json r) {
+         r["inputs"]["/parameters/f"] = r["inputs"]["/parameters/f"].get<double>() + 0.125;
+         return r.dump();
+       },
        "input /parameters/f"},
       {"an input one ulp off", 4,
-       [](json r) { r["inputs"]["/parameters/v0"] = std::nextafter(r["inputs"]["/parameters/v0"].get<double>(), 10.0); return r.dump(); },
+       [](json r) {
+         r["inputs"]["/parameters/v0"] = std::nextafter(r["inputs"]["/parameters/v0"].get<double>(), 10.0);
+         return r.dump();
+       },
        "input /parameters/v0"},
-      {"success flipped", 5, [](json r) { r["success"] = !r["success"].get<bool>(); return r.dump(); }, "its success is"},
-      {"another sample's index", 6, [](json r) { r["index"] = 7; return r.dump(); }, "sample 7's input"},
+      {"success flipped", 5,
+       [](json r) {
+         r["success"] = !r["success"].get<bool>();
+         return r.dump();
+       },
+       "its success is"},
+      {"another sample's index", 6,
+       [](json r) {
+         r["index"] = 7;
+         return r.dump();
+       },
+       "sample 7's input"},
       {"another campaign's record", 7, [&](json) { return theirs[6]; }, "spec_hash"},
-      {"no spec_hash", 2, [](json r) { r.erase("spec_hash"); return r.dump(); }, "no spec_hash"},
+      {"no spec_hash", 2,
+       [](json r) {
+         r.erase("spec_hash");
+         return r.dump();
+       },
+       "no spec_hash"},
   };
   for (const Edit& e : edits) {
     SCOPED_TRACE(e.what);
@@ -812,17 +848,16 @@ TEST(CampaignCompileOnce, SpecialValuesAndInvalidSamplesGoThroughTheFullCompile)
   expect_bound_equals_compiled(spec, true);
   // V = k (x^2 + 1)^(p/2): k free, or p too. Whether x^p is smooth everywhere (Assumption 3.3 in the
   // report) depends on p's value, so a free p makes the runner compile every sample.
-  json pow_scene = {
-      {"name", "pow-potential"},
-      {"parameters", {{"m", 1.0}, {"k", 0.5}, {"p", 3.0}}},
-      {"system",
-       {{"type", "lagrangian"},
-        {"coordinates", {"x"}},
-        {"mass", {{"m"}}},
-        {"potential", "k*(x^2 + 1)^(p/2)"},
-        {"controller", {{{"type", "quadratic"}, {"weights", {1}}}, {{"type", "abs"}, {"gains", {1}}}}}}},
-      {"initial", {{"q", {1.0}}, {"v", {0.5}}}},
-      {"integrator", {{"h", 1e-3}, {"t_end", 1.0}}}};
+  json pow_scene = {{"name", "pow-potential"},
+                    {"parameters", {{"m", 1.0}, {"k", 0.5}, {"p", 3.0}}},
+                    {"system",
+                     {{"type", "lagrangian"},
+                      {"coordinates", {"x"}},
+                      {"mass", {{"m"}}},
+                      {"potential", "k*(x^2 + 1)^(p/2)"},
+                      {"controller", {{{"type", "quadratic"}, {"weights", {1}}}, {{"type", "abs"}, {"gains", {1}}}}}}},
+                    {"initial", {{"q", {1.0}}, {"v", {0.5}}}},
+                    {"integrator", {{"h", 1e-3}, {"t_end", 1.0}}}};
   json pow_spec = {{"scene", pow_scene},
                    {"inputs",
                     {{{"path", "/parameters/p"}, {"distribution", {{"type", "discrete"}, {"values", {2.0, 3.0, 4.0, 2.5}}}}},
@@ -841,9 +876,8 @@ TEST(CampaignCompileOnce, AParameterTheCompilerNeedsAsANumberIsCompiledForEveryS
   scene.erase("exact");
   for (const char* path : {"/parameters/m", "/parameters/c"}) {
     SCOPED_TRACE(path);
-    json spec = {{"scene", scene},
-                 {"inputs", {{{"path", path}, {"distribution", {{"type", "uniform"}, {"low", 1}, {"high", 3}}}}}},
-                 {"samples", 6}};
+    json spec = {
+        {"scene", scene}, {"inputs", {{{"path", path}, {"distribution", {{"type", "uniform"}, {"low", 1}, {"high", 3}}}}}}, {"samples", 6}};
     expect_bound_equals_compiled(spec, false);
   }
   // An input that is neither a parameter nor an initial coordinate.

@@ -61,9 +61,8 @@ TEST(Cli, RunPrintsAReadableReport) {
 TEST(Cli, InspectShowsTheRobotWithoutRunningIt) {
   const Result r = Moreau("inspect " + std::string(MOREAU_SOURCE_DIR) + "/scenes/iiwa14-joint-limit.json");
   ASSERT_EQ(r.status, 0) << r.out;
-  for (const char* part : {"7 coordinates from URDF robot 'iiwa14'", "iiwa_joint_2      revolute  iiwa_link_2       iiwa_link_1",
-                           "6.35", "constraints  14", "iiwa_joint_7_upper: 3.05432619099 - iiwa_joint_7 >= 0, e = 0.5",
-                           "scheme       moreau-jean"})
+  for (const char* part : {"7 coordinates from URDF robot 'iiwa14'", "iiwa_joint_2      revolute  iiwa_link_2       iiwa_link_1", "6.35",
+                           "constraints  14", "iiwa_joint_7_upper: 3.05432619099 - iiwa_joint_7 >= 0, e = 0.5", "scheme       moreau-jean"})
     EXPECT_NE(r.out.find(part), std::string::npos) << part << "\n" << r.out;
   EXPECT_EQ(r.out.find("wall time"), std::string::npos) << "inspect must not run the scene";
   const Result banded = Moreau("inspect " + std::string(MOREAU_SOURCE_DIR) + "/scenes/friction-bar.json");
@@ -145,12 +144,14 @@ TEST(Cli, DeeplyNestedUrdfFileIsRefusedWithExit2) {
     for (int k = 0; k < 40000; ++k) urdf << "</a>";
     urdf << "</robot>\n";
     std::ofstream scene(dir / "deep.json");
-    scene << R"({"system": {"type": "lagrangian", "urdf": {"file": "deep.urdf"}}, "initial": {"q": [0]}, "integrator": {"h": 0.01, "t_end": 1}})";
+    scene
+        << R"({"system": {"type": "lagrangian", "urdf": {"file": "deep.urdf"}}, "initial": {"q": [0]}, "integrator": {"h": 0.01, "t_end": 1}})";
   }
   for (const char* command : {"run", "inspect"}) {
     const Result r = Moreau(std::string(command) + " " + (dir / "deep.json").string());
     EXPECT_EQ(r.status, 2) << command << ": " << r.out;
-    EXPECT_NE(r.out.find("/system/urdf/text: elements nested deeper than 64 levels (line 1)"), std::string::npos) << command << ": " << r.out;
+    EXPECT_NE(r.out.find("/system/urdf/text: elements nested deeper than 64 levels (line 1)"), std::string::npos)
+        << command << ": " << r.out;
   }
 }
 
@@ -277,7 +278,8 @@ TEST(Cli, CampaignRunsStopsOnCtrlCAndResumes) {
   EXPECT_NE(resumed.out.find(std::to_string(kept) + " already done"), std::string::npos) << resumed.out;
   std::set<long long> indices;
   std::ifstream records(dir + "/samples.jsonl");
-  for (std::string line; std::getline(records, line);) EXPECT_TRUE(indices.insert(nlohmann::json::parse(line)["index"].get<long long>()).second);
+  for (std::string line; std::getline(records, line);)
+    EXPECT_TRUE(indices.insert(nlohmann::json::parse(line)["index"].get<long long>()).second);
   EXPECT_EQ(indices.size(), 2000u);
   EXPECT_EQ(*indices.rbegin(), 1999);
   const Result collected = Moreau("campaign --collect " + dir);
@@ -319,8 +321,9 @@ TEST(Cli, SweepIsAGridCampaignOverTasks) {
     EXPECT_EQ(r["status"], "completed");
   }
   // Point 5 (g = 6.54, v = [1, 0]) run alone with the same overrides ends in the same state.
-  const Result alone = Moreau("run " + kScene + " --set integrator.t_end=2 --set parameters.g=" +
-                              records[5]["inputs"]["/parameters/g"].dump() + " --set 'initial.v=[1,0]' --json");
+  const Result alone =
+      Moreau("run " + kScene + " --set integrator.t_end=2 --set parameters.g=" + records[5]["inputs"]["/parameters/g"].dump() +
+             " --set 'initial.v=[1,0]' --json");
   ASSERT_EQ(alone.status, 0) << alone.out;
   const nlohmann::json report = nlohmann::json::parse(alone.out.substr(alone.out.find('{')));
   EXPECT_EQ(report["final"]["q"], records[5]["final_q"]);
@@ -437,10 +440,10 @@ TEST(Cli, SlurmScriptsCarryHostileNamesAndPathsAsData) {
   };
 
   for (const std::string& name : {std::string("x\ntouch injected\n#"), std::string("a --output=/tmp/x --wrap=touch injected"),
-                                 std::string("$(touch injected)"), std::string(""), std::string(65, 'a')}) {
+                                  std::string("$(touch injected)"), std::string(""), std::string(65, 'a')}) {
     SCOPED_TRACE(name);
-    const Result r = Shell(prefix + MOREAU_BINARY + " campaign " + ShQuote(spec_named(name)) + " --out " + ShQuote((root / "named").string()) +
-                           " --slurm --tasks 2 2>&1");
+    const Result r = Shell(prefix + MOREAU_BINARY + " campaign " + ShQuote(spec_named(name)) + " --out " +
+                           ShQuote((root / "named").string()) + " --slurm --tasks 2 2>&1");
     EXPECT_EQ(r.status, 2) << r.out;
     EXPECT_NE(r.out.find("/name: "), std::string::npos) << r.out;
     EXPECT_NE(r.out.find("is not a campaign name"), std::string::npos) << r.out;
@@ -458,8 +461,8 @@ TEST(Cli, SlurmScriptsCarryHostileNamesAndPathsAsData) {
   // Slurm's file name patterns take '%%' for a '%'.
   std::string logs;
   for (char c : (dir / "slurm").string()) logs += c == '%' ? std::string("%%") : std::string(1, c);
-  const std::vector<std::string> array_options = {"--job-name=moreau-relay-hostile", "--output=" + logs + "/task-%A_%a.out", "--cpus-per-task=1",
-                                                  "--requeue"};
+  const std::vector<std::string> array_options = {"--job-name=moreau-relay-hostile", "--output=" + logs + "/task-%A_%a.out",
+                                                  "--cpus-per-task=1", "--requeue"};
   const auto all = calls();
   ASSERT_EQ(all.size(), 2u);
   const std::vector<std::string>& array = all[0];
@@ -560,7 +563,8 @@ TEST(Cli, EditedOrForeignCampaignRecordsAreRefusedWithExit2) {
     lines[line - 1] = text;
     write(lines);
     const std::string where = "samples.jsonl' line " + std::to_string(line) + " is not a record of this campaign";
-    for (const std::string& command : {"campaign --collect " + dir, "campaign " + (root / "spec.json").string() + " --out " + dir + " --quiet"}) {
+    for (const std::string& command :
+         {"campaign --collect " + dir, "campaign " + (root / "spec.json").string() + " --out " + dir + " --quiet"}) {
       const Result r = Moreau(command);
       EXPECT_EQ(r.status, 2) << command << "\n" << r.out;
       EXPECT_NE(r.out.find(where), std::string::npos) << command << "\n" << r.out;
@@ -596,17 +600,19 @@ std::string BadInputDir() {
     std::filesystem::remove_all(d);
     std::filesystem::create_directories(d + "/records");
     std::ofstream(d + "/overflow.json") << "{\"name\": \"x\", \"integrator\": {\"t_end\": 1, \"h\": 1e999}}\n";
-    std::ofstream(d + "/records/campaign.json")
-        << R"({"scene": ")" << MOREAU_SOURCE_DIR << R"(/scenes/damped-relay.json", "samples": 2,
+    std::ofstream(d + "/records/campaign.json") << R"({"scene": ")" << MOREAU_SOURCE_DIR << R"(/scenes/damped-relay.json", "samples": 2,
               "inputs": [{"path": "/parameters/m", "distribution": {"type": "uniform", "low": 1, "high": 3}}]})";
     // Line 1 overflows: a record is checked against the spec once it is read (a line 1 that is not this
     // campaign's record would be refused first, as the row ForeignCampaignRecord shows).
-    std::ofstream(d + "/records/samples.jsonl") << R"({"index": 1, "steps": 1e999})" << "\n"
-                                                << R"({"index": 0, "success": true})" << "\n";
+    std::ofstream(d + "/records/samples.jsonl") << R"({"index": 1, "steps": 1e999})"
+                                                << "\n"
+                                                << R"({"index": 0, "success": true})"
+                                                << "\n";
     std::filesystem::create_directories(d + "/foreign");
     std::filesystem::copy_file(d + "/records/campaign.json", d + "/foreign/campaign.json");
     std::ofstream(d + "/foreign/samples.jsonl")
-        << R"({"index": 0, "spec_hash": "0123456789abcdef", "inputs": {"/parameters/m": 2.0}, "status": "completed", "success": true})" << "\n";
+        << R"({"index": 0, "spec_hash": "0123456789abcdef", "inputs": {"/parameters/m": 2.0}, "status": "completed", "success": true})"
+        << "\n";
     // A name that would end the #SBATCH line and run a command in every array task.
     nlohmann::json hostile = nlohmann::json::parse(std::ifstream(d + "/records/campaign.json"));
     hostile["name"] = "x\ntouch " + d + "/injected\n#";
@@ -658,8 +664,8 @@ INSTANTIATE_TEST_SUITE_P(
         BadInput{"ForeignCampaignRecord", "campaign --collect {tmp}/foreign", "samples.jsonl' line 1 is not a record of this campaign",
                  "its spec_hash \"0123456789abcdef\" is not this spec's"},
         // Names and paths that reach a Slurm batch script: refused before anything is written or submitted.
-        BadInput{"CampaignNameWithANewline", "campaign {tmp}/hostile-name.json --out {tmp}/hostile-name --slurm", "/name: ",
-                 "is not a campaign name"},
+        BadInput{"CampaignNameWithANewline", "campaign {tmp}/hostile-name.json --out {tmp}/hostile-name --slurm",
+                 "/name: ", "is not a campaign name"},
         BadInput{"SlurmDirectoryWithANewline", "campaign {tmp}/records/campaign.json --out \"$(printf '{tmp}/slurm\\nout')\" --slurm",
                  "--out: ", "control character"},
         // Size: endless or huge input is refused at the limit, not read to the end.

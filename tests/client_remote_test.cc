@@ -65,8 +65,10 @@ TEST(ClientRemote, SubmitStudyRunsAServerSideStudy) {
   const testing::TempDir dir("client-study");
   const std::string server = " --server http://127.0.0.1:" + std::to_string(ts.port());
   const std::string csv = (dir / "table.csv").string();
-  const Outcome done = run_client("submit manipulator --study --set integrator.t_end=0.5 --h 1e-2,1e-3 --schemes abl,explicit --repeats 1 "
-                                  "--wait --csv " + csv + server);
+  const Outcome done = run_client(
+      "submit manipulator --study --set integrator.t_end=0.5 --h 1e-2,1e-3 --schemes abl,explicit --repeats 1 "
+      "--wait --csv " +
+      csv + server);
   ASSERT_EQ(done.status, 0) << done.output;
   EXPECT_THAT(done.output, ::testing::HasSubstr("order abl"));
   EXPECT_THAT(done.output, ::testing::HasSubstr("order explicit"));
@@ -79,7 +81,8 @@ TEST(ClientRemote, SubmitStudyRunsAServerSideStudy) {
   EXPECT_EQ(written, c->Get("/v1/studies/" + id + "/table?format=csv")->body);
   EXPECT_EQ(std::count(written.begin(), written.end(), '\n'), 1 + 2 * 2) << written;
   // Without --wait: the id only. Study options without --study, or streaming with it: refused.
-  const Outcome queued = run_client("submit manipulator --study --set integrator.t_end=0.1 --h 1e-2,1e-3 --schemes abl --repeats 1" + server);
+  const Outcome queued =
+      run_client("submit manipulator --study --set integrator.t_end=0.1 --h 1e-2,1e-3 --schemes abl --repeats 1" + server);
   ASSERT_EQ(queued.status, 0) << queued.output;
   EXPECT_THAT(queued.output, ::testing::MatchesRegex("[0-9a-f]{32}\n"));
   const Outcome no_flag = run_client("submit manipulator --h 1e-2,1e-3" + server);
@@ -121,7 +124,6 @@ TEST(ClientRemote, FigureIsSvgOrPngByTheFileName) {
   EXPECT_EQ(read(dir / "state.png").substr(0, 8), std::string("\x89PNG\r\n\x1a\n", 8));
 }
 
-
 // ---- Server text on the reader's terminal -----------------------------------------------------------
 
 // The escaping itself, against expectations written out by hand.
@@ -132,7 +134,9 @@ TEST(TerminalSafe, ControlBidiBackslashAndInvalidUtf8BecomeVisibleText) {
   EXPECT_EQ(terminal_safe("caf\xc3\xa9 \xe2\x88\x9a"), "caf\xc3\xa9 \xe2\x88\x9a");  // other UTF-8 kept as it is
   EXPECT_EQ(terminal_safe(std::string("a\0b", 3)), R"(a\x00b)");
   EXPECT_EQ(terminal_safe("\x1b]0;t\x07\x1b[2J\t\n\r\x7f"), R"(\x1b]0;t\x07\x1b[2J\x09\x0a\x0d\x7f)");
-  EXPECT_EQ(terminal_safe("\xc2\x9b" "31m \xc2\x80 \xc2\x9f \xc2\xa0"), "\\u{9b}31m \\u{80} \\u{9f} \xc2\xa0");  // C1; U+00A0 is not one
+  EXPECT_EQ(terminal_safe("\xc2\x9b"
+                          "31m \xc2\x80 \xc2\x9f \xc2\xa0"),
+            "\\u{9b}31m \\u{80} \\u{9f} \xc2\xa0");  // C1; U+00A0 is not one
   EXPECT_EQ(terminal_safe("\xe2\x80\xaa\xe2\x80\xae\xe2\x81\xa6\xe2\x81\xa9\xe2\x80\xa9"),
             "\\u{202a}\\u{202e}\\u{2066}\\u{2069}\xe2\x80\xa9");  // U+2029 is not a bidirectional control
   EXPECT_EQ(terminal_safe("back\\slash"), R"(back\\slash)");
@@ -169,9 +173,13 @@ std::size_t first_unsafe_byte(const std::string& s) {
 TEST(ClientRemote, HostileSceneNamesArePrintedAsVisibleEscapes) {
   TestServer ts;
   auto c = ts.client();
-  const std::string hostile = "\x1b]0;pwned\x07\x1b[2Jctl\xe2\x80\xae" "evil\xc2\x9b" "31m\x7f back\\slash";
+  const std::string hostile =
+      "\x1b]0;pwned\x07\x1b[2Jctl\xe2\x80\xae"
+      "evil\xc2\x9b"
+      "31m\x7f back\\slash";
   const std::string shown = R"(\x1b]0;pwned\x07\x1b[2Jctl\u{202e}evil\u{9b}31m\x7f back\\slash)";
-  auto posted = c->Post("/v1/jobs", nlohmann::json({{"scene", "damped-relay"}, {"overrides", {{"name", hostile}}}}).dump(), "application/json");
+  auto posted =
+      c->Post("/v1/jobs", nlohmann::json({{"scene", "damped-relay"}, {"overrides", {{"name", hostile}}}}).dump(), "application/json");
   ASSERT_TRUE(posted);
   ASSERT_EQ(posted->status, 202) << posted->body;
   const std::string id = nlohmann::json::parse(posted->body).at("id");

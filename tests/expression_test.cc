@@ -103,12 +103,12 @@ TEST_F(ExprTest, PrecedenceAndAssociativity) {
 TEST_F(ExprTest, SmoothEverywhereIsDecidedByTheOperations) {
   for (const char* smooth : {"sin(x)*y^2 + cos(z)", "exp(-x^2)*atan(y)", "tanh(x) - sinh(y)*cosh(z)", "x^3 - 2*x", "-x", "0.5*x*y", "3"})
     EXPECT_TRUE(g_.smooth_everywhere(parse(smooth))) << smooth;
-  for (const char* not_smooth : {"x/y",         // pole at y = 0
-                                 "1/(1 + x^2)",  // smooth, but a division is not analysed
-                                 "sqrt(x)",      // not Lipschitz at 0
-                                 "log(x)", "tan(x)", "asin(x)", "acos(x)", "atan2(x, y)",
-                                 "x^0.5", "x^(-1)", "x^y",  // non-integer, negative or variable exponents
-                                 "abs(x)", "min(x, y)", "max(x, 0)"})
+  for (const char* not_smooth :
+       {"x/y",                                                                              // pole at y = 0
+        "1/(1 + x^2)",                                                                      // smooth, but a division is not analysed
+        "sqrt(x)",                                                                          // not Lipschitz at 0
+        "log(x)", "tan(x)", "asin(x)", "acos(x)", "atan2(x, y)", "x^0.5", "x^(-1)", "x^y",  // non-integer, negative or variable exponents
+        "abs(x)", "min(x, y)", "max(x, 0)"})
     EXPECT_FALSE(g_.smooth_everywhere(parse(not_smooth))) << not_smooth;
   // Derivatives keep what they are built of: d/dx abs(x) = sign(x) is not smooth; d/dx sin(x)^2 is.
   EXPECT_FALSE(g_.smooth_everywhere(g_.derivative(parse("abs(x)"), 0)));
@@ -492,11 +492,22 @@ struct FoldedAndFree {
 };
 
 TEST(TapeBind, BoundParametersComputeWhatFoldedConstantsCompute) {
-  const std::vector<std::string> texts = {
-      "a + b",           "a*b*cos(x)",         "-a*b*sin(x)*y",      "a*x^2 + b*y",     "(a + b)*x / (b - 3)",
-      "x^a",             "a^2*sin(x)^2",       "exp(-a*x)*cos(b*y)", "sqrt(a*a + x*x)", "atan2(a*y, b + x)",
-      "min(a*x, b) - max(y, a)", "abs(a - x)*b", "a - a + b*x",        "sin(a)*cos(a)*x", "-(a*(-x))",
-      "2*a*b*cos(x)*y - 0.5*b^2*sin(y)"};
+  const std::vector<std::string> texts = {"a + b",
+                                          "a*b*cos(x)",
+                                          "-a*b*sin(x)*y",
+                                          "a*x^2 + b*y",
+                                          "(a + b)*x / (b - 3)",
+                                          "x^a",
+                                          "a^2*sin(x)^2",
+                                          "exp(-a*x)*cos(b*y)",
+                                          "sqrt(a*a + x*x)",
+                                          "atan2(a*y, b + x)",
+                                          "min(a*x, b) - max(y, a)",
+                                          "abs(a - x)*b",
+                                          "a - a + b*x",
+                                          "sin(a)*cos(a)*x",
+                                          "-(a*(-x))",
+                                          "2*a*b*cos(x)*y - 0.5*b^2*sin(y)"};
   const std::vector<std::array<double, 2>> bindings = {{1.0, 0.5}, {-1.0, 2.0}, {2.0, -1.0}, {0.3, 1e-3}, {-7.25, 3.0}, {1e5, -2.5e-4}};
   std::mt19937_64 rng(11);
   std::uniform_real_distribution<double> u(-3.0, 3.0);
@@ -525,7 +536,8 @@ TEST(TapeBind, BoundParametersComputeWhatFoldedConstantsCompute) {
     const auto rewrites = [](double v) { return v == 0.0 || v == 1.0 || v == -1.0 || v == 2.0; };
     if (!rewrites(ab[0]) && !rewrites(ab[1]) && !rewrites(ab[1] - 3.0)) {
       for (std::size_t t = 0; t < texts.size(); ++t) {
-        const std::vector<Node> f(out_folded.begin() + 3 * t, out_folded.begin() + 3 * t + 3), k(out_free.begin() + 3 * t, out_free.begin() + 3 * t + 3);
+        const std::vector<Node> f(out_folded.begin() + 3 * t, out_folded.begin() + 3 * t + 3),
+            k(out_free.begin() + 3 * t, out_free.begin() + 3 * t + 3);
         EXPECT_LE(Tape::compile(free, k, 2, 2).num_instructions(), Tape::compile(folded, f, 2).num_instructions())
             << texts[t] << " with a = " << ab[0] << ", b = " << ab[1];
       }
@@ -536,8 +548,8 @@ TEST(TapeBind, BoundParametersComputeWhatFoldedConstantsCompute) {
       reference.eval(slots, want.data(), s1.data());
       bound.eval(slots, got.data(), s2.data());
       for (std::size_t j = 0; j < want.size(); ++j) {
-        SCOPED_TRACE(texts[j / 3] + (j % 3 ? " d/d" + std::string(j % 3 == 1 ? "x" : "y") : std::string()) + " with a = " +
-                     std::to_string(ab[0]) + ", b = " + std::to_string(ab[1]));
+        SCOPED_TRACE(texts[j / 3] + (j % 3 ? " d/d" + std::string(j % 3 == 1 ? "x" : "y") : std::string()) +
+                     " with a = " + std::to_string(ab[0]) + ", b = " + std::to_string(ab[1]));
         if (std::isnan(want[j])) {
           EXPECT_TRUE(std::isnan(got[j]));
         } else {
@@ -574,7 +586,8 @@ TEST(TapeBind, RandomExpressionsWithSecondDerivativesComputeWhatFoldedConstantsC
     switch (rng() % 9) {
       case 0: return "(" + l + " + " + r + ")";
       case 1: return "(" + l + " - " + r + ")";
-      case 2: case 3: return "(" + l + "*" + r + ")";
+      case 2:
+      case 3: return "(" + l + "*" + r + ")";
       case 4: return "-(" + l + ")";
       case 5: return "sin(" + l + ")";
       case 6: return "cos(" + l + ")";
@@ -932,7 +945,8 @@ int expect_native_matches_interpreter(const Tape& tape, const std::vector<double
   for (std::size_t r = 0; r < native.size(); ++r) {
     const auto a = std::bit_cast<std::uint64_t>(native[r]), b = std::bit_cast<std::uint64_t>(interpreted[r]);
     if (a != b && ++mismatches <= 3)
-      ADD_FAILURE() << what << ": register " << r << " native " << native[r] << " (0x" << std::hex << a << ") interpreted " << interpreted[r] << " (0x" << b << std::dec << ")";
+      ADD_FAILURE() << what << ": register " << r << " native " << native[r] << " (0x" << std::hex << a << ") interpreted "
+                    << interpreted[r] << " (0x" << b << std::dec << ")";
   }
   return static_cast<int>(native.size());
 }
@@ -941,10 +955,27 @@ int expect_native_matches_interpreter(const Tape& tape, const std::vector<double
 // normals, infinities, NaNs of both signs, the kinks of abs, min and max (ties), the edges of asin's and
 // log's domains, arguments where sin and cos need their long argument reduction.
 const std::vector<double>& special_values() {
-  static const std::vector<double> v = {0.0, -0.0, 1.0, -1.0, 0.5, -2.5, 2.0, 3.0, 1e-310, -4.9e-324, 2.2250738585072014e-308,
-                                        1.7976931348623157e308, -1e300, 710.5, -745.5, 1e22, -6.283185307179586,
-                                        std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity(),
-                                        std::numeric_limits<double>::quiet_NaN(), -std::numeric_limits<double>::quiet_NaN()};
+  static const std::vector<double> v = {0.0,
+                                        -0.0,
+                                        1.0,
+                                        -1.0,
+                                        0.5,
+                                        -2.5,
+                                        2.0,
+                                        3.0,
+                                        1e-310,
+                                        -4.9e-324,
+                                        2.2250738585072014e-308,
+                                        1.7976931348623157e308,
+                                        -1e300,
+                                        710.5,
+                                        -745.5,
+                                        1e22,
+                                        -6.283185307179586,
+                                        std::numeric_limits<double>::infinity(),
+                                        -std::numeric_limits<double>::infinity(),
+                                        std::numeric_limits<double>::quiet_NaN(),
+                                        -std::numeric_limits<double>::quiet_NaN()};
   return v;
 }
 
@@ -954,9 +985,9 @@ TEST_F(ExprTest, NativeCodeComputesEveryOperationAsTheInterpreterDoesAtSpecialVa
     std::vector<Node> outputs;
   };
   std::vector<Case> cases;
-  for (const char* text : {"sin(x)", "cos(x)", "tan(x)", "asin(x)", "acos(x)", "atan(x)", "sinh(x)", "cosh(x)", "tanh(x)",
-                           "exp(x)", "log(x)", "sqrt(x)", "abs(x)", "-x", "x^2", "x + y", "x - y", "x*y", "x/y", "pow(x, y)",
-                           "atan2(x, y)", "min(x, y)", "max(x, y)"})
+  for (const char* text : {"sin(x)",  "cos(x)", "tan(x)", "asin(x)",   "acos(x)",     "atan(x)",   "sinh(x)",  "cosh(x)",
+                           "tanh(x)", "exp(x)", "log(x)", "sqrt(x)",   "abs(x)",      "-x",        "x^2",      "x + y",
+                           "x - y",   "x*y",    "x/y",    "pow(x, y)", "atan2(x, y)", "min(x, y)", "max(x, y)"})
     cases.push_back({text, {parse(text)}});
   cases.push_back({"sign(x), the derivative of abs(x)", {g_.derivative(parse("abs(x)"), 0)}});
   cases.push_back({"select, the derivative of min(x*y, y - x)", {g_.derivative(parse("min(x*y, y - x)"), 0)}});
@@ -969,7 +1000,9 @@ TEST_F(ExprTest, NativeCodeComputesEveryOperationAsTheInterpreterDoesAtSpecialVa
     ASSERT_GT(tape.num_instructions(), 0u) << c.name;
     int compared = 0;
     for (double x : special_values())
-      for (double y : special_values()) compared += expect_native_matches_interpreter(tape, {x, y, 0.0}, c.name + " at x = " + std::to_string(x) + ", y = " + std::to_string(y));
+      for (double y : special_values())
+        compared +=
+            expect_native_matches_interpreter(tape, {x, y, 0.0}, c.name + " at x = " + std::to_string(x) + ", y = " + std::to_string(y));
     EXPECT_GT(compared, 400) << c.name;
   }
 }
@@ -983,7 +1016,8 @@ TEST(TapeNative, PowerOfABoundParameterFollowsEveryBind) {
   Tape tape = Tape::compile(g, {f, g.derivative(f, 0)}, 1, 1);
   for (const double value : {2.0, 3.0, 2.0, 0.5, -2.0, 2.0}) {
     ASSERT_TRUE(tape.bind(&value));
-    for (double xv : special_values()) expect_native_matches_interpreter(tape, {xv}, "x^p with p = " + std::to_string(value) + " at x = " + std::to_string(xv));
+    for (double xv : special_values())
+      expect_native_matches_interpreter(tape, {xv}, "x^p with p = " + std::to_string(value) + " at x = " + std::to_string(xv));
     // And against C++ itself: x*x for p = 2 (the graph's own rewrite of x^2), pow otherwise.
     std::vector<double> scratch(tape.scratch_size()), out(2);
     const double xv = 1.1;
@@ -1048,8 +1082,10 @@ TEST(TapeNative, RandomExpressionsWithDerivativesComputeWhatTheInterpreterComput
     // bind() says false when a node of the parameter alone is 0 (then the folded tape could differ from
     // this one in the sign of a zero): the native code and the interpreter agree whatever it says.
     static_cast<void>(tape.bind(&param));
-    for (int k = 0; k < 40; ++k) expect_native_matches_interpreter(tape, {u(rng), u(rng), u(rng)}, "a = " + std::to_string(param) + ", point " + std::to_string(k));
-    for (double v : special_values()) expect_native_matches_interpreter(tape, {v, -v, 0.5 * v}, "a = " + std::to_string(param) + " at " + std::to_string(v));
+    for (int k = 0; k < 40; ++k)
+      expect_native_matches_interpreter(tape, {u(rng), u(rng), u(rng)}, "a = " + std::to_string(param) + ", point " + std::to_string(k));
+    for (double v : special_values())
+      expect_native_matches_interpreter(tape, {v, -v, 0.5 * v}, "a = " + std::to_string(param) + " at " + std::to_string(v));
   }
 }
 
@@ -1126,13 +1162,14 @@ TEST(TapeNative, WiredRunsWriteWhatTheInterpreterComputesWhereTheWiringSays) {
     for (int j = 0; j < m; ++j) {
       const double want = reference[static_cast<std::size_t>(tape.output_register(static_cast<std::size_t>(j)))];
       const double got = (j % 2 == 0 ? sink0 : sink1)[static_cast<std::size_t>(j / 2)];
-      EXPECT_EQ(std::bit_cast<std::uint64_t>(got), std::bit_cast<std::uint64_t>(want)) << "output " << j << " at t = " << t << ", x = " << x << ", y = " << y;
+      EXPECT_EQ(std::bit_cast<std::uint64_t>(got), std::bit_cast<std::uint64_t>(want))
+          << "output " << j << " at t = " << t << ", x = " << x << ", y = " << y;
     }
     EXPECT_EQ(std::bit_cast<std::uint64_t>(sink0.back()), std::bit_cast<std::uint64_t>(sink1[1]));  // output 3's two places
-    EXPECT_EQ(std::bit_cast<std::uint64_t>(sink0[0]), std::bit_cast<std::uint64_t>(y));  // output 0 is the input y
-    EXPECT_EQ(sink1[0], 2.5);              // output 1 is a constant
-    EXPECT_EQ(sink0[1], 2.25);             // output 2, a*a, is bound
-    EXPECT_EQ(sink1[sink_size - 1], untouched);  // written by nothing
+    EXPECT_EQ(std::bit_cast<std::uint64_t>(sink0[0]), std::bit_cast<std::uint64_t>(y));             // output 0 is the input y
+    EXPECT_EQ(sink1[0], 2.5);                                                                       // output 1 is a constant
+    EXPECT_EQ(sink0[1], 2.25);                                                                      // output 2, a*a, is bound
+    EXPECT_EQ(sink1[sink_size - 1], untouched);                                                     // written by nothing
   }
 }
 
@@ -1149,7 +1186,8 @@ auto resolve_x_y(Graph& g) {
 TEST(TapeNative, WiredArithmeticWithoutCallsWritesWhatTheInterpreterComputes) {
   Graph g;
   const auto resolve = resolve_x_y(g);
-  const std::vector<Node> outputs = {g.parse("x*y - 0.5*x", resolve), g.parse("min(x, y)/max(x, 1)", resolve), g.parse("-sqrt(abs(x))*y^2", resolve)};
+  const std::vector<Node> outputs = {g.parse("x*y - 0.5*x", resolve), g.parse("min(x, y)/max(x, 1)", resolve),
+                                     g.parse("-sqrt(abs(x))*y^2", resolve)};
   Tape tape = Tape::compile(g, outputs, 2);
   tape.wire({{{0, 0}, {0, 1}}, {{{0, 0}}, {{0, 1}}, {{0, 2}}}});
   std::vector<double> scratch(tape.scratch_size()), reference(tape.scratch_size());
@@ -1165,7 +1203,8 @@ TEST(TapeNative, WiredArithmeticWithoutCallsWritesWhatTheInterpreterComputes) {
       for (int k = 0; k < 2; ++k) reference[static_cast<std::size_t>(tape.input_register(k))] = in[k];
       tape.run_interpreted(reference.data());
       for (std::size_t j = 0; j < 3; ++j)
-        EXPECT_EQ(std::bit_cast<std::uint64_t>(out[j]), std::bit_cast<std::uint64_t>(reference[static_cast<std::size_t>(tape.output_register(j))]))
+        EXPECT_EQ(std::bit_cast<std::uint64_t>(out[j]),
+                  std::bit_cast<std::uint64_t>(reference[static_cast<std::size_t>(tape.output_register(j))]))
             << "output " << j << " at x = " << x << ", y = " << y;
     }
 }

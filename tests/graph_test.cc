@@ -352,7 +352,8 @@ TEST(GraphInclusionSolver, ProblemsInTheLeadingBlockOfLargerArrays) {
       EXPECT_NEAR(w(i), wb(i), 1e-9 * (1.0 + std::abs(wb(i)))) << "trial " << trial << " component " << i;
       EXPECT_NEAR(u(i), ub(i), 1e-9 * (1.0 + std::abs(ub(i)))) << "trial " << trial << " component " << i;
     }
-    for (int i = m; i < capacity; ++i) EXPECT_TRUE(std::isnan(u_big(i)) && std::isnan(w_big(i))) << "trial " << trial << " wrote past m at " << i;
+    for (int i = m; i < capacity; ++i)
+      EXPECT_TRUE(std::isnan(u_big(i)) && std::isnan(w_big(i))) << "trial " << trial << " wrote past m at " << i;
   }
   EXPECT_EQ(__builtin_popcount(sizes_seen), capacity);  // every size from 1 to 8 came up
 }

@@ -88,7 +88,8 @@ double InitialRatio(double h, const Vec<2>& q, const Vec<2>& v) {
 
 // The issue's example: the manipulator with h = 1 and a large initial velocity, under the fixed rule.
 TEST(Guarantees, FixedStepBeyondTheorem41IsCountedFromItsFirstStep) {
-  const Simulation sim = Simulation::from_file(ScenePath("manipulator.json"), {"integrator.h=1", "initial.v=[10,10]", "integrator.t_end=20"});
+  const Simulation sim =
+      Simulation::from_file(ScenePath("manipulator.json"), {"integrator.h=1", "initial.v=[10,10]", "integrator.t_end=20"});
   const RunSummary s = sim.run(nullptr);
   const double r0 = InitialRatio(1.0, Vec<2>(3.0, -1.0), Vec<2>(10.0, 10.0));
   ASSERT_GT(r0, 1.0);
@@ -124,7 +125,8 @@ TEST(Guarantees, VerdictsAloneAreTheFullChecksVerdicts) {
       const Guarantee* f = full.find(g.result);
       ASSERT_NE(f, nullptr) << g.result;
       ASSERT_EQ(g.hypotheses.size(), f->hypotheses.size()) << g.result;
-      for (std::size_t i = 0; i < g.hypotheses.size(); ++i) EXPECT_EQ(g.hypotheses[i].verdict, f->hypotheses[i].verdict) << f->hypotheses[i].name;
+      for (std::size_t i = 0; i < g.hypotheses.size(); ++i)
+        EXPECT_EQ(g.hypotheses[i].verdict, f->hypotheses[i].verdict) << f->hypotheses[i].name;
     }
     for (const Guarantee& f : full.items) {
       if (f.relied_on) {
@@ -140,8 +142,8 @@ TEST(Guarantees, VerdictsAloneAreTheFullChecksVerdicts) {
 // The same start under the Theorem 4.1 rule: every r_k <= 1 (the rule's purpose), and the first ratio is
 // exactly the bound's (h_0 = lambda_min / (2 ||C||_2) makes r_0 = 1).
 TEST(Guarantees, Theorem41RuleKeepsEveryRatioAtMostOne) {
-  const Simulation sim = Simulation::from_file(
-      ScenePath("manipulator.json"), {"integrator.h=1", "initial.v=[10,10]", "integrator.t_end=20", "integrator.step_rule=\"theorem-4.1\""});
+  const Simulation sim = Simulation::from_file(ScenePath("manipulator.json"), {"integrator.h=1", "initial.v=[10,10]", "integrator.t_end=20",
+                                                                               "integrator.step_rule=\"theorem-4.1\""});
   const RunSummary s = sim.run(nullptr);
   ASSERT_EQ(s.status, RunStatus::kCompleted) << s.message;
   EXPECT_EQ(s.theorem41.violations, 0);
@@ -154,7 +156,8 @@ TEST(Guarantees, Theorem41RuleKeepsEveryRatioAtMostOne) {
 // Assumption 4.1 2)-3) at the recorded states. Reference: the paper's grad V = (0, m2 g b sin th2) for
 // V = -m2 g b cos th2, so at the start th2 = -1: ||grad V|| = 9.81 * 0.5 * sin(1) > (alpha - 0) / 2 = 0.5
 // (section 6's g = 9.81 breaks the assumption, as the issue says); with g = 0 and no force it holds; the
-// Figure 6.4 perturbation F = (sin t, sin x1) (with g = 0, so that grad V does not fail first) reaches ||F|| >= alpha = 1 (beta = sqrt 2 in the paper).
+// Figure 6.4 perturbation F = (sin t, sin x1) (with g = 0, so that grad V does not fail first) reaches ||F|| >= alpha = 1 (beta = sqrt 2 in
+// the paper).
 TEST(Guarantees, Assumption41AtTheRecordedStates) {
   const Simulation paper = Simulation::from_file(ScenePath("manipulator.json"));
   RunSummary s = paper.run(nullptr);
@@ -200,7 +203,6 @@ TEST(Guarantees, MassMatrixLosingDefinitenessStopsTheRun) {
     EXPECT_GT(s.mass.checked, 1);
   }
 }
-
 
 // Energy and the scene's exact values, against closed forms. For m x'' + k x = 0 (the Coulomb oscillator
 // with a = 0), one step of (0.2) is V' = V - h (k/m) Q, Q' = Q + h V, which multiplies
@@ -308,7 +310,6 @@ TEST(Report, ComparesTheRunWithTheScenesExactValues) {
   EXPECT_NE(ball.report_json(ball.run(nullptr))["update"].get<std::string>().find("symplectic Euler"), std::string::npos);
 }
 
-
 // Lemma 3 of the second paper on the bouncing ball: U = m g y on {y >= 0} has its strict minimum at the
 // vertex y = 0, where grad U = m g = lambda grad h with lambda = m g > 0 (closed form) and the one active
 // gradient spans R^1. The hypotheses that make the system (8) are checked literally.
@@ -340,7 +341,6 @@ TEST(Guarantees, Lemma3AtTheBallsRestPosition) {
   const RunSummary s1 = ex1.run(nullptr);
   EXPECT_EQ(Hypothesis(ex1.guarantees(s1), "Lemma 3", "(8): no set-valued controller").verdict, Verdict::kFails);
 }
-
 
 // Lemma 3's strict minimum decided at second order, on a particle (x, y) of unit mass under U = g y where
 // first order cannot decide (one active gradient in R^2). Closed forms: at the bottom of the bowl
@@ -393,8 +393,7 @@ TEST(Guarantees, Lemma3DecidesAStrictMinimumAtSecondOrder) {
 // on all of R^n, so Assumption 3.3 holds: every hypothesis of Theorems 4.2 and 4.3 holds, and the finite-step
 // rest is attributed to Theorem 4.3. With an abs in the potential, Assumption 3.3 is no longer concluded.
 TEST(Guarantees, SmoothManipulatorUnderTheTheorem42RuleConvergesByTheorem43) {
-  const Simulation sim =
-      Simulation::from_file(ScenePath("manipulator.json"), {"integrator.step_rule=theorem-4.2", "parameters.g=0.9"});
+  const Simulation sim = Simulation::from_file(ScenePath("manipulator.json"), {"integrator.step_rule=theorem-4.2", "parameters.g=0.9"});
   const RunSummary s = sim.run(nullptr);
   ASSERT_TRUE(s.converged_step.has_value());
   const Guarantees g = sim.guarantees(s);
@@ -403,9 +402,8 @@ TEST(Guarantees, SmoothManipulatorUnderTheTheorem42RuleConvergesByTheorem43) {
   EXPECT_EQ(g.find("Theorem 4.3")->verdict(), Verdict::kHolds);
   EXPECT_EQ(convergence_finding(s, g, "Theorem 4.3"), ConvergenceFinding::kConvergedTheorem);
 
-  const Simulation kinked = Simulation::from_file(
-      ScenePath("manipulator.json"),
-      {"integrator.step_rule=theorem-4.2", "parameters.g=0.9", "system.potential=-b*m2*g*cos(th2) + 0.01*abs(x1)"});
+  const Simulation kinked = Simulation::from_file(ScenePath("manipulator.json"), {"integrator.step_rule=theorem-4.2", "parameters.g=0.9",
+                                                                                  "system.potential=-b*m2*g*cos(th2) + 0.01*abs(x1)"});
   const RunSummary sk = kinked.run(nullptr);
   EXPECT_EQ(Hypothesis(kinked.guarantees(sk), "Theorem 4.2", "Assumption 3.3").verdict, Verdict::kNotChecked);
 }

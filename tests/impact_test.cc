@@ -439,8 +439,7 @@ TEST(Impact, WithoutConstraintsAStepIsTheInclusionOfTheSchemeWithAnImplicitPosit
     const double M11 = m1 + m2, M12 = m2 * b * c, M22 = I + m2 * b * b;
     const double dv0 = (v1[0] - v0[0]) / h, dv1 = (v1[1] - v0[1]) / h;
     // r = M dv + C(Q^k, V^k) V^{k+1} + grad V + W V^{k+1}, C = [[0, -m2 b sin(th2) th2'], [0, 0]], W = I.
-    const double res[2] = {M11 * dv0 + M12 * dv1 - m2 * b * s * v0[1] * v1[1] + v1[0],
-                           M12 * dv0 + M22 * dv1 + m2 * b * g * s + v1[1]};
+    const double res[2] = {M11 * dv0 + M12 * dv1 - m2 * b * s * v0[1] * v1[1] + v1[0], M12 * dv0 + M22 * dv1 + m2 * b * g * s + v1[1]};
     // Round-off of r: the terms M V/h are about |M| |V| / h.
     const double tol = 1e-9 * (1.0 + (std::abs(v0[0]) + std::abs(v0[1]) + std::abs(v1[0]) + std::abs(v1[1])) * (M11 + M22) / h);
     for (int j = 0; j < 2; ++j) {
@@ -554,7 +553,9 @@ TEST(Impact, StepsThatTheSolverOf65DeclinesSolveTheInclusionThroughTheGeneralRow
     for (int i = 0; i < 2; ++i) {
       const double r = v1(i) - v0(i) + h * cv(i) + h * model.g(i);
       const double a = h * model.phi.gains(i);
-      const double tol = 64.0 * eps * (std::abs(v1(i)) + std::abs(v0(i)) + h * model.C.cwiseAbs().row(i).dot(v1.cwiseAbs()) + h * std::abs(model.g(i)) + a);
+      const double tol =
+          64.0 * eps *
+          (std::abs(v1(i)) + std::abs(v0(i)) + h * model.C.cwiseAbs().row(i).dot(v1.cwiseAbs()) + h * std::abs(model.g(i)) + a);
       if (v1(i) > 0.0) {
         EXPECT_NEAR(r, -a, tol) << "step " << k << ", coordinate " << i;
       } else if (v1(i) < 0.0) {

@@ -34,11 +34,11 @@ using moreau::server::ServerConfig;
 using moreau::server::testing::manipulator;
 using moreau::server::testing::read_json_file;
 using moreau::server::testing::submit;
-using moreau::test_support::TempDir;
 using moreau::server::testing::TestServer;
 using moreau::server::testing::wait_final;
 using moreau::server::testing::wait_running;
 using moreau::server::testing::wait_step;
+using moreau::test_support::TempDir;
 using json = nlohmann::json;
 using Clock = std::chrono::steady_clock;
 namespace fs = std::filesystem;
@@ -165,8 +165,8 @@ void check_stream(const Received& got, const std::string& id, const json& report
   }
   // Exactly the states before the detection step came before it (the event goes out just before the
   // state of the step that detected it, or of the first step after it that is published).
-  EXPECT_EQ(states_before,
-            static_cast<std::size_t>(std::count_if(got.states.begin(), got.states.end(), [&](const auto& s) { return s.step < detected_at; })));
+  EXPECT_EQ(states_before, static_cast<std::size_t>(
+                               std::count_if(got.states.begin(), got.states.end(), [&](const auto& s) { return s.step < detected_at; })));
   EXPECT_LT(states_before, got.states.size()) << "the manipulator rests from t = 1.135, before t_end";
   EXPECT_THAT(conv->text, ::testing::HasSubstr("detected at step " + std::to_string(detected_at)));
   for (const auto& e : got.events) EXPECT_EQ(e.job_id, id);
@@ -311,9 +311,8 @@ TEST(LcmStream, AStopEndsTheStreamWithStoppedAndTheRestartStreamsTheJobAgain) {
     TestServer first(cfg);
     auto c = first.client();
     // About 2e7 steps (a second or two), a state every 100 s of simulated time.
-    auto r = submit(*c, {{"scene", manipulator()},
-                         {"overrides", {"integrator.t_end=2e4", "output.every=100000"}},
-                         {"stream", {{"period", 100}}}});
+    auto r = submit(
+        *c, {{"scene", manipulator()}, {"overrides", {"integrator.t_end=2e4", "output.every=100000"}}, {"stream", {{"period", 100}}}});
     ASSERT_EQ(r->status, 202) << r->body;
     id = json::parse(r->body)["id"];
     ASSERT_EQ(wait_running(*c, id), "running");
@@ -369,8 +368,8 @@ TEST(LcmStream, AFileUrlWithoutItsDirectoryOrFileSaysWhich) {
 #ifdef MOREAU_CLIENT_BINARY
   const TempDir dir("watch-url");
   const std::string out_file = (dir / "out").string();
-  const int rc =
-      std::system((std::string(MOREAU_CLIENT_BINARY) + " watch --lcm-url 'file:///nonexistent-moreau-dir/x.log' > " + out_file + " 2>&1").c_str());
+  const int rc = std::system(
+      (std::string(MOREAU_CLIENT_BINARY) + " watch --lcm-url 'file:///nonexistent-moreau-dir/x.log' > " + out_file + " 2>&1").c_str());
   std::ifstream f(out_file);
   const std::string out((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
   EXPECT_EQ(WEXITSTATUS(rc), 2) << out;

@@ -496,8 +496,11 @@ INSTANTIATE_TEST_SUITE_P(
                 "/system/states/1", "expected a name"},
         // State names are the trajectory's column names (t, h, <states>, <states>_dot, energy): none may
         // be one of its own columns or another state's rate, whatever the order.
-        BadLure{"StateNamedAsTheStepColumn", [](json& d) { d["system"]["states"] = {"h", "y"}; }, "/system/states/0",
-                "the trajectory has its own column 'h'"},
+        BadLure{"StateNamedAsTheStepColumn",
+                [](json& d) {
+                  d["system"]["states"] = {"h", "y"};
+                },
+                "/system/states/0", "the trajectory has its own column 'h'"},
         BadLure{"StateNamedAsTheEnergyColumn", [](json& d) { d["system"]["states"] = {"x", "energy"}; }, "/system/states/1",
                 "the trajectory has its own column 'energy'"},
         BadLure{"StateNamedAsTheTimeColumn", [](json& d) { d["system"]["states"] = {"t", "y"}; }, "/system/states/0",
@@ -510,9 +513,7 @@ INSTANTIATE_TEST_SUITE_P(
         // Every slope of a graph must be a finite number: near the largest double the rise and the run of a
         // segment overflow (2e308 / 2e308 = inf / inf = NaN), on a short steep segment the slope does.
         BadLure{"GraphSlopeOverflowsNearTheLargestDouble",
-                [](json& d) {
-                  d["system"]["feedback"][0]["vertices"] = {{-1e308, -1e308}, {1e308, 1e308}};
-                },
+                [](json& d) { d["system"]["feedback"][0]["vertices"] = {{-1e308, -1e308}, {1e308, 1e308}}; },
                 "/system/feedback/0/vertices/1", "overflows"},
         BadLure{"GraphSlopeOverflowsOnAShortSteepSegment",
                 [](json& d) { d["system"]["feedback"][0]["vertices"] = {{-1e-300, -1e300}, {1e-300, 1e300}}; },

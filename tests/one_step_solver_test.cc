@@ -504,6 +504,5 @@ TEST(OneStepSolver, SharedFactorisationGivesTheDirectSolvesSolution) {
   EXPECT_FALSE(with_norm.shares_factorisation());
 }
 
-
 }  // namespace
 }  // namespace moreau

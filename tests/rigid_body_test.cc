@@ -31,7 +31,8 @@ TEST(RigidBody, DoublePendulumMatchesTextbookClosedForm) {
   const RigidBodyModel model = arm.model();
   RigidBodyData data(model);
   const double m1 = arm.m[0], m2 = arm.m[1], l1 = arm.l[0], lc1 = arm.lc[0], lc2 = arm.lc[1], I1 = arm.I[0], I2 = arm.I[1], g = arm.g;
-  for (const auto& [q1, q2, v1, v2] : std::vector<std::array<double, 4>>{{0.3, -1.1, 0.7, -2.0}, {2.5, 0.4, -1.3, 0.2}, {0.0, 0.0, 1.0, 1.0}}) {
+  for (const auto& [q1, q2, v1, v2] :
+       std::vector<std::array<double, 4>>{{0.3, -1.1, 0.7, -2.0}, {2.5, 0.4, -1.3, 0.2}, {0.0, 0.0, 1.0, 1.0}}) {
     Eigen::Matrix2d M, C;
     Eigen::Vector2d G;
     const double q[] = {q1, q2}, v[] = {v1, v2};
@@ -41,7 +42,8 @@ TEST(RigidBody, DoublePendulumMatchesTextbookClosedForm) {
     M_ref << I1 + I2 + m1 * lc1 * lc1 + m2 * (l1 * l1 + lc2 * lc2 + 2 * l1 * lc2 * c2), I2 + m2 * (lc2 * lc2 + l1 * lc2 * c2),
         I2 + m2 * (lc2 * lc2 + l1 * lc2 * c2), I2 + m2 * lc2 * lc2;
     C_ref << h * v2, h * (v1 + v2), -h * v1, 0.0;
-    const Eigen::Vector2d G_ref((m1 * lc1 + m2 * l1) * g * std::cos(q1) + m2 * lc2 * g * std::cos(q1 + q2), m2 * lc2 * g * std::cos(q1 + q2));
+    const Eigen::Vector2d G_ref((m1 * lc1 + m2 * l1) * g * std::cos(q1) + m2 * lc2 * g * std::cos(q1 + q2),
+                                m2 * lc2 * g * std::cos(q1 + q2));
     EXPECT_LT(relative(M, M_ref), 1e-14) << M << "\nvs\n" << M_ref;
     EXPECT_LT((C - C_ref).cwiseAbs().maxCoeff(), 1e-14 * (1.0 + C_ref.cwiseAbs().maxCoeff())) << C << "\nvs\n" << C_ref;
     EXPECT_LT(relative(G, G_ref), 1e-14) << G.transpose() << " vs " << G_ref.transpose();
@@ -51,8 +53,9 @@ TEST(RigidBody, DoublePendulumMatchesTextbookClosedForm) {
 TEST(RigidBody, PlanarArmsMatchClosedFormsTo1e12) {
   std::mt19937 rng(7);
   std::uniform_real_distribution<double> u(-3.0, 3.0);
-  for (const PlanarArm& arm : {double_pendulum(), three_link(),
-                               PlanarArm{{1, 2, 1, 3, 1, 2}, {1, .5, .7, .3, .9, .4}, {.5, .2, .3, .1, .4, .2}, {.1, .2, .1, .3, .1, .2}}}) {
+  for (const PlanarArm& arm :
+       {double_pendulum(), three_link(),
+        PlanarArm{{1, 2, 1, 3, 1, 2}, {1, .5, .7, .3, .9, .4}, {.5, .2, .3, .1, .4, .2}, {.1, .2, .1, .3, .1, .2}}}) {
     const RigidBodyModel model = arm.model();
     RigidBodyData data(model);
     const int n = arm.n();
@@ -96,7 +99,8 @@ RigidBodyModel branched_tree() {
     b.inertia.mass_kg = 1.0 + 0.5 * u(rng);
     b.inertia.com_m = 0.4 * Eigen::Vector3d(u(rng), u(rng), u(rng));
     const Eigen::Matrix3d R = Eigen::AngleAxisd(u(rng) * 3.0, Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized()).toRotationMatrix();
-    b.inertia.inertia_com_kg_m2 = R * Eigen::Vector3d(0.05 + 0.02 * u(rng), 0.06 + 0.02 * u(rng), 0.08 + 0.02 * u(rng)).asDiagonal() * R.transpose();
+    b.inertia.inertia_com_kg_m2 =
+        R * Eigen::Vector3d(0.05 + 0.02 * u(rng), 0.06 + 0.02 * u(rng), 0.08 + 0.02 * u(rng)).asDiagonal() * R.transpose();
     model.bodies.push_back(b);
   }
   return model;

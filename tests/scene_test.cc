@@ -586,7 +586,8 @@ TEST(Scene, FrictionBarRunsOnBandedLuAndMatchesDenseLu) {
   ASSERT_EQ(a.status, RunStatus::kCompleted) << a.message;
   ASSERT_EQ(b.status, RunStatus::kCompleted) << b.message;
   EXPECT_EQ(a.solver.linear_solver, "banded LU with partial pivoting, bandwidth 1");
-  EXPECT_EQ(b.solver.linear_solver, "dense LU with partial pivoting, of a step's first pattern, updated for its later patterns");  // n = 64, separable phi
+  EXPECT_EQ(b.solver.linear_solver,
+            "dense LU with partial pivoting, of a step's first pattern, updated for its later patterns");  // n = 64, separable phi
   EXPECT_EQ(a.solver.fallback_steps, 0);
   ASSERT_EQ(a.q_final.size(), 64u);
   double vmax = 0.0;
@@ -599,7 +600,6 @@ TEST(Scene, FrictionBarRunsOnBandedLuAndMatchesDenseLu) {
   EXPECT_GT(vmax, 1e-3) << "still moving at t = 0.3: every step solved a real system";
 }
 
-
 // A URDF robot's joints name its coordinates, under the same rule as system.coordinates: a joint whose
 // (sanitized) name is one of the trajectory's own columns, or another joint's velocity <name>_dot, is
 // refused at /system/urdf/text, naming the joint and the line of its <joint> element.
@@ -607,15 +607,29 @@ std::string two_joint_urdf(const std::string& first, const std::string& second) 
   const std::string inertial =
       "<inertial><mass value=\"1\"/><inertia ixx=\"0.1\" ixy=\"0\" ixz=\"0\" iyy=\"0.1\" iyz=\"0\" izz=\"0.1\"/></inertial>";
   const std::string limit = "<limit lower=\"-1\" upper=\"1\" effort=\"1\" velocity=\"1\"/>";
-  return "<robot name=\"two\">\n"                                                                          // line 1
-         "<!-- <joint name=\"" + second + "\" type=\"revolute\"> in a comment is not the joint -->\n"     // line 2
-         "<link name=\"base\"/>\n"                                                                         // line 3
-         "<joint name=\"" + first + "\" type=\"revolute\">\n"                                              // line 4
-         "<parent link=\"base\"/><child link=\"l1\"/><axis xyz=\"0 0 1\"/>" + limit + "\n</joint>\n"      // lines 5-6
-         "<link name=\"l1\">" + inertial + "</link>\n"                                                     // line 7
-         "<joint name=\"" + second + "\" type=\"revolute\">\n"                                             // line 8
-         "<parent link=\"l1\"/><child link=\"l2\"/><origin xyz=\"1 0 0\"/><axis xyz=\"0 0 1\"/>" + limit + "\n</joint>\n"
-         "<link name=\"l2\">" + inertial + "</link>\n"
+  return "<robot name=\"two\">\n"  // line 1
+         "<!-- <joint name=\"" +
+         second +
+         "\" type=\"revolute\"> in a comment is not the joint -->\n"  // line 2
+         "<link name=\"base\"/>\n"                                    // line 3
+         "<joint name=\"" +
+         first +
+         "\" type=\"revolute\">\n"  // line 4
+         "<parent link=\"base\"/><child link=\"l1\"/><axis xyz=\"0 0 1\"/>" +
+         limit +
+         "\n</joint>\n"  // lines 5-6
+         "<link name=\"l1\">" +
+         inertial +
+         "</link>\n"  // line 7
+         "<joint name=\"" +
+         second +
+         "\" type=\"revolute\">\n"  // line 8
+         "<parent link=\"l1\"/><child link=\"l2\"/><origin xyz=\"1 0 0\"/><axis xyz=\"0 0 1\"/>" +
+         limit +
+         "\n</joint>\n"
+         "<link name=\"l2\">" +
+         inertial +
+         "</link>\n"
          "</robot>\n";
 }
 
@@ -650,14 +664,18 @@ TEST(Scene, UrdfJointNamesFollowTheCoordinateNameRule) {
   EXPECT_EQ(scene_error(two_joint_scene("a", "a_dot")),
             "/system/urdf/text: joint 'a_dot' (line 8): 'a_dot' is the name of the velocity of coordinate 'a' (its column in the "
             "trajectory and its name in expressions): give this coordinate another name");
-  EXPECT_EQ(scene_error(two_joint_scene("b_dot", "b")).rfind("/system/urdf/text: joint 'b_dot' (line 4): 'b_dot' is the name of the "
-                                                               "velocity of coordinate 'b'", 0),
+  EXPECT_EQ(scene_error(two_joint_scene("b_dot", "b"))
+                .rfind("/system/urdf/text: joint 'b_dot' (line 4): 'b_dot' is the name of the "
+                       "velocity of coordinate 'b'",
+                       0),
             0u)
       << scene_error(two_joint_scene("b_dot", "b"));
   // A joint name an expression cannot use is sanitized first ('-' becomes '_'); the rule holds for the
   // name it gives, and the error says both.
-  EXPECT_EQ(scene_error(two_joint_scene("a", "a-dot")).rfind("/system/urdf/text: joint 'a-dot' (line 8) gives the coordinate name "
-                                                               "'a_dot': 'a_dot' is the name of the velocity of coordinate 'a'", 0),
+  EXPECT_EQ(scene_error(two_joint_scene("a", "a-dot"))
+                .rfind("/system/urdf/text: joint 'a-dot' (line 8) gives the coordinate name "
+                       "'a_dot': 'a_dot' is the name of the velocity of coordinate 'a'",
+                       0),
             0u)
       << scene_error(two_joint_scene("a", "a-dot"));
   EXPECT_EQ(scene_error(two_joint_scene("a-b", "a_b")), "/system/urdf/text: joint 'a_b' (line 8): duplicate name 'a_b'");

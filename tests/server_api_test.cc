@@ -23,11 +23,11 @@ using moreau::server::strong_etag;
 using moreau::server::testing::manipulator;
 using moreau::server::testing::read_json_file;
 using moreau::server::testing::submit;
-using moreau::test_support::TempDir;
 using moreau::server::testing::TestServer;
 using moreau::server::testing::wait_final;
 using moreau::server::testing::wait_running;
 using moreau::server::testing::wait_step;
+using moreau::test_support::TempDir;
 using json = nlohmann::json;
 using Clock = std::chrono::steady_clock;
 namespace fs = std::filesystem;
@@ -537,9 +537,10 @@ TEST(ServerApi, FinishedResultsFiguresAndStaticFilesAnswerIfNoneMatchWith304) {
   ASSERT_EQ(wait_final(*c, id)["state"], "done");
   const std::string job = "/v1/jobs/" + id;
   std::map<std::string, std::string> tags;
-  for (const std::string& path : {job + "/report", job + "/trajectory", job + "/trajectory?format=csv", job + "/trajectory?from=0.1&every=2",
-                                 job + "/figure?kind=phase", job + "/figure?kind=phase&format=svg", job + "/figure?kind=energy&width=300&height=200",
-                                 std::string("/v1/openapi.json"), std::string("/"), std::string("/ui/app.js")}) {
+  for (const std::string& path :
+       {job + "/report", job + "/trajectory", job + "/trajectory?format=csv", job + "/trajectory?from=0.1&every=2",
+        job + "/figure?kind=phase", job + "/figure?kind=phase&format=svg", job + "/figure?kind=energy&width=300&height=200",
+        std::string("/v1/openapi.json"), std::string("/"), std::string("/ui/app.js")}) {
     SCOPED_TRACE(path);
     auto first = c->Get(path);
     ASSERT_TRUE(first);

@@ -22,9 +22,9 @@ namespace {
 
 using moreau::server::ServerConfig;
 using moreau::server::testing::read_json_file;
-using moreau::test_support::TempDir;
 using moreau::server::testing::TestServer;
 using moreau::server::testing::wait_final;
+using moreau::test_support::TempDir;
 using json = nlohmann::json;
 using Clock = std::chrono::steady_clock;
 namespace fs = std::filesystem;
@@ -55,7 +55,9 @@ json campaign_fields(std::int64_t samples, bool full_report) {
 }
 
 json body_of(std::int64_t samples, bool full_report, double t_end) {
-  return {{"scene", "manipulator-fig6.4"}, {"overrides", {"integrator.t_end=" + std::to_string(t_end)}}, {"campaign", campaign_fields(samples, full_report)}};
+  return {{"scene", "manipulator-fig6.4"},
+          {"overrides", {"integrator.t_end=" + std::to_string(t_end)}},
+          {"campaign", campaign_fields(samples, full_report)}};
 }
 
 // The records of a JSON Lines text by index, without the wall times (the fields that differ between two
@@ -218,7 +220,8 @@ TEST(ServerCampaign, BadCampaignsNameTheField) {
       {"name_with_a_newline", with("/campaign/name", "x\ntouch FILE\n#"), 400, "/campaign/name", "request", "is not a campaign name"},
       // Inputs that raise each sample's steps count: t_end = 2000 (2,000,000 steps, held to --max-steps'
       // 1,000,000), h = 1e-5 (100,000 each), against 160,000 per campaign.
-      {"t_end_raised_by_an_input", with_input({{"path", "/integrator/t_end"}, {"distribution", {{"type", "discrete"}, {"values", {2000.0}}}}}), 400,
+      {"t_end_raised_by_an_input",
+       with_input({{"path", "/integrator/t_end"}, {"distribution", {{"type", "discrete"}, {"values", {2000.0}}}}}), 400,
        "/campaign/inputs/5", "request", "/integrator/t_end = 2000.0, needs 1000000;"},
       {"h_lowered_by_an_input", with_input({{"path", "/integrator/h"}, {"distribution", {{"type", "discrete"}, {"values", {1e-5}}}}}), 400,
        "/campaign/inputs/5", "request", "needs 100000;"},
@@ -233,8 +236,8 @@ TEST(ServerCampaign, BadCampaignsNameTheField) {
   ServerConfig cfg;
   cfg.max_campaign_samples = 1000;
   cfg.max_steps = 1'000'000;
-  cfg.max_campaign_steps = 8 * 20'000;         // 8 samples of 1 s at h = 1e-3, not of 30 s
-  cfg.max_result_bytes = 8 * 12'000;           // 8 outcome records, not 8 full reports
+  cfg.max_campaign_steps = 8 * 20'000;  // 8 samples of 1 s at h = 1e-3, not of 30 s
+  cfg.max_result_bytes = 8 * 12'000;    // 8 outcome records, not 8 full reports
   TestServer ts(cfg);
   auto c = ts.client();
   for (const auto& k : cases) {

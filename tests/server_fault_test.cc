@@ -61,9 +61,9 @@ namespace {
 using json = nlohmann::json;
 using Clock = std::chrono::steady_clock;
 namespace fs = std::filesystem;
+using moreau::test_support::TempDir;
 using ::testing::AnyOf;
 using ::testing::HasSubstr;
-using moreau::test_support::TempDir;
 
 constexpr const char* kReasonCrashed = "the server died while the job was running: it runs again from the start";
 
@@ -856,7 +856,8 @@ TEST(ServerFault, DiskFullFailsTheJobAndTheServerRecovers) {
 
 TEST(ServerFault, CancellationStorm) {
   TempDir tmp("fault-storm");
-  Running srv = start_server(server_args(tmp.path() / "data", {"--workers", "2", "--queue", "1000", "--max-connections", "128"}), tmp.path());
+  Running srv =
+      start_server(server_args(tmp.path() / "data", {"--workers", "2", "--queue", "1000", "--max-connections", "128"}), tmp.path());
   constexpr int kSubmitters = 4, kCancellers = 4, kJobsPerSubmitter = 50;
   // About 10 ms of integration each (100k steps), 101 rows: long enough to be cancelled while running.
   const json body = {{"scene", "manipulator"}, {"overrides", {"integrator.t_end=100", "output.every=1000"}}};

@@ -26,10 +26,10 @@ namespace {
 using moreau::server::ServerConfig;
 using moreau::server::testing::manipulator;
 using moreau::server::testing::submit;
-using moreau::test_support::TempDir;
 using moreau::server::testing::TestServer;
 using moreau::server::testing::wait_final;
 using moreau::server::testing::wait_running;
+using moreau::test_support::TempDir;
 using json = nlohmann::json;
 using Clock = std::chrono::steady_clock;
 
@@ -236,7 +236,7 @@ TEST(Hostile, SlowClientsAndLongPollsDoNotLockOthersOut) {
   // and 5.4 s by themselves in one CI run (with /healthz answered in 5 ms).
   std::error_code ec;
   const TempDir data("hostile-slow", std::filesystem::is_directory("/dev/shm", ec) ? std::filesystem::path("/dev/shm")
-                                                                                  : std::filesystem::temp_directory_path());
+                                                                                   : std::filesystem::temp_directory_path());
   TestServer ts(cfg, data.path());
   const int port = ts.port();
   auto c = ts.client();
@@ -498,19 +498,19 @@ TEST(Hostile, EveryAnswerSaysNosniffAndCarriesARestrictivePolicy) {
     httplib::Headers headers;
   };
   const std::vector<Case> cases = {
-      {job + "/figure?kind=state", 200, {}},                  // PNG
-      {job + "/figure?kind=phase&format=svg", 200, {}},       // SVG
-      {job + "/trajectory?format=csv", 200, {}},              // CSV, streamed
-      {job + "/trajectory", 200, {}},                         // JSON, streamed
-      {job + "/report", 200, {}},                             // the report
+      {job + "/figure?kind=state", 200, {}},             // PNG
+      {job + "/figure?kind=phase&format=svg", 200, {}},  // SVG
+      {job + "/trajectory?format=csv", 200, {}},         // CSV, streamed
+      {job + "/trajectory", 200, {}},                    // JSON, streamed
+      {job + "/report", 200, {}},                        // the report
       {job + "/report", 304, {{"If-None-Match", report->get_header_value("ETag")}}},
       {job, 200, {}},
-      {job + "/events", 200, {}},                             // server-sent events (a final job: replayed, then the end)
+      {job + "/events", 200, {}},  // server-sent events (a final job: replayed, then the end)
       {"/v1/jobs", 200, {}},
       {"/metrics", 200, {}},
       {"/healthz", 200, {}},
       {"/v1/openapi.json", 200, {}},
-      {"/v1/nothing", 404, {}},                               // an error
+      {"/v1/nothing", 404, {}},  // an error
       {job + "/figure?kind=<svg>", 400, {}},
   };
   for (const Case& k : cases) {

@@ -19,11 +19,11 @@ namespace {
 using moreau::server::ServerConfig;
 using moreau::server::testing::manipulator;
 using moreau::server::testing::submit;
-using moreau::test_support::TempDir;
 using moreau::server::testing::TestServer;
 using moreau::server::testing::wait_final;
 using moreau::server::testing::wait_final_study;
 using moreau::server::testing::wait_running;
+using moreau::test_support::TempDir;
 using json = nlohmann::json;
 namespace fs = std::filesystem;
 

@@ -16,9 +16,9 @@ namespace {
 
 using moreau::server::ServerConfig;
 using moreau::server::testing::read_json_file;
-using moreau::test_support::TempDir;
 using moreau::server::testing::TestServer;
 using moreau::server::testing::wait_final_study;
+using moreau::test_support::TempDir;
 using json = nlohmann::json;
 using Clock = std::chrono::steady_clock;
 namespace fs = std::filesystem;

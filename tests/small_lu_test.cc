@@ -59,7 +59,8 @@ TEST(SmallLu, MatchesEigenPartialPivLuBitForBitUpTo8) {
       Eigen::VectorXd x = b;
       EXPECT_TRUE(lu_solve_in_place(work, x, r));
       for (int i = 0; i < r; ++i) {
-        EXPECT_TRUE(SameBits(x(i), expected(i))) << "r = " << r << ", trial " << trial << ", x(" << i << ") = " << x(i) << " against Eigen's " << expected(i);
+        EXPECT_TRUE(SameBits(x(i), expected(i)))
+            << "r = " << r << ", trial " << trial << ", x(" << i << ") = " << x(i) << " against Eigen's " << expected(i);
         ++compared;
       }
     }
@@ -118,7 +119,9 @@ TEST(SmallLu, ZeroPivotsAreReportedWithEigensValues) {
     Eigen::Vector3d x = b;
     EXPECT_FALSE(lu_solve_in_place(work, x, 3));
     const Eigen::VectorXd expected = EigenSolve(A, b);
-    for (int i = 0; i < 3; ++i) EXPECT_TRUE(SameBits(x(i), expected(i)) || (std::isnan(x(i)) && std::isnan(expected(i)))) << "x(" << i << ") = " << x(i) << ", Eigen " << expected(i);
+    for (int i = 0; i < 3; ++i)
+      EXPECT_TRUE(SameBits(x(i), expected(i)) || (std::isnan(x(i)) && std::isnan(expected(i))))
+          << "x(" << i << ") = " << x(i) << ", Eigen " << expected(i);
   }
 }
 

@@ -18,9 +18,7 @@ namespace {
 // proves r_k > 1.
 void ExpectRatioAsLabelled(const StepCheck& c, double ratio, int step) {
   switch (c.ratio_kind) {
-    case BoundKind::kExact:
-      EXPECT_NEAR(c.ratio(), ratio, 1e-10 * ratio) << "step " << step;
-      break;
+    case BoundKind::kExact: EXPECT_NEAR(c.ratio(), ratio, 1e-10 * ratio) << "step " << step; break;
     case BoundKind::kUpperBound:
       EXPECT_GE(c.ratio(), ratio * (1.0 - 1e-10)) << "step " << step;
       EXPECT_LE(c.ratio(), 1.0) << "step " << step;
@@ -125,7 +123,7 @@ TEST(StepConditions, CholeskyCertificatesAlongASmoothPath) {
   for (int k = 0; k < steps; ++k) {
     const double t = 1e-3 * k;
     Eigen::VectorXd d(n);
-    for (int i = 0; i < n; ++i) d(i) = 0.5 + i + 0.3 * std::sin(3.0 * t + i);  // lambda_min between 0.2 and 0.8
+    for (int i = 0; i < n; ++i) d(i) = 0.5 + i + 0.3 * std::sin(3.0 * t + i);         // lambda_min between 0.2 and 0.8
     const Eigen::MatrixXd R = Q * (I - 0.05 * t * S).inverse() * (I + 0.05 * t * S);  // Cayley: a rotation
     Eigen::MatrixXd M = R * d.asDiagonal() * R.transpose();
     M = 0.5 * (M + M.transpose()).eval();

@@ -111,8 +111,8 @@ TEST(Stress, TheTheorem42RuleShrinksTheStep) {
 // Theorem 4.1 (at its first step, where the arm moves fastest), and at five or ten times the speed the
 // Theorem 4.1 rule keeps every step inside it by shrinking h_k far below the scene's 1e-3.
 TEST(Stress, RobotCasesAreWhereTheySayTheyAre) {
-  const std::map<std::string, std::size_t> joints = {{"robot-iiwa-fixed-step", 7}, {"robot-iiwa-10x-speed", 7},
-                                                     {"robot-puma560-fixed-step", 6}, {"robot-puma560-5x-speed", 6}};
+  const std::map<std::string, std::size_t> joints = {
+      {"robot-iiwa-fixed-step", 7}, {"robot-iiwa-10x-speed", 7}, {"robot-puma560-fixed-step", 6}, {"robot-puma560-5x-speed", 6}};
   std::size_t checked = 0;
   for (const auto& c : stress_cases()) {
     if (!joints.count(c.name)) continue;

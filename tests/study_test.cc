@@ -137,8 +137,8 @@ TEST(Study, EveryRowCarriesItsRunsGuarantees) {
   models::Manipulator model;
   LagrangianTerms<2> terms;
   model.evaluate(0.0, Vec<2>(3.0, -1.0), Vec<2>(10.0, 10.0), terms);
-  const double r0 = 2.0 * 1.0 * Eigen::JacobiSVD<Mat<2>>(terms.C).singularValues()(0) /
-                    Eigen::SelfAdjointEigenSolver<Mat<2>>(terms.M).eigenvalues()(0);
+  const double r0 =
+      2.0 * 1.0 * Eigen::JacobiSVD<Mat<2>>(terms.C).singularValues()(0) / Eigen::SelfAdjointEigenSolver<Mat<2>>(terms.M).eigenvalues()(0);
   ASSERT_GT(r0, 1.0);
   StudySettings ms;
   ms.h = {1.0, 1e-3};

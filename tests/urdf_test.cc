@@ -136,7 +136,8 @@ TEST(Urdf, DoublePendulumTrajectoryEqualsTheExpressionScene) {
   ASSERT_EQ(a.states.size(), 1001u);
   double worst = 0.0;
   for (std::size_t k = 0; k < a.states.size(); ++k)
-    for (std::size_t i = 0; i < 4; ++i) worst = std::max(worst, std::abs(a.states[k][i] - b.states[k][i]) / (1.0 + std::abs(b.states[k][i])));
+    for (std::size_t i = 0; i < 4; ++i)
+      worst = std::max(worst, std::abs(a.states[k][i] - b.states[k][i]) / (1.0 + std::abs(b.states[k][i])));
   EXPECT_LT(worst, 1e-12);
   // The pendulum moved (the comparison is not between two resting states).
   EXPECT_GT(std::abs(b.states.back()[0] - b.states.front()[0]), 0.1);
@@ -376,15 +377,20 @@ TEST(Urdf, BadUrdfGetsAnErrorNamingTheElement) {
       // (shared pointers in a cycle), and a link with two parent joints on a loop sent the walk from the
       // root round it without end (a scene that never loaded).
       {"joint loop",
-       one_link(good, "revolute",
-                "<joint name=\"j2\" type=\"revolute\"><parent link=\"l1\"/><child link=\"base\"/><limit lower=\"-1\" upper=\"1\" effort=\"1\" "
-                "velocity=\"1\"/></joint>\n"),
+       one_link(
+           good, "revolute",
+           "<joint name=\"j2\" type=\"revolute\"><parent link=\"l1\"/><child link=\"base\"/><limit lower=\"-1\" upper=\"1\" effort=\"1\" "
+           "velocity=\"1\"/></joint>\n"),
        "the joints 'j1' (line 3), 'j2' (line 9) form a loop"},
       {"a link with two parent joints, on a loop",
        one_link(good, "revolute",
-                "<link name=\"b\">" + good + "</link>\n"
-                "<joint name=\"j2\" type=\"revolute\"><parent link=\"l1\"/><child link=\"b\"/>" + limit + "</joint>\n"
-                "<joint name=\"j3\" type=\"revolute\"><parent link=\"b\"/><child link=\"l1\"/>" + limit + "</joint>\n"),
+                "<link name=\"b\">" + good +
+                    "</link>\n"
+                    "<joint name=\"j2\" type=\"revolute\"><parent link=\"l1\"/><child link=\"b\"/>" +
+                    limit +
+                    "</joint>\n"
+                    "<joint name=\"j3\" type=\"revolute\"><parent link=\"b\"/><child link=\"l1\"/>" +
+                    limit + "</joint>\n"),
        "link 'l1' is the child of two joints, 'j1' (line 3) and 'j3' (line 11)"},
       {"a loop apart from the root",
        one_link(good, "revolute",
@@ -399,9 +405,11 @@ TEST(Urdf, BadUrdfGetsAnErrorNamingTheElement) {
        "nowhere"},
       {"revolute without limit",
        "<robot name=\"r\"><link name=\"base\"/><joint name=\"j1\" type=\"revolute\"><parent link=\"base\"/><child link=\"l1\"/></joint>"
-       "<link name=\"l1\">" + good + "</link></robot>",
+       "<link name=\"l1\">" +
+           good + "</link></robot>",
        "j1"},
-      {"inverted limit", one_link(good, "revolute").replace(one_link(good).find("lower=\"-1\" upper=\"1\""), 20, "lower=\"1\" upper=\"-1\""),
+      {"inverted limit",
+       one_link(good, "revolute").replace(one_link(good).find("lower=\"-1\" upper=\"1\""), 20, "lower=\"1\" upper=\"-1\""),
        "joint 'j1' (line 3): <limit> needs finite lower <= upper"},
       {"zero axis", one_link(good).replace(one_link(good).find("xyz=\"0 0 1\""), 11, "xyz=\"0 0 0\""), "joint 'j1' (line 3): <axis xyz>"},
   };
@@ -418,8 +426,9 @@ TEST(Urdf, HugeAndDeepUrdfAreRefusedBeforeParsing) {
   // A tree of 10,000 links: refused by count, with the line of the first link over the limit.
   std::string deep = "<robot name=\"r\">\n<link name=\"l0\"/>\n";
   for (int k = 1; k < 10000; ++k)
-    deep += "<joint name=\"j" + std::to_string(k) + "\" type=\"continuous\"><parent link=\"l" + std::to_string(k - 1) + "\"/><child link=\"l" +
-            std::to_string(k) + "\"/></joint>\n<link name=\"l" + std::to_string(k) + "\">" + inertial("1", "0.1 0.1 0.1") + "</link>\n";
+    deep += "<joint name=\"j" + std::to_string(k) + "\" type=\"continuous\"><parent link=\"l" + std::to_string(k - 1) +
+            "\"/><child link=\"l" + std::to_string(k) + "\"/></joint>\n<link name=\"l" + std::to_string(k) + "\">" +
+            inertial("1", "0.1 0.1 0.1") + "</link>\n";
   deep += "</robot>\n";
   EXPECT_NE(error_of(deep).find("more than 1024 links"), std::string::npos) << error_of(deep).substr(0, 200);
 }
@@ -434,7 +443,8 @@ TEST(Urdf, DeepXmlIsRefusedBeforeAnyRecursiveParser) {
     for (int k = 1; k < depth; ++k) text += "</a>";
     return text + "</robot>";
   };
-  EXPECT_EQ(error_of(nested(40000)).rfind("elements nested deeper than 64 levels (line 1)", 0), 0u) << error_of(nested(40000)).substr(0, 200);
+  EXPECT_EQ(error_of(nested(40000)).rfind("elements nested deeper than 64 levels (line 1)", 0), 0u)
+      << error_of(nested(40000)).substr(0, 200);
   EXPECT_EQ(error_of(nested(65)).rfind("elements nested deeper than 64 levels", 0), 0u);
   // 64 levels pass the shape check: what refuses this one is urdfdom (no link), not the depth.
   EXPECT_EQ(error_of(nested(64)).find("nested deeper"), std::string::npos) << error_of(nested(64));
@@ -457,7 +467,8 @@ TEST(Urdf, ProcessingInstructionsCannotHideNesting) {
   std::string hidden = "<robot name=\"r\"><?pi <a\"r\">";
   for (int k = 0; k < 40000; ++k) hidden += "<gazebo>";
   hidden += "?></robot>";
-  EXPECT_EQ(error_of(hidden).rfind("a processing instruction <?pi ...?> (line 1): processing instructions are not accepted in a URDF", 0), 0u)
+  EXPECT_EQ(error_of(hidden).rfind("a processing instruction <?pi ...?> (line 1): processing instructions are not accepted in a URDF", 0),
+            0u)
       << error_of(hidden).substr(0, 200);
   const std::string declared = "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n" + one_link(inertial("1", "0.1 0.1 0.1"));
   EXPECT_EQ(error_of(declared), "(no error)");
@@ -528,7 +539,8 @@ TEST(Urdf, SceneErrorsNameTheirField) {
   // With the limits as constraints, a start beyond one is refused; without them it is not.
   EXPECT_EQ(scene_error(with("/initial/q", std::vector<double>(7, 2.5))), "(no error)");
   doc["system"]["urdf"]["limits"] = {{"restitution", 0.5}};
-  EXPECT_EQ(scene_error(with("/initial/q", std::vector<double>(7, 2.5))).rfind("/initial/q: violates constraint 'iiwa_joint_2_upper'", 0), 0u)
+  EXPECT_EQ(scene_error(with("/initial/q", std::vector<double>(7, 2.5))).rfind("/initial/q: violates constraint 'iiwa_joint_2_upper'", 0),
+            0u)
       << scene_error(with("/initial/q", std::vector<double>(7, 2.5)));
 }
 

@@ -139,7 +139,8 @@ InputDistribution parse_distribution(const json& d, const std::string& ptr) {
       if (!c.is_number_integer() || c.get<std::int64_t>() < 2 || c.get<std::int64_t>() > 1'000'000)
         throw SceneError(ptr + "/count", "expected a whole number of points in [2, 1000000]");
       const auto n = c.get<std::int64_t>();
-      for (std::int64_t i = 0; i < n; ++i) r.values.push_back(r.low + (r.high - r.low) * static_cast<double>(i) / static_cast<double>(n - 1));
+      for (std::int64_t i = 0; i < n; ++i)
+        r.values.push_back(r.low + (r.high - r.low) * static_cast<double>(i) / static_cast<double>(n - 1));
     } else {
       throw SceneError(ptr, "a discrete distribution needs 'values'");
     }
@@ -276,7 +277,8 @@ CampaignSpec CampaignSpec::from_json(const json& spec, const std::string& base_d
     if (!in.is_object()) throw SceneError(ptr, "expected an object with 'path' and 'distribution'");
     only_fields(in, ptr, {"path", "distribution"});
     const json& path = member(in, ptr, "path");
-    if (!path.is_string() || path.get<std::string>().empty()) throw SceneError(ptr + "/path", "expected a scene path such as /parameters/m2");
+    if (!path.is_string() || path.get<std::string>().empty())
+      throw SceneError(ptr + "/path", "expected a scene path such as /parameters/m2");
     CampaignInput ci;
     ci.path = as_pointer(path.get<std::string>());
     json::json_pointer jp;
@@ -315,11 +317,16 @@ CampaignSpec CampaignSpec::from_json(const json& spec, const std::string& base_d
     if (!spec["sampler"].is_string()) throw SceneError("/sampler", "expected a string");
     sampler = spec["sampler"].get<std::string>();
   }
-  if (sampler == "monte-carlo") s.sampler = Sampler::kMonteCarlo;
-  else if (sampler == "latin-hypercube") s.sampler = Sampler::kLatinHypercube;
-  else if (sampler == "sobol") s.sampler = Sampler::kSobol;
-  else if (sampler == "grid") s.sampler = Sampler::kGrid;
-  else throw SceneError("/sampler", "unknown sampler '" + sampler + "' (monte-carlo, latin-hypercube, sobol, grid)");
+  if (sampler == "monte-carlo")
+    s.sampler = Sampler::kMonteCarlo;
+  else if (sampler == "latin-hypercube")
+    s.sampler = Sampler::kLatinHypercube;
+  else if (sampler == "sobol")
+    s.sampler = Sampler::kSobol;
+  else if (sampler == "grid")
+    s.sampler = Sampler::kGrid;
+  else
+    throw SceneError("/sampler", "unknown sampler '" + sampler + "' (monte-carlo, latin-hypercube, sobol, grid)");
 
   if (spec.contains("seed")) {
     const json& seed = spec["seed"];
@@ -334,7 +341,8 @@ CampaignSpec CampaignSpec::from_json(const json& spec, const std::string& base_d
     for (std::size_t k = 0; k < s.inputs.size(); ++k) {
       const auto& d = s.inputs[k].distribution;
       if (d.kind != InputDistribution::Kind::kGrid && d.kind != InputDistribution::Kind::kDiscrete)
-        throw SceneError("/inputs/" + std::to_string(k) + "/distribution", "the grid sampler needs a grid or discrete values for every input");
+        throw SceneError("/inputs/" + std::to_string(k) + "/distribution",
+                         "the grid sampler needs a grid or discrete values for every input");
       const auto n = static_cast<std::int64_t>(d.values.size());
       if (n > kMaxCampaignSamples / total)
         throw SceneError("/inputs", "the grid has more than " + std::to_string(kMaxCampaignSamples) + " points");
@@ -432,7 +440,8 @@ std::vector<double> CampaignDesign::unit_point(std::int64_t i) const {
       break;
     case Sampler::kLatinHypercube:
       for (std::size_t k = 0; k < d; ++k)
-        u[k] = (strata_[k][static_cast<std::size_t>(i)] + hashed_unit(spec_.seed, kLatinJitterStream, ui, k)) / static_cast<double>(spec_.samples);
+        u[k] = (strata_[k][static_cast<std::size_t>(i)] + hashed_unit(spec_.seed, kLatinJitterStream, ui, k)) /
+               static_cast<double>(spec_.samples);
       break;
     case Sampler::kSobol: {
       // The Sobol sequence from its origin: point 0 is (0, ..., 0) and point i >= 1 is Boost's (i-1)-th
@@ -544,7 +553,7 @@ CampaignStepBound campaign_step_bound(const CampaignSpec& spec, std::optional<st
     b.largest = b.base;
     b.largest_sample = spec.samples > 0 ? 0 : -1;
     b.total = b.base > 0 && spec.samples > std::numeric_limits<std::int64_t>::max() / b.base ? std::numeric_limits<std::int64_t>::max()
-                                                                                              : b.base * spec.samples;
+                                                                                             : b.base * spec.samples;
     b.stopped = false;
     return b;
   }
@@ -615,7 +624,8 @@ CampaignSampleRunner::CampaignSampleRunner(const CampaignSpec& spec, const Campa
   std::vector<std::string> free;
   for (const json::json_pointer& path : paths_) {
     const std::string parent = path.parent_pointer().to_string(), leaf = path.back();
-    const bool index = !leaf.empty() && leaf.size() < 4 && std::all_of(leaf.begin(), leaf.end(), [](char c) { return c >= '0' && c <= '9'; });
+    const bool index =
+        !leaf.empty() && leaf.size() < 4 && std::all_of(leaf.begin(), leaf.end(), [](char c) { return c >= '0' && c <= '9'; });
     if (parent == "/parameters" && spec.scene.at(path).is_number()) {
       targets_.push_back({Target::kParameter, static_cast<int>(free.size())});
       free.push_back(leaf);
@@ -881,10 +891,11 @@ json summarize_rows(const CampaignSpec& spec, const std::vector<CampaignOutcome>
                            std::isfinite(r.converged_time) ? r.converged_time : 0.0);
   };
   const std::size_t worst_count = std::min<std::size_t>(10, rows.size());
-  std::partial_sort(order.begin(), order.begin() + static_cast<std::ptrdiff_t>(worst_count), order.end(), [&](std::size_t a, std::size_t b) {
-    const auto ba = badness(rows[a]), bb = badness(rows[b]);
-    return ba != bb ? ba > bb : rows[a].index < rows[b].index;
-  });
+  std::partial_sort(order.begin(), order.begin() + static_cast<std::ptrdiff_t>(worst_count), order.end(),
+                    [&](std::size_t a, std::size_t b) {
+                      const auto ba = badness(rows[a]), bb = badness(rows[b]);
+                      return ba != bb ? ba > bb : rows[a].index < rows[b].index;
+                    });
   json worst = json::array();
   for (std::size_t k = 0; k < worst_count; ++k) {
     const CampaignOutcome& r = rows[order[k]];
@@ -893,7 +904,10 @@ json summarize_rows(const CampaignSpec& spec, const std::vector<CampaignOutcome>
     worst.push_back({{"index", r.index},
                      {"inputs", inputs},
                      {"success", r.success},
-                     {"outcome", r.failure_class == 3 ? "invalid" : r.failure_class == 2 ? "failed run" : r.success ? "succeeded" : "did not succeed"},
+                     {"outcome", r.failure_class == 3   ? "invalid"
+                                 : r.failure_class == 2 ? "failed run"
+                                 : r.success            ? "succeeded"
+                                                        : "did not succeed"},
                      {"converged_time", number_or_null(r.converged_time)},
                      {"target_distance", number_or_null(r.target_distance)}});
   }
@@ -950,14 +964,16 @@ std::string format_campaign_summary(const json& s) {
   o << line << "  success means " << s["success_means"].get<std::string>() << "\n";
   std::snprintf(line, sizeof line, "  converged %lld, failed runs %lld, invalid samples %lld, a hypothesis failed in %lld\n",
                 static_cast<long long>(s["converged"].get<std::int64_t>()), static_cast<long long>(s["failed_runs"].get<std::int64_t>()),
-                static_cast<long long>(s["invalid_samples"].get<std::int64_t>()), static_cast<long long>(s["hypothesis_failed"].get<std::int64_t>()));
+                static_cast<long long>(s["invalid_samples"].get<std::int64_t>()),
+                static_cast<long long>(s["hypothesis_failed"].get<std::int64_t>()));
   o << line;
   for (const char* key : {"convergence_time", "target_distance"}) {
     const json& q = s[key];
     if (q["count"] == 0) continue;
-    std::snprintf(line, sizeof line, "  %-16s min %.4g  p05 %.4g  p25 %.4g  median %.4g  p75 %.4g  p95 %.4g  max %.4g (%lld samples)\n", key,
-                  q["min"].get<double>(), q["p05"].get<double>(), q["p25"].get<double>(), q["p50"].get<double>(), q["p75"].get<double>(),
-                  q["p95"].get<double>(), q["max"].get<double>(), static_cast<long long>(q["count"].get<std::int64_t>()));
+    std::snprintf(line, sizeof line, "  %-16s min %.4g  p05 %.4g  p25 %.4g  median %.4g  p75 %.4g  p95 %.4g  max %.4g (%lld samples)\n",
+                  key, q["min"].get<double>(), q["p05"].get<double>(), q["p25"].get<double>(), q["p50"].get<double>(),
+                  q["p75"].get<double>(), q["p95"].get<double>(), q["max"].get<double>(),
+                  static_cast<long long>(q["count"].get<std::int64_t>()));
     o << line;
   }
   o << "  rank correlation (Spearman) with success / convergence time / target distance / max |q|:\n";
@@ -1018,7 +1034,8 @@ void for_each_record(const fs::path& file, CutLine cut, Each each) {
       } catch (const json::exception& e) {
         throw std::runtime_error(where + " is not a sample record (not JSON: " + e.what() + ")");
       }
-      if (!r.is_object() || !r.contains("index") || !r["index"].is_number_integer()) throw std::runtime_error(where + " is not a sample record (no index)");
+      if (!r.is_object() || !r.contains("index") || !r["index"].is_number_integer())
+        throw std::runtime_error(where + " is not a sample record (no index)");
       good_end += line.size() + 1;
       each(std::move(r), where);
     }
@@ -1057,10 +1074,14 @@ std::vector<fs::path> record_files(const fs::path& dir, SampleRange wanted) {
     std::set<std::string> complete, partial;
     for (const auto& e : fs::directory_iterator(dir / "parts")) {
       const std::string name = e.path().filename().string();
-      auto ends_with = [&](const std::string& suffix) { return name.size() > suffix.size() && name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0; };
+      auto ends_with = [&](const std::string& suffix) {
+        return name.size() > suffix.size() && name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0;
+      };
       if (const auto r = part_range(name); r && !wanted.overlaps(r->first, r->second)) continue;
-      if (ends_with(".jsonl")) complete.insert(name);
-      else if (ends_with(".jsonl.partial")) partial.insert(name.substr(0, name.size() - std::string(".partial").size()));
+      if (ends_with(".jsonl"))
+        complete.insert(name);
+      else if (ends_with(".jsonl.partial"))
+        partial.insert(name.substr(0, name.size() - std::string(".partial").size()));
     }
     // Sorted by name, the complete and the running parts together.
     std::set<std::string> names = complete;
@@ -1095,8 +1116,8 @@ std::string csv_row(const CampaignSpec& spec, const json& r, int dof) {
   std::string row = std::to_string(r["index"].get<std::int64_t>());
   const json inputs = r.contains("inputs") && r["inputs"].is_object() ? r["inputs"] : json::object();
   for (const auto& in : spec.inputs) row += "," + (inputs.contains(in.path) ? csv_cell(inputs[in.path]) : std::string());
-  for (const char* key : {"status", "success", "converged", "converged_time", "target_distance", "max_abs_q", "max_energy", "steps", "wall_seconds",
-                          "hypothesis_failed"})
+  for (const char* key : {"status", "success", "converged", "converged_time", "target_distance", "max_abs_q", "max_energy", "steps",
+                          "wall_seconds", "hypothesis_failed"})
     row += "," + (r.contains(key) ? csv_cell(r[key]) : std::string());
   if (r.contains("error") && r["error"].is_object()) {
     const json& e = r["error"];
@@ -1105,7 +1126,8 @@ std::string csv_row(const CampaignSpec& spec, const json& r, int dof) {
     row += ",";
   }
   const bool has_q = r.contains("final_q") && r["final_q"].is_array();
-  for (int i = 0; i < dof; ++i) row += "," + (has_q && static_cast<int>(r["final_q"].size()) > i ? csv_cell(r["final_q"][i]) : std::string());
+  for (int i = 0; i < dof; ++i)
+    row += "," + (has_q && static_cast<int>(r["final_q"].size()) > i ? csv_cell(r["final_q"][i]) : std::string());
   return row + "\n";
 }
 
@@ -1124,7 +1146,8 @@ void claim_campaign_directory(const CampaignSpec& spec, const std::string& dir_n
       throw std::runtime_error("'" + file.string() + "' is not a campaign spec: " + e.what());
     }
     if (held != spec.document)
-      throw std::runtime_error("'" + dir.string() + "' holds a different campaign (its campaign.json differs from this spec): use another directory");
+      throw std::runtime_error("'" + dir.string() +
+                               "' holds a different campaign (its campaign.json differs from this spec): use another directory");
     return;
   }
   // A name of this process's own: the tasks of a split campaign may all claim the directory at once (they
@@ -1173,8 +1196,7 @@ std::int64_t check_record(const CampaignSpec& spec, const CampaignDesign& design
                               " (a record of another campaign or an edited one; remove it, or run the campaign in another directory)");
   };
   const auto hash = r.find("spec_hash");
-  if (hash == r.end() || !hash->is_string())
-    throw bad("it has no spec_hash (records carry the hash of the spec they were run for)");
+  if (hash == r.end() || !hash->is_string()) throw bad("it has no spec_hash (records carry the hash of the spec they were run for)");
   if (hash->get<std::string>() != spec.hash)
     throw bad("its spec_hash " + quoted(*hash) + " is not this spec's \"" + spec.hash + "\" (campaign.json)");
   // The inputs exactly as drawn: a double is written with round-trip precision, so it reads back equal;
@@ -1188,8 +1210,8 @@ std::int64_t check_record(const CampaignSpec& spec, const CampaignDesign& design
     const json want = drawn[k].is_number_float() && !std::isfinite(drawn[k].get<double>()) ? json(nullptr) : drawn[k];
     const auto got = inputs->find(path);
     if (got == inputs->end() || *got != want)
-      throw bad("sample " + std::to_string(i) + "'s input " + path + " is " + (got == inputs->end() ? std::string("missing") : quoted(*got)) +
-                ", the sampler draws " + quoted(want) + " for it");
+      throw bad("sample " + std::to_string(i) + "'s input " + path + " is " +
+                (got == inputs->end() ? std::string("missing") : quoted(*got)) + ", the sampler draws " + quoted(want) + " for it");
   }
   // The outcome as the record's own fields define it (record_of): success means completed, converged and,
   // with a target, within its tolerance.
@@ -1200,15 +1222,16 @@ std::int64_t check_record(const CampaignSpec& spec, const CampaignDesign& design
   const auto converged = r.find("converged");
   if (converged != r.end() && !converged->is_boolean()) throw bad("its converged is not true or false");
   const auto distance = r.find("target_distance");
-  const bool within = spec.target_q.empty() ||
-                      (distance != r.end() && distance->is_number() && distance->get<double>() <= spec.target_tolerance);
+  const bool within =
+      spec.target_q.empty() || (distance != r.end() && distance->is_number() && distance->get<double>() <= spec.target_tolerance);
   const bool expected = *status == "completed" && converged != r.end() && converged->get<bool>() && within;
   if (success->get<bool>() != expected)
-    throw bad(std::string("its success is ") + (success->get<bool>() ? "true" : "false") + ", but its status, convergence and target distance make it " +
-              (expected ? "true" : "false"));
+    throw bad(std::string("its success is ") + (success->get<bool>() ? "true" : "false") +
+              ", but its status, convergence and target distance make it " + (expected ? "true" : "false"));
   const auto steps = r.find("steps");
   if (steps == r.end()) return 0;
-  if (!steps->is_number_integer() || steps->get<std::int64_t>() < 0) throw bad("its steps " + quoted(*steps) + " is not a whole number >= 0");
+  if (!steps->is_number_integer() || steps->get<std::int64_t>() < 0)
+    throw bad("its steps " + quoted(*steps) + " is not a whole number >= 0");
   return steps->get<std::int64_t>();
 }
 
@@ -1234,11 +1257,13 @@ std::vector<CampaignOutcome> load_rows(const CampaignSpec& spec, const CampaignD
     for_each_record(file, file == own ? CutLine::kRepair : others, [&](json&& r, const std::string& where) {
       const auto i = r["index"].get<std::int64_t>();
       if (i < 0 || i >= spec.samples)
-        throw std::runtime_error(where + " holds sample " + std::to_string(i) + ", outside the campaign's " +
-                                 std::to_string(spec.samples) + " samples");
+        throw std::runtime_error(where + " holds sample " + std::to_string(i) + ", outside the campaign's " + std::to_string(spec.samples) +
+                                 " samples");
       if (!wanted.contains(i)) return;
       const std::int64_t record_steps = check_record(spec, design, r, i, where);
-      if (steps) *steps = record_steps > std::numeric_limits<std::int64_t>::max() - *steps ? std::numeric_limits<std::int64_t>::max() : *steps + record_steps;
+      if (steps)
+        *steps = record_steps > std::numeric_limits<std::int64_t>::max() - *steps ? std::numeric_limits<std::int64_t>::max()
+                                                                                  : *steps + record_steps;
       if (present[static_cast<std::size_t>(i)])
         throw std::runtime_error("sample " + std::to_string(i) + " is present twice (the second time in '" + file.string() + "')");
       present[static_cast<std::size_t>(i)] = true;
@@ -1278,7 +1303,7 @@ CampaignRunResult run_campaign(const CampaignSpec& spec, const std::string& dir_
   }
   const CampaignDesign design(spec);
   std::vector<bool> done;
-  std::int64_t present = 0;  // samples with a record before this run
+  std::int64_t present = 0;       // samples with a record before this run
   std::int64_t steps_before = 0;  // the steps of their records
   CampaignRunResult result;
   if (task) {
@@ -1333,7 +1358,8 @@ CampaignRunResult run_campaign(const CampaignSpec& spec, const std::string& dir_
   std::int64_t finished = result.skipped;
   // The limit is on what the records and the table take on disk, so what a stopped run left there counts:
   // a campaign resumed any number of times (a restarted server goes on from its records) stays within it.
-  std::int64_t written_bytes = static_cast<std::int64_t>(fs::file_size(own)) + (task ? 0 : static_cast<std::int64_t>(fs::file_size(dir / "samples.csv")));
+  std::int64_t written_bytes =
+      static_cast<std::int64_t>(fs::file_size(own)) + (task ? 0 : static_cast<std::int64_t>(fs::file_size(dir / "samples.csv")));
   std::atomic<bool> failed{false};
   auto work = [&] {
     CampaignSampleRunner runner(spec, design, options.max_steps);
@@ -1346,9 +1372,9 @@ CampaignRunResult run_campaign(const CampaignSpec& spec, const std::string& dir_
         // records are written (their steps are taken), then the run ends with the reason.
         std::lock_guard lock(write_mu);
         if (step_limit.empty())
-          step_limit = "the campaign reached the limit of " + std::to_string(options.max_total_steps) + " integration steps (its samples ran " +
-                       std::to_string(steps_so_far.load()) + ") with samples still to run, from sample " + std::to_string(i) +
-                       "; the records of the finished samples are kept";
+          step_limit = "the campaign reached the limit of " + std::to_string(options.max_total_steps) +
+                       " integration steps (its samples ran " + std::to_string(steps_so_far.load()) +
+                       ") with samples still to run, from sample " + std::to_string(i) + "; the records of the finished samples are kept";
         failed = true;
         return;
       }
@@ -1395,7 +1421,8 @@ CampaignRunResult run_campaign(const CampaignSpec& spec, const std::string& dir_
     }
   };
   const std::int64_t todo = (end - begin) - result.skipped;
-  const int workers = static_cast<int>(std::clamp<std::int64_t>(options.workers, 1, std::min<std::int64_t>(kMaxCampaignWorkers, std::max<std::int64_t>(1, todo))));
+  const int workers = static_cast<int>(
+      std::clamp<std::int64_t>(options.workers, 1, std::min<std::int64_t>(kMaxCampaignWorkers, std::max<std::int64_t>(1, todo))));
   {
     struct Joiner {
       std::vector<std::thread> threads;

@@ -10,7 +10,7 @@
 namespace moreau::scene {
 namespace detail {
 extern const std::string_view kIiwa14ControllerScene;   // scenes/iiwa14-controller.json (shipped_robot.cc.in)
-extern const std::string_view kIiwa14Urdf;               // scenes/robots/kuka-iiwa14.urdf
+extern const std::string_view kIiwa14Urdf;              // scenes/robots/kuka-iiwa14.urdf
 extern const std::string_view kPuma560ControllerScene;  // scenes/puma560-controller.json
 extern const std::string_view kPuma560Urdf;             // scenes/robots/puma560.urdf
 }  // namespace detail

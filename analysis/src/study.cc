@@ -669,7 +669,8 @@ std::string guarantees_summary_text(const StudyResult& r) {
   // The first hypothesis of `g` (one guarantee's JSON) with verdict `v`, as "name: detail".
   auto first_with = [](const nlohmann::json& g, const std::string& v) {
     for (const auto& x : g.value("hypotheses", nlohmann::json::array()))
-      if (x.value("verdict", "") == v) return x.value("hypothesis", "") + (x.value("detail", "").empty() ? "" : ": " + x.value("detail", ""));
+      if (x.value("verdict", "") == v)
+        return x.value("hypothesis", "") + (x.value("detail", "").empty() ? "" : ": " + x.value("detail", ""));
     return std::string();
   };
   std::vector<StudyScheme> schemes;

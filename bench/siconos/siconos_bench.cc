@@ -148,8 +148,10 @@ SP::MoreauJeanOSI RelayMoreauJean(double theta) {
 void Finish(Built& b, const Options& o, SP::OneStepIntegrator osi, SP::OneStepNSProblem osnspb) {
   auto td = std::make_shared<TimeDiscretisation>(0.0, o.h);
   b.sim = std::make_shared<TimeStepping>(b.nsds, td, osi, osnspb);
-  if (o.newton == "linear") b.sim->setNewtonOptions(SICONOS_TS_LINEAR);
-  else if (o.newton != "nonlinear") throw std::runtime_error("--newton is nonlinear or linear");
+  if (o.newton == "linear")
+    b.sim->setNewtonOptions(SICONOS_TS_LINEAR);
+  else if (o.newton != "nonlinear")
+    throw std::runtime_error("--newton is nonlinear or linear");
   if (!std::isnan(o.tol)) b.sim->setNewtonTolerance(o.tol);
   b.sim->initialize();
 }
@@ -329,15 +331,24 @@ int main(int argc, char** argv) {
       }
       return argv[++i];
     };
-    if (a == "--h") o.h = std::stod(next());
-    else if (a == "--t-end") o.t_end = std::stod(next());
-    else if (a == "--reps") o.reps = std::stoi(next());
-    else if (a == "--csv") o.csv = next();
-    else if (a == "--every") o.every = std::stoi(next());
-    else if (a == "--theta") o.theta = std::stod(next());
-    else if (a == "--solver") o.solver = next();
-    else if (a == "--newton") o.newton = next();
-    else if (a == "--tol") o.tol = std::stod(next());
+    if (a == "--h")
+      o.h = std::stod(next());
+    else if (a == "--t-end")
+      o.t_end = std::stod(next());
+    else if (a == "--reps")
+      o.reps = std::stoi(next());
+    else if (a == "--csv")
+      o.csv = next();
+    else if (a == "--every")
+      o.every = std::stoi(next());
+    else if (a == "--theta")
+      o.theta = std::stod(next());
+    else if (a == "--solver")
+      o.solver = next();
+    else if (a == "--newton")
+      o.newton = next();
+    else if (a == "--tol")
+      o.tol = std::stod(next());
     else {
       Usage();
       return 2;
@@ -389,14 +400,12 @@ int main(int argc, char** argv) {
     }
     std::ostringstream js;
     js.precision(10);
-    js << "{\"workload\": \"" << o.workload << "\", \"h\": " << o.h << ", \"t_end\": " << o.t_end
-       << ", \"theta\": " << o.theta << ", \"solver\": \"" << o.solver << "\", \"newton\": \"" << o.newton
-       << "\", \"steps\": " << steps << ", \"reps\": " << o.reps;
+    js << "{\"workload\": \"" << o.workload << "\", \"h\": " << o.h << ", \"t_end\": " << o.t_end << ", \"theta\": " << o.theta
+       << ", \"solver\": \"" << o.solver << "\", \"newton\": \"" << o.newton << "\", \"steps\": " << steps << ", \"reps\": " << o.reps;
     if (!step_ns.empty()) {
-      js << ", \"ns_per_step\": " << Median(step_ns)
-         << ", \"ns_per_step_min\": " << *std::min_element(step_ns.begin(), step_ns.end())
-         << ", \"ns_per_step_max\": " << *std::max_element(step_ns.begin(), step_ns.end())
-         << ", \"setup_us\": " << Median(setup_us) << ", \"newton_iterations\": " << newton_total << ", \"final\": [";
+      js << ", \"ns_per_step\": " << Median(step_ns) << ", \"ns_per_step_min\": " << *std::min_element(step_ns.begin(), step_ns.end())
+         << ", \"ns_per_step_max\": " << *std::max_element(step_ns.begin(), step_ns.end()) << ", \"setup_us\": " << Median(setup_us)
+         << ", \"newton_iterations\": " << newton_total << ", \"final\": [";
       for (size_t i = 0; i < final_state.size(); ++i) js << (i ? ", " : "") << final_state[i];
       js << "]";
     }

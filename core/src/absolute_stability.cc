@@ -150,9 +150,9 @@ std::vector<double> crossing_candidates(const Eigen::MatrixXd& A, const Eigen::M
   Eigen::MatrixXd M = Eigen::MatrixXd::Zero(d, d), N = Eigen::MatrixXd::Zero(d, d);
   M.block(0, 0, n, n) = A;
   M.block(n, n, n, n) = -A.transpose();
-  M.block(0, 2 * n, n, m) = B;                        // B_P = [B; C^T]
+  M.block(0, 2 * n, n, m) = B;  // B_P = [B; C^T]
   M.block(n, 2 * n, n, m) = C.transpose();
-  M.block(2 * n, 0, m, n) = -C;                       // -C_P = -[C, -B^T]
+  M.block(2 * n, 0, m, n) = -C;  // -C_P = -[C, -B^T]
   M.block(2 * n, n, m, n) = B.transpose();
   N.topLeftCorner(2 * n, 2 * n).setIdentity();
   Eigen::GeneralizedEigenSolver<Eigen::MatrixXd> ges(M, N, false);
@@ -307,9 +307,7 @@ PositiveRealnessTest test_strict_positive_realness(const Eigen::MatrixXd& A, con
     r.min_frequency_eigenvalue = fmin;
     r.argmin_omega = wmin;
     r.frequency_tolerance = tmin;
-    r.frequency = r.witness_omega >= 0.0                ? Verdict::kFails
-                  : undetermined || !qz_converged ? Verdict::kUndetermined
-                                                  : Verdict::kHolds;
+    r.frequency = r.witness_omega >= 0.0 ? Verdict::kFails : undetermined || !qz_converged ? Verdict::kUndetermined : Verdict::kHolds;
   } else {
     r.frequency = Verdict::kNotChecked;
   }
@@ -319,11 +317,11 @@ PositiveRealnessTest test_strict_positive_realness(const Eigen::MatrixXd& A, con
   if (r.hurwitz == Verdict::kFails) {
     r.witness = format("A is not Hurwitz: an eigenvalue has real part %.6g >= 0", r.spectral_abscissa);
   } else if (r.frequency == Verdict::kFails) {
-    r.witness = format("G(jw) + G(jw)^H is not positive definite at w = %.9g: (1 + (w/wc)^2) lambda_min = %.6g", r.witness_omega,
-                       r.witness_value);
+    r.witness =
+        format("G(jw) + G(jw)^H is not positive definite at w = %.9g: (1 + (w/wc)^2) lambda_min = %.6g", r.witness_omega, r.witness_value);
   } else if (r.cb == Verdict::kFails) {
     r.witness = r.cb_asymmetry > 100.0 * (n + 1) * kEps ? format("CB is not symmetric (relative asymmetry %.3g)", r.cb_asymmetry)
-                                                         : format("CB is not positive definite: lambda_min(CB) = %.6g", r.cb_min_eigenvalue);
+                                                        : format("CB is not positive definite: lambda_min(CB) = %.6g", r.cb_min_eigenvalue);
   } else if (r.high_frequency == Verdict::kFails) {
     r.witness = format("-(CAB + (CAB)^T) is not positive definite (lambda_min = %.6g): G(jw) + G(jw)^H < 0 for large w",
                        r.high_frequency_min_eigenvalue);

@@ -197,8 +197,8 @@ void mass_matrix(const RigidBodyModel& model, RigidBodyData& data, const double*
   }
 }
 
-void rigid_body_terms(const RigidBodyModel& model, RigidBodyData& data, const double* q, const double* v,
-                      Eigen::Ref<Eigen::MatrixXd> M, Eigen::Ref<Eigen::MatrixXd> C, Eigen::Ref<Eigen::VectorXd> G) {
+void rigid_body_terms(const RigidBodyModel& model, RigidBodyData& data, const double* q, const double* v, Eigen::Ref<Eigen::MatrixXd> M,
+                      Eigen::Ref<Eigen::MatrixXd> C, Eigen::Ref<Eigen::VectorXd> G) {
   update_kinematics(model, data, q, v);
   const int n = model.dof();
   // Each body's own inertia, momentum I_i V_i and T_i (twice_symmetric_part); then the sums over subtrees.

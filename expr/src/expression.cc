@@ -620,15 +620,25 @@ bool Graph::smooth_everywhere(Node f) const {
   // True unless some reachable operation is smooth only on a domain, or not smooth.
   return !any_reachable(f, [this](const Entry& e) {
     switch (e.op) {
-      case Op::kConst: case Op::kVar: case Op::kAdd: case Op::kSub: case Op::kMul: case Op::kNeg: case Op::kSin:
-      case Op::kCos: case Op::kAtan: case Op::kSinh: case Op::kCosh: case Op::kTanh: case Op::kExp: case Op::kSquare:
-        return false;
+      case Op::kConst:
+      case Op::kVar:
+      case Op::kAdd:
+      case Op::kSub:
+      case Op::kMul:
+      case Op::kNeg:
+      case Op::kSin:
+      case Op::kCos:
+      case Op::kAtan:
+      case Op::kSinh:
+      case Op::kCosh:
+      case Op::kTanh:
+      case Op::kExp:
+      case Op::kSquare: return false;
       case Op::kPow: {  // smooth for a constant non-negative integer exponent only
         const Entry& exponent = nodes_[static_cast<std::size_t>(e.b)];
         return exponent.op != Op::kConst || !(exponent.value >= 0.0) || exponent.value != std::floor(exponent.value);
       }
-      default:
-        return true;
+      default: return true;
     }
   });
 }
@@ -879,10 +889,11 @@ Tape Tape::compile(const Graph& graph, const std::vector<Node>& outputs, int num
       if (c >= 0) ++uses[static_cast<std::size_t>(c)];
   }
   for (Node out : outputs) ++uses[static_cast<std::size_t>(out)];
-  std::vector<Graph::Entry> added;  // -c for a bound c
+  std::vector<Graph::Entry> added;          // -c for a bound c
   std::unordered_map<Node, Node> negation;  // c -> -c, the graph's own node where it has one
   for (Node n : order)
-    if (bound[static_cast<std::size_t>(n)] && entries[static_cast<std::size_t>(n)].op == Op::kNeg) negation.emplace(entries[static_cast<std::size_t>(n)].a, n);
+    if (bound[static_cast<std::size_t>(n)] && entries[static_cast<std::size_t>(n)].op == Op::kNeg)
+      negation.emplace(entries[static_cast<std::size_t>(n)].a, n);
   auto negation_of = [&](Node c) {
     // -(-u) = u
     const Graph::Entry& ec = c < first_added ? entries[static_cast<std::size_t>(c)] : added[static_cast<std::size_t>(c - first_added)];
@@ -992,7 +1003,8 @@ Tape Tape::compile(const Graph& graph, const std::vector<Node>& outputs, int num
   for (Node n : bound_order) {
     const Graph::Entry& e = entry_of(n);
     if (e.op == Op::kVar) tape.param_regs_.emplace_back(reg_of(n), e.slot - num_slots);
-    if (e.op != Op::kVar && e.op != Op::kConst) tape.bind_code_.push_back(BoundInstr{e.op, reg_of(e.a), reg_of(e.b), reg_of(e.c), reg_of(e.d), reg_of(n)});
+    if (e.op != Op::kVar && e.op != Op::kConst)
+      tape.bind_code_.push_back(BoundInstr{e.op, reg_of(e.a), reg_of(e.b), reg_of(e.c), reg_of(e.d), reg_of(n)});
   }
   for (Node n : order) {
     const Graph::Entry& e = entries[static_cast<std::size_t>(n)];
@@ -1019,7 +1031,7 @@ Tape Tape::compile(const Graph& graph, const std::vector<Node>& outputs, int num
     tape.code_.push_back(in);
   };
   for (Node n : order) {
-    if (reg[static_cast<std::size_t>(n)] >= 0) continue;  // a leaf, or the cos half of a fused pair
+    if (reg[static_cast<std::size_t>(n)] >= 0) continue;   // a leaf, or the cos half of a fused pair
     if (uses[static_cast<std::size_t>(n)] == 0) continue;  // rewritten away, or computed by another node
     const Graph::Entry& e = entries[static_cast<std::size_t>(n)];
     if (e.op == Op::kSin || e.op == Op::kCos) {
@@ -1096,7 +1108,8 @@ void Tape::wire(const Wiring& wiring) {
     inputs.push_back({static_cast<std::int32_t>(constants_.size() + k), wiring.inputs[slot].array, wiring.inputs[slot].index});
   }
   if (wiring.outputs.size() < output_regs_.size())
-    throw std::invalid_argument("the wiring places " + std::to_string(wiring.outputs.size()) + " outputs of " + std::to_string(output_regs_.size()));
+    throw std::invalid_argument("the wiring places " + std::to_string(wiring.outputs.size()) + " outputs of " +
+                                std::to_string(output_regs_.size()));
   for (std::size_t j = 0; j < output_regs_.size(); ++j)
     for (const Place& p : wiring.outputs[j]) outputs.push_back({output_regs_[j], p.array, p.index});
   wired_inputs_ = std::move(inputs);

@@ -455,7 +455,6 @@ Image rasterize_with_opengl(const Scene& scene) {
 // The entry point the loader (gl_loader.cc) looks up: this file is built as its own shared module, so
 // that OSMesa and LLVM are loaded only by a process that draws a PNG.
 extern "C" __attribute__((visibility("default"))) int moreau_render_gl_rasterize(const moreau::render::detail::Scene* scene,
-                                                                                 moreau::render::Image* image,
-                                                                                 std::string* error) {
+                                                                                 moreau::render::Image* image, std::string* error) {
   return moreau::render::detail::module_entry(error, [&] { *image = moreau::render::detail::rasterize_with_opengl(*scene); });
 }

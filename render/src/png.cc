@@ -109,15 +109,13 @@ Image decode_png_with_libpng(std::span<const std::uint8_t> data) {
 
 // Entry points of the raster module (gl_loader.cc, backends.h's module_entry).
 extern "C" __attribute__((visibility("default"))) int moreau_render_gl_encode_png(const moreau::render::Image* image,
-                                                                                 const moreau::render::PngOptions* options,
-                                                                                 std::vector<std::uint8_t>* out,
-                                                                                 std::string* error) {
+                                                                                  const moreau::render::PngOptions* options,
+                                                                                  std::vector<std::uint8_t>* out, std::string* error) {
   return moreau::render::detail::module_entry(error, [&] { *out = moreau::render::encode_png_with_libpng(*image, *options); });
 }
 
 extern "C" __attribute__((visibility("default"))) int moreau_render_gl_decode_png(const std::uint8_t* data, std::size_t size,
-                                                                                 moreau::render::Image* image,
-                                                                                 std::string* error) {
+                                                                                  moreau::render::Image* image, std::string* error) {
   return moreau::render::detail::module_entry(
       error, [&] { *image = moreau::render::decode_png_with_libpng(std::span<const std::uint8_t>(data, size)); });
 }

@@ -25,7 +25,9 @@ std::string xml_text(std::string_view s) {
         case '<': out += "&lt;"; break;
         case '>': out += "&gt;"; break;
         case '"': out += "&quot;"; break;
-        case '\t': case '\n': case '\r': out += static_cast<char>(c); break;
+        case '\t':
+        case '\n':
+        case '\r': out += static_cast<char>(c); break;
         default:
           if (c < 0x20 || c == 0x7F)
             out += kReplacement;

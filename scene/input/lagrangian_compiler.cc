@@ -63,7 +63,8 @@ std::string joint_line(const std::string& text, const std::string& name) {
       if (attribute == "type") typed = true;
       a = close + 1;
     }
-    if (typed && value == name) return " (line " + std::to_string(1 + std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(j), '\n')) + ")";
+    if (typed && value == name)
+      return " (line " + std::to_string(1 + std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(j), '\n')) + ")";
   }
 }
 
@@ -80,7 +81,8 @@ class LagrangianCompiler : SceneReader {
   // smooth everywhere (Assumption 3.3, Graph::smooth_everywhere) depends on p's value then.
   bool free_parameter_in_an_exponent() const {
     return std::any_of(g_.begin(), g_.end(), [this](Node f) {
-      return graph_.any_reachable(f, [this](const expr::Graph::Entry& e) { return e.op == Op::kPow && !graph_.is_constant(e.b) && bound_only(e.b); });
+      return graph_.any_reachable(
+          f, [this](const expr::Graph::Entry& e) { return e.op == Op::kPow && !graph_.is_constant(e.b) && bound_only(e.b); });
     });
   }
   // check_at_initial_state for a binding of the free parameters.
@@ -91,9 +93,10 @@ class LagrangianCompiler : SceneReader {
     if (robot_) {
       for (const char* field : {"mass", "coordinates", "coriolis", "potential_gradient"})
         if (system.contains(field))
-          throw SceneError(std::string("/system/") + field, std::string("a URDF system takes its ") +
-                                                                (std::string(field) == "coordinates" ? "coordinates (the joints)" : "dynamics") +
-                                                                " from the robot model; remove '" + field + "'");
+          throw SceneError(std::string("/system/") + field,
+                           std::string("a URDF system takes its ") +
+                               (std::string(field) == "coordinates" ? "coordinates (the joints)" : "dynamics") +
+                               " from the robot model; remove '" + field + "'");
       n_ = robot_->model.dof();
       if (n_ > kMaxDof)
         throw SceneError("/system/urdf", "more than " + std::to_string(kMaxDof) + " moving joints (got " + std::to_string(n_) + ")");
@@ -111,16 +114,17 @@ class LagrangianCompiler : SceneReader {
       if (const auto conflict = column_name_conflict(names, "coordinate")) {
         const std::string& joint = robot_->model.bodies[conflict->index].joint_name;
         const std::string& q = names[conflict->index];
-        throw SceneError("/system/urdf/text", "joint '" + utf8_prefix(joint, 200) + "'" + joint_line(system["urdf"]["text"].get<std::string>(), joint) +
+        throw SceneError("/system/urdf/text", "joint '" + utf8_prefix(joint, 200) + "'" +
+                                                  joint_line(system["urdf"]["text"].get<std::string>(), joint) +
                                                   (q == joint ? "" : " gives the coordinate name '" + q + "'") + ": " + conflict->reason);
       }
       for (int i = 0; i < n_; ++i) {
         const std::string& q = names[static_cast<std::size_t>(i)];
         for (const std::string& name : {q, q + "_dot"})
           if (params_.count(name))
-            throw SceneError("/parameters/" + json_pointer_token(name), "'" + name + "' is also the name of a coordinate or velocity (joint '" +
-                                                                            utf8_prefix(robot_->model.bodies[static_cast<std::size_t>(i)].joint_name, 200) +
-                                                                            "' of the URDF)");
+            throw SceneError("/parameters/" + json_pointer_token(name),
+                             "'" + name + "' is also the name of a coordinate or velocity (joint '" +
+                                 utf8_prefix(robot_->model.bodies[static_cast<std::size_t>(i)].joint_name, 200) + "' of the URDF)");
         coord_names_.push_back(q);
         vel_names_.push_back(q + "_dot");
         coord_slot_[q] = 1 + i;
@@ -176,8 +180,9 @@ class LagrangianCompiler : SceneReader {
     require_object(u, "/system/urdf");
     check_fields(u, "/system/urdf", {"text", "file", "root", "tip", "gravity", "friction", "limits"});
     if (u.contains("file"))
-      throw SceneError("/system/urdf/file", "a URDF file is read when the scene is read from a file (moreau run, moreau submit); "
-                                            "a scene sent as JSON carries the URDF itself in 'text'");
+      throw SceneError("/system/urdf/file",
+                       "a URDF file is read when the scene is read from a file (moreau run, moreau submit); "
+                       "a scene sent as JSON carries the URDF itself in 'text'");
     if (!u.contains("text") || !u["text"].is_string()) throw SceneError("/system/urdf", "missing 'text' (the URDF) or 'file' (its path)");
     UrdfSelection sel;
     for (const char* field : {"root", "tip"}) {
@@ -214,7 +219,8 @@ class LagrangianCompiler : SceneReader {
       }
       return;
     }
-    if (!f.is_object()) throw SceneError(ptr, "expected \"urdf\" (the URDF's <dynamics>) or {\"viscous\": [...], \"coulomb\": [...]}, got " + brief(f));
+    if (!f.is_object())
+      throw SceneError(ptr, "expected \"urdf\" (the URDF's <dynamics>) or {\"viscous\": [...], \"coulomb\": [...]}, got " + brief(f));
     check_fields(f, ptr, {"viscous", "coulomb"});
     for (const char* field : {"viscous", "coulomb"}) {
       if (!f.contains(field)) continue;
@@ -240,7 +246,8 @@ class LagrangianCompiler : SceneReader {
     double e = 0.0;
     if (l.contains("restitution")) {
       e = constant(l["restitution"], ptr + "/restitution");
-      if (!(e >= 0.0 && e <= 1.0)) throw SceneError(ptr + "/restitution", "must be in [0, 1] (Newton's impact law U+ = -e U-), got " + format(e));
+      if (!(e >= 0.0 && e <= 1.0))
+        throw SceneError(ptr + "/restitution", "must be in [0, 1] (Newton's impact law U+ = -e U-), got " + format(e));
     }
     std::set<int> chosen;
     if (l.contains("joints")) {
@@ -688,7 +695,9 @@ class LagrangianCompiler : SceneReader {
     for (const auto& flat : targets) {
       auto& places = w.outputs.emplace_back();
       for (int k : flat)
-        places.push_back(k < nn ? Place{CompiledLagrangian::kMass, k} : k < 2 * nn ? Place{CompiledLagrangian::kCoriolis, k - nn} : Place{CompiledLagrangian::kForce, k - 2 * nn});
+        places.push_back(k < nn       ? Place{CompiledLagrangian::kMass, k}
+                         : k < 2 * nn ? Place{CompiledLagrangian::kCoriolis, k - nn}
+                                      : Place{CompiledLagrangian::kForce, k - 2 * nn});
     }
     return w;
   }
@@ -819,10 +828,10 @@ class LagrangianCompiler : SceneReader {
   std::vector<Node> gradient_, force_;  // grad V and F alone (constant 0 when absent)
   Node potential_ = -1;
   bool constant_mass_ = true;
-  std::vector<Node> gaps_, gap_gradients_;  // h_i(q) and dh_i/dq_j (row-major)
+  std::vector<Node> gaps_, gap_gradients_;                 // h_i(q) and dh_i/dq_j (row-major)
   std::optional<expr::Tape> check_tape_, gap_check_tape_;  // check_at_initial_state's
-  std::vector<double> free_values_;  // the free parameters' values as the document gives them
-  std::shared_ptr<UrdfRobot> robot_;        // a URDF system's robot (/system/urdf)
+  std::vector<double> free_values_;                        // the free parameters' values as the document gives them
+  std::shared_ptr<UrdfRobot> robot_;                       // a URDF system's robot (/system/urdf)
 };
 
 LagrangianScene LagrangianCompiler::compile() {
@@ -838,10 +847,12 @@ LagrangianScene LagrangianCompiler::compile() {
   // Reached only where a Lagrangian system is required (studies); everything else loads a scene of either
   // kind through Simulation.
   if (type == "lure")
-    throw SceneError("/system/type", "studies compare schemes for Lagrangian systems; a Lur'e system (\"lure\") has one scheme: run it instead");
+    throw SceneError("/system/type",
+                     "studies compare schemes for Lagrangian systems; a Lur'e system (\"lure\") has one scheme: run it instead");
   if (type != "lagrangian") throw SceneError("/system/type", "unknown system type '" + type + "' (expected: lagrangian, lure)");
-  check_fields(system, "/system",
-               {"type", "coordinates", "mass", "coriolis", "potential", "potential_gradient", "force", "controller", "constraints", "urdf"});
+  check_fields(
+      system, "/system",
+      {"type", "coordinates", "mass", "coriolis", "potential", "potential_gradient", "force", "controller", "constraints", "urdf"});
   if (system.contains("urdf")) urdf(system);
   coordinates(system);
   check_all_parameters();
@@ -886,9 +897,9 @@ LagrangianScene load_scene(const nlohmann::json& doc) {
 
 struct ParametricLagrangianScene::Impl {
   explicit Impl(const nlohmann::json& d) : doc(d), compiler(doc) {}
-  const nlohmann::json doc;      // the compiler reads it by reference
-  LagrangianCompiler compiler;   // its graph and check tapes serve every binding
-  LagrangianScene nominal;       // tapes unbound
+  const nlohmann::json doc;     // the compiler reads it by reference
+  LagrangianCompiler compiler;  // its graph and check tapes serve every binding
+  LagrangianScene nominal;      // tapes unbound
   std::size_t num_free = 0;
   // The compiled model and exact-solution tape of the latest binding: bound again in place by the next
   // one when nothing else holds them any more (the previous sample's simulation is gone), instead of
@@ -918,11 +929,13 @@ ParametricLagrangianScene::ParametricLagrangianScene(const nlohmann::json& doc, 
   const LagrangianScene& kept = impl_->nominal;
   const bool same = folded.forces_smooth_everywhere == kept.forces_smooth_everywhere &&
                     folded.force_depends_on_time == kept.force_depends_on_time && folded.has_force == kept.has_force &&
-                    folded.compiled->constant_mass == kept.compiled->constant_mass && folded.compiled->bandwidth == kept.compiled->bandwidth &&
-                    folded.settings.bandwidth == kept.settings.bandwidth && folded.scheme == kept.scheme;
+                    folded.compiled->constant_mass == kept.compiled->constant_mass &&
+                    folded.compiled->bandwidth == kept.compiled->bandwidth && folded.settings.bandwidth == kept.settings.bandwidth &&
+                    folded.scheme == kept.scheme;
   if (!same || impl_->compiler.free_parameter_in_an_exponent())
-    throw SceneError("/parameters", "these parameters cannot be left free: what the compiler decides from the expressions' structure "
-                                    "(smoothness, time dependence, constant mass, band) would depend on their values");
+    throw SceneError("/parameters",
+                     "these parameters cannot be left free: what the compiler decides from the expressions' structure "
+                     "(smoothness, time dependence, constant mass, band) would depend on their values");
 }
 
 ParametricLagrangianScene::~ParametricLagrangianScene() = default;
@@ -930,7 +943,8 @@ ParametricLagrangianScene::ParametricLagrangianScene(ParametricLagrangianScene&&
 
 const LagrangianScene& ParametricLagrangianScene::nominal() const { return impl_->nominal; }
 
-LagrangianScene ParametricLagrangianScene::bind(const std::vector<double>& values, const std::vector<double>& q0, const std::vector<double>& v0) {
+LagrangianScene ParametricLagrangianScene::bind(const std::vector<double>& values, const std::vector<double>& q0,
+                                                const std::vector<double>& v0) {
   const LagrangianScene& base = impl_->nominal;
   if (values.size() != impl_->num_free) throw std::invalid_argument("ParametricLagrangianScene::bind: one value per free parameter");
   for (double v : values)
@@ -938,7 +952,8 @@ LagrangianScene ParametricLagrangianScene::bind(const std::vector<double>& value
   if (q0.size() != static_cast<std::size_t>(base.n) || v0.size() != static_cast<std::size_t>(base.n))
     throw std::invalid_argument("ParametricLagrangianScene::bind: q0 and v0 need n entries");
   LagrangianScene scene = base;
-  if (!impl_->spare_compiled || impl_->spare_compiled.use_count() > 1) impl_->spare_compiled = std::make_shared<CompiledLagrangian>(*base.compiled);
+  if (!impl_->spare_compiled || impl_->spare_compiled.use_count() > 1)
+    impl_->spare_compiled = std::make_shared<CompiledLagrangian>(*base.compiled);
   const std::shared_ptr<CompiledLagrangian> compiled = impl_->spare_compiled;
   bool generic = true;
   for (expr::Tape* tape : {&compiled->step_tape, &compiled->mass_tape, &compiled->potential_tape, &compiled->step_potential_tape,
@@ -959,8 +974,9 @@ LagrangianScene ParametricLagrangianScene::bind(const std::vector<double>& value
     scene.exact_tape = impl_->spare_exact;
   }
   if (!generic)
-    throw std::invalid_argument("ParametricLagrangianScene::bind: a quantity of the parameters alone is 0 at these values (the full compile "
-                                "folds it, which can change the sign of a zero)");
+    throw std::invalid_argument(
+        "ParametricLagrangianScene::bind: a quantity of the parameters alone is 0 at these values (the full compile "
+        "folds it, which can change the sign of a zero)");
   scene.q0 = q0;
   scene.v0 = v0;
   for (std::size_t i = 0; i < q0.size(); ++i)

@@ -27,8 +27,7 @@ const std::set<std::string>& function_names() {
 }
 
 std::optional<NameConflict> column_name_conflict(const std::vector<std::string>& names, const std::string& what) {
-  static const std::map<std::string, std::string> kColumns = {
-      {"t", "the time"}, {"h", "the step size"}, {"energy", "the energy"}};
+  static const std::map<std::string, std::string> kColumns = {{"t", "the time"}, {"h", "the step size"}, {"energy", "the energy"}};
   std::map<std::string, std::size_t> first;  // name -> index of its first use
   for (std::size_t i = 0; i < names.size(); ++i) first.emplace(names[i], i);
   for (std::size_t i = 0; i < names.size(); ++i) {
@@ -43,8 +42,7 @@ std::optional<NameConflict> column_name_conflict(const std::vector<std::string>&
       const std::string base = q.substr(0, q.size() - kDot.size());
       if (first.count(base))
         return NameConflict{i, "'" + q + "' is the name of the velocity of " + what + " '" + base +
-                                   "' (its column in the trajectory and its name in expressions): give this " + what +
-                                   " another name"};
+                                   "' (its column in the trajectory and its name in expressions): give this " + what + " another name"};
     }
   }
   return std::nullopt;

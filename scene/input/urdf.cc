@@ -32,7 +32,8 @@ DescribeFn load_module() {
   std::string tried;  // MOREAU_URDF_MODULE_BUILD_PATH: defined by scene/CMakeLists.txt
   void* handle = platform::open_module(platform::install_candidates(kModule, "MOREAU_URDF_MODULE", MOREAU_URDF_MODULE_BUILD_PATH),
                                        {"moreau_urdf_describe"}, tried);
-  if (!handle) throw UrdfError(std::string("URDF scenes need the module ") + kModule + ", which was not found or could not be loaded:" + tried);
+  if (!handle)
+    throw UrdfError(std::string("URDF scenes need the module ") + kModule + ", which was not found or could not be loaded:" + tried);
   return reinterpret_cast<DescribeFn>(::dlsym(handle, "moreau_urdf_describe"));
 }
 
@@ -97,11 +98,11 @@ RigidBodyInertia link_inertia(const UrdfInertial& in, const Frame& link, const s
   const Eigen::Vector3d d = eig.eigenvalues();  // ascending
   const double scale = std::max(std::abs(d(2)), 1e-300);
   if (!(d(0) > 1e-12 * scale))
-    throw UrdfError(where + ": <inertia> is not positive definite (principal moments " + number(d(0)) + ", " +
-                    number(d(1)) + ", " + number(d(2)) + " kg m^2)");
+    throw UrdfError(where + ": <inertia> is not positive definite (principal moments " + number(d(0)) + ", " + number(d(1)) + ", " +
+                    number(d(2)) + " kg m^2)");
   if (d(2) > (d(0) + d(1)) * (1.0 + 1e-9))
-    throw UrdfError(where + ": <inertia> breaks the triangle inequality of a rigid body (largest principal moment " +
-                    number(d(2)) + " > " + number(d(0)) + " + " + number(d(1)) + " kg m^2)");
+    throw UrdfError(where + ": <inertia> breaks the triangle inequality of a rigid body (largest principal moment " + number(d(2)) + " > " +
+                    number(d(0)) + " + " + number(d(1)) + " kg m^2)");
   const Frame inertial = compose(link, frame(in.origin));
   RigidBodyInertia out;
   out.mass_kg = in.mass;
@@ -147,8 +148,7 @@ UrdfRobot read_urdf(std::string_view text, const UrdfSelection& selection) {
     std::string link = selection.tip_link;
     while (link != root) {
       auto it = joint_of_child.find(link);
-      if (it == joint_of_child.end())
-        throw UrdfError("tip link '" + selection.tip_link + "' is not below root link '" + root + "'");
+      if (it == joint_of_child.end()) throw UrdfError("tip link '" + selection.tip_link + "' is not below root link '" + root + "'");
       chain.insert(it->second->name);
       link = it->second->parent_link;
     }

@@ -26,14 +26,14 @@ enum class UrdfJointType { kRevolute, kContinuous, kPrismatic, kFixed, kFloating
 struct UrdfJoint {
   std::string name, parent_link, child_link;
   UrdfJointType type = UrdfJointType::kUnknown;
-  UrdfPose origin;                  // the joint frame in the parent link's frame
+  UrdfPose origin;  // the joint frame in the parent link's frame
   double axis[3] = {1.0, 0.0, 0.0};
-  bool has_limits = false;          // <limit> given (revolute and prismatic joints must have one)
+  bool has_limits = false;  // <limit> given (revolute and prismatic joints must have one)
   double lower = 0.0, upper = 0.0;
   double damping = 0.0, friction = 0.0;  // <dynamics>
-  UrdfInertial child_inertial;      // of child_link
-  int line = 0;                     // of the <joint> element (0: unknown)
-  int child_line = 0;               // of the child's <link> element
+  UrdfInertial child_inertial;           // of child_link
+  int line = 0;                          // of the <joint> element (0: unknown)
+  int child_line = 0;                    // of the child's <link> element
 };
 
 struct UrdfDescription {

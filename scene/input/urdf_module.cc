@@ -226,7 +226,8 @@ void describe(const std::string& text, UrdfDescription& out) {
 }  // namespace
 
 // Returns 0 with *out filled, or 1 with the reason in *error. No exception leaves the module.
-extern "C" __attribute__((visibility("default"))) int moreau_urdf_describe(const char* text, std::size_t size, UrdfDescription* out, std::string* error) noexcept {
+extern "C" __attribute__((visibility("default"))) int moreau_urdf_describe(const char* text, std::size_t size, UrdfDescription* out,
+                                                                           std::string* error) noexcept {
   try {
     describe(std::string(text, size), *out);
     return 0;

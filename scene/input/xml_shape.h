@@ -6,9 +6,9 @@
 // nesting is inside a string. So every URDF text first goes through Expat, a parser that keeps its own
 // stack on the heap, with callbacks that stop it at the first element deeper than kMaxXmlDepth or beyond
 // kMaxXmlElements, and at any DOCTYPE or processing instruction (TinyXML ends a PI at its first '>', Expat
-// at "?>", so elements inside one would be seen by one parser and not the other). A text that passes is well-formed XML 1.0 with at most those
-// numbers, so the recursive parsers after it nest at most kMaxXmlDepth frames deep (a few kilobytes), on
-// any thread, whatever its stack size.
+// at "?>", so elements inside one would be seen by one parser and not the other). A text that passes is well-formed XML 1.0 with at most
+// those numbers, so the recursive parsers after it nest at most kMaxXmlDepth frames deep (a few kilobytes), on any thread, whatever its
+// stack size.
 #pragma once
 
 #include <cstddef>
@@ -31,8 +31,8 @@ class XmlShapeError : public std::runtime_error {
 };
 
 struct XmlShape {
-  int depth = 0;               // deepest element nesting (the document element is depth 1)
-  std::size_t elements = 0;    // elements in the whole document
+  int depth = 0;             // deepest element nesting (the document element is depth 1)
+  std::size_t elements = 0;  // elements in the whole document
 };
 
 // Parses `text` (UTF-8) as XML 1.0 and returns its shape, or throws XmlShapeError naming the line:

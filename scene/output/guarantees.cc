@@ -51,8 +51,9 @@ Guarantee theorem41(const RunSummary& s, Detail detail) {
     h.detail = "checked at " + std::to_string(c.checked) + " steps; r_k = 2 h_k ||C||_2 / lambda_min(M) <= " + fmt(c.worst_ratio()) +
                " at every step (largest at t = " + fmt(c.worst_time) + ")";
   } else {
-    h.detail = "fails at " + std::to_string(c.violations) + " of " + std::to_string(c.checked) + " steps, first at t = " +
-               fmt(c.first_violation_time) + " (step " + std::to_string(c.first_violation_step) + "); largest r_k " + (c.worst_kind == BoundKind::kLowerBound ? ">= " : "= ") + fmt(c.worst_ratio()) +
+    h.detail = "fails at " + std::to_string(c.violations) + " of " + std::to_string(c.checked) +
+               " steps, first at t = " + fmt(c.first_violation_time) + " (step " + std::to_string(c.first_violation_step) +
+               "); largest r_k " + (c.worst_kind == BoundKind::kLowerBound ? ">= " : "= ") + fmt(c.worst_ratio()) +
                " at t = " + fmt(c.worst_time) + " (r_k <= 1 required; the step rule theorem-4.1 enforces it)";
   }
   g.hypotheses.push_back(h);
@@ -74,13 +75,15 @@ HypothesisCheck assumption41_forces(const RunSummary& s, double alpha, Detail de
   const bool gradient_too_large = !force_too_large && f.max_gradient > 0.5 * (alpha - f.max_force);
   h.verdict = force_too_large || gradient_too_large ? Verdict::kFails : Verdict::kHolds;
   if (detail == Detail::kVerdicts) return h;
-  const std::string where = " (checked at " + std::to_string(f.samples) + " recorded states, every 16th of those the run recorded (every /output/every-th step)" +
+  const std::string where = " (checked at " + std::to_string(f.samples) +
+                            " recorded states, every 16th of those the run recorded (every /output/every-th step)" +
                             (f.failed ? ", until this failure" : "") + ")";
   if (force_too_large) {
     h.detail = "||F|| reaches " + fmt(f.max_force) + " >= alpha = " + fmt(alpha) + " at t = " + fmt(f.max_force_time) + where;
   } else if (gradient_too_large) {
-    h.detail = "||grad V|| reaches " + fmt(f.max_gradient) + " at t = " + fmt(f.max_gradient_time) + " > (alpha - beta) / 2 = " +
-               fmt(0.5 * (alpha - f.max_force)) + " even with the smallest beta = max ||F|| = " + fmt(f.max_force) + where;
+    h.detail = "||grad V|| reaches " + fmt(f.max_gradient) + " at t = " + fmt(f.max_gradient_time) +
+               " > (alpha - beta) / 2 = " + fmt(0.5 * (alpha - f.max_force)) +
+               " even with the smallest beta = max ||F|| = " + fmt(f.max_force) + where;
   } else {
     h.detail = "max ||F|| = " + fmt(f.max_force) + " < alpha = " + fmt(alpha) + ", max ||grad V|| = " + fmt(f.max_gradient) +
                " <= (alpha - max ||F||) / 2" + where + "; the sup over all states is not checked";
@@ -91,9 +94,10 @@ HypothesisCheck assumption41_forces(const RunSummary& s, double alpha, Detail de
 Guarantee theorem42(const LagrangianScene& scene, const RunSummary& s, const Guarantee& t41, Detail detail) {
   const bool rule = scene.settings.step_rule == StepRule::kTheorem42;
   Guarantee g{"Theorem 4.2", "E_k = 1/2 <M(Q^k) V^k, V^k> non-increasing, Q^k convergent and V^k -> 0", rule, {}};
-  g.hypotheses.push_back({"the hypotheses of Theorem 4.1 (Assumptions 3.1, 3.2)", t41.verdict(), detail_text(detail, [] { return "see Theorem 4.1"; })});
-  g.hypotheses.push_back({"the step rule of Theorem 4.2 (h_k <= h_{k-1}, ||eps_k|| <= 2 eta of (4.9))", rule ? Verdict::kHolds : Verdict::kFails,
-                          detail_text(detail, [&] {
+  g.hypotheses.push_back(
+      {"the hypotheses of Theorem 4.1 (Assumptions 3.1, 3.2)", t41.verdict(), detail_text(detail, [] { return "see Theorem 4.1"; })});
+  g.hypotheses.push_back({"the step rule of Theorem 4.2 (h_k <= h_{k-1}, ||eps_k|| <= 2 eta of (4.9))",
+                          rule ? Verdict::kHolds : Verdict::kFails, detail_text(detail, [&] {
                             return rule ? std::string("step_rule theorem-4.2 enforces it at every step")
                                         : std::string("the run used step_rule ") +
                                               (scene.settings.step_rule == StepRule::kFixed ? "fixed" : "theorem-4.1") +
@@ -103,26 +107,28 @@ Guarantee theorem42(const LagrangianScene& scene, const RunSummary& s, const Gua
   const bool a1 = eta > 0.0 && alpha > 0.0;
   g.hypotheses.push_back({"Assumption 4.1 1): Phi(v) >= eta ||v||^2 + alpha ||v|| + Phi(0) with eta > 0, alpha > 0",
                           a1 ? Verdict::kHolds : Verdict::kFails, detail_text(detail, [&] {
-                            return "from the controller's coefficients: eta = min w_i / 2 = " + fmt(eta) + ", alpha = min a_i + a_norm = " + fmt(alpha);
+                            return "from the controller's coefficients: eta = min w_i / 2 = " + fmt(eta) +
+                                   ", alpha = min a_i + a_norm = " + fmt(alpha);
                           })});
   g.hypotheses.push_back(assumption41_forces(s, alpha, detail));
   if (scene.forces_smooth_everywhere) {
     const bool robot = scene.compiled && scene.compiled->robot;
-    g.hypotheses.push_back({"Assumption 3.3: F continuous and locally Lipschitz, grad V locally Lipschitz", Verdict::kHolds, detail_text(detail, [&] {
-                              return std::string(robot ? "gravity's part of grad V comes from the URDF robot (a polynomial in the joint "
-                                                         "positions and their sines and cosines: C-infinity); the expressions' part of "
-                                                       : "") +
-                                     "grad V and F are built only from +, -, *, integer powers, sin, cos, atan, sinh, cosh, tanh and exp: "
-                                     "C-infinity on all of R^(1+2n), so locally Lipschitz, uniformly in t on [t0, t_end]; Phi convex by "
-                                     "construction";
-                            })});
+    g.hypotheses.push_back(
+        {"Assumption 3.3: F continuous and locally Lipschitz, grad V locally Lipschitz", Verdict::kHolds, detail_text(detail, [&] {
+           return std::string(robot ? "gravity's part of grad V comes from the URDF robot (a polynomial in the joint "
+                                      "positions and their sines and cosines: C-infinity); the expressions' part of "
+                                    : "") +
+                  "grad V and F are built only from +, -, *, integer powers, sin, cos, atan, sinh, cosh, tanh and exp: "
+                  "C-infinity on all of R^(1+2n), so locally Lipschitz, uniformly in t on [t0, t_end]; Phi convex by "
+                  "construction";
+         })});
   } else {
-    g.hypotheses.push_back({"Assumption 3.3: F continuous and locally Lipschitz, grad V locally Lipschitz", Verdict::kNotChecked,
-                            detail_text(detail, [] {
-                              return "the expressions use an operation that is smooth only on a domain or not smooth (/, log, sqrt, tan, "
-                                     "asin, acos, atan2, a non-integer power, abs, min, max), or the scene gives potential_gradient; "
-                                     "their regularity is not analysed";
-                            })});
+    g.hypotheses.push_back(
+        {"Assumption 3.3: F continuous and locally Lipschitz, grad V locally Lipschitz", Verdict::kNotChecked, detail_text(detail, [] {
+           return "the expressions use an operation that is smooth only on a domain or not smooth (/, log, sqrt, tan, "
+                  "asin, acos, atan2, a non-integer power, abs, min, max), or the scene gives potential_gradient; "
+                  "their regularity is not analysed";
+         })});
   }
   return g;
 }
@@ -131,10 +137,10 @@ Guarantee theorem43(const LagrangianScene& scene, const RunSummary& s, const Gua
   // Theorem 4.3 is stated for the algorithm of Theorem 4.2, under its assumptions.
   Guarantee g{"Theorem 4.3", "Q^k = Q* for every k >= some N (finite-step convergence to an equilibrium)", t42.relied_on, {}};
   g.hypotheses.push_back({"the hypotheses of Theorem 4.2", t42.verdict(), detail_text(detail, [] { return "see Theorem 4.2"; })});
-  g.hypotheses.push_back({"(4.16): F independent of t", scene.force_depends_on_time ? Verdict::kFails : Verdict::kHolds, detail_text(detail, [&] {
-                            return scene.force_depends_on_time ? "a force expression reads t"
-                                                               : "no force expression reads t (from the scene's expressions)";
-                          })});
+  g.hypotheses.push_back(
+      {"(4.16): F independent of t", scene.force_depends_on_time ? Verdict::kFails : Verdict::kHolds, detail_text(detail, [&] {
+         return scene.force_depends_on_time ? "a force expression reads t" : "no force expression reads t (from the scene's expressions)";
+       })});
   HypothesisCheck in{"-F(Q*, 0) - grad V(Q*) in int dPhi(0) at the final position", Verdict::kNotChecked, ""};
   if (s.equilibrium.evaluated) in.verdict = s.equilibrium.interior ? Verdict::kHolds : Verdict::kFails;
   in.detail = detail_text(detail, [&] {
@@ -218,7 +224,8 @@ void second_order(const CompiledLagrangian& c, const RunSummary& s, const std::v
                      std::to_string(CompiledLagrangian::kMaxHessianDof) + " (not for a URDF robot): not checked";
     return;
   }
-  std::vector<double> slots(static_cast<std::size_t>(1 + 2 * n), 0.0), out(c.hessian_tape.num_outputs()), scratch(c.hessian_tape.scratch_size());
+  std::vector<double> slots(static_cast<std::size_t>(1 + 2 * n), 0.0), out(c.hessian_tape.num_outputs()),
+      scratch(c.hessian_tape.scratch_size());
   slots[0] = s.t_final;
   for (int i = 0; i < n; ++i) slots[1 + i] = s.q_final[i];
   c.hessian_tape.eval(slots.data(), out.data(), scratch.data());
@@ -266,8 +273,8 @@ void second_order(const CompiledLagrangian& c, const RunSummary& s, const std::v
     }
   }
   strict.verdict = Verdict::kUndetermined;
-  strict.detail += "; second order: the Hessian of U - sum lambda_i h_i has smallest eigenvalue " + fmt(mu) +
-                   " (round-off " + fmt(tol) + ") on the subspace tangent to the constraints with lambda_i > 0" +
+  strict.detail += "; second order: the Hessian of U - sum lambda_i h_i has smallest eigenvalue " + fmt(mu) + " (round-off " + fmt(tol) +
+                   ") on the subspace tangent to the constraints with lambda_i > 0" +
                    (licq ? "" : ", and the active gradients are dependent") + ": higher-order terms decide, undetermined";
 }
 
@@ -284,14 +291,15 @@ Guarantee lemma3(const LagrangianScene& scene, const RunSummary& s) {
   g.hypotheses.push_back({"(8): no external force F(t, q, v) beyond C q' + grad U", scene.has_force ? Verdict::kFails : Verdict::kHolds,
                           scene.has_force ? "the scene gives /system/force" : "no /system/force"});
   const bool controlled = scene.controller.has_quadratic() || scene.controller.has_nonsmooth();
-  g.hypotheses.push_back({"(8): no set-valued controller dPhi (the lemma is stated without one)", controlled ? Verdict::kFails : Verdict::kHolds,
-                          controlled ? "the scene has a controller" : "no controller"});
+  g.hypotheses.push_back({"(8): no set-valued controller dPhi (the lemma is stated without one)",
+                          controlled ? Verdict::kFails : Verdict::kHolds, controlled ? "the scene has a controller" : "no controller"});
   bool same_e = true;
   for (double e : scene.restitution) same_e = same_e && e == scene.restitution.front();
   g.hypotheses.push_back({"(8): one restitution coefficient e for every constraint", same_e ? Verdict::kHolds : Verdict::kFails,
                           same_e ? "e = " + fmt(scene.restitution.front()) : "the constraints have different e"});
-  g.hypotheses.push_back({"Phi = {h(q) >= 0} regular (Remark 4)", m == 1 ? Verdict::kHolds : Verdict::kNotChecked,
-                          m == 1 ? "a single constraint" : std::to_string(m) + " constraints: convexity at the corners of Phi is not analysed"});
+  g.hypotheses.push_back(
+      {"Phi = {h(q) >= 0} regular (Remark 4)", m == 1 ? Verdict::kHolds : Verdict::kNotChecked,
+       m == 1 ? "a single constraint" : std::to_string(m) + " constraints: convexity at the corners of Phi is not analysed"});
   HypothesisCheck strict{"psi_Phi + U has a strict minimum at q0 = the rest position q*", Verdict::kNotChecked, ""};
   const CompiledLagrangian* c = scene.compiled.get();
   if (!s.rest_step) {
@@ -338,15 +346,16 @@ Guarantee lemma3(const LagrangianScene& scene, const RunSummary& s) {
         strict.detail = "grad U(q*) is not a non-negative combination of the active constraint gradients (residual " + fmt(residual) +
                         ", multipliers " + ls + "): a feasible direction decreases U, q* is not a minimum";
       } else if (qr.rank() < n || lambda.minCoeff() <= 1e-9 * scale) {
-        strict.detail = "at q* = the rest position (gaps below " + fmt(gap_tol) + " count as active), grad U(q*) = sum lambda_i grad h_i(q*) with lambda = (" +
-                        ls + "), but the " + std::to_string(active.size()) + " active gradient(s) do not span R^" + std::to_string(n) +
+        strict.detail = "at q* = the rest position (gaps below " + fmt(gap_tol) +
+                        " count as active), grad U(q*) = sum lambda_i grad h_i(q*) with lambda = (" + ls + "), but the " +
+                        std::to_string(active.size()) + " active gradient(s) do not span R^" + std::to_string(n) +
                         " or a multiplier is 0: first order does not decide";
         second_order(*c, s, active, Ht, lambda, 1e-9 * scale, strict);
       } else {
         strict.verdict = Verdict::kHolds;
         strict.detail = "at q* = the rest position (gaps below " + fmt(gap_tol) + " count as active), " + std::to_string(active.size()) +
-                        " active constraint(s) spanning R^" +
-                        std::to_string(n) + ", grad U(q*) = sum lambda_i grad h_i(q*) with lambda = (" + ls +
+                        " active constraint(s) spanning R^" + std::to_string(n) +
+                        ", grad U(q*) = sum lambda_i grad h_i(q*) with lambda = (" + ls +
                         ") > 0: every feasible direction increases U (a sufficient condition)";
       }
     }
@@ -406,8 +415,8 @@ HypothesisCheck spr_check(const LureScene& sc) {
 HypothesisCheck minimality_check(const LureScene& sc) {
   const MinimalityCheck& m = sc.minimality;
   return {"a) (A, B, C) minimal (controllable and observable)", m.verdict(),
-          "PBH: controllable " + std::string(to_string(m.controllable)) + " (margin " + fmt(m.controllability_margin) +
-              "), observable " + to_string(m.observable) + " (margin " + fmt(m.observability_margin) + ")"};
+          "PBH: controllable " + std::string(to_string(m.controllable)) + " (margin " + fmt(m.controllability_margin) + "), observable " +
+              to_string(m.observable) + " (margin " + fmt(m.observability_margin) + ")"};
 }
 
 }  // namespace
@@ -420,11 +429,13 @@ Guarantees lure_guarantees(const LureScene& sc) {
     for (int i = 0; i < y.size(); ++i) y0 += (i ? ", " : "") + fmt(y(i));
   }
   const std::vector<HypothesisCheck> lemma1_hypotheses{
-      spr_check(sc), minimality_check(sc),
+      spr_check(sc),
+      minimality_check(sc),
       {"b) phi convex, proper, lower semicontinuous (d phi maximal monotone)", Verdict::kHolds,
        "each feedback component is a piecewise-linear complete non-decreasing graph, checked when the scene was read: the "
        "subdifferential of a convex lsc function of one variable"},
-      {"C x(0) in dom d phi", Verdict::kHolds, "y0 = C x0 = (" + y0 + "), checked when the scene was read (scenes that break it are refused)"}};
+      {"C x(0) in dom d phi", Verdict::kHolds,
+       "y0 = C x0 = (" + y0 + "), checked when the scene was read (scenes that break it are refused)"}};
   // The run does not use these conclusions: each step's generalized equation is solved and its residual
   // reported (the solver section). They are what the report's stability statements rest on.
   Guarantee lemma1{"Lemma 1", "(4) has a unique absolutely continuous solution on [0, +inf)", false, lemma1_hypotheses};
@@ -437,8 +448,9 @@ Guarantees lure_guarantees(const LureScene& sc) {
       origin = false;
       off += (off.empty() ? "" : ", ") + std::to_string(i);
     }
-  lemma2.hypotheses.push_back({"(0, 0) on the graph of d phi", origin ? Verdict::kHolds : Verdict::kFails,
-                               origin ? "every feedback component's graph contains (0, 0)" : "not on the graph of /system/feedback/" + off});
+  lemma2.hypotheses.push_back(
+      {"(0, 0) on the graph of d phi", origin ? Verdict::kHolds : Verdict::kFails,
+       origin ? "every feedback component's graph contains (0, 0)" : "not on the graph of /system/feedback/" + off});
   return Guarantees{{lemma1, lemma2}};
 }
 
@@ -446,8 +458,10 @@ nlohmann::json guarantees_json(const Guarantees& g) {
   nlohmann::json out = nlohmann::json::array();
   for (const Guarantee& x : g.items) {
     nlohmann::json hs = nlohmann::json::array();
-    for (const HypothesisCheck& h : x.hypotheses) hs.push_back({{"hypothesis", h.name}, {"verdict", to_string(h.verdict)}, {"detail", h.detail}});
-    out.push_back({{"result", x.result}, {"claim", x.claim}, {"verdict", to_string(x.verdict())}, {"relied_on", x.relied_on}, {"hypotheses", hs}});
+    for (const HypothesisCheck& h : x.hypotheses)
+      hs.push_back({{"hypothesis", h.name}, {"verdict", to_string(h.verdict)}, {"detail", h.detail}});
+    out.push_back(
+        {{"result", x.result}, {"claim", x.claim}, {"verdict", to_string(x.verdict())}, {"relied_on", x.relied_on}, {"hypotheses", hs}});
   }
   return out;
 }
@@ -459,7 +473,8 @@ std::string guarantees_text(const Guarantees& g) {
     os << (first ? "  guarantees    " : "                ") << x.result << " (" << x.claim << "): " << to_string(x.verdict())
        << (x.relied_on ? "" : " [not relied on by this run]") << "\n";
     first = false;
-    for (const HypothesisCheck& h : x.hypotheses) os << "                  " << to_string(h.verdict) << ": " << h.name << "; " << h.detail << "\n";
+    for (const HypothesisCheck& h : x.hypotheses)
+      os << "                  " << to_string(h.verdict) << ": " << h.name << "; " << h.detail << "\n";
   }
   return os.str();
 }

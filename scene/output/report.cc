@@ -63,8 +63,7 @@ std::string update_description(const LagrangianScene& scene) {
   if (scene.scheme == Scheme::kMoreauJean)
     return "Moreau-Jean as implemented: impulses and dPhi implicit at V^{k+1}, smooth forces explicit at (Q^k, V^k), position "
            "Q^{k+1} = Q^k + h V^{k+1} (" +
-           scene.position_update +
-           "): a symplectic Euler for the smooth part, not the theta-method with implicit smooth forces";
+           scene.position_update + "): a symplectic Euler for the smooth part, not the theta-method with implicit smooth forces";
   if (scene.settings.velocity_update == VelocityUpdate::kImplicit)
     return "(0.2): velocity implicit (V^{k+1} in the inclusion), position explicit Q^{k+1} = Q^k + h V^k: a conservative part "
            "(a spring) gains energy at O(h)";
@@ -100,7 +99,9 @@ ExactComparison compare_with_exact(const char* var, const std::vector<double>& d
   };
   if (!declared_rest.empty()) {
     const auto [e, size] = max_diff(final_state, declared_rest);
-    c.json["rest_" + std::string(var)] = {{"declared", declared_rest}, {"final", final_state}, {"max_error", num(e)},
+    c.json["rest_" + std::string(var)] = {{"declared", declared_rest},
+                                          {"final", final_state},
+                                          {"max_error", num(e)},
                                           {"relative_error", size > 0.0 ? num(e / size) : nlohmann::json(nullptr)}};
     c.lines.push_back(std::string("declared rest ") + var + " = " + vec(declared_rest) + "; the run ends at " + vec(final_state) +
                       ": off by " + fmt(e) + percent(e, size));
@@ -165,8 +166,8 @@ struct MechanicalEnergy {
   bool cannot_rise = false;  // F = 0: a rise is the scheme's doing
   bool dissipation_tracked = false;
   std::string why_not_tracked;  // when it is not
-  double dissipated = 0.0;  // D at the end
-  double balance = 0.0;     // E(t_N) - E(t0) + D(t_N)
+  double dissipated = 0.0;      // D at the end
+  double balance = 0.0;         // E(t_N) - E(t0) + D(t_N)
   MechanicalEnergyTrack along;  // at the recorded states checked on the way (samples 0: none)
 };
 
@@ -189,8 +190,9 @@ MechanicalEnergy mechanical_energy(const LagrangianScene& scene, const RunSummar
   e.dissipation_tracked = s.dissipation_tracked;
   if (!e.dissipation_tracked)
     e.why_not_tracked = scene.scheme == Scheme::kMoreauJean ? "the contact scheme does not separate its impulses' work"
-                        : s.status == RunStatus::kFailed   ? "the run failed before its end"
-                                                           : "only the implicit scheme (0.2) tracks it (the explicit peer's xi is not in dPhi(V^{k+1}))";
+                        : s.status == RunStatus::kFailed
+                            ? "the run failed before its end"
+                            : "only the implicit scheme (0.2) tracks it (the explicit peer's xi is not in dPhi(V^{k+1}))";
   e.dissipated = s.dissipated_work;
   e.balance = e.final - e.initial + e.dissipated;
   return e;
@@ -204,7 +206,8 @@ const char* balance_meaning(const MechanicalEnergy& e) {
 
 nlohmann::json mechanical_json(const MechanicalEnergy& e) {
   if (!e.known) return {{"kind", "1/2 <M v, v> + V(q)"}, {"evaluated", false}, {"why", "the scene gives no potential"}};
-  nlohmann::json j = {{"kind", "1/2 <M v, v> + V(q)"}, {"evaluated", true}, {"initial", num(e.initial)}, {"final", num(e.final)}, {"rose", e.rose}};
+  nlohmann::json j = {
+      {"kind", "1/2 <M v, v> + V(q)"}, {"evaluated", true}, {"initial", num(e.initial)}, {"final", num(e.final)}, {"rose", e.rose}};
   if (e.dissipation_tracked) {
     j["dissipated_work"] = num(e.dissipated);
     j["dissipated_work_kind"] = "D = sum_k h_k <xi_k, V^{k+1}>, xi_k in dPhi(V^{k+1}): the work done against the controller and friction";
@@ -225,7 +228,8 @@ nlohmann::json mechanical_json(const MechanicalEnergy& e) {
     }
     j["along_the_run"] = a;
   }
-  if (e.rose && e.cannot_rise) j["warning"] = "rose although F = 0 and dPhi dissipates: the scheme's explicit position update gains energy at O(h)";
+  if (e.rose && e.cannot_rise)
+    j["warning"] = "rose although F = 0 and dPhi dissipates: the scheme's explicit position update gains energy at O(h)";
   return j;
 }
 
@@ -236,14 +240,15 @@ void mechanical_text(std::ostream& os, const MechanicalEnergy& e) {
   }
   os << "                E = 1/2 <M v, v> + V(q): E(t0) = " << fmt(e.initial) << ", E(t_N) = " << fmt(e.final);
   if (e.along.samples > 0)
-    os << "; largest rise above E(t0) at " << e.along.samples << " recorded states checked (every " << RecordedStateChecks::kEnergyStride << "th): "
-       << (e.along.max_rise > 0.0 ? fmt(e.along.max_rise) + " at t = " + fmt(e.along.max_rise_time) : std::string("none"));
+    os << "; largest rise above E(t0) at " << e.along.samples << " recorded states checked (every " << RecordedStateChecks::kEnergyStride
+       << "th): " << (e.along.max_rise > 0.0 ? fmt(e.along.max_rise) + " at t = " + fmt(e.along.max_rise_time) : std::string("none"));
   if (e.rose && e.cannot_rise) os << ": ROSE although F = 0 and dPhi dissipates (the explicit position update gains energy at O(h))";
   os << "\n";
   if (e.dissipation_tracked) {
     os << "                work against dPhi D = " << fmt(e.dissipated) << "; E(t_N) - E(t0) + D = " << fmt(e.balance) << ", "
        << balance_meaning(e);
-    if (e.along.samples > 0) os << " (largest |.| on the way " << fmt(e.along.max_balance) << " at t = " << fmt(e.along.max_balance_time) << ")";
+    if (e.along.samples > 0)
+      os << " (largest |.| on the way " << fmt(e.along.max_balance) << " at t = " << fmt(e.along.max_balance_time) << ")";
     os << "\n";
   } else {
     os << "                work against dPhi: not tracked (" << e.why_not_tracked << ")\n";
@@ -535,7 +540,8 @@ nlohmann::json stability_json(const LureScene& sc, const Guarantees& g) {
   j["strictly_positive_real"] = to_string(t.spr);
   if (!t.witness.empty()) j["witness"] = t.witness;
   j["test"] = t.method;
-  j["A_hurwitz"] = {{"verdict", to_string(t.hurwitz)}, {"spectral_abscissa", num(t.spectral_abscissa)}, {"tolerance", num(t.hurwitz_tolerance)}};
+  j["A_hurwitz"] = {
+      {"verdict", to_string(t.hurwitz)}, {"spectral_abscissa", num(t.spectral_abscissa)}, {"tolerance", num(t.hurwitz_tolerance)}};
   nlohmann::json freq = {{"verdict", to_string(t.frequency)},
                          {"min_scaled_eigenvalue", num(t.min_frequency_eigenvalue)},
                          {"at_omega", num(t.argmin_omega)},

@@ -165,17 +165,13 @@ RunSummary Simulation::run(RunObserver* observer) const {
 
 nlohmann::json Simulation::report_json(const RunSummary& summary, const RunDiagnostics& d) const {
   return std::visit(
-      Overloaded{[&](const std::shared_ptr<const LagrangianScene>& sc) {
-                   return scene::report_json(*sc, summary, d.contacts());
-                 },
+      Overloaded{[&](const std::shared_ptr<const LagrangianScene>& sc) { return scene::report_json(*sc, summary, d.contacts()); },
                  [&](const std::shared_ptr<const LureScene>& sc) { return scene::report_json(*sc, summary, d.lure()); }},
       system_);
 }
 std::string Simulation::report_text(const RunSummary& summary, const RunDiagnostics& d) const {
   return std::visit(
-      Overloaded{[&](const std::shared_ptr<const LagrangianScene>& sc) {
-                   return scene::report_text(*sc, summary, d.contacts());
-                 },
+      Overloaded{[&](const std::shared_ptr<const LagrangianScene>& sc) { return scene::report_text(*sc, summary, d.contacts()); },
                  [&](const std::shared_ptr<const LureScene>& sc) { return scene::report_text(*sc, summary, d.lure()); }},
       system_);
 }
@@ -187,7 +183,8 @@ Guarantees Simulation::guarantees(const RunSummary& summary) const {
 }
 
 std::string Simulation::hypothesis_failure(const RunSummary& summary) const {
-  if (const LagrangianScene* sc = lagrangian(); sc && lagrangian_guarantees(*sc, summary, Detail::kVerdicts).relied_on_failure().empty()) return "";
+  if (const LagrangianScene* sc = lagrangian(); sc && lagrangian_guarantees(*sc, summary, Detail::kVerdicts).relied_on_failure().empty())
+    return "";
   return guarantees(summary).relied_on_failure();
 }
 

@@ -81,8 +81,9 @@ std::string campaign_figure_image(std::string_view kind, const scene::CampaignSp
     fig.height_px = height;
     return encode(fig, format);
   }
-  throw std::runtime_error(kind == "success-map" ? "this campaign has no success map: it needs two numeric inputs"
-                                                 : "this campaign has no " + std::string(kind) + " figure (no sample converged, or no numeric input)");
+  throw std::runtime_error(kind == "success-map"
+                               ? "this campaign has no success map: it needs two numeric inputs"
+                               : "this campaign has no " + std::string(kind) + " figure (no sample converged, or no numeric input)");
 }
 
 #else

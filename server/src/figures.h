@@ -9,7 +9,7 @@
 namespace moreau::scene {
 class Simulation;
 struct CampaignSpec;
-}
+}  // namespace moreau::scene
 
 namespace moreau::server {
 

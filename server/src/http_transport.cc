@@ -171,7 +171,10 @@ class GuardedStream final : public httplib::Stream {
 // written here too: httplib's handlers never see these answers.
 void answer_and_close(int fd, int status, const char* error, const std::string& detail) {
   const std::string body = std::string("{\"error\":\"") + error + "\",\"reason\":\"" + detail + "\"}\n";
-  const char* phrase = status == 503 ? "Service Unavailable" : status == 414 ? "URI Too Long" : status == 431 ? "Request Header Fields Too Large" : "Error";
+  const char* phrase = status == 503   ? "Service Unavailable"
+                       : status == 414 ? "URI Too Long"
+                       : status == 431 ? "Request Header Fields Too Large"
+                                       : "Error";
   const std::string head = "HTTP/1.1 " + std::to_string(status) + " " + phrase + "\r\nContent-Type: application/json\r\n" +
                            (status == 503 ? "Retry-After: 1\r\n" : "") + "Connection: close\r\n" +
                            "X-Content-Type-Options: nosniff\r\nContent-Security-Policy: " + kApiContentSecurityPolicy + "\r\n" +
@@ -297,8 +300,9 @@ bool GuardedHttpServer::process_and_close_socket(socket_t sock) {
     if (!ok && ctx.headers_too_large && stream.written() == 0) {
       const int status = stream.request_line_complete() ? 431 : 414;
       answer_and_close(sock, status, status == 414 ? "URI too long" : "request headers too large",
-                       status == 414 ? "the request line may take at most " + std::to_string(kMaxRequestLineBytes) + " bytes"
-                                     : "the request line and headers may take at most " + std::to_string(limits_.max_header_bytes) + " bytes");
+                       status == 414
+                           ? "the request line may take at most " + std::to_string(kMaxRequestLineBytes) + " bytes"
+                           : "the request line and headers may take at most " + std::to_string(limits_.max_header_bytes) + " bytes");
       if (on_refused) on_refused(status);
     }
     if (ctx.timed_out) {

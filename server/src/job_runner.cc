@@ -26,8 +26,8 @@ double seconds_since(Clock::time_point t0) { return std::chrono::duration<double
 std::string timed_out_reason(double max_job_seconds, const std::string& where) {
   char limit[32];
   std::snprintf(limit, sizeof limit, "%g", max_job_seconds);
-  return std::string("the job ran longer than this server's limit of ") + limit + " s of wall-clock time (--max-job-seconds) and was stopped " +
-         where + "; what it wrote is kept";
+  return std::string("the job ran longer than this server's limit of ") + limit +
+         " s of wall-clock time (--max-job-seconds) and was stopped " + where + "; what it wrote is kept";
 }
 
 // The results a run writes before its commit renames them (JobRunner::commit), removed when they will
@@ -271,7 +271,8 @@ void JobRunner::worker_loop() {
     if (config_.max_job_seconds > 0) {
       {
         std::lock_guard lock(watchdog_mu_);
-        deadlines_[job] = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(config_.max_job_seconds));
+        deadlines_[job] =
+            Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(config_.max_job_seconds));
       }
       watchdog_cv_.notify_all();
     }
@@ -311,8 +312,9 @@ void JobRunner::run(const std::shared_ptr<Job>& job) {
   std::optional<StreamObserver> stream_observer;
   if (job->stream.enabled) {
     // What the states hold, for viewers that know nothing of the scene.
-    StreamDescription description{sim.name(), sim.system_type(), "E = 1/2 <M(q) v, v> (kinetic energy)",
-                                  sim.position_names(), sim.velocity_names(), sim.t0(), sim.t_end()};
+    StreamDescription description{sim.name(),           sim.system_type(),    "E = 1/2 <M(q) v, v> (kinetic energy)",
+                                  sim.position_names(), sim.velocity_names(), sim.t0(),
+                                  sim.t_end()};
     if (const scene::LureScene* lure = sim.lure())
       description.energy = lure->storage ? "W = 1/2 x^T P x (storage)" : "1/2 |x|^2 (no storage matrix)";
     commit->stream = std::make_shared<JobStream>(job->id, job->stream, sim.dof(), std::move(description));

@@ -99,7 +99,7 @@ class JobRunner {
     RunSummary summary;
     JobState state = JobState::kDone;
     std::string reason;
-    std::string hypothesis_failure;  // a hypothesis the run relies on that fails (guarantees.h), or ""
+    std::string hypothesis_failure;              // a hypothesis the run relies on that fails (guarantees.h), or ""
     std::optional<std::int64_t> announced_rest;  // the rest a "converged" event announced during the run, if it stands
     double integrate_seconds = 0;
     std::chrono::steady_clock::time_point wall_start;

@@ -136,8 +136,8 @@ std::vector<std::shared_ptr<Job>> JobStore::recover() {
     // progress events after its record, so its new state event comes after all of them.
     const std::uint64_t recorded_event_id =
         record.contains("event_id") && record["event_id"].is_number_unsigned() ? record["event_id"].get<std::uint64_t>() : 0;
-    job->next_event_id = recorded && is_final(*recorded) && recorded_event_id > 0 ? recorded_event_id
-                                                                                  : recorded_event_id + kEventIdGapAfterRestart;
+    job->next_event_id =
+        recorded && is_final(*recorded) && recorded_event_id > 0 ? recorded_event_id : recorded_event_id + kEventIdGapAfterRestart;
     bool rewrite = false;
     if (recorded && is_final(*recorded)) {
       job->state = *recorded;

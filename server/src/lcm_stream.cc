@@ -98,7 +98,8 @@ lcm::LCM& LcmHub::open() {
   std::lock_guard lock(open_mu_);
   if (!lcm_) {
     const std::string shown = url_.empty() ? std::string("(LCM's default)") : url_;
-    if (const std::string why = lcm_url_problem(url_); !why.empty()) throw std::runtime_error("cannot open LCM URL '" + shown + "': " + why);
+    if (const std::string why = lcm_url_problem(url_); !why.empty())
+      throw std::runtime_error("cannot open LCM URL '" + shown + "': " + why);
     auto l = std::make_unique<lcm::LCM>(url_);
     if (!l->good()) throw std::runtime_error("cannot open LCM URL '" + shown + "'");
     lcm_ = std::move(l);

@@ -86,8 +86,9 @@ int main(int argc, char** argv) {
   app.add_flag("--allow-unauthenticated-remote", cfg.allow_unauthenticated_remote, "Allow a non-loopback --host without a token");
   app.add_option("--max-body", cfg.max_body_bytes, "Largest request body, bytes (larger: 413)")->capture_default_str();
   app.add_option("--max-steps", cfg.max_steps, "Integration steps per job at most")->capture_default_str()->check(CLI::PositiveNumber);
-  app.add_option("--max-job-seconds", cfg.max_job_seconds,
-                 "Wall-clock seconds one job (run, study or campaign) may run; past it, it ends failed, keeping what it wrote (0: no limit)")
+  app.add_option(
+         "--max-job-seconds", cfg.max_job_seconds,
+         "Wall-clock seconds one job (run, study or campaign) may run; past it, it ends failed, keeping what it wrote (0: no limit)")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 1e7));
   app.add_option("--max-campaign-samples", cfg.max_campaign_samples, "Samples of one campaign at most (POST /v1/campaigns)")

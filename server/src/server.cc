@@ -118,7 +118,7 @@ bool constant_time_equal(const std::string& given, const std::string& secret) {
 struct RouteInfo {
   const char* pattern;  // segments; "*" is any one non-empty segment, "a|b" either name
   const char* allow;
-  std::vector<std::string> params;         // of GET (and HEAD)
+  std::vector<std::string> params;              // of GET (and HEAD)
   std::vector<std::string> delete_params = {};  // of DELETE; POST reads none
 };
 
@@ -191,8 +191,8 @@ std::string unknown_query_parameter(const Request& req) {
   // ignored. POST reads none.
   static const std::vector<std::string> kNone;
   const std::vector<std::string>& params = req.method == "GET" || req.method == "HEAD" ? r->params
-                                           : req.method == "DELETE"                     ? r->delete_params
-                                                                                        : kNone;
+                                           : req.method == "DELETE"                    ? r->delete_params
+                                                                                       : kNone;
   for (const auto& [name, value] : req.params) {
     if (std::find(params.begin(), params.end(), name) != params.end()) continue;
     std::string takes;
@@ -384,8 +384,9 @@ class Server::Impl {
     }
     // Any web page the user visits could otherwise read, submit and delete jobs through the browser.
     if (cfg_.cors_origin == "*" && cfg_.token.empty()) {
-      throw std::runtime_error("refusing --cors-origin '*' without a token: any web page could use this server; give --token "
-                               "(or MOREAU_TOKEN), or name the one origin to answer");
+      throw std::runtime_error(
+          "refusing --cors-origin '*' without a token: any web page could use this server; give --token "
+          "(or MOREAU_TOKEN), or name the one origin to answer");
     }
     jobs_.start();
     int port = cfg_.port;
@@ -498,9 +499,10 @@ class Server::Impl {
       const std::string what = kind == JobKind::kRun ? "job" : kind_name(kind);
       const std::string post = "POST " + kind_url(kind).substr(0, kind_url(kind).size() - 1);
       send_error(res, 404, std::string("no such ") + what, "",
-                 is_job_id(id) ? std::string("no ") + what + " " + id + " on this server (finished ones are deleted when purged, or beyond --keep-jobs)"
-                               : "'" + id.substr(0, 64) + "' is not a " + what + " id: " + what +
-                                     " ids are 32 lowercase hex digits, as " + post + " returns them");
+                 is_job_id(id) ? std::string("no ") + what + " " + id +
+                                     " on this server (finished ones are deleted when purged, or beyond --keep-jobs)"
+                               : "'" + id.substr(0, 64) + "' is not a " + what + " id: " + what + " ids are 32 lowercase hex digits, as " +
+                                     post + " returns them");
     }
     return job;
   }
@@ -524,7 +526,10 @@ class Server::Impl {
     bool deleted = false;
     auto text = job_file(job, &Job::has_report, name, &deleted);
     if (deleted) return send_deleted(res);
-    if (!text) return send_error(res, 409, not_yet, "", std::string("the ") + (job.kind == JobKind::kRun ? "job" : kind_name(job.kind)) + " is " + to_string(state_of(job)) + when);
+    if (!text)
+      return send_error(
+          res, 409, not_yet, "",
+          std::string("the ") + (job.kind == JobKind::kRun ? "job" : kind_name(job.kind)) + " is " + to_string(state_of(job)) + when);
     if (not_modified(req, res, strong_etag(*text))) return;
     res.status = 200;
     if (!attachment.empty()) res.set_header("Content-Disposition", "attachment; filename=\"" + attachment + "\"");
@@ -537,7 +542,8 @@ class Server::Impl {
                    " long polls (?wait) and event streams open at once; retry, or poll without wait");
   }
   static void send_deleted(Response& res) {
-    send_error(res, 404, "no such job", "", "the job was deleted (purged, or beyond the most recent finished jobs this server keeps: --keep-jobs)");
+    send_error(res, 404, "no such job", "",
+               "the job was deleted (purged, or beyond the most recent finished jobs this server keeps: --keep-jobs)");
   }
   // The job's state, report presence and trajectory presence, under its lock.
   static JobState state_of(const Job& job) {
@@ -661,7 +667,9 @@ class Server::Impl {
   // The committed report of a run (report.json) or result of a study (result.json).
   std::optional<json> read_report(const Job& job) {
     auto text = job_file(job, &Job::has_report,
-                         job.kind == JobKind::kStudy ? "result.json" : job.kind == JobKind::kCampaign ? "summary.json" : "report.json");
+                         job.kind == JobKind::kStudy      ? "result.json"
+                         : job.kind == JobKind::kCampaign ? "summary.json"
+                                                          : "report.json");
     if (!text) return std::nullopt;
     json j = json::parse(*text, nullptr, false);
     if (j.is_discarded()) return std::nullopt;
@@ -981,8 +989,7 @@ bool Server::Impl::screen(const Request& req, Response& res) {
   // Origins compare without case (browsers send scheme and host in lower case). An answer that depends on
   // the Origin says so (Vary) to every client, so that a cache never serves one origin's answer to another.
   const std::string origin = req.get_header_value("Origin");
-  const bool cors =
-      !cfg_.cors_origin.empty() && !origin.empty() && (cfg_.cors_origin == "*" || lower(origin) == lower(cfg_.cors_origin));
+  const bool cors = !cfg_.cors_origin.empty() && !origin.empty() && (cfg_.cors_origin == "*" || lower(origin) == lower(cfg_.cors_origin));
   if (!cfg_.cors_origin.empty() && cfg_.cors_origin != "*") res.set_header("Vary", "Origin");
   if (cors) {
     res.set_header("Access-Control-Allow-Origin", cfg_.cors_origin == "*" ? std::string("*") : origin);
@@ -1278,7 +1285,8 @@ void Server::Impl::prepare_campaign(Job& job, const json& spec_doc) {
   const scene::Simulation sim = scene::Simulation::from_json(spec_doc.at("scene"));  // its errors: 400 invalid scene, at the scene's field
   // This server's sample limit first, whatever the number's form (1e12 is a float in JSON): the spec
   // reader's own limit is the command line's, far above it.
-  if (spec_doc.contains("samples") && spec_doc["samples"].is_number() && spec_doc["samples"].get<double>() > static_cast<double>(cfg_.max_campaign_samples))
+  if (spec_doc.contains("samples") && spec_doc["samples"].is_number() &&
+      spec_doc["samples"].get<double>() > static_cast<double>(cfg_.max_campaign_samples))
     throw BadRequest{400, "invalid request", "/campaign/samples",
                      (spec_doc["samples"].is_number_float() ? fmt_g(spec_doc["samples"].get<double>()) : spec_doc["samples"].dump()) +
                          " samples; this server runs at most " + std::to_string(cfg_.max_campaign_samples) +
@@ -1299,8 +1307,9 @@ void Server::Impl::prepare_campaign(Job& job, const json& spec_doc) {
   const std::int64_t planned = sim.planned_steps();
   if (planned > cfg_.max_steps)
     throw BadRequest{400, "invalid scene", "/integrator/h",
-                     "h = " + fmt_g(sim.h()) + " over [" + fmt_g(sim.t0()) + ", " + fmt_g(sim.t_end()) + "] needs " + std::to_string(planned) +
-                         " steps per sample; this server runs at most " + std::to_string(cfg_.max_steps) + " steps per run",
+                     "h = " + fmt_g(sim.h()) + " over [" + fmt_g(sim.t0()) + ", " + fmt_g(sim.t_end()) + "] needs " +
+                         std::to_string(planned) + " steps per sample; this server runs at most " + std::to_string(cfg_.max_steps) +
+                         " steps per run",
                      "scene"};
   if (planned > cfg_.max_campaign_steps / spec.samples)
     throw BadRequest{400, "invalid request", "/campaign/samples",
@@ -1317,13 +1326,14 @@ void Server::Impl::prepare_campaign(Job& job, const json& spec_doc) {
     if (steps.input >= 0) {
       const std::vector<json> drawn = scene::CampaignDesign(spec).values(steps.largest_sample);
       const std::string shown = drawn[static_cast<std::size_t>(steps.input)].dump();
-      values = ", with " + spec.inputs[static_cast<std::size_t>(steps.input)].path + " = " + (shown.size() > 40 ? shown.substr(0, 37) + "..." : shown);
+      values = ", with " + spec.inputs[static_cast<std::size_t>(steps.input)].path + " = " +
+               (shown.size() > 40 ? shown.substr(0, 37) + "..." : shown);
     }
     throw BadRequest{400, "invalid request", pointer,
-                     "with their inputs applied, the samples need " + std::string(steps.stopped ? "more than " : "") + std::to_string(steps.total) +
-                         " steps in all (sample " + std::to_string(steps.largest_sample) + values + ", needs " + std::to_string(steps.largest) +
-                         "; the scene alone " + std::to_string(planned) + " per sample); this server runs at most " +
-                         std::to_string(cfg_.max_campaign_steps) + " steps per campaign",
+                     "with their inputs applied, the samples need " + std::string(steps.stopped ? "more than " : "") +
+                         std::to_string(steps.total) + " steps in all (sample " + std::to_string(steps.largest_sample) + values +
+                         ", needs " + std::to_string(steps.largest) + "; the scene alone " + std::to_string(planned) +
+                         " per sample); this server runs at most " + std::to_string(cfg_.max_campaign_steps) + " steps per campaign",
                      "request"};
   }
   const std::int64_t bytes = campaign_bytes_bound(spec, sim.dof());
@@ -1350,16 +1360,18 @@ void Server::Impl::post_campaign(const Request&, Response& res, const std::strin
     const json doc = request_scene(body);
     if (!body.contains("campaign"))
       throw BadRequest{400, "invalid request", "/campaign",
-                       "missing required field 'campaign' (the uncertain inputs, the sampler and the samples: docs/campaigns.md)", "request"};
+                       "missing required field 'campaign' (the uncertain inputs, the sampler and the samples: docs/campaigns.md)",
+                       "request"};
     const json& fields = body["campaign"];
     if (!fields.is_object())
-      throw BadRequest{400, "invalid request", "/campaign", "expected an object {inputs, samples, sampler?, seed?, target?, map?, full_report?}",
-                       "request"};
+      throw BadRequest{400, "invalid request", "/campaign",
+                       "expected an object {inputs, samples, sampler?, seed?, target?, map?, full_report?}", "request"};
     // The scene is the request's own (an object, or a shipped scene's name, with overrides): a path in the
     // spec would be a file on this machine.
     if (fields.contains("scene"))
       throw BadRequest{400, "invalid request", "/campaign/scene",
-                       "the scene is the request's 'scene' (an object, or the name of a shipped scene), not a field of 'campaign'", "request"};
+                       "the scene is the request's 'scene' (an object, or the name of a shipped scene), not a field of 'campaign'",
+                       "request"};
     json spec_doc = fields;
     spec_doc["scene"] = doc;
     auto job = jobs_.make_job();
@@ -1498,7 +1510,8 @@ void Server::Impl::list_jobs(const Request& req, Response& res, JobKind kind) {
   json body = {{plural, list}, {"count", list.size()}, {"total", total}};
   // The page of older ones, with the same filters.
   if (from > 0) {
-    std::string next = std::string("/v1/") + plural + "?limit=" + std::to_string(static_cast<std::int64_t>(*limit)) + "&before=" + picked[from]->id;
+    std::string next =
+        std::string("/v1/") + plural + "?limit=" + std::to_string(static_cast<std::int64_t>(*limit)) + "&before=" + picked[from]->id;
     if (!state.empty()) next += "&state=" + state;
     if (!scene.empty()) next += "&scene=" + httplib::detail::encode_query_param(scene);
     body["next"] = next;
@@ -1680,8 +1693,8 @@ void Server::Impl::job_figure(const Request& req, Response& res) {
         }
       }
     }
-    return figure_image(kind, *csv, converged, figure->size.first, figure->size.second,
-                        job->scene_name + " (" + job->id.substr(0, 8) + ")", figure->format, system ? &*system : nullptr);
+    return figure_image(kind, *csv, converged, figure->size.first, figure->size.second, job->scene_name + " (" + job->id.substr(0, 8) + ")",
+                        figure->format, system ? &*system : nullptr);
   });
 }
 
@@ -1734,7 +1747,8 @@ void Server::Impl::get_scene(const Request& req, Response& res) {
   const auto files = scene_files();
   auto it = files.find(req.matches[1].str());
   if (it == files.end())
-    return send_error(res, 404, "no such scene", "", "no shipped scene '" + req.matches[1].str().substr(0, 64) + "'; GET /v1/scenes lists them");
+    return send_error(res, 404, "no such scene", "",
+                      "no shipped scene '" + req.matches[1].str().substr(0, 64) + "'; GET /v1/scenes lists them");
   auto text = read_file(it->second);
   if (!text) return send_error(res, 500, "scene unreadable");
   res.status = 200;

@@ -30,7 +30,9 @@ inline nlohmann::json chain_scene(int n, double t_end) {
           {"system",
            {{"type", "lagrangian"},
             {"urdf", {{"text", chain_urdf_text(n)}, {"gravity", {0.0, -9.81, 0.0}}}},
-            {"controller", {{{"type", "quadratic"}, {"weights", std::vector<double>(n, 0.01)}}, {{"type", "abs"}, {"gains", std::vector<double>(n, 0.02)}}}}}},
+            {"controller",
+             {{{"type", "quadratic"}, {"weights", std::vector<double>(n, 0.01)}},
+              {{"type", "abs"}, {"gains", std::vector<double>(n, 0.02)}}}}}},
           {"initial", {{"q", q}, {"v", v}}},
           {"integrator", {{"scheme", "abl"}, {"h", 1e-3}, {"t_end", t_end}}}};
 }

@@ -40,8 +40,8 @@ namespace moreau::scene {
 struct InputDistribution {
   enum class Kind { kUniform, kNormal, kLogUniform, kDiscrete, kGrid };
   Kind kind = Kind::kUniform;
-  double low = 0.0, high = 0.0;    // uniform, log-uniform, grid; the truncation bounds of a normal
-  double mean = 0.0, stddev = 0.0;  // normal
+  double low = 0.0, high = 0.0;        // uniform, log-uniform, grid; the truncation bounds of a normal
+  double mean = 0.0, stddev = 0.0;     // normal
   std::vector<nlohmann::json> values;  // discrete (equally likely); a grid's points
 
   // The value at u in [0, 1): low + u (high - low); exp of the same in log; the truncated normal's
@@ -97,7 +97,7 @@ struct CampaignSpec {
   // records to their outcomes (about 300 bytes), for campaigns of millions of samples.
   bool full_report = true;
   nlohmann::json document;  // the spec as given, with the scene inlined: what campaign.json stores
-  std::string hash;          // campaign_spec_hash(document): the "spec_hash" of every record
+  std::string hash;         // campaign_spec_hash(document): the "spec_hash" of every record
 
   // Validates a spec. `base_dir` resolves a scene given as a file path. Throws SceneError naming the
   // field (a JSON pointer into the spec) and what is wrong.
@@ -124,7 +124,7 @@ struct CampaignOutcome {
   int failure_class = 0;  // 3 invalid, 2 failed run, 1 did not succeed, 0 succeeded
   bool success = false, converged = false, hypothesis_failed = false;
   double converged_time = 0, target_distance = 0, max_abs_q = 0;  // NaN: none
-  std::vector<double> inputs;                                    // per input; NaN: not a number
+  std::vector<double> inputs;                                     // per input; NaN: not a number
 };
 
 // Runs the samples of one campaign, one at a time (one runner per worker thread).
@@ -186,7 +186,7 @@ std::string format_campaign_summary(const nlohmann::json& summary);
 
 struct CampaignRunOptions {
   int workers = 1;
-  std::int64_t begin = 0, end = -1;        // the index range [begin, end) (end < 0: every sample)
+  std::int64_t begin = 0, end = -1;  // the index range [begin, end) (end < 0: every sample)
   // A task of a split campaign (a Slurm array task, a Kubernetes pod): its records go to its own part
   // file, parts/<begin>-<end>.jsonl.partial, renamed to parts/<begin>-<end>.jsonl when the range is done,
   // and the summary is left to collect_campaign. Otherwise: samples.jsonl and samples.csv, and the summary

@@ -348,8 +348,8 @@ class AblIntegrator {
   LagrangianTerms<N> terms_;
   bool terms_vary_ = true;  // false: the model's terms are constant, and terms_ holds them
   Mat<N> P_, Mtrial_, eps_;
-  Vec<N> q_, v_;         // the state (Q^k, V^k)
-  double energy_ = 0.0;  // E_k = 1/2 <M(Q^k) V^k, V^k>
+  Vec<N> q_, v_;            // the state (Q^k, V^k)
+  double energy_ = 0.0;     // E_k = 1/2 <M(Q^k) V^k, V^k>
   double step_work_ = 0.0;  // h_k <xi, V^{k+1}> of the last step (0 for the explicit peer)
   Vec<N> x_, y_, Mv_, zero_, q_trial_;
   Eigen::SelfAdjointEigenSolver<Mat<N>> eig_;

@@ -358,7 +358,7 @@ class GraphInclusionSolver {
   double scale_d_ = 0.0, graph_scale_ = 0.0;
   Pieces pieces_, trial_;
   Pieces free_, pinned_;  // the free and the pinned components of the pattern being solved (solve_pattern)
-  Mat<M> K_;     // their equations' matrix, in its leading block
+  Mat<M> K_;              // their equations' matrix, in its leading block
   Vec<M> r_, t_, z_;
 };
 

@@ -718,9 +718,9 @@ class MoreauJeanIntegrator {
   std::vector<int> ctrl_dof_;
   std::vector<MonotoneGraph> relay_;
   std::vector<MonotoneGraph> merged_left_wall_, merged_right_wall_;  // per controlled row (merge_rows)
-  std::vector<int> row_of_dof_;      // controlled row of each coordinate, -1 without an abs term
-  std::vector<int> merged_contact_;  // per controlled row: the contact merged into it this step, or -1
-  std::vector<double> merged_sign_;  // its gradient's entry c
+  std::vector<int> row_of_dof_;                                      // controlled row of each coordinate, -1 without an abs term
+  std::vector<int> merged_contact_;                                  // per controlled row: the contact merged into it this step, or -1
+  std::vector<double> merged_sign_;                                  // its gradient's entry c
   MonotoneGraph corner_ = MonotoneGraph::complementarity();
   MonotoneGraph zero_ = MonotoneGraph::zero();
   std::vector<double> restitution_;
@@ -746,9 +746,9 @@ class MoreauJeanIntegrator {
   Eigen::VectorXd b_;
   ColsN Y_;
   Eigen::MatrixXd D_;
-  Eigen::VectorXd qv_, u_, w_;      // (GE) in its leading rows: na_ controlled coordinates, then the contacts of I_k
-  std::vector<int> contact_row_;    // per contact: its row in (GE) this step, or -1 outside I_k
-  Eigen::VectorXd P_;               // per contact: the impulse P_i^{k+1} of the step (0 outside I_k)
+  Eigen::VectorXd qv_, u_, w_;    // (GE) in its leading rows: na_ controlled coordinates, then the contacts of I_k
+  std::vector<int> contact_row_;  // per contact: its row in (GE) this step, or -1 outside I_k
+  Eigen::VectorXd P_;             // per contact: the impulse P_i^{k+1} of the step (0 outside I_k)
   std::vector<const MonotoneGraph*> ptrs_;
   GraphInclusionSolver<Eigen::Dynamic> solver_;
   OneStepSolver<N> controlled_solver_;  // a step's controlled rows when no contact is in I_k (solve_controlled_rows)
@@ -758,8 +758,8 @@ class MoreauJeanIntegrator {
   Eigen::MatrixXd S_, Sd_;
   Eigen::VectorXd s_, pref_;
   static constexpr int kMaxEnumeratedImpacts = 10;  // 2^10 active sets at most
-  std::vector<int> rows_;         // the rebounding contacts of an impact step
-  std::vector<int> impact_rows_;  // the impacting contacts (Moreau's impact law)
+  std::vector<int> rows_;                           // the rebounding contacts of an impact step
+  std::vector<int> impact_rows_;                    // the impacting contacts (Moreau's impact law)
   std::vector<char> impacting_;
   std::vector<const MonotoneGraph*> corr_ptrs_;
   GraphInclusionSolver<Eigen::Dynamic> corr_solver_;

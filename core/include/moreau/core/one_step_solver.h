@@ -551,7 +551,7 @@ class OneStepSolver {
     if (m > 16) {
       int transpositions = 0;
       return Eigen::internal::partial_lu_impl<double, Eigen::ColMajor, int>::blocked_lu(m, m, A.data(), A.outerStride(), t.data(),
-                                                                                          transpositions) < 0;
+                                                                                        transpositions) < 0;
     }
     for (int k = 0; k < m; ++k) {
       int p = k;
@@ -828,16 +828,16 @@ class OneStepSolver {
   Eigen::Matrix<std::int8_t, N, Eigen::Dynamic> newton_patterns_;  // the semismooth Newton's patterns, in order
   Mat<N> A_, J_;
   Vec<N> b_, w_, r_, dy_, best_;
-  bool y_zero_ = false;  // whether the y consistent() checked last is 0
-  double pattern_scale_ = 0.0;  // the scale of the terms of (6.5) at that y (pattern_tolerance)
+  bool y_zero_ = false;          // whether the y consistent() checked last is 0
+  double pattern_scale_ = 0.0;   // the scale of the terms of (6.5) at that y (pattern_tolerance)
   bool w_from_pattern_ = false;  // w_ is -(P y + x) for the last pattern solve, from solve_from_base
   Eigen::PartialPivLU<Mat<N>> lu_;
 
   // The shared factorisation (solve_from_base): sizes where it applies, and its buffers.
-  static constexpr int kShareMin = 16;        // below, a pattern's own LU costs little
+  static constexpr int kShareMin = 16;   // below, a pattern's own LU costs little
   static constexpr int kShareMax = 128;  // the sizes it is tested and measured on (its buffers are n x n)
   bool share_factorisation_ = false;
-  bool direct_ = true;      // this attempt's pattern solves are direct
+  bool direct_ = true;  // this attempt's pattern solves are direct
   std::int64_t direct_resolves_ = 0, direct_retries_ = 0, schur_updates_ = 0;
   Pattern start_, col_ready_;
   // The step's base pattern: its free set F0 (base_index_, base_size_ = |F0|, -1 before the step's first

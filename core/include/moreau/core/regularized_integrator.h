@@ -94,7 +94,8 @@ class RegularizedIntegrator {
       } else {
         rest_from = -1;
       }
-      if (observer) observer->on_sample(Sample{samples, t, samples == 0 ? s_.h : t - last_t, n, q_.data(), v_.data(), energy, 0.0, samples});
+      if (observer)
+        observer->on_sample(Sample{samples, t, samples == 0 ? s_.h : t - last_t, n, q_.data(), v_.data(), energy, 0.0, samples});
       last_t = t;
       summary.energy_final = energy;
       ++samples;

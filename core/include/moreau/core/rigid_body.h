@@ -43,15 +43,15 @@ enum class JointType { kRevolute, kPrismatic };
 // The inertia of a rigid body about its centre of mass, in its own frame.
 struct RigidBodyInertia {
   double mass_kg = 0.0;
-  Eigen::Vector3d com_m = Eigen::Vector3d::Zero();                   // centre of mass, body frame
-  Eigen::Matrix3d inertia_com_kg_m2 = Eigen::Matrix3d::Zero();       // about the centre of mass, body axes
+  Eigen::Vector3d com_m = Eigen::Vector3d::Zero();              // centre of mass, body frame
+  Eigen::Matrix3d inertia_com_kg_m2 = Eigen::Matrix3d::Zero();  // about the centre of mass, body axes
 };
 
 // One moving body and the joint that moves it relative to its parent.
 struct RigidBody {
-  std::string joint_name;   // names the coordinate q_j
-  std::string link_name;    // the link the joint moves
-  int parent = -1;          // index of the parent body, -1 for the fixed base; always below this index
+  std::string joint_name;  // names the coordinate q_j
+  std::string link_name;   // the link the joint moves
+  int parent = -1;         // index of the parent body, -1 for the fixed base; always below this index
   JointType joint = JointType::kRevolute;
   // The joint frame at q_j = 0, relative to the parent body's frame.
   Eigen::Matrix3d rotation_in_parent = Eigen::Matrix3d::Identity();
@@ -63,7 +63,7 @@ struct RigidBody {
 };
 
 struct RigidBodyModel {
-  std::vector<RigidBody> bodies;  // parents before children
+  std::vector<RigidBody> bodies;                                    // parents before children
   Eigen::Vector3d gravity_m_s2 = Eigen::Vector3d(0.0, 0.0, -9.81);  // in the base frame
   int dof() const { return static_cast<int>(bodies.size()); }
   // True when body `a` is `j` or one of its ancestors.
@@ -107,8 +107,8 @@ void update_kinematics(const RigidBodyModel& model, RigidBodyData& data, const d
 void mass_matrix(const RigidBodyModel& model, RigidBodyData& data, const double* q, Eigen::Ref<Eigen::MatrixXd> M);
 
 // M(q), C(q, v) (Christoffel form) and G(q) = grad V(q) in one pass. The step of scheme (0.2) calls this.
-void rigid_body_terms(const RigidBodyModel& model, RigidBodyData& data, const double* q, const double* v,
-                      Eigen::Ref<Eigen::MatrixXd> M, Eigen::Ref<Eigen::MatrixXd> C, Eigen::Ref<Eigen::VectorXd> G);
+void rigid_body_terms(const RigidBodyModel& model, RigidBodyData& data, const double* q, const double* v, Eigen::Ref<Eigen::MatrixXd> M,
+                      Eigen::Ref<Eigen::MatrixXd> C, Eigen::Ref<Eigen::VectorXd> G);
 
 // G(q) = grad V(q), the torque that holds the robot against gravity.
 void gravity_torque(const RigidBodyModel& model, RigidBodyData& data, const double* q, Eigen::Ref<Eigen::VectorXd> G);

@@ -61,9 +61,9 @@ struct ImpactEvent {
   std::int64_t step = 0;  // k+1: the step whose impulse carried the impact
   double t = 0.0;         // t_{k+1}
   int constraint = 0;
-  double pre = 0.0;      // U_k = grad h(Q^k)^T V^k < 0, the approaching normal velocity
-  double post = 0.0;     // U_{k+1} = grad h(Q^k)^T V^{k+1}
-  double impulse = 0.0;  // P_{k+1} >= 0 (the contact percussion over the step)
+  double pre = 0.0;          // U_k = grad h(Q^k)^T V^k < 0, the approaching normal velocity
+  double post = 0.0;         // U_{k+1} = grad h(Q^k)^T V^{k+1}
+  double impulse = 0.0;      // P_{k+1} >= 0 (the contact percussion over the step)
   double restitution = 0.0;  // e_i, the contact's Newton coefficient the step used (U+ = -e U- when P > 0)
   // The step's kinetic energy change 1/2 <M V^{k+1}, V^{k+1}> - 1/2 <M V^k, V^k> (M = M(Q^k)), against
   // eq. (9): the change Moreau's impact law alone gives from V^k for all the contacts impacting in this
@@ -73,7 +73,7 @@ struct ImpactEvent {
   double eq9_change = 0.0;
   double reference_impulse = 0.0;
   bool reference_evaluated = false;  // false: more than 10 simultaneous impacts, or a degenerate LCP
-  int simultaneous = 1;  // impacts in the same step
+  int simultaneous = 1;              // impacts in the same step
 };
 
 struct ContactDiagnostics {

@@ -132,10 +132,10 @@ struct ForceBoundTrack {
 // (the scene's compiled expressions or robot); samples == 0 when nobody did.
 struct MechanicalEnergyTrack {
   std::int64_t samples = 0;
-  double initial = 0.0;           // E at the first recorded state
-  double max_rise = 0.0;          // largest E(t_k) - E(t0) seen (0 when E never rose)
+  double initial = 0.0;   // E at the first recorded state
+  double max_rise = 0.0;  // largest E(t_k) - E(t0) seen (0 when E never rose)
   double max_rise_time = 0.0;
-  double max_balance = 0.0;       // largest |E(t_k) - E(t0) + D(t_k)| seen
+  double max_balance = 0.0;  // largest |E(t_k) - E(t0) + D(t_k)| seen
   double max_balance_time = 0.0;
 };
 
@@ -178,9 +178,9 @@ struct RunSummary {
   SolverEffort solver;
 
   // Checked at every step of the schemes with a mass matrix (step_conditions.h).
-  MassDefinitenessTrack mass;      // Assumption 3.1: lambda_min(M(Q^k)) > 0
-  StepConditionTrack theorem41;    // (4.2) of Theorem 4.1, for the scheme (0.2) only
-  ForceBoundTrack force_bounds;    // Assumption 4.1 2)-3), at the recorded states
+  MassDefinitenessTrack mass;        // Assumption 3.1: lambda_min(M(Q^k)) > 0
+  StepConditionTrack theorem41;      // (4.2) of Theorem 4.1, for the scheme (0.2) only
+  ForceBoundTrack force_bounds;      // Assumption 4.1 2)-3), at the recorded states
   MechanicalEnergyTrack mechanical;  // E = 1/2 <M v, v> + V(q) and its balance, at the recorded states
 
   // Wall time by phase, in the order they ran ("parse", "compile", "integrate", "write", ...).

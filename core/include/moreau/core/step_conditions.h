@@ -48,10 +48,10 @@ namespace moreau {
 // lambda_min(M) (or a positive lower bound that proves definiteness) and r_k^2 of (4.2) for one step, as
 // the fraction ratio_sq_num / ratio_sq_den (valid when lambda_min_m > 0).
 struct StepCheck {
-  double lambda_min_m = 0.0;  // > 0: M(Q^k) is positive definite (exact for n <= 2, else exact or a lower bound)
-  bool exact = true;          // lambda_min_m is lambda_min(M) itself (false: a certified lower bound)
-  double ratio_sq_num = 0.0;  // (2 h_k ||C||_2)^2, or a bound of it (ratio_kind)
-  double ratio_sq_den = 1.0;  // lambda_min(M)^2, or a bound of it
+  double lambda_min_m = 0.0;                 // > 0: M(Q^k) is positive definite (exact for n <= 2, else exact or a lower bound)
+  bool exact = true;                         // lambda_min_m is lambda_min(M) itself (false: a certified lower bound)
+  double ratio_sq_num = 0.0;                 // (2 h_k ||C||_2)^2, or a bound of it (ratio_kind)
+  double ratio_sq_den = 1.0;                 // lambda_min(M)^2, or a bound of it
   BoundKind ratio_kind = BoundKind::kExact;  // kUpperBound: r_k <= ratio() <= 1; kLowerBound: r_k >= ratio() > 1
   double ratio() const { return std::sqrt(ratio_sq_num / ratio_sq_den); }
 };
@@ -258,7 +258,7 @@ class StepConditionChecker {
 
   // The certificates' relative margin below the Rayleigh quotient of M and above that of C^T C.
   static constexpr double kMargin = 1e-3;
-  Vec<N> x_, u_, w_;      // unit vectors near the eigenvectors of lambda_min(M) and of ||C||_2^2; scratch
+  Vec<N> x_, u_, w_;  // unit vectors near the eigenvectors of lambda_min(M) and of ||C||_2^2; scratch
   bool have_x_ = false, have_u_ = false;
   std::int64_t eigenvalue_computations_ = 0;
   Mat<N> CtC_, shifted_;

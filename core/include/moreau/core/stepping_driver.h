@@ -73,7 +73,9 @@ class RunRecorder {
     s_.h_max = 0.0;
   }
   // The sample of the initial state (its h is the nominal step).
-  void first_sample(double t, double h_nominal, const double* q, const double* v, double energy) { emit(0, 0, t, h_nominal, q, v, energy, 0.0); }
+  void first_sample(double t, double h_nominal, const double* q, const double* v, double energy) {
+    emit(0, 0, t, h_nominal, q, v, energy, 0.0);
+  }
 
   // The one-step solver's effort on this step.
   void solver_step(int iterations, double residual, bool used_fallback) {

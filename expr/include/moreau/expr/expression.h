@@ -173,10 +173,10 @@ class Tape {
   // scene's step, scene_model.h): it writes the constants once, then at each evaluation the inputs
   // straight into their registers, runs the instructions and reads the outputs from their registers,
   // sparing the copies eval() makes through `slots` and `outputs`. Same instructions, same bits.
-  void load_constants(double* scratch) const;          // the constants run() reads (again after a bind())
-  std::int32_t input_register(int slot) const;         // where input `slot` goes, -1 if the tape reads none
+  void load_constants(double* scratch) const;   // the constants run() reads (again after a bind())
+  std::int32_t input_register(int slot) const;  // where input `slot` goes, -1 if the tape reads none
   std::int32_t output_register(std::size_t j) const { return output_regs_[j]; }
-  void run(double* scratch) const {                    // the instructions alone
+  void run(double* scratch) const {  // the instructions alone
     if (native_run_ != nullptr) return native_run_(scratch);
     run_interpreted(scratch);
   }
@@ -216,8 +216,8 @@ class Tape {
   static constexpr std::size_t kMaxNativeInstructions = std::size_t{1} << 16;
   bool native() const { return native_ != nullptr; }
   bool native_wired() const { return native_run_wired_ != nullptr; }  // run_wired() runs native code
-  void run_interpreted(double* scratch) const;  // the interpreter alone: the reference of the native code
-  struct NativeCode;                             // defined where the code is made (private to the library)
+  void run_interpreted(double* scratch) const;                        // the interpreter alone: the reference of the native code
+  struct NativeCode;                                                  // defined where the code is made (private to the library)
 
   std::size_t scratch_size() const { return scratch_size_; }
   std::size_t num_outputs() const { return output_regs_.size(); }
@@ -266,7 +266,7 @@ class Tape {
   std::vector<Wire> wired_inputs_, wired_outputs_;
   void run_wired_interpreted(double* scratch, const double* const* sources, double* const* sinks) const;
   std::shared_ptr<const NativeCode> native_, wired_native_;
-  void (*native_run_)(double* scratch) = nullptr;  // native_'s entry point
+  void (*native_run_)(double* scratch) = nullptr;                                                            // native_'s entry point
   void (*native_run_wired_)(double* scratch, const double* const* sources, double* const* sinks) = nullptr;  // wired_native_'s
 };
 

@@ -87,8 +87,8 @@ struct CompiledLagrangian {
   // model holds them and write their outputs straight into M, C and g (column-major M and C).
   enum Source : std::int32_t { kTime, kPosition, kVelocity };
   enum Sink : std::int32_t { kMass, kCoriolis, kForce, kPotential };
-  expr::Tape step_tape;       // the non-constant entries of M, C and g = grad V + F
-  expr::Tape mass_tape;       // the non-constant entries of M
+  expr::Tape step_tape;  // the non-constant entries of M, C and g = grad V + F
+  expr::Tape mass_tape;  // the non-constant entries of M
   // V(q), if the scene gives a potential. Wired (Tape::run_wired) to read q from sources[0] and write V to
   // sinks[0][0].
   expr::Tape potential_tape;

@@ -33,8 +33,8 @@ struct UrdfJointLimit {
 struct UrdfRobot {
   std::string name;
   std::string root_link;
-  RigidBodyModel model;                 // gravity: the model's default until the caller sets it
-  std::vector<UrdfJointLimit> limits;   // revolute and prismatic joints (URDF requires <limit> there)
+  RigidBodyModel model;                   // gravity: the model's default until the caller sets it
+  std::vector<UrdfJointLimit> limits;     // revolute and prismatic joints (URDF requires <limit> there)
   std::vector<double> damping, friction;  // per coordinate, from <dynamics> (0 when absent)
   std::vector<std::string> merged_links;  // links merged into a body through fixed joints
 };

@@ -59,7 +59,7 @@ struct ServerConfig {
   std::int64_t max_campaign_samples = 100'000;
   std::int64_t max_campaign_steps = 10'000'000'000;
   int campaign_threads = 0;
-  int keep_alive_seconds = 5;            // idle keep-alive connections are closed after this
+  int keep_alive_seconds = 5;  // idle keep-alive connections are closed after this
   // Requests served on one connection before it is closed: a busy keep-alive connection then goes back
   // behind the connections waiting for a thread, so that more clients than threads all get served.
   int keep_alive_requests = 100;
