@@ -3,10 +3,12 @@
 # are left alone, and apt is not even called when nothing is missing. Installing needs root or sudo;
 # without either, the script names the missing packages and the apt-get command to run as root.
 #
-# Options (CI passes both; a user needs neither):
+# Options (CI passes all three; a user needs none):
 #   --browser-test  what the web page's browser test needs: Debian's chromium, and puppeteer-core from the
 #                   npm registry into tests/browser/node_modules (npm ci, from the lock file), with the
 #                   machine's Node.js. Without it that test is not registered (CMake says so).
+#   --format-check  clang-format (Debian's, version 14), which CI runs over every C++ file: the tree is
+#                   formatted by .clang-format, and a difference fails CI.
 #   --slurm-test    slurmctld, slurmd, slurm-client and munge, for the test that runs a campaign through a
 #                   real single-node Slurm cluster (tests/slurm/). On a machine with systemd, Debian enables
 #                   and starts those daemons when it installs them, so they are not installed by default;
@@ -17,11 +19,13 @@ cd "$(dirname "$0")/.."
 
 browser_test=false
 slurm_test=false
+format_check=false
 for arg in "$@"; do
   case $arg in
     --browser-test) browser_test=true ;;
     --slurm-test) slurm_test=true ;;
-    *) echo "install-deps: unknown argument $arg (the options are --browser-test and --slurm-test)" >&2; exit 2 ;;
+    --format-check) format_check=true ;;
+    *) echo "install-deps: unknown argument $arg (the options are --browser-test, --slurm-test and --format-check)" >&2; exit 2 ;;
   esac
 done
 
@@ -47,7 +51,8 @@ packages=(
   python3-yaml                       # tests/k8s_indexed_job_test.py (reads the Kubernetes manifest)
 )
 if $browser_test; then packages+=(chromium); fi
-if $slurm_test; then packages+=(slurmctld slurmd slurm-client munge); fi  # tests/slurm/: a real single-node cluster
+if $slurm_test; then packages+=(slurmctld slurmd slurm-client munge); fi
+if $format_check; then packages+=(clang-format); fi  # tests/slurm/: a real single-node cluster
 
 # puppeteer-core for the browser test, once the packages are there (it drives /usr/bin/chromium).
 install_browser_driver() {
