@@ -24,50 +24,6 @@ using expr::Graph;
 using expr::Node;
 using expr::Op;
 
-// The line of the <joint> element named `name` in a URDF text, as " (line N)"; empty when it is not found
-// as written (a name spelled with character references, say). The robot model keeps the joints' names,
-// not their lines. Comments are skipped, and so are <joint name> references without a type (those of a
-// <transmission>).
-std::string joint_line(const std::string& text, const std::string& name) {
-  auto space = [](char c) { return c == ' ' || c == '\t' || c == '\n' || c == '\r'; };
-  for (std::size_t p = 0;;) {
-    const std::size_t j = text.find("<joint", p), comment = text.find("<!--", p);
-    if (j == std::string::npos) return "";
-    if (comment < j) {
-      const std::size_t end = text.find("-->", comment + 4);
-      if (end == std::string::npos) return "";
-      p = end + 3;
-      continue;
-    }
-    p = j + 6;
-    const std::size_t end = text.find('>', p);
-    if (end == std::string::npos) return "";
-    if (!space(text[p])) continue;  // <jointx ...>
-    const std::string tag = text.substr(p, end - p);
-    std::optional<std::string> value;
-    bool typed = false;
-    for (std::size_t a = 0; a < tag.size();) {
-      // An attribute: its name, '=', a quoted value.
-      while (a < tag.size() && space(tag[a])) ++a;
-      const std::size_t key = a;
-      while (a < tag.size() && !space(tag[a]) && tag[a] != '=') ++a;
-      const std::string attribute = tag.substr(key, a - key);
-      while (a < tag.size() && space(tag[a])) ++a;
-      if (a >= tag.size() || tag[a] != '=') break;
-      ++a;
-      while (a < tag.size() && space(tag[a])) ++a;
-      if (a >= tag.size() || (tag[a] != '"' && tag[a] != '\'')) break;
-      const std::size_t close = tag.find(tag[a], a + 1);
-      if (close == std::string::npos) break;
-      if (attribute == "name") value = tag.substr(a + 1, close - a - 1);
-      if (attribute == "type") typed = true;
-      a = close + 1;
-    }
-    if (typed && value == name)
-      return " (line " + std::to_string(1 + std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(j), '\n')) + ")";
-  }
-}
-
 class LagrangianCompiler : SceneReader {
  public:
   explicit LagrangianCompiler(const json& doc) : SceneReader(doc) {}
@@ -114,8 +70,9 @@ class LagrangianCompiler : SceneReader {
       if (const auto conflict = column_name_conflict(names, "coordinate")) {
         const std::string& joint = robot_->model.bodies[conflict->index].joint_name;
         const std::string& q = names[conflict->index];
+        const int line = robot_->joint_lines[conflict->index];  // from the URDF module's own parse
         throw SceneError("/system/urdf/text", "joint '" + utf8_prefix(joint, 200) + "'" +
-                                                  joint_line(system["urdf"]["text"].get<std::string>(), joint) +
+                                                  (line > 0 ? " (line " + std::to_string(line) + ")" : std::string()) +
                                                   (q == joint ? "" : " gives the coordinate name '" + q + "'") + ": " + conflict->reason);
       }
       for (int i = 0; i < n_; ++i) {

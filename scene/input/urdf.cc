@@ -200,6 +200,7 @@ UrdfRobot read_urdf(std::string_view text, const UrdfSelection& selection) {
     body.inertia = link_inertia(j.child_inertial, Frame{}, j.child_link, j.child_line);
     const int index = static_cast<int>(robot.model.bodies.size());
     robot.model.bodies.push_back(body);
+    robot.joint_lines.push_back(j.line);
     placed[j.child_link] = Placement{index, Frame{}};
     if (j.type != UrdfJointType::kContinuous) {
       if (!j.has_limits) throw UrdfError(where + ": a revolute or prismatic joint needs <limit lower upper>");

@@ -37,6 +37,7 @@ struct UrdfRobot {
   std::vector<UrdfJointLimit> limits;     // revolute and prismatic joints (URDF requires <limit> there)
   std::vector<double> damping, friction;  // per coordinate, from <dynamics> (0 when absent)
   std::vector<std::string> merged_links;  // links merged into a body through fixed joints
+  std::vector<int> joint_lines;           // per body: the line of its <joint> in the URDF (0: unknown)
 };
 
 // Which part of the tree becomes the model: the subtree at `root_link` (empty: the URDF's root), or only
