@@ -30,6 +30,7 @@
 
 #include "moreau/core/observer.h"
 #include "moreau/core/stepping_driver.h"
+#include "moreau/platform/fnv1a.h"
 #include "moreau/scene/line_reader.h"
 #include "moreau/scene/scene.h"
 #include "moreau/scene/simulation.h"
@@ -220,15 +221,7 @@ json canonical(const json& j) {
 }  // namespace
 
 std::string campaign_spec_hash(const json& document) {
-  // FNV-1a, 64 bits (offset basis 14695981039346656037, prime 1099511628211).
-  std::uint64_t h = 14695981039346656037ull;
-  for (const unsigned char c : canonical(document).dump(-1, ' ', false, json::error_handler_t::replace)) {
-    h ^= c;
-    h *= 1099511628211ull;
-  }
-  char hex[17];
-  std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(h));
-  return hex;
+  return platform::fnv1a64_hex(canonical(document).dump(-1, ' ', false, json::error_handler_t::replace));
 }
 
 CampaignSpec CampaignSpec::from_json(const json& spec, const std::string& base_dir) {

@@ -1,21 +1,14 @@
 #include "conditional.h"
 
+#include "moreau/platform/fnv1a.h"
+
 #include <cstdint>
 #include <cstdio>
 
 namespace moreau::server {
 namespace {
 
-std::string hash_hex(std::string_view bytes) {
-  std::uint64_t h = 14695981039346656037ull;  // FNV-1a, 64 bits
-  for (const char c : bytes) {
-    h ^= static_cast<unsigned char>(c);
-    h *= 1099511628211ull;
-  }
-  char hex[17];
-  std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(h));
-  return hex;
-}
+std::string hash_hex(std::string_view bytes) { return platform::fnv1a64_hex(bytes); }
 
 std::string_view trim(std::string_view s) {
   while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
