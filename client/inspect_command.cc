@@ -57,9 +57,9 @@ void inspect_lagrangian(const scene::LagrangianScene& sc, std::ostream& os) {
   os << "constraints  " << sc.constraint_names.size() << "\n";
   for (std::size_t i = 0; i < sc.constraint_names.size(); ++i)
     os << "  " << sc.constraint_names[i] << ": " << sc.constraint_gaps[i] << " >= 0, e = " << sc.restitution[i] << "\n";
-  os << "model        M " << (sc.compiled && sc.compiled->constant_mass ? "constant" : "depends on q") << ", C " << sc.coriolis
-     << (robot ? " (rigid-body algorithms)" : "") << ", M and C zero beyond " << (sc.compiled ? sc.compiled->bandwidth : -1)
-     << " from the diagonal" << (sc.has_force ? ", F given" : ", no F") << "\n";
+  os << "model        M " << (sc.compiled && sc.compiled->constant_mass ? "constant" : "depends on q") << ", C "
+     << scene::to_string(sc.coriolis) << (robot ? " (rigid-body algorithms)" : "") << ", M and C zero beyond "
+     << (sc.compiled ? sc.compiled->bandwidth : -1) << " from the diagonal" << (sc.has_force ? ", F given" : ", no F") << "\n";
   os << "scheme       " << scene::scheme_name(sc.scheme) << ", h = " << sc.settings.h << ", t in [" << sc.settings.t0 << ", "
      << sc.settings.t_end << "]\n";
   if (sc.scheme == scene::Scheme::kMoreauJean)

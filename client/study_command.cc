@@ -41,7 +41,7 @@ int study(const StudyOptions& opt) {
     st.schemes = scene::parse_study_schemes(opt.schemes);
     st.reference_h = opt.reference_h;
     st.epsilon = opt.epsilon;
-    st.regularization = opt.regularization;
+    st.regularization = *scene::regularization_from_name(opt.regularization);  // CLI11 checked the name
     st.eval_points = opt.eval_points;
     st.repeats = opt.repeats;
     result = scene::run_study(sc, st);

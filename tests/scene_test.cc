@@ -38,6 +38,46 @@ struct Recorder : RunObserver {
 // the same maxima, times and sample counts whether the run hands them every recorded state (an observer
 // after them needs all) or only those they check (nothing after them: sample_stride() = 16), for
 // several output.every, on scenes where Assumption 4.1 holds for a while and where it fails.
+// The scheme table (scheme.h) against what docs/scene-format.md and docs/studies.md promise: the names a
+// scene may give per system type, the peers a study compares, and the rows in the enum's order.
+TEST(SchemeTable, NamesAndRolesAreTheDocumentedOnes) {
+  const std::vector<std::string> expected = {"abl", "explicit", "regularized", "moreau-jean", "implicit-euler"};
+  ASSERT_EQ(all_schemes().size(), expected.size());
+  for (std::size_t i = 0; i < expected.size(); ++i) {
+    const SchemeTraits& row = all_schemes()[i];
+    EXPECT_EQ(static_cast<std::size_t>(row.scheme), i) << "row " << i << " is out of the enum's order";
+    EXPECT_EQ(row.name, expected[i]);
+    EXPECT_EQ(scheme_from_name(expected[i]), row.scheme);
+    EXPECT_EQ(&traits(row.scheme), &row);
+  }
+  EXPECT_EQ(scheme_from_name("Abl"), std::nullopt);
+  EXPECT_EQ(scheme_names_for_scenes(SystemType::kLagrangian), "abl or moreau-jean");
+  EXPECT_EQ(scheme_names_for_scenes(SystemType::kLure), "implicit-euler");
+  EXPECT_EQ(scheme_names_for_studies(), "abl, explicit or regularized");
+  // Only the scheme (0.2) itself is covered by Theorems 4.1-4.3; only Moreau-Jean integrates contacts.
+  for (const SchemeTraits& row : all_schemes()) {
+    EXPECT_EQ(row.theorems_4_1_to_4_3, row.scheme == Scheme::kAbl) << row.name;
+    EXPECT_EQ(row.contacts, row.scheme == Scheme::kMoreauJean) << row.name;
+  }
+}
+
+// A study's variant of a scene is the scene with the scheme's implied settings: the explicit peer on a
+// fixed step with the explicit velocity update, whatever the scene's rule; abl keeps the scene's rule.
+TEST(SchemeTable, StudyVariantsCarryTheSchemesSettings) {
+  json doc = Scene("damped-relay.json");
+  doc["integrator"]["step_rule"] = "theorem-4.1";
+  const LagrangianScene sc = load_scene(doc);
+  const LagrangianScene explicit_peer = scene_variant(sc, Scheme::kExplicit, 0.25);
+  EXPECT_EQ(explicit_peer.scheme, Scheme::kExplicit);
+  EXPECT_EQ(explicit_peer.settings.h, 0.25);
+  EXPECT_EQ(explicit_peer.settings.step_rule, StepRule::kFixed);
+  EXPECT_EQ(explicit_peer.settings.velocity_update, VelocityUpdate::kExplicit);
+  const LagrangianScene abl = scene_variant(explicit_peer, Scheme::kAbl, 0.5);
+  EXPECT_EQ(abl.settings.velocity_update, VelocityUpdate::kImplicit);
+  EXPECT_EQ(scene_variant(sc, Scheme::kAbl, 0.5).settings.step_rule, StepRule::kTheorem41);
+  EXPECT_THROW(scene_variant(sc, Scheme::kImplicitEuler, 0.5), std::invalid_argument);
+}
+
 TEST(RecordedStateChecks, SeeTheSameStatesWithOrWithoutAnObserverAfterThem) {
   int force_samples = 0, energy_samples = 0;
   for (const char* file : {"damped-relay.json", "coulomb-oscillator.json", "manipulator.json"}) {

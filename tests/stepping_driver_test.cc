@@ -40,12 +40,13 @@ struct RestLog : RunObserver {
 // state), t_k = k / 100, and returns the summary of the run ending at the last step.
 RunSummary drive(RunRecorder& rec, const std::vector<bool>& rest) {
   const double x = 0.0;
-  rec.start(0.0, 0.0, rest[0]);
+  const auto state = [](bool at_rest) { return at_rest ? RestState::kAtRest : RestState::kMoving; };
+  rec.start(0.0, 0.0, state(rest[0]));
   rec.first_sample(0.0, 0.01, &x, &x, 0.0);
   const auto n = static_cast<std::int64_t>(rest.size()) - 1;
   for (std::int64_t k = 1; k <= n; ++k) {
     rec.step_taken(0.01);
-    rec.rest(rest[static_cast<std::size_t>(k)], k, k / 100.0);
+    rec.rest(state(rest[static_cast<std::size_t>(k)]), k, k / 100.0);
     rec.after_step(k, k / 100.0, 0.01, &x, &x, 0.0, 0.0);
   }
   rec.last_sample(n, n / 100.0, 0.01, &x, &x, 0.0, 0.0);
@@ -57,6 +58,41 @@ std::vector<bool> flags(std::initializer_list<std::pair<int, bool>> runs) {
   std::vector<bool> v;
   for (auto [count, value] : runs) v.insert(v.end(), static_cast<std::size_t>(count), value);
   return v;
+}
+
+// RestTracker against the definitions in stepping_driver.h: the solver's statement decides when it is
+// given; otherwise 0.0 is a rest unless reached through the subnormal numbers, and any state below the
+// smallest normal double that the law does not hold is kBelowNormal.
+TEST(RestTracker, ASolversStatementOrAZeroNotReachedByUnderflow) {
+  const double tiny = std::numeric_limits<double>::denorm_min(), min_normal = std::numeric_limits<double>::min();
+  RestTracker by_values;
+  EXPECT_EQ(by_values.update(Vec<2>(1.0, 0.0)), RestState::kMoving);
+  EXPECT_EQ(by_values.update(Vec<2>(0.0, 0.0)), RestState::kAtRest);  // a jump to exactly 0.0
+  EXPECT_EQ(by_values.update(Vec<2>(0.5 * min_normal, 0.0)), RestState::kBelowNormal);
+  EXPECT_EQ(by_values.update(Vec<2>(0.0, 0.0)), RestState::kBelowNormal);  // 0.0 by underflow
+  EXPECT_EQ(by_values.update(Vec<2>(min_normal, 0.0)), RestState::kMoving);
+  RestTracker by_solver;
+  EXPECT_EQ(by_solver.update(Vec<1>(0.0), true), RestState::kAtRest);
+  EXPECT_EQ(by_solver.update(Vec<1>(0.0), false), RestState::kBelowNormal);  // 0.0, but the law does not hold it
+  EXPECT_EQ(by_solver.update(Vec<1>(tiny), false), RestState::kBelowNormal);
+  EXPECT_EQ(by_solver.update(Vec<1>(1e-300), false), RestState::kMoving);
+}
+
+// A grid TimeGrid::is_valid refuses ends the run at its start with the reason, whatever the scheme.
+TEST(TimeGrid, AnInvalidGridFailsTheRunWithItsReason) {
+  std::string why;
+  TimeGrid grid;
+  EXPECT_TRUE(grid.is_valid(&why));
+  grid.output_every = 0;
+  EXPECT_FALSE(grid.is_valid(&why));
+  EXPECT_EQ(why, "output_every must be >= 1");
+  models::Oscillator1 model(1.0, 0.0, 0.0, 1.0, 1.0);
+  AblSettings settings;
+  settings.t_end = settings.t0;
+  AblIntegrator<models::Oscillator1> integrator(model, settings);
+  const RunSummary s = integrator.run(Vec<1>(0.0), Vec<1>(1.0));
+  EXPECT_EQ(s.status, RunStatus::kFailed);
+  EXPECT_NE(s.message.find("invalid time grid: t_end must be > t0"), std::string::npos) << s.message;
 }
 
 TEST(RunRecorder, AnnouncesRestAtTheReportsWindowAndWithdrawsItWhenItEnds) {

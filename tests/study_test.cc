@@ -49,13 +49,13 @@ TEST(Study, DampedRelayAgainstItsExactSolution) {
     } else {
       EXPECT_EQ(row.timed_runs, 1);
     }
-    if (row.scheme == StudyScheme::kAbl) {
+    if (row.scheme == Scheme::kAbl) {
       EXPECT_EQ(row.chatter_sign_changes, 0) << "the implicit scheme rests exactly";
       EXPECT_EQ(row.chatter_amplitude, 0.0);
       ASSERT_TRUE(row.converged_time_error.has_value());
       EXPECT_LE(*row.converged_time_error, 2 * row.h);
     }
-    if (row.scheme == StudyScheme::kExplicit) {
+    if (row.scheme == Scheme::kExplicit) {
       EXPECT_GT(row.chatter_sign_changes, 0) << row.h;
     }
   }
@@ -64,7 +64,7 @@ TEST(Study, DampedRelayAgainstItsExactSolution) {
   for (const auto& row : r.rows) rows_seconds += row.wall_seconds;
   EXPECT_LE(rows_seconds, r.wall_seconds);
   ASSERT_EQ(r.orders.size(), 3u);
-  EXPECT_EQ(r.orders[0].scheme, StudyScheme::kAbl);
+  EXPECT_EQ(r.orders[0].scheme, Scheme::kAbl);
   EXPECT_NEAR(r.orders[0].q_max, 1.0, 0.1);  // Remark 5.1: order 1 for constant M
   EXPECT_NEAR(r.orders[0].v_max, 1.0, 0.1);
   // The summary cites Remark 5.1 (M is constant here) and nothing for the other schemes.
@@ -83,7 +83,7 @@ TEST(Study, DampedRelayAgainstItsExactSolution) {
 // this robot and which is not checked, so no order is promised (never "Theorem 5.2, order 1/2").
 TEST(Study, ManipulatorOrderIsAttributedToNoTheorem) {
   const LagrangianScene sc = load_scene(read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/manipulator.json"));
-  const StudyResult::Order o = order_theory(sc, StudyScheme::kAbl);
+  const StudyResult::Order o = order_theory(sc, Scheme::kAbl);
   EXPECT_EQ(o.theory, "none");
   EXPECT_FALSE(o.theory_order.has_value());
   EXPECT_NE(o.theory_note.find("Assumption 5.2"), std::string::npos);
@@ -93,8 +93,8 @@ TEST(Study, ManipulatorOrderIsAttributedToNoTheorem) {
   EXPECT_EQ(back.orders[0].theory, "none");
   EXPECT_EQ(back.orders[0].theory_note, o.theory_note);
   const LagrangianScene relay = load_scene(read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/damped-relay.json"));
-  EXPECT_EQ(order_theory(relay, StudyScheme::kAbl).theory, "Remark 5.1");
-  EXPECT_EQ(order_theory(relay, StudyScheme::kRegularized).theory, "none");
+  EXPECT_EQ(order_theory(relay, Scheme::kAbl).theory, "Remark 5.1");
+  EXPECT_EQ(order_theory(relay, Scheme::kRegularized).theory, "none");
 }
 
 // A study's summary has the guarantees section of each of its runs, as `moreau run` has it.
@@ -113,11 +113,11 @@ TEST(Study, EveryRowCarriesItsRunsGuarantees) {
   ASSERT_EQ(r.rows.size(), 6u);
   EXPECT_TRUE(r.reference_guarantees.is_null());  // the exact solution is the reference
   for (const StudyRow& row : r.rows) {
-    if (row.scheme == StudyScheme::kRegularized) {
+    if (row.scheme == Scheme::kRegularized) {
       EXPECT_TRUE(row.guarantees.empty());
       continue;
     }
-    const std::string relied_on = row.scheme == StudyScheme::kAbl ? "Theorem 4.1" : "Assumption 3.1";
+    const std::string relied_on = row.scheme == Scheme::kAbl ? "Theorem 4.1" : "Assumption 3.1";
     bool found = false;
     for (const auto& g : row.guarantees) {
       if (g["result"] != relied_on) continue;
@@ -142,7 +142,7 @@ TEST(Study, EveryRowCarriesItsRunsGuarantees) {
   ASSERT_GT(r0, 1.0);
   StudySettings ms;
   ms.h = {1.0, 1e-3};
-  ms.schemes = {StudyScheme::kAbl};
+  ms.schemes = {Scheme::kAbl};
   ms.repeats = 1;
   ms.reference_h = 1e-4;
   const StudyResult mr = run_study(*manipulator.lagrangian(), ms);
@@ -195,7 +195,7 @@ TEST(Study, BadSettingsNameTheOption) {
       EXPECT_EQ(e.pointer(), "--schemes") << list;
     }
   }
-  EXPECT_EQ(parse_study_schemes("regularized,abl"), (std::vector<StudyScheme>{StudyScheme::kRegularized, StudyScheme::kAbl}));
+  EXPECT_EQ(parse_study_schemes("regularized,abl"), (std::vector<Scheme>{Scheme::kRegularized, Scheme::kAbl}));
 }
 
 TEST(Study, SettingsFromJson) {
@@ -208,11 +208,11 @@ TEST(Study, SettingsFromJson) {
                                                           {"reference_h", 1e-5}},
                                            "/study");
   EXPECT_EQ(st.h, (std::vector<double>{1e-2, 1e-3}));
-  EXPECT_EQ(st.schemes, (std::vector<StudyScheme>{StudyScheme::kAbl, StudyScheme::kRegularized}));
+  EXPECT_EQ(st.schemes, (std::vector<Scheme>{Scheme::kAbl, Scheme::kRegularized}));
   EXPECT_EQ(st.epsilon, 1e-4);
   EXPECT_EQ(st.repeats, 2);
   EXPECT_EQ(st.eval_points, 50);
-  EXPECT_EQ(st.regularization, "saturation");
+  EXPECT_EQ(st.regularization, Regularization::kSaturation);
   EXPECT_EQ(st.reference_h, 1e-5);
   const auto back = study_settings_from_json(study_settings_to_json(st), "/study");
   EXPECT_EQ(back.h, st.h);
@@ -234,7 +234,7 @@ TEST(Study, PlannedStepsCountEveryRun) {
   const LagrangianScene sc = load_scene(read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/damped-relay.json"));
   StudySettings st;
   st.h = {1e-2, 1e-3};
-  st.schemes = {StudyScheme::kAbl, StudyScheme::kExplicit};
+  st.schemes = {Scheme::kAbl, Scheme::kExplicit};
   st.repeats = 3;
   const double span = sc.settings.t_end - sc.settings.t0;
   // The scene has an exact solution: no reference run.
@@ -248,7 +248,7 @@ TEST(Study, ResultSurvivesJson) {
   const LagrangianScene sc = load_scene(read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/damped-relay.json"));
   StudySettings st;
   st.h = {1e-2, 1e-3};
-  st.schemes = {StudyScheme::kAbl, StudyScheme::kExplicit};
+  st.schemes = {Scheme::kAbl, Scheme::kExplicit};
   st.repeats = 1;
   const StudyResult r = run_study(sc, st);
   const StudyResult back = StudyResult::from_json(r.to_json());
@@ -262,7 +262,7 @@ TEST(Study, CancelStopsTheStudyBetweenAndInsideRuns) {
   std::atomic<bool> cancel{false};
   StudySettings st;
   st.h = {1e-2, 1e-3, 1e-4};
-  st.schemes = {StudyScheme::kAbl};
+  st.schemes = {Scheme::kAbl};
   st.repeats = 1;
   st.cancel = &cancel;
   std::vector<std::size_t> seen;
@@ -280,7 +280,7 @@ TEST(Study, CancelStopsTheStudyBetweenAndInsideRuns) {
   st2.on_row = nullptr;
   st2.h = {1e-8};
   bool started = false;
-  st2.on_row_start = [&](StudyScheme, double) {
+  st2.on_row_start = [&](Scheme, double) {
     started = true;
     cancel = true;
   };
@@ -381,7 +381,7 @@ TEST(Study, TablesShowNoNaNForAFailedRow) {
   r.scene = "x";
   r.reference = "exact solution";
   StudyRow row;
-  row.scheme = StudyScheme::kExplicit;
+  row.scheme = Scheme::kExplicit;
   row.h = 0.1;
   row.status = "failed";
   row.message = "diverged at step 3";
@@ -389,7 +389,7 @@ TEST(Study, TablesShowNoNaNForAFailedRow) {
   row.chatter_amplitude = kInf;
   r.rows.push_back(row);
   StudyResult::Order order;
-  order.scheme = StudyScheme::kExplicit;
+  order.scheme = Scheme::kExplicit;
   order.q_max = order.v_max = kNaN;
   r.orders.push_back(order);
   for (const std::string& table : {r.to_csv(), r.to_text(), r.to_json().dump()}) {

@@ -1,5 +1,5 @@
-// Studies (see study.h). Built as C++17: it instantiates the regularized peer, whose Boost 1.74 uBLAS
-// does not compile as C++20.
+// Studies (see study.h). Each run is the scene's variant for a scheme and h (scene_variant), run by
+// run_scene: the study builds no integrator of its own.
 #include "moreau/analysis/study.h"
 
 #include <algorithm>
@@ -9,8 +9,6 @@
 #include <limits>
 #include <sstream>
 
-#include "moreau/core/abl_integrator.h"
-#include "moreau/core/regularized_integrator.h"
 #include "moreau/scene/guarantees.h"
 #include "moreau/scene/scene_model.h"
 
@@ -105,60 +103,31 @@ class CancelCheck : public RunObserver {
   const std::atomic<bool>* cancel_;
 };
 
-// output_every: 1 for the runs whose every state is sampled, a huge value for timed runs.
-template <int N>
-RunSummary run_scheme_fixed(const LagrangianScene& scene, StudyScheme scheme, double h, const StudySettings& st, RunObserver* observer,
-                            std::int64_t output_every) {
-  SceneModel<N> model(scene);
-  const Vec<N> q0 = Eigen::Map<const Eigen::VectorXd>(scene.q0.data(), scene.n);
-  const Vec<N> v0 = Eigen::Map<const Eigen::VectorXd>(scene.v0.data(), scene.n);
-  if (scheme == StudyScheme::kRegularized) {
-    RegularizedSettings rs;
-    rs.h = h;
-    rs.t0 = scene.settings.t0;
-    rs.t_end = scene.settings.t_end;
-    rs.epsilon = st.epsilon;
-    rs.kind = st.regularization == "saturation" ? Regularization::kSaturation : Regularization::kTanh;
-    RegularizedIntegrator<SceneModel<N>> integrator(model, rs);
-    return integrator.run(q0, v0, observer);
-  }
-  AblSettings as = scene.settings;
-  as.h = h;
-  as.output_every = output_every;
-  if (scheme == StudyScheme::kExplicit) {
-    as.velocity_update = VelocityUpdate::kExplicit;
-    as.step_rule = StepRule::kFixed;
-  }
-  AblIntegrator<SceneModel<N>> integrator(model, as);
-  return integrator.run(q0, v0, observer);
+// The scene as `scheme` integrates it at step h, with the study's regularization for the regularized peer.
+LagrangianScene variant(const LagrangianScene& scene, Scheme scheme, double h, const StudySettings& st) {
+  LagrangianScene at = scene_variant(scene, scheme, h);
+  at.regularization = st.regularization;
+  at.regularization_epsilon = st.epsilon;
+  return at;
 }
 
-// `checked`: a run whose guarantees the study reports (the error runs and the reference), with the
-// checks `moreau run` makes at the recorded states (RecordedStateChecks) for the schemes with a mass matrix.
-RunSummary run_scheme(const LagrangianScene& scene, StudyScheme scheme, double h, const StudySettings& st, RunObserver* observer,
+// output_every: 1 for the runs whose every state is sampled, a huge value for timed runs. `checked`: a
+// run whose guarantees the study reports (the error runs and the reference), with the checks `moreau run`
+// makes at the recorded states for the schemes whose row says so.
+RunSummary run_scheme(const LagrangianScene& scene, Scheme scheme, double h, const StudySettings& st, RunObserver* observer,
                       std::int64_t output_every = 1, bool checked = false) {
-  std::optional<RecordedStateChecks> checks;
-  if (checked && scheme != StudyScheme::kRegularized) {
-    checks.emplace(scene, observer);
-    observer = &*checks;
-  }
-  RunSummary s =
-      dispatch_dof(scene.n, [&](auto dof) { return run_scheme_fixed<decltype(dof)::value>(scene, scheme, h, st, observer, output_every); });
-  if (checks) checks->record_into(s);
+  LagrangianScene at = variant(scene, scheme, h, st);
+  at.settings.output_every = output_every;
+  RunSummary s = run_scene(at, observer, nullptr, checked);
   if (s.status == RunStatus::kCancelled && st.cancel && st.cancel->load()) throw StudyCancelled();
   return s;
 }
 
-// The guarantees section of a study run, as `moreau run` writes it for the same scene, scheme and h.
-nlohmann::json run_guarantees(const LagrangianScene& scene, StudyScheme scheme, double h, const RunSummary& s) {
-  if (scheme == StudyScheme::kRegularized) return nlohmann::json::array();
-  LagrangianScene at = scene;
-  at.settings.h = h;
-  if (scheme == StudyScheme::kExplicit) {
-    at.settings.velocity_update = VelocityUpdate::kExplicit;
-    at.settings.step_rule = StepRule::kFixed;
-  }
-  return guarantees_json(lagrangian_guarantees(at, s));
+// The guarantees section of a study run, as `moreau run` writes it for the same scene, scheme and h;
+// none for a scheme without recorded-state checks (the regularized peer, which no theorem covers).
+nlohmann::json run_guarantees(const LagrangianScene& scene, Scheme scheme, double h, const RunSummary& s, const StudySettings& st) {
+  if (!traits(scheme).recorded_state_checks) return nlohmann::json::array();
+  return guarantees_json(lagrangian_guarantees(variant(scene, scheme, h, st), s));
 }
 
 void check_cancel(const StudySettings& st) {
@@ -197,28 +166,43 @@ std::string fmt(double v) {
 constexpr int kMaxEvalPoints = 100000;
 constexpr int kMaxRepeats = 20;
 
-std::vector<std::string> scheme_names(const std::vector<StudyScheme>& schemes) {
+std::vector<std::string> scheme_names(const std::vector<Scheme>& schemes) {
   std::vector<std::string> names;
-  for (const StudyScheme s : schemes) names.push_back(scheme_name(s));
+  for (const Scheme s : schemes) names.push_back(scheme_name(s));
   return names;
 }
 
+// A scheme a study compares, by name (the table's study_compares column).
+std::optional<Scheme> study_scheme_from_name(std::string_view name) {
+  const std::optional<Scheme> s = scheme_from_name(name);
+  if (s && traits(*s).study_compares) return s;
+  return std::nullopt;
+}
+
+// "abl, explicit, regularized": the schemes a study compares, for messages.
+std::string study_scheme_list() {
+  std::string out;
+  for (const SchemeTraits& t : all_schemes())
+    if (t.study_compares) out += (out.empty() ? "" : ", ") + std::string(t.name);
+  return out;
+}
+
 // A scheme name in a stored study result (StudyResult::from_json).
-StudyScheme scheme_in(const nlohmann::json& v) {
-  const std::optional<StudyScheme> s = study_scheme_from_name(v.get<std::string>());
+Scheme scheme_in(const nlohmann::json& v) {
+  const std::optional<Scheme> s = study_scheme_from_name(v.get<std::string>());
   if (!s) throw std::invalid_argument("not a study result: unknown scheme " + v.dump());
   return *s;
 }
 
 }  // namespace
 
-std::vector<StudyScheme> parse_study_schemes(const std::string& text) {
-  std::vector<StudyScheme> out;
+std::vector<Scheme> parse_study_schemes(const std::string& text) {
+  std::vector<Scheme> out;
   std::stringstream ss(text);
   for (std::string item; std::getline(ss, item, ',');) {
     if (item.empty()) continue;
-    const std::optional<StudyScheme> s = study_scheme_from_name(item);
-    if (!s) throw SceneError("--schemes", "unknown scheme '" + item + "' (expected abl, explicit, regularized)");
+    const std::optional<Scheme> s = study_scheme_from_name(item);
+    if (!s) throw SceneError("--schemes", "unknown scheme '" + item + "' (expected " + study_scheme_list() + ")");
     if (std::find(out.begin(), out.end(), *s) != out.end()) throw SceneError("--schemes", "scheme '" + item + "' given twice");
     out.push_back(*s);
   }
@@ -338,19 +322,19 @@ StudyResult run_study(const LagrangianScene& scene, const StudySettings& st) {
     std::snprintf(buf, sizeof buf, "abl at h = %g", h_ref);
     result.reference = buf;
     GridSampler sampler(grid, n, std::numeric_limits<double>::infinity(), st.cancel);
-    const RunSummary ref = run_scheme(scene, StudyScheme::kAbl, h_ref, st, &sampler, 1, true);
+    const RunSummary ref = run_scheme(scene, Scheme::kAbl, h_ref, st, &sampler, 1, true);
     if (ref.status != RunStatus::kCompleted) throw SceneError("--reference", "the reference run failed: " + ref.message);
     ref_q = sampler.q();
     ref_v = sampler.v();
     result.reference_converged_time = ref.converged_time;
-    result.reference_guarantees = run_guarantees(scene, StudyScheme::kAbl, h_ref, ref);
+    result.reference_guarantees = run_guarantees(scene, Scheme::kAbl, h_ref, ref, st);
   }
   const double chatter_from = result.reference_converged_time.value_or(std::numeric_limits<double>::infinity());
 
   const std::size_t rows_total = st.schemes.size() * st.h.size();
   std::optional<CancelCheck> cancel_check;
   if (st.cancel) cancel_check.emplace(st.cancel);
-  for (const StudyScheme scheme : st.schemes) {
+  for (const Scheme scheme : st.schemes) {
     std::vector<double> hs, eq, ev;
     for (double h : st.h) {
       check_cancel(st);
@@ -394,7 +378,7 @@ StudyResult run_study(const LagrangianScene& scene, const StudySettings& st) {
         row.converged_time_error = std::abs(*row.converged_time - *result.reference_converged_time);
       row.chatter_sign_changes = sampler.sign_changes();
       row.chatter_amplitude = sampler.amplitude();
-      row.guarantees = run_guarantees(scene, scheme, h, s);
+      row.guarantees = run_guarantees(scene, scheme, h, s, st);
 
       // Timed runs: no sampling (at most a cancellation check every kControlInterval steps), the minimum
       // over repeats, a single one when it is long.
@@ -476,10 +460,10 @@ StudySettings study_settings_from_json(const nlohmann::json& j, const std::strin
       st.schemes.clear();
       for (std::size_t i = 0; i < names.size(); ++i) {
         const auto& s = names[i];
-        const std::optional<StudyScheme> scheme = study_scheme_from_name(s);
+        const std::optional<Scheme> scheme = study_scheme_from_name(s);
         if (!scheme)
           throw SceneError(v.is_array() ? ptr + "/" + std::to_string(i) : ptr,
-                           "unknown scheme '" + s + "' (expected abl, explicit, regularized)");
+                           "unknown scheme '" + s + "' (expected " + study_scheme_list() + ")");
         if (std::count(names.begin(), names.end(), s) > 1) throw SceneError(ptr, "scheme '" + s + "' given twice");
         st.schemes.push_back(*scheme);
       }
@@ -488,9 +472,9 @@ StudySettings study_settings_from_json(const nlohmann::json& j, const std::strin
     } else if (key == "epsilon") {
       st.epsilon = positive(v, ptr);
     } else if (key == "regularization") {
-      if (!v.is_string() || (v.get<std::string>() != "tanh" && v.get<std::string>() != "saturation"))
-        throw SceneError(ptr, "expected \"tanh\" or \"saturation\"");
-      st.regularization = v.get<std::string>();
+      const std::optional<Regularization> kind = v.is_string() ? regularization_from_name(v.get<std::string>()) : std::nullopt;
+      if (!kind) throw SceneError(ptr, "expected \"tanh\" or \"saturation\"");
+      st.regularization = *kind;
     } else if (key == "eval_points") {
       st.eval_points = integer(v, ptr, 2, 100000);
     } else if (key == "repeats") {
@@ -506,7 +490,7 @@ nlohmann::json study_settings_to_json(const StudySettings& st) {
   nlohmann::json j = {{"h", st.h},
                       {"schemes", scheme_names(st.schemes)},
                       {"epsilon", st.epsilon},
-                      {"regularization", st.regularization},
+                      {"regularization", to_string(st.regularization)},
                       {"eval_points", st.eval_points},
                       {"repeats", st.repeats}};
   if (st.reference_h) j["reference_h"] = *st.reference_h;
@@ -564,10 +548,10 @@ nlohmann::json StudyResult::to_json() const {
   return j;
 }
 
-StudyResult::Order order_theory(const LagrangianScene& scene, StudyScheme scheme) {
+StudyResult::Order order_theory(const LagrangianScene& scene, Scheme scheme) {
   StudyResult::Order o;
   o.scheme = scheme;
-  if (scheme != StudyScheme::kAbl) {
+  if (!traits(scheme).theorems_4_1_to_4_3) {
     o.theory_note = std::string("no theorem of the papers covers the ") + scheme_name(scheme) + " scheme: only the measured order";
     return o;
   }
@@ -673,10 +657,10 @@ std::string guarantees_summary_text(const StudyResult& r) {
         return x.value("hypothesis", "") + (x.value("detail", "").empty() ? "" : ": " + x.value("detail", ""));
     return std::string();
   };
-  std::vector<StudyScheme> schemes;
+  std::vector<Scheme> schemes;
   for (const StudyRow& row : r.rows)
     if (std::find(schemes.begin(), schemes.end(), row.scheme) == schemes.end()) schemes.push_back(row.scheme);
-  for (const StudyScheme scheme : schemes) {
+  for (const Scheme scheme : schemes) {
     std::vector<std::string> results;  // in order of first appearance
     for (const StudyRow& row : r.rows)
       if (row.scheme == scheme)

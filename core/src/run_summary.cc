@@ -35,13 +35,16 @@ std::string RunSummary::BriefReport() const {
   if (converged_step) {
     std::snprintf(conv, sizeof conv, "v == 0 from step %lld (t = %.6g)", static_cast<long long>(*converged_step),
                   converged_time.value_or(0.0));
+  } else if (below_normal_step) {
+    std::snprintf(conv, sizeof conv, "below the smallest normal number from step %lld (not a rest)",
+                  static_cast<long long>(*below_normal_step));
   } else {
     std::snprintf(conv, sizeof conv, "not at rest");
   }
   std::snprintf(buf, sizeof buf,
                 "%s: %lld steps to t = %.6g, %s, energy %s (%.6g -> %.6g), solver max %d iterations, "
                 "residual %.2e, %.3f s",
-                to_string(status), static_cast<long long>(steps), t_final, conv, energy_nonincreasing ? "non-increasing" : "increased",
+                to_string(status), static_cast<long long>(steps), t_final, conv, energy_nonincreasing ? "non-increasing" : "not monotone",
                 energy_initial, energy_final, solver.max_iterations, solver.max_residual, wall_seconds());
   std::string line = buf;
   if (!message.empty()) line += ": " + message;

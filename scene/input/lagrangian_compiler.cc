@@ -1,6 +1,7 @@
 // The Lagrangian compiler: a scene of system type "lagrangian" (M(q) q'' + C(q, q') q' + grad V(q) + F in
 // -dPhi(q'), with optional unilateral constraints) -> a LagrangianScene with its compiled tapes. See
 // docs/scene-format.md; the parts shared with the Lur'e compiler are scene_reader.h.
+#include "moreau/expr/interval.h"
 #include "moreau/scene/scene.h"
 
 #include <algorithm>
@@ -277,7 +278,9 @@ class LagrangianCompiler : SceneReader {
         throw SceneError("/system/coriolis", "expected \"christoffel\", \"none\" or an n x n matrix, got " + type_name(c));
       }
     }
-    scene.coriolis = mode;
+    scene.coriolis = mode == "christoffel" ? CoriolisSource::kChristoffel
+                     : mode == "none"      ? CoriolisSource::kNone
+                                           : CoriolisSource::kExplicit;
     if (mode == "christoffel") {
       // (1.4)-(1.5): C_jk = sum_i C_ijk v_i, C_ijk = 1/2 (dM_jk/dq_i + dM_ji/dq_k - dM_ik/dq_j), exact.
       // A term whose three entries of M are constant is 0 (the graph folds 0 * v_i and x + 0 to the same
@@ -421,54 +424,55 @@ class LagrangianCompiler : SceneReader {
     require_object(in, "/integrator");
     check_fields(in, "/integrator",
                  {"scheme", "h", "t_end", "t0", "step_rule", "k1", "k3", "max_steps", "position_correction", "position_update", "theta"});
+    // Which scheme, and whether the scene's fields belong to it: the scheme table's row decides (scheme.h).
     const bool constrained = !scene.constraint_names.empty();
     scene.scheme = constrained ? Scheme::kMoreauJean : Scheme::kAbl;
     if (in.contains("scheme")) {
       if (!in["scheme"].is_string()) throw SceneError("/integrator/scheme", "expected a string");
       const std::string name = in["scheme"].get<std::string>();
       const std::optional<Scheme> named = scheme_from_name(name);
-      if (named == Scheme::kImplicitEuler)
-        throw SceneError("/integrator/scheme",
-                         "the implicit-euler scheme is for lure systems; a lagrangian system takes abl or moreau-jean");
-      if (!named) throw SceneError("/integrator/scheme", "unknown scheme '" + name + "' (expected: abl, moreau-jean)");
+      const std::string expected = scheme_names_for_scenes(SystemType::kLagrangian);
+      if (named && traits(*named).system != SystemType::kLagrangian)
+        throw SceneError("/integrator/scheme", "the " + name + " scheme is for lure systems; a lagrangian system takes " + expected);
+      if (!named || !traits(*named).scene_can_name)
+        throw SceneError("/integrator/scheme", "unknown scheme '" + name + "' (expected: " + expected + ")");
       scene.scheme = *named;
-      if (scene.scheme == Scheme::kAbl && constrained)
+      if (constrained && !traits(scene.scheme).contacts)
         throw SceneError("/integrator/scheme",
                          "the abl scheme (0.2) cannot integrate unilateral constraints (/system/constraints): its explicit "
                          "position update has no contact law and would pass through h(q) = 0 silently; use \"moreau-jean\"");
     }
-    const bool mj = scene.scheme == Scheme::kMoreauJean;
-    if (in.contains("theta"))
-      throw SceneError("/integrator/theta", std::string("theta belongs to the implicit-euler scheme of lure systems; ") +
-                                                scheme_name(scene.scheme) + " takes none");
+    const SchemeTraits& row = traits(scene.scheme);
+    if (in.contains("theta") && !row.theta)
+      throw SceneError("/integrator/theta",
+                       std::string("theta belongs to the implicit-euler scheme of lure systems; ") + row.name + " takes none");
+    MoreauJeanSettings& c = scene.contact_settings;
     for (const char* field : {"position_correction", "position_update"}) {
       if (!in.contains(field)) continue;
       const std::string ptr = std::string("/integrator/") + field;
-      if (!mj) throw SceneError(ptr, std::string(field) + " belongs to the moreau-jean scheme");
+      if (!row.position_options) throw SceneError(ptr, std::string(field) + " belongs to the moreau-jean scheme");
       const json& f = in[field];
       const std::string value = f.is_string() ? f.get<std::string>() : "";
       if (std::string(field) == "position_correction") {
         if (value != "none" && value != "projection") throw SceneError(ptr, "expected \"none\" or \"projection\", got " + brief(f));
-        scene.position_correction = value;
+        c.correct_positions = value == "projection";
       } else {
         if (value != "mdi" && value != "standard") throw SceneError(ptr, "expected \"mdi\" or \"standard\", got " + brief(f));
-        scene.position_update = value;
+        c.position_update = value == "standard" ? PositionUpdate::kStandard : PositionUpdate::kMdi;
       }
     }
-    if (mj) {
+    if (!row.step_rules)
       for (const char* field : {"k1", "k3"})
         if (in.contains(field))
           throw SceneError(std::string("/integrator/") + field,
-                           "k1 and k3 belong to the step rules of the abl scheme; moreau-jean uses a fixed step");
-      if (scene.controller.norm_gain > 0.0) {
-        const json& c = doc_["system"]["controller"];
-        std::string ptr = "/system/controller";
-        for (std::size_t k = 0; k < c.size(); ++k)
-          if (c[k].contains("type") && c[k]["type"] == "norm") ptr += "/" + std::to_string(k) + "/type";
-        throw SceneError(ptr,
-                         "the norm controller term is not separable and is not supported by the moreau-jean scheme "
-                         "(use quadratic and abs terms)");
-      }
+                           "k1 and k3 belong to the step rules of the abl scheme; " + std::string(row.name) + " uses a fixed step");
+    if (!row.norm_term && scene.controller.norm_gain > 0.0) {
+      const json& ctl = doc_["system"]["controller"];
+      std::string ptr = "/system/controller";
+      for (std::size_t k = 0; k < ctl.size(); ++k)
+        if (ctl[k].contains("type") && ctl[k]["type"] == "norm") ptr += "/" + std::to_string(k) + "/type";
+      throw SceneError(ptr, "the norm controller term is not separable and is not supported by the " + std::string(row.name) +
+                                " scheme (use quadratic and abs terms)");
     }
     AblSettings& s = scene.settings;
     read_interval(in, s.h, s.t0, s.t_end);
@@ -483,8 +487,9 @@ class LagrangianCompiler : SceneReader {
         s.step_rule = StepRule::kTheorem42;
       else
         throw SceneError("/integrator/step_rule", "expected \"fixed\", \"theorem-4.1\" or \"theorem-4.2\", got " + brief(r));
-      if (mj && s.step_rule != StepRule::kFixed)
-        throw SceneError("/integrator/step_rule", "the moreau-jean scheme uses a fixed step; the theorem rules belong to abl");
+      if (!row.step_rules && s.step_rule != StepRule::kFixed)
+        throw SceneError("/integrator/step_rule",
+                         "the " + std::string(row.name) + " scheme uses a fixed step; the theorem rules belong to abl");
     }
     if (in.contains("k1")) s.k1 = positive(in["k1"], "/integrator/k1");
     if (in.contains("k3")) s.k3 = positive(in["k3"], "/integrator/k3");
@@ -494,13 +499,6 @@ class LagrangianCompiler : SceneReader {
       throw SceneError("/integrator/step_rule",
                        "theorem-4.2 needs eta > 0 in Assumption 4.1: give every coordinate a quadratic controller weight");
     }
-    MoreauJeanSettings& c = scene.contact_settings;
-    c.h = s.h;
-    c.t0 = s.t0;
-    c.t_end = s.t_end;
-    c.max_steps = s.max_steps;
-    c.position_update = scene.position_update == "standard" ? PositionUpdate::kStandard : PositionUpdate::kMdi;
-    c.correct_positions = scene.position_correction == "projection";
   }
 
   void initial(LagrangianScene& scene) {
@@ -783,6 +781,7 @@ class LagrangianCompiler : SceneReader {
   std::vector<std::string> coord_names_, vel_names_;
   std::vector<Node> M_, C_, g_;
   std::vector<Node> gradient_, force_;  // grad V and F alone (constant 0 when absent)
+  void enclose_forces(CompiledLagrangian& c, double t0, double t_end) const;
   Node potential_ = -1;
   bool constant_mass_ = true;
   std::vector<Node> gaps_, gap_gradients_;                 // h_i(q) and dh_i/dq_j (row-major)
@@ -822,7 +821,7 @@ LagrangianScene LagrangianCompiler::compile() {
     M_.assign(static_cast<std::size_t>(n_ * n_), graph_.constant(0.0));
     C_.assign(static_cast<std::size_t>(n_ * n_), graph_.constant(0.0));
     constant_mass_ = false;
-    scene.coriolis = "christoffel";
+    scene.coriolis = CoriolisSource::kChristoffel;
     scene.robot_name = robot_->name;
   } else {
     mass_matrix(system["mass"]);
@@ -837,12 +836,33 @@ LagrangianScene LagrangianCompiler::compile() {
   joint_limits(system, scene);
   initial(scene);
   integrator(scene);
-  if (const auto every = output_every()) scene.output_every = *every;
+  if (const auto every = output_every()) scene.settings.output_every = *every;
   exact(scene);
   check_at_initial_state(scene, free_values_.empty() ? nullptr : free_values_.data());
-  scene.compiled = build();
+  std::shared_ptr<CompiledLagrangian> compiled = build();
+  scene.unread_parameters = unread_parameters();
+  enclose_forces(*compiled, scene.settings.t0, scene.settings.t_end);
+  scene.compiled = std::move(compiled);
   scene.settings.bandwidth = scene.compiled->bandwidth;
   return scene;
+}
+
+// Bounds of ||grad V(q)|| over every q and of ||F(t, q, v)|| over every (q, v) and t in [t0, t_end], by
+// interval arithmetic over the expressions (expr/interval.h): what proves Assumption 4.1 2)-3) for all
+// states. None when an enclosure is unbounded, a free parameter appears, or a robot adds gravity.
+void LagrangianCompiler::enclose_forces(CompiledLagrangian& c, double t0, double t_end) const {
+  std::vector<expr::Interval> slots(static_cast<std::size_t>(1 + 2 * n_), expr::Interval::everything());
+  slots[0] = {t0, t_end};
+  const auto norm_bound = [&](const std::vector<Node>& nodes) -> std::optional<double> {
+    double sum = 0.0;
+    for (const expr::Interval& i : expr::enclose(graph_, nodes, slots)) {
+      if (!i.bounded()) return std::nullopt;
+      sum += i.magnitude() * i.magnitude();
+    }
+    return std::sqrt(sum) * (1.0 + 1e-12);  // above the rounding of n squares, their sum and the root
+  };
+  c.force_bound = norm_bound(force_);
+  if (!robot_) c.gradient_bound = norm_bound(gradient_);
 }
 
 }  // namespace

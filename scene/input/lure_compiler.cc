@@ -33,9 +33,12 @@ class LureCompiler : SceneReader {
       if (!in["scheme"].is_string()) throw SceneError("/integrator/scheme", "expected a string");
       const std::string sch = in["scheme"].get<std::string>();
       const std::optional<Scheme> named = scheme_from_name(sch);
-      if (named && *named != Scheme::kImplicitEuler)
-        throw SceneError("/integrator/scheme", "the " + sch + " scheme is for lagrangian systems; a lure system takes implicit-euler");
-      if (!named) throw SceneError("/integrator/scheme", "unknown scheme '" + sch + "' (expected: implicit-euler)");
+      const std::string expected = scheme_names_for_scenes(SystemType::kLure);
+      if (named && traits(*named).system != SystemType::kLure)
+        throw SceneError("/integrator/scheme", "the " + sch + " scheme is for lagrangian systems; a lure system takes " + expected);
+      if (!named || !traits(*named).scene_can_name)
+        throw SceneError("/integrator/scheme", "unknown scheme '" + sch + "' (expected: " + expected + ")");
+      scene.scheme = *named;
     }
     LureSettings& s = scene.settings;
     read_interval(in, s.h, s.t0, s.t_end);
@@ -155,6 +158,7 @@ LureScene LureCompiler::compile() {
   const double w0 = 0.5 * x0.dot(P * x0);
   if (!std::isfinite(w0))
     throw SceneError("/initial/x", "the storage function W = 1/2 x0^T P x0 is not finite at the initial state (" + format(w0) + ")");
+  scene.unread_parameters = unread_parameters();
   return scene;
 }
 

@@ -1,23 +1,10 @@
 // A compiled Lur'e scene on the theta-method (lure_integrator.h): fixed-size Eigen code for the listed
-// (states, outputs) pairs, dynamic beyond.
+// (states, outputs) pairs, dynamic beyond; each pair is instantiated in its own translation unit
+// (run_lure.h).
 #include "moreau/scene/scene_model.h"
+#include "run_lure.h"
 
 namespace moreau::scene {
-namespace {
-
-template <int N, int Mo>
-RunSummary run_lure(const LureScene& scene, RunObserver* observer, LureDiagnostics* diagnostics) {
-  const Mat<N> A = scene.A;
-  const Eigen::Matrix<double, N, Mo> B = scene.B;
-  const Eigen::Matrix<double, Mo, N> C = scene.C;
-  std::optional<Mat<N>> P;
-  if (scene.storage) P = Mat<N>(*scene.storage);
-  LureIntegrator<N, Mo> integrator(A, B, C, scene.feedback, scene.settings, P);
-  const Vec<N> x0 = Eigen::Map<const Eigen::VectorXd>(scene.x0.data(), scene.n);
-  return integrator.run(x0, observer, diagnostics);
-}
-
-}  // namespace
 
 RunSummary run_lure_scene(const LureScene& scene, RunObserver* observer, LureDiagnostics* diagnostics) {
   const int n = scene.n, m = scene.m;

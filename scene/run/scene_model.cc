@@ -1,29 +1,17 @@
-// Running a compiled Lagrangian scene: the scheme (0.2) (AblIntegrator over SceneModel, with the
-// checks at recorded states) here, Moreau-Jean in moreau_jean_run.cc and Lur'e scenes in lure_run.cc (one
-// translation unit each, so that their fixed-size instantiations compile in parallel); ForceTerms.
+// Running a compiled Lagrangian scene: run_scene dispatches on the scheme (scheme.h) and the size
+// (dispatch_dof) to the runners of scheme_runs.h, each instantiated in a translation unit of its own;
+// the checks at recorded states (RecordedStateChecks), ForceTerms, and the variants a study compares.
 #include "moreau/scene/scene_model.h"
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
+#include <stdexcept>
 #include <vector>
 
-#include "runners.h"
+#include "scheme_runs.h"
 
 namespace moreau::scene {
-namespace {
-
-template <int N>
-RunSummary run_fixed(const LagrangianScene& scene, RunObserver* observer) {
-  SceneModel<N> model(scene);
-  AblSettings settings = scene.settings;
-  settings.output_every = scene.output_every;
-  AblIntegrator<SceneModel<N>> integrator(model, settings);
-  const Vec<N> q0 = Eigen::Map<const Eigen::VectorXd>(scene.q0.data(), scene.n);
-  const Vec<N> v0 = Eigen::Map<const Eigen::VectorXd>(scene.v0.data(), scene.n);
-  return integrator.run(q0, v0, observer);
-}
-
-}  // namespace
 
 ForceTerms::ForceTerms(const CompiledLagrangian& compiled)
     : c_(compiled),
@@ -112,15 +100,40 @@ void RecordedStateChecks::energy(const Sample& s) {
   }
 }
 
-RunSummary run_scene(const LagrangianScene& scene, RunObserver* observer) { return run_scene(scene, observer, nullptr); }
-
-RunSummary run_scene(const LagrangianScene& scene, RunObserver* observer, ContactDiagnostics* contacts) {
-  if (scene.scheme == Scheme::kMoreauJean) return run_moreau_jean_scene(scene, observer, contacts);
-  // Assumption 4.1 concerns the scheme (0.2) only.
-  RecordedStateChecks checks(scene, observer);
-  RunSummary s = dispatch_dof(scene.n, [&](auto dof) { return run_fixed<decltype(dof)::value>(scene, &checks); });
-  checks.record_into(s);
+RunSummary run_scene(const LagrangianScene& scene, RunObserver* observer, ContactDiagnostics* contacts, bool check_recorded_states) {
+  const SchemeTraits& row = traits(scene.scheme);
+  if (row.system != SystemType::kLagrangian)
+    throw std::invalid_argument(std::string("the ") + row.name + " scheme does not integrate a Lagrangian scene");
+  std::optional<RecordedStateChecks> checks;
+  if (check_recorded_states && row.recorded_state_checks) {
+    checks.emplace(scene, observer);
+    observer = &*checks;
+  }
+  RunSummary s = dispatch_dof(scene.n, [&](auto dof) {
+    constexpr int N = decltype(dof)::value;
+    switch (scene.scheme) {
+      case Scheme::kMoreauJean: return run_moreau_jean<N>(scene, observer, contacts);
+      case Scheme::kRegularized: return run_regularized<N>(scene, observer, contacts);
+      default: return run_abl<N>(scene, observer, contacts);  // kAbl and kExplicit (the system type is checked above)
+    }
+  });
+  if (checks) checks->record_into(s);
   return s;
+}
+
+LagrangianScene scene_variant(const LagrangianScene& scene, Scheme scheme, double h) {
+  if (traits(scheme).system != SystemType::kLagrangian)
+    throw std::invalid_argument(std::string("the ") + scheme_name(scheme) + " scheme does not integrate a Lagrangian scene");
+  LagrangianScene at = scene;
+  at.scheme = scheme;
+  at.settings.h = h;
+  if (scheme == Scheme::kExplicit) {
+    at.settings.velocity_update = VelocityUpdate::kExplicit;
+    at.settings.step_rule = StepRule::kFixed;
+  } else if (scheme == Scheme::kAbl) {
+    at.settings.velocity_update = VelocityUpdate::kImplicit;
+  }
+  return at;
 }
 
 }  // namespace moreau::scene

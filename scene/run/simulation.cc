@@ -45,19 +45,17 @@ Simulation Simulation::from_json(const nlohmann::json& doc) {
 
 namespace {
 
-void apply_limits(LagrangianScene& sc, const RunLimits& limits) {
-  if (limits.max_steps) {
-    sc.settings.max_steps = std::min(sc.settings.max_steps, *limits.max_steps);
-    sc.contact_settings.max_steps = sc.settings.max_steps;
-  }
-  if (limits.output_every) sc.output_every = *limits.output_every;
+// The grid every scheme of the scene runs on (settings.grid()), capped.
+void apply_limits(TimeGrid& grid, const RunLimits& limits) {
+  if (limits.max_steps) grid.max_steps = std::min(grid.max_steps, *limits.max_steps);
+  if (limits.output_every) grid.output_every = *limits.output_every;
 }
 
 }  // namespace
 
 Simulation Simulation::from_scene(LagrangianScene scene, const RunLimits& limits) {
   Simulation sim;
-  apply_limits(scene, limits);
+  apply_limits(scene.settings.grid(), limits);
   sim.system_ = std::make_shared<const LagrangianScene>(std::move(scene));
   sim.latest_ = std::make_shared<Latest>();
   return sim;
@@ -110,9 +108,7 @@ double Simulation::h() const {
   return on_scene(system_, [](const auto& sc) { return sc.settings.h; });
 }
 std::int64_t Simulation::output_every() const {
-  return std::visit(Overloaded{[](const std::shared_ptr<const LagrangianScene>& sc) { return sc->output_every; },
-                               [](const std::shared_ptr<const LureScene>& sc) { return sc->settings.output_every; }},
-                    system_);
+  return on_scene(system_, [](const auto& sc) { return sc.settings.output_every; });
 }
 std::int64_t Simulation::planned_steps() const {
   return on_scene(system_, [](const auto& sc) { return fixed_step_count(sc.settings.t0, sc.settings.t_end, sc.settings.h); });
@@ -126,13 +122,12 @@ Simulation Simulation::with_limits(const RunLimits& limits) const {
   out.latest_ = std::make_shared<Latest>();
   std::visit(Overloaded{[&](const std::shared_ptr<const LagrangianScene>& scene) {
                           auto sc = std::make_shared<LagrangianScene>(*scene);
-                          apply_limits(*sc, limits);
+                          apply_limits(sc->settings.grid(), limits);
                           out.system_ = std::shared_ptr<const LagrangianScene>(std::move(sc));
                         },
                         [&](const std::shared_ptr<const LureScene>& scene) {
                           auto sc = std::make_shared<LureScene>(*scene);
-                          if (limits.max_steps) sc->settings.max_steps = std::min(sc->settings.max_steps, *limits.max_steps);
-                          if (limits.output_every) sc->settings.output_every = *limits.output_every;
+                          apply_limits(sc->settings.grid(), limits);
                           out.system_ = std::shared_ptr<const LureScene>(std::move(sc));
                         }},
              system_);
@@ -144,7 +139,7 @@ RunSummary Simulation::run(RunObserver* observer, RunDiagnostics* diagnostics) c
   RunDiagnostics& d = diagnostics ? *diagnostics : local;
   d = RunDiagnostics{};
   return std::visit(Overloaded{[&](const std::shared_ptr<const LagrangianScene>& sc) {
-                                 if (sc->scheme != Scheme::kMoreauJean) return run_scene(*sc, observer);
+                                 if (!traits(sc->scheme).contacts) return run_scene(*sc, observer);
                                  return run_scene(*sc, observer, &d.of.emplace<ContactDiagnostics>());
                                },
                                [&](const std::shared_ptr<const LureScene>& sc) {

@@ -35,10 +35,11 @@ namespace moreau::scene {
 
 struct StudySettings {
   std::vector<double> h;  // the ladder
-  std::vector<StudyScheme> schemes = {StudyScheme::kAbl, StudyScheme::kExplicit, StudyScheme::kRegularized};
-  std::optional<double> reference_h;    // force a numerical reference at this h
-  double epsilon = 1e-3;                // width of the regularized sign
-  std::string regularization = "tanh";  // or "saturation"
+  // Schemes of the table (scheme.h) whose row says a study compares them.
+  std::vector<Scheme> schemes = {Scheme::kAbl, Scheme::kExplicit, Scheme::kRegularized};
+  std::optional<double> reference_h;  // force a numerical reference at this h
+  double epsilon = 1e-3;              // width of the regularized sign
+  Regularization regularization = Regularization::kTanh;
   int eval_points = 1000;
   int repeats = 3;
   double single_run_seconds = 2.0;
@@ -49,7 +50,7 @@ struct StudySettings {
   std::function<void(std::size_t done, std::size_t total)> on_row;
   // Called when a row's first run is about to start (after the cancellation check between rows), so that
   // a caller can act while that run integrates.
-  std::function<void(StudyScheme scheme, double h)> on_row_start;
+  std::function<void(Scheme scheme, double h)> on_row_start;
 };
 
 // Thrown by run_study when StudySettings::cancel became true.
@@ -72,7 +73,7 @@ nlohmann::json study_settings_to_json(const StudySettings& settings);
 std::int64_t study_planned_steps(const LagrangianScene& scene, const StudySettings& settings);
 
 struct StudyRow {
-  StudyScheme scheme = StudyScheme::kAbl;
+  Scheme scheme = Scheme::kAbl;
   double h = 0.0;
   std::string status;  // completed, failed
   std::string message;
@@ -98,7 +99,7 @@ struct StudyResult {
   nlohmann::json reference_guarantees;
   std::vector<StudyRow> rows;
   struct Order {
-    StudyScheme scheme = StudyScheme::kAbl;
+    Scheme scheme = Scheme::kAbl;
     double q_max = 0.0, v_max = 0.0;  // fitted slopes (NaN with fewer than two usable points)
     // What the papers say about this scheme's order on this scene (order_theory()): the result that
     // applies and the order it promises, or "none" with why. The measured slopes above are what was seen.
@@ -120,13 +121,13 @@ struct StudyResult {
 // The order the papers promise for `scheme` on `scene`: for the scheme (0.2) with a constant M, Remark 5.1
 // (order 1); with M depending on q, Theorem 5.2 (order 1/2) only under Assumption 5.2, which is not
 // checked, so "none" (the paper says it fails for its own section 6 robot); for the other schemes, none.
-StudyResult::Order order_theory(const LagrangianScene& scene, StudyScheme scheme);
+StudyResult::Order order_theory(const LagrangianScene& scene, Scheme scheme);
 
 // Parses a ladder "1e-1:1e-5:9" (log-spaced, both ends included) or a list "1e-2,5e-3,1e-3".
 std::vector<double> parse_ladder(const std::string& text);
 // A comma list of study schemes ("abl,explicit,regularized"). Throws SceneError at --schemes for an
 // unknown or repeated name, or an empty list.
-std::vector<StudyScheme> parse_study_schemes(const std::string& text);
+std::vector<Scheme> parse_study_schemes(const std::string& text);
 
 // Checks settings against the scene without running anything; run_study calls it first. Throws
 // SceneError naming the option (--h, --reference-h, --schemes, --eval-points, --repeats, --epsilon) or the

@@ -47,6 +47,7 @@
 #include "moreau/core/run_summary.h"
 #include "moreau/core/step_conditions.h"
 #include "moreau/core/stepping_driver.h"
+#include "moreau/core/time_grid.h"
 #include "moreau/core/types.h"
 
 namespace moreau {
@@ -59,16 +60,13 @@ enum class StepRule { kFixed, kTheorem41, kTheorem42 };
 // which chatters around v = 0 instead of resting there (Acary and Brogliato 2010).
 enum class VelocityUpdate { kImplicit, kExplicit };
 
-struct AblSettings {
-  double h = 1e-3;     // the step h (fixed rule) or its upper bound (Theorems 4.1, 4.2), seconds
-  double t0 = 0.0;     // initial time, seconds
-  double t_end = 1.0;  // final time, seconds
+// The grid (h is the fixed step, or the upper bound of the rules of Theorems 4.1 and 4.2) and the
+// scheme's own options.
+struct AblSettings : TimeGrid {
   StepRule step_rule = StepRule::kFixed;
   VelocityUpdate velocity_update = VelocityUpdate::kImplicit;
   std::optional<double> k1;  // lower bound of M(q) (Assumption 3.1); local value if absent
   std::optional<double> k3;  // bound ||C(u, v)|| <= k3 ||v|| (Assumption 3.2); local value if absent
-  std::int64_t max_steps = 2'000'000'000;
-  std::int64_t output_every = 1;  // call the observer every this many steps
   // P = M/h + C + W is zero beyond this distance from its diagonal at every state (-1: not known). The
   // scene compiler derives it from which entries of M and C are identically zero; the one-step solver
   // then uses banded LU when the band is narrow (one_step_solver.h).
@@ -108,8 +106,7 @@ class AblIntegrator {
   RunSummary run(const Vec<N>& q0, const Vec<N>& v0, RunObserver* observer = nullptr) {
     q_ = q0;
     v_ = v0;
-    const SteppingPlan plan{settings_.t0,        settings_.t_end,       settings_.h, settings_.step_rule == StepRule::kFixed,
-                            settings_.max_steps, settings_.output_every};
+    const SteppingPlan plan{settings_.grid(), settings_.step_rule == StepRule::kFixed};
     return SteppingDriver::run(*this, plan, observer);
   }
 
@@ -125,13 +122,18 @@ class AblIntegrator {
   const double* q() const { return q_.data(); }
   const double* v() const { return v_.data(); }
   double energy() const { return energy_; }
-  bool at_rest() const { return (v_.array() == 0.0).all(); }
+  // The scheme (0.2): V^{k+1} rests when the one-step solver took the closed form y = 0 of Lemma 6.1
+  // (-x in dPhi(0): the law holds it there), never because the linear solve underflowed to 0.0. The
+  // explicit peer has no such statement: its rest is read from the values (RestTracker).
+  RestState rest_state() const { return rest_.state(); }
   // Round-off in E_k itself: a few ulps of the run's energy scale.
   double energy_allowance(double e_old, double e_initial) const {
     return 64.0 * std::numeric_limits<double>::epsilon() * std::max(e_old, e_initial);
   }
 
   bool begin(double t0, StepFailure& f) {
+    rest_ = RestTracker{};
+    rest_.update(v_);  // the initial state, as given
     terms_vary_ = true;
     if (!evaluate(0, t0, f, "model terms are not finite at the initial state")) return false;
     terms_vary_ = !model_.constant_terms();
@@ -187,11 +189,7 @@ class AblIntegrator {
       explicit_velocity(v_, h_k);
       st.iterations = 1;  // one linear solve with M
     } else {
-      if (!solver_.solve(P_, x_, y_, st)) {
-        return f.at(k, t, q_.data(), v_.data(),
-                    "the one-step inclusion (6.5) was not solved to round-off (residual " + std::to_string(st.residual) + ", tolerance " +
-                        std::to_string(st.tolerance) + ")");
-      }
+      if (!solver_.solve(P_, x_, y_, st)) return f.at(k, t, q_.data(), v_.data(), unsolved_step_message(st));
       // The work done against dPhi over the step, h_k <xi, V^{k+1}> with xi = -(P y + x) + W y in dPhi(y):
       // the same for every element of dPhi(y) (dissipation_rate in controller.h), so it needs no multiplier.
       // y = 0 (the closed form of Lemma 6.1, no iteration) takes none. The explicit peer's xi is at V^k,
@@ -205,6 +203,10 @@ class AblIntegrator {
 
     q_ += h_k * v_;  // Q^{k+1} = Q^k + h_k V^k: explicit in position
     v_ = y_;
+    if (settings_.velocity_update == VelocityUpdate::kImplicit)
+      rest_.update(v_, st.iterations == 0);
+    else
+      rest_.update(v_);
     return true;
   }
 
@@ -229,6 +231,19 @@ class AblIntegrator {
     s.solver.linear_solver = linear_solver_description();
     s.dissipation_tracked = settings_.velocity_update == VelocityUpdate::kImplicit;
     rec.finish(k, t, q_.data(), v_.data(), energy_, s.equilibrium.evaluated && s.equilibrium.residual == 0.0);
+  }
+
+  // Why a step's inclusion (6.5) was not accepted: a P whose LU breaks down (singular, or entries not
+  // finite) leaves no finite residual or tolerance to quote, and says so instead of printing "nan".
+  std::string unsolved_step_message(const OneStepStats& st) const {
+    if (!P_.allFinite() || !x_.allFinite())
+      return "the one-step inclusion (6.5) has non-finite data: P = M/h + C + W or x = g - M V^k / h is not finite";
+    if (!std::isfinite(st.residual) || !std::isfinite(st.tolerance))
+      return "the one-step inclusion (6.5) was not solved: P = M/h + C + W is singular to working precision";
+    char buf[160];
+    std::snprintf(buf, sizeof buf, "the one-step inclusion (6.5) was not solved to round-off (residual %.3g above the tolerance %.3g)",
+                  st.residual, st.tolerance);
+    return buf;
   }
 
   // For the report: which factorisation solved the step's linear systems.
@@ -356,6 +371,7 @@ class AblIntegrator {
   Eigen::PartialPivLU<Mat<N>> mass_lu_;
   StepConditionChecker<N> checker_;
   std::string failure_;
+  RestTracker rest_;
 };
 
 }  // namespace moreau

@@ -50,17 +50,14 @@
 #include "moreau/core/run_diagnostics.h"
 #include "moreau/core/run_summary.h"
 #include "moreau/core/stepping_driver.h"
+#include "moreau/core/time_grid.h"
 #include "moreau/core/types.h"
 
 namespace moreau {
 
-struct LureSettings {
-  double h = 1e-3;
-  double t0 = 0.0;
-  double t_end = 1.0;
+// The grid (a fixed step) and the theta of the theta-method.
+struct LureSettings : TimeGrid {
   double theta = 1.0;  // in [1/2, 1]
-  std::int64_t max_steps = 2'000'000'000;
-  std::int64_t output_every = 1;
 };
 
 template <int N, int Mo>
@@ -118,7 +115,7 @@ class LureIntegrator {
     const FixedTimeGrid grid(settings_.t0, settings_.t_end, settings_.h);
     last_step_ = grid.steps - 1;
     last_h_ = grid.last_h;
-    return SteppingDriver::run_with_diagnostics(*this, SteppingPlan::fixed_grid(settings_), observer, d_, diag);
+    return SteppingDriver::run_with_diagnostics(*this, SteppingPlan{settings_.grid(), true}, observer, d_, diag);
   }
 
  private:
@@ -132,11 +129,14 @@ class LureIntegrator {
   const double* q() const { return x_.data(); }
   const double* v() const { return v_.data(); }
   double energy() const { return energy_; }
-  bool at_rest() const { return (x_.array() == 0.0).all(); }
+  // Read from the values (RestTracker): 0.0 exactly, not reached through the subnormal numbers.
+  RestState rest_state() const { return rest_.state(); }
   double energy_allowance(double e_old, double /*e_initial*/) const { return storage_allowance(x_, e_old); }
 
   // Row 0: y_0 = C x_0, w_0 the least-norm element of d phi(y_0).
   bool begin(double t, StepFailure& f) {
+    rest_ = RestTracker{};
+    rest_.update(x_);  // the initial state, as given
     LureDiagnostics& d = *d_;
     d = LureDiagnostics{};
     d.output_rest_step.assign(static_cast<std::size_t>(m_), -1);
@@ -175,6 +175,7 @@ class LureIntegrator {
   }
 
   bool arrive(std::int64_t k, double t, StepFailure& f) {
+    rest_.update(x_);
     LureDiagnostics& d = *d_;
     if (!x_.allFinite()) return f.at(k, t, x_.data(), nullptr, "the state became non-finite");
     for (int i = 0; i < m_; ++i) {
@@ -273,6 +274,7 @@ class LureIntegrator {
   bool square_invertible_ = false;
   Mat<N> c_square_;
   Eigen::PartialPivLU<Mat<N>> c_lu_;
+  RestTracker rest_;
 };
 
 }  // namespace moreau

@@ -87,18 +87,15 @@
 #include "moreau/core/small_lu.h"
 #include "moreau/core/step_conditions.h"
 #include "moreau/core/stepping_driver.h"
+#include "moreau/core/time_grid.h"
 #include "moreau/core/types.h"
 
 namespace moreau {
 
 enum class PositionUpdate { kMdi, kStandard };
 
-struct MoreauJeanSettings {
-  double h = 1e-3;
-  double t0 = 0.0;
-  double t_end = 1.0;
-  std::int64_t max_steps = 2'000'000'000;
-  std::int64_t output_every = 1;
+// The grid (a fixed step) and the scheme's own options.
+struct MoreauJeanSettings : TimeGrid {
   PositionUpdate position_update = PositionUpdate::kMdi;
   bool correct_positions = false;
   int max_recorded_impacts = 10000;
@@ -199,7 +196,7 @@ class MoreauJeanIntegrator {
     q_ = q0;
     v_ = v0;
     observer_ = observer;  // told of each impact (record_impacts)
-    return SteppingDriver::run_with_diagnostics(*this, SteppingPlan::fixed_grid(settings_), observer, d_, diag);
+    return SteppingDriver::run_with_diagnostics(*this, SteppingPlan{settings_.grid(), true}, observer, d_, diag);
   }
 
  private:
@@ -214,7 +211,8 @@ class MoreauJeanIntegrator {
   const double* q() const { return q_.data(); }
   const double* v() const { return v_.data(); }
   double energy() const { return kinetic_; }
-  bool at_rest() const { return (v_.array() == 0.0).all(); }
+  // Read from the values (RestTracker): 0.0 exactly, not reached through the subnormal numbers.
+  RestState rest_state() const { return rest_.state(); }
   double energy_allowance(double /*e_old*/, double e_initial) const {
     return 64.0 * std::numeric_limits<double>::epsilon() * std::max(kinetic_, e_initial);
   }
@@ -226,6 +224,8 @@ class MoreauJeanIntegrator {
   }
 
   bool begin(double t, StepFailure& f) {
+    rest_ = RestTracker{};
+    rest_.update(v_);  // the initial state, as given
     ContactDiagnostics& d = *d_;
     d = ContactDiagnostics{};
     d.constraints = nc_;
@@ -389,6 +389,7 @@ class MoreauJeanIntegrator {
   // Q^{k+1}, V^{k+1} become the state: finiteness, the gaps (and the optional position correction), the
   // settled contacts, and the terms and energies at the new state.
   bool arrive(std::int64_t k, double t, StepFailure& f) {
+    rest_.update(v_);
     ContactDiagnostics& d = *d_;
     if (!qn_.allFinite() || !vn_.allFinite()) return f.at(k, t, q_.data(), v_.data(), "the state became non-finite");
     if (nc_ > 0) {
@@ -765,6 +766,7 @@ class MoreauJeanIntegrator {
   GraphInclusionSolver<Eigen::Dynamic> corr_solver_;
   Eigen::MatrixXd Dc_;
   Eigen::VectorXd qc_, uc_, wc_;
+  RestTracker rest_;
 };
 
 }  // namespace moreau

@@ -26,19 +26,18 @@
 #include <boost/numeric/odeint.hpp>
 
 #include "moreau/core/abl_integrator.h"  // LagrangianTerms, the model requirements
+#include "moreau/core/regularization.h"
 #include "moreau/core/stepping_driver.h"
 
 namespace moreau {
 
-enum class Regularization { kTanh, kSaturation };
-
-struct RegularizedSettings {
-  double h = 1e-3;  // output interval and error tolerance
-  double t0 = 0.0;
-  double t_end = 1.0;
+// The grid: h is the output interval and the error tolerance (the solver chooses its own steps), and
+// the observer sees every output_every-th output point; max_steps is not used, since the solver's own
+// steps are capped through the work they do, max_rhs_evaluations.
+struct RegularizedSettings : TimeGrid {
   double epsilon = 1e-3;  // width of the regularized sign
   Regularization kind = Regularization::kTanh;
-  std::int64_t max_steps = 100'000'000;  // cap on right-hand-side evaluations
+  std::int64_t max_rhs_evaluations = 100'000'000;
 };
 
 template <class Model>
@@ -94,8 +93,11 @@ class RegularizedIntegrator {
       } else {
         rest_from = -1;
       }
-      if (observer)
-        observer->on_sample(Sample{samples, t, samples == 0 ? s_.h : t - last_t, n, q_.data(), v_.data(), energy, 0.0, samples});
+      // Every output_every-th output point and the last (at t_end), numbered as SteppingDriver numbers them.
+      const std::int64_t every = std::max<std::int64_t>(1, s_.output_every);
+      if (observer && (samples % every == 0 || t == s_.t_end))
+        observer->on_sample(
+            Sample{samples, t, samples == 0 ? s_.h : t - last_t, n, q_.data(), v_.data(), energy, 0.0, (samples + every - 1) / every});
       last_t = t;
       summary.energy_final = energy;
       ++samples;
@@ -151,7 +153,7 @@ class RegularizedIntegrator {
 
   // dz/dt at (z, t).
   void derivative(const state_type& z, state_type& dz, double t) {
-    if (++rhs_evaluations_ > s_.max_steps) throw std::runtime_error("more right-hand-side evaluations than max_steps");
+    if (++rhs_evaluations_ > s_.max_rhs_evaluations) throw std::runtime_error("more right-hand-side evaluations than max_rhs_evaluations");
     const int n = model_.dof();
     for (int i = 0; i < n; ++i) {
       q_(i) = z(i);

@@ -145,8 +145,9 @@ struct RunSummary {
 
   std::int64_t steps = 0;
   double t_final = 0.0;
-  // The first step N with V^k == 0.0 exactly for every k >= N up to the last step, if any: at rest at
-  // the end, which by itself proves nothing (V^k can pass through 0.0 at the last step).
+  // The first step N from which the scheme's state rests (RestState::kAtRest: V^k == 0.0 held there by
+  // the set-valued law, as the one-step solver states it) at every k >= N up to the last step, if any: at
+  // rest at the end, which by itself proves nothing (V^k can pass through rest at the last step).
   std::optional<std::int64_t> rest_step;
   std::optional<double> rest_time;
   // rest_step, when the rest lasted at least kMinRestSteps steps to the end of the run and the final
@@ -156,6 +157,11 @@ struct RunSummary {
   std::optional<std::int64_t> converged_step;
   std::optional<double> converged_time;
   static constexpr std::int64_t kMinRestSteps = 10;
+  // The first step from which V^k (x^k) stayed below the smallest normal double in magnitude, possibly
+  // 0.0, to the end without the law holding it (RestState::kBelowNormal): a decay the floating-point
+  // format ended, which is neither a rest nor finite-step convergence.
+  std::optional<std::int64_t> below_normal_step;
+  std::optional<double> below_normal_time;
   std::vector<double> q_final, v_final;
 
   // E_k = 1/2 <M(Q^k) V^k, V^k>.

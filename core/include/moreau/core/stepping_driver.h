@@ -16,11 +16,14 @@
 #include <cstdint>
 #include <cstdio>
 #include <limits>
+#include <optional>
 #include <string>
 #include <utility>
 
 #include "moreau/core/observer.h"
+#include "moreau/core/types.h"
 #include "moreau/core/run_summary.h"
+#include "moreau/core/time_grid.h"
 
 namespace moreau {
 
@@ -52,6 +55,38 @@ struct FixedTimeGrid {
   double time(std::int64_t k) const { return k == steps ? t_end : t0 + static_cast<double>(k) * h; }  // t_k
 };
 
+// Whether a scheme's state rests: the velocity V (for a Lur'e system, the state x) held at 0 by the
+// set-valued law, decayed below the smallest normal double (2.2e-308) without the law holding it (the
+// floating-point format ends the decay: V^k = 3^-k reaches 0.0 by underflow, never mathematically), or
+// moving. Finite-step convergence (Theorem 4.3) is claimed only for kAtRest.
+enum class RestState { kMoving, kBelowNormal, kAtRest };
+
+// The rest of a scheme's resting values, from its solver's statement when it makes one (`held`: the
+// one-step problem's solution is 0 because the law holds it there, e.g. -x in dPhi(0) for (6.5)), else
+// from the values: 0.0 exactly is a rest unless the values reached it through the subnormal numbers (an
+// underflow; a decay by a factor below 2^-52 in one step, which skips them, is the case this cannot
+// tell). One pass over n numbers per step.
+class RestTracker {
+ public:
+  template <class Values>
+  RestState update(const Values& x, std::optional<bool> held = std::nullopt) {
+    double largest = 0.0;
+    for (Eigen::Index i = 0; i < x.size(); ++i) largest = std::max(largest, std::abs(x(i)));
+    const bool tiny = largest < std::numeric_limits<double>::min();  // below the smallest normal (or 0.0)
+    if (held)
+      state_ = *held ? RestState::kAtRest : tiny ? RestState::kBelowNormal : RestState::kMoving;
+    else if (largest == 0.0)
+      state_ = state_ == RestState::kBelowNormal ? RestState::kBelowNormal : RestState::kAtRest;
+    else
+      state_ = tiny ? RestState::kBelowNormal : RestState::kMoving;
+    return state_;
+  }
+  RestState state() const { return state_; }
+
+ private:
+  RestState state_ = RestState::kMoving;
+};
+
 // The bookkeeping of one run into its RunSummary. q and v are the n positions and velocities the
 // observer sees (for a Lur'e system, the state and its discrete derivative).
 class RunRecorder {
@@ -65,10 +100,12 @@ class RunRecorder {
   RunSummary& summary() { return s_; }
 
   // Step 0: E_0 and whether the initial state already rests.
-  void start(double t, double energy, bool at_rest) {
+  void start(double t, double energy, RestState rest) {
     s_.energy_initial = energy;
-    rest_from_ = at_rest ? 0 : -1;
+    rest_from_ = rest == RestState::kAtRest ? 0 : -1;
     rest_time_ = t;
+    below_normal_from_ = rest == RestState::kBelowNormal ? 0 : -1;
+    below_normal_time_ = t;
     s_.h_min = std::numeric_limits<double>::infinity();
     s_.h_max = 0.0;
   }
@@ -95,8 +132,16 @@ class RunRecorder {
   // run's convergence step (Theorem 4.3's finite time). The observer hears of a rest when it reaches
   // RunSummary::kMinRestSteps steps (the window finish() asks for) and again if it ends: a live viewer
   // learns of convergence when it happens, not when the run ends (one comparison per step).
-  void rest(bool at_rest, std::int64_t k, double t) {
-    if (!at_rest) {
+  // A state below the smallest normal number without the law holding it is tracked apart
+  // (RunSummary::below_normal_step): it is not a rest.
+  void rest(RestState state, std::int64_t k, double t) {
+    if (state != RestState::kBelowNormal) {
+      below_normal_from_ = -1;
+    } else if (below_normal_from_ < 0) {
+      below_normal_from_ = k;
+      below_normal_time_ = t;
+    }
+    if (state != RestState::kAtRest) {
       if (rest_announced_) {
         rest_announced_ = false;
         if (observer_) observer_->on_rest_ended(rest_from_, k, t);
@@ -161,6 +206,10 @@ class RunRecorder {
         s_.converged_time = rest_time_;
       }
     }
+    if (below_normal_from_ >= 0) {
+      s_.below_normal_step = below_normal_from_;
+      s_.below_normal_time = below_normal_time_;
+    }
     if (k == 0) s_.h_min = s_.h_max = 0.0;
   }
   std::int64_t rest_from() const { return rest_from_; }
@@ -217,6 +266,8 @@ class RunRecorder {
   RunSummary s_;
   std::int64_t rest_from_ = -1;
   double rest_time_ = 0.0;
+  std::int64_t below_normal_from_ = -1;
+  double below_normal_time_ = 0.0;
   bool rest_announced_ = false;  // on_rest_detected() was called for the rest from rest_from_
   std::int64_t last_emitted_ = 0;
 };
@@ -242,19 +293,11 @@ struct StepFailure {
 };
 
 // The time rule and the recording of a run.
+// The time rule and the recording of a run: the scheme's grid (h: the fixed step, or the adaptive rule's
+// upper bound and the first sample's h) and whether the step is fixed.
 struct SteppingPlan {
-  double t0 = 0.0;     // seconds
-  double t_end = 1.0;  // seconds
-  double h = 1e-3;     // the fixed step, or the adaptive rule's upper bound; the first sample's h
-  bool fixed = true;   // false: the scheme proposes each h_k (propose_step)
-  std::int64_t max_steps = 2'000'000'000;
-  std::int64_t output_every = 1;
-
-  // The fixed grid of a scheme's settings (any struct with t0, t_end, h, max_steps, output_every).
-  template <class Settings>
-  static SteppingPlan fixed_grid(const Settings& s) {
-    return SteppingPlan{s.t0, s.t_end, s.h, true, s.max_steps, s.output_every};
-  }
+  TimeGrid grid;
+  bool fixed = true;  // false: the scheme proposes each h_k (propose_step)
 };
 
 // Runs a scheme from its initial state (set by the scheme before the call) to t_end. The scheme's part
@@ -262,7 +305,7 @@ struct SteppingPlan {
 //
 //   int dof() const;
 //   const double* q() const;  const double* v() const;    // the state the observer sees
-//   double energy() const;  bool at_rest() const;           // E_k (or W_k) and V == 0.0 (x == 0.0)
+//   double energy() const;  RestState rest_state() const;   // E_k (or W_k), and whether V (x) rests (RestTracker)
 //   bool begin(double t0, StepFailure& f);                  // checks and evaluation at the initial state
 //   bool step(std::int64_t k, double t_k, double h_k, double t_next, RunRecorder& rec, StepFailure& f);
 //       // the one-step problem and the update to step k+1 (may record the solver's effort)
@@ -295,38 +338,43 @@ struct SteppingDriver {
 
   template <class Scheme>
   static RunSummary run(Scheme& scheme, const SteppingPlan& plan, RunObserver* observer) {
-    RunRecorder rec(observer, plan.output_every, scheme.dof());
+    RunRecorder rec(observer, plan.grid.output_every, scheme.dof());
     StepFailure f;
-    if (!scheme.begin(plan.t0, f)) return failed(scheme, rec, f);
+    if (!scheme.begin(plan.grid.t0, f)) return failed(scheme, rec, f);
+    // The grid as TimeGrid defines a valid one (the scene readers refuse a bad one first, by field).
+    if (std::string why; !plan.grid.is_valid(&why)) {
+      f.at(0, plan.grid.t0, scheme.q(), scheme.v(), "invalid time grid: " + why);
+      return failed(scheme, rec, f);
+    }
     const bool fixed = plan.fixed || !Scheme::kAdaptiveSteps;
-    const FixedTimeGrid grid(plan.t0, plan.t_end, plan.h);
-    if (fixed && grid.steps > plan.max_steps) {
-      f.at(0, plan.t0, scheme.q(), scheme.v(), "the step count exceeds max_steps");
+    const FixedTimeGrid grid(plan.grid.t0, plan.grid.t_end, plan.grid.h);
+    if (fixed && grid.steps > plan.grid.max_steps) {
+      f.at(0, plan.grid.t0, scheme.q(), scheme.v(), "the step count exceeds max_steps");
       return failed(scheme, rec, f);
     }
 
     std::int64_t k = 0;
-    double t = plan.t0;
+    double t = plan.grid.t0;
     double energy = scheme.energy();
-    rec.start(t, energy, scheme.at_rest());
-    rec.first_sample(t, plan.h, scheme.q(), scheme.v(), energy);
-    double h_k = plan.h, h_prev = plan.h;
+    rec.start(t, energy, scheme.rest_state());
+    rec.first_sample(t, plan.grid.h, scheme.q(), scheme.v(), energy);
+    double h_k = plan.grid.h, h_prev = plan.grid.h;
     double dissipated = 0.0;  // D, RunSummary::dissipated_work
     while (true) {
       if (fixed) {
         if (k >= grid.steps) break;
         h_k = grid.step(k);
       } else if constexpr (Scheme::kAdaptiveSteps) {
-        if (t >= plan.t_end) break;
+        if (t >= plan.grid.t_end) break;
         std::string why;
-        if (k >= plan.max_steps)
+        if (k >= plan.grid.max_steps)
           why = "max_steps reached before t_end";
         else if (scheme.propose_step(t, h_prev, h_k, why)) {
           // Land on t_end: shorten the last step, or stretch it by at most 1e-9 relative rather than
           // leave a sliver of round-off (t accumulates the h_k).
-          const double remaining = plan.t_end - t;
+          const double remaining = plan.grid.t_end - t;
           if (h_k * (1.0 + 1e-9) >= remaining) h_k = remaining;
-          if (!(h_k > 0.0) || h_k < 1e-15 * std::max(1.0, std::abs(plan.t_end))) why = "the step size collapsed below 1e-15 t_end";
+          if (!(h_k > 0.0) || h_k < 1e-15 * std::max(1.0, std::abs(plan.grid.t_end))) why = "the step size collapsed below 1e-15 t_end";
         }
         if (!why.empty()) {
           f.at(k, t, scheme.q(), scheme.v(), std::move(why));
@@ -341,7 +389,7 @@ struct SteppingDriver {
       h_prev = h_k;
       rec.step_taken(h_k);
       if (!scheme.arrive(k, t, f)) return failed(scheme, rec, f);
-      rec.rest(scheme.at_rest(), k, t);
+      rec.rest(scheme.rest_state(), k, t);
       const double e_new = scheme.energy();
       rec.energy_step(energy, e_new, scheme.energy_allowance(energy, rec.summary().energy_initial));
       energy = e_new;

@@ -19,6 +19,7 @@
 #include "moreau/core/lure_integrator.h"
 #include "moreau/core/maximal_monotone_graph.h"
 #include "moreau/core/moreau_jean_integrator.h"
+#include "moreau/core/regularization.h"
 #include "moreau/core/observer.h"
 #include "moreau/core/run_diagnostics.h"
 #include "moreau/core/rigid_body.h"
@@ -124,6 +125,10 @@ struct CompiledLagrangian {
   // A URDF system's robot (/system/urdf): M(q), C(q, v) and the gravity part of grad V and of V come from
   // it at every evaluation (rigid_body.h); the tapes hold only what the scene adds (F, a potential).
   std::shared_ptr<const RigidBodyModel> robot;
+  // Upper bounds of ||grad V(q)||_2 over every q and of ||F(t, q, v)||_2 over every (q, v) and t in
+  // [t0, t_end], from interval arithmetic over the expressions (expr/interval.h); none when unbounded or
+  // not enclosed (a robot's gravity, a free parameter). Assumption 4.1 2)-3) for all states rests on them.
+  std::optional<double> gradient_bound, force_bound;
 };
 
 // V(q), grad V(q) and F(t, q, v) of a compiled scene apart, wherever they come from (the expressions, the
@@ -143,6 +148,16 @@ class ForceTerms {
   std::unique_ptr<RigidBodyData> robot_data_;
 };
 
+// Where C(q, v) comes from (/system/coriolis): the Christoffel symbols of M, the scene's own matrix, or none.
+enum class CoriolisSource { kChristoffel, kExplicit, kNone };
+
+// The names of the options' enums, as scene files and reports spell them.
+const char* to_string(CoriolisSource source);
+const char* to_string(PositionUpdate update);   // "mdi", "standard"
+const char* position_correction_name(bool on);  // "projection", "none"
+const char* to_string(Regularization kind);     // "tanh", "saturation"
+std::optional<Regularization> regularization_from_name(std::string_view name);
+
 struct LagrangianScene {
   std::string name;
   int n = 0;
@@ -152,9 +167,10 @@ struct LagrangianScene {
   Controller<Eigen::Dynamic> controller;
   std::vector<double> q0, v0;
   Scheme scheme = Scheme::kAbl;
+  // The time grid (settings.grid(), which every scheme runs on) and the options of the abl and explicit
+  // schemes; contact_settings and the regularization below hold the other schemes' own options.
   AblSettings settings;
-  std::int64_t output_every = 1;
-  std::string coriolis = "christoffel";    // "christoffel", "explicit" or "none"
+  CoriolisSource coriolis = CoriolisSource::kChristoffel;
   std::vector<std::string> christoffel_c;  // C(q, v) entries as text (row-major), for reports and tests; empty for URDF
   std::string robot_name;                  // the URDF's <robot name>, for a URDF system
   bool force_depends_on_time = false;      // F(t, q, v) reads t (Theorem 4.3 assumes it does not, (4.16))
@@ -167,14 +183,23 @@ struct LagrangianScene {
   std::optional<double> exact_rest_time;
   std::vector<double> exact_rest_q;
   // Unilateral constraints h_i(q) >= 0 with Newton restitution e_i (/system/constraints), integrated by
-  // the moreau-jean scheme; contact_settings carries its options (h, t0, t_end, max_steps: from settings).
+  // the moreau-jean scheme; contact_settings carries its own options (its grid is not used: the run takes
+  // settings.grid()).
   std::vector<std::string> constraint_names;
   std::vector<std::string> constraint_gaps;  // h_i(q) as text, for reports
   std::vector<double> restitution;
   MoreauJeanSettings contact_settings;
-  std::string position_correction = "none";  // or "projection"
-  std::string position_update = "mdi";       // or "standard"
+  // Parameters that no expression reads (the report warns of them: a misspelt name?).
+  std::vector<std::string> unread_parameters;
+  // The regularized scheme's sign (a study's peer): its kind and width.
+  Regularization regularization = Regularization::kTanh;
+  double regularization_epsilon = 1e-3;
 };
+
+// The same scene integrated by another Lagrangian scheme of the table (scheme.h), at step h, with the
+// settings that scheme implies (the explicit peer: fixed step, explicit velocity update): the variants a
+// study compares. Throws std::invalid_argument for a scheme of another system type.
+LagrangianScene scene_variant(const LagrangianScene& scene, Scheme scheme, double h);
 
 // Validates and compiles a Lagrangian scene. Throws SceneError naming the field (a "lure" scene gets
 // one at /system/type: load it with load_lure_scene or Simulation).
@@ -216,10 +241,12 @@ class ParametricLagrangianScene {
   std::unique_ptr<Impl> impl_;
 };
 
-// Runs the scene's integrator on its compiled model (dispatching to fixed-size code for small n): the abl
-// scheme, or moreau-jean (which also fills `contacts` when given).
-RunSummary run_scene(const LagrangianScene& scene, RunObserver* observer);
-RunSummary run_scene(const LagrangianScene& scene, RunObserver* observer, ContactDiagnostics* contacts);
+// Runs the scene's scheme on its compiled model (dispatching to fixed-size code for small n): the one place
+// that builds an integrator for a Lagrangian scene. Moreau-Jean also fills `contacts` when given. With
+// check_recorded_states, the schemes whose row says so check Assumption 4.1 2)-3) and the energy balance
+// at the recorded states (RecordedStateChecks); a study's timed runs turn that off.
+RunSummary run_scene(const LagrangianScene& scene, RunObserver* observer, ContactDiagnostics* contacts = nullptr,
+                     bool check_recorded_states = true);
 
 // ---- Lur'e systems (eq. 4 of Brogliato 2003) ------------------------------------------------------------
 struct LureScene {
@@ -247,6 +274,8 @@ struct LureScene {
   std::shared_ptr<const expr::Tape> exact_tape;
   std::optional<double> exact_rest_time;
   std::vector<double> exact_rest_x;
+  // Parameters that no expression reads (the report warns of them: a misspelt name?).
+  std::vector<std::string> unread_parameters;
 };
 
 // The /system/type of a scene document ("lagrangian" when absent or not a string; validation comes later).
