@@ -11,6 +11,7 @@
 
 #include "commands.h"
 #include "figure_output.h"
+#include "terminal_text.h"
 #include "moreau/analysis/figures.h"
 #include "moreau/scene/simulation.h"
 #include "moreau/scene/trajectory_csv.h"
@@ -68,6 +69,10 @@ int run(const RunOptions& opt) {
     return 2;
   }
   const double load_s = since(t_load);
+  // Parameters nothing reads: likely a misspelt name; the report says so too.
+  const std::vector<std::string>* unread = sim->lagrangian() ? &sim->lagrangian()->unread_parameters : &sim->lure()->unread_parameters;
+  for (const std::string& p : *unread)
+    std::cerr << "moreau: warning: parameter '" << terminal_safe(p) << "' is not read by any expression of the scene\n";
 
   ObserverFan fan;
   std::optional<scene::TrajectoryCsvWriter> csv;

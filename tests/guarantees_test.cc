@@ -67,12 +67,154 @@ TEST(Guarantees, ConvergenceWithoutTheTheoremsHypothesesIsNotAttributedToIt) {
   EXPECT_LT(std::abs(4.0 * s.q_final[0]), 1.0);  // inside the equilibrium set, by the closed form
   EXPECT_EQ(s.equilibrium.residual, 0.0);
   const Guarantees g = sim.guarantees(s);
-  EXPECT_EQ(Hypothesis(g, "Theorem 4.2", "the step rule").verdict, Verdict::kFails);
+  // M = m is constant and C = 0 (the scene's Christoffel symbols of a constant M): eps_k of (4.9) is 0 at
+  // every step, so the fixed h is the rule's own h_k and the rule holds on this run; the theorem still
+  // fails on eta = 0 (no quadratic term).
+  EXPECT_EQ(Hypothesis(g, "Theorem 4.2", "the step rule").verdict, Verdict::kHolds);
   EXPECT_EQ(Hypothesis(g, "Theorem 4.2", "Assumption 4.1 1)").verdict, Verdict::kFails);  // eta = 0
   EXPECT_EQ(Hypothesis(g, "Theorem 4.3", "(4.16)").verdict, Verdict::kHolds);
   EXPECT_EQ(g.find("Theorem 4.3")->verdict(), Verdict::kFails);
   EXPECT_EQ(convergence_finding(s, g, "Theorem 4.3"), ConvergenceFinding::kConvergedNotGuaranteed);
   EXPECT_TRUE(g.relied_on_failure().empty()) << g.relied_on_failure();  // (4.2) holds at h = 1e-3
+}
+
+// The damped relay m x'' = -c x' - a Sign(x') on a fixed step: M = m constant and C = 0, so eps_k of (4.9)
+// is 0 for every h and Theorem 4.2's rule h_k = min(h_{k-1}, h*_k, k1 / (2 k3 ||V^k||)) gives h at every
+// step (k3 = 0). The fixed run is the rule's run: the same positions bit for bit, and the same verdicts
+// (all hold: eta = c/2 > 0, alpha = a > 0, no F, no potential, F independent of t).
+TEST(Guarantees, AFixedStepThatIsTheorem42sRuleIsCheckedAsItsRule) {
+  const Simulation fixed = Simulation::from_file(ScenePath("damped-relay.json"));
+  const Simulation rule = Simulation::from_file(ScenePath("damped-relay.json"), {"integrator.step_rule=\"theorem-4.2\""});
+  const RunSummary a = fixed.run(nullptr), b = rule.run(nullptr);
+  ASSERT_EQ(a.status, RunStatus::kCompleted) << a.message;
+  ASSERT_EQ(b.status, RunStatus::kCompleted) << b.message;
+  EXPECT_EQ(a.q_final, b.q_final);
+  EXPECT_EQ(a.steps, b.steps);
+  const Guarantees ga = fixed.guarantees(a), gb = rule.guarantees(b);
+  for (const char* result : {"Theorem 4.1", "Theorem 4.2", "Theorem 4.3"}) {
+    EXPECT_EQ(ga.find(result)->verdict(), Verdict::kHolds) << result << " (fixed)";
+    EXPECT_EQ(gb.find(result)->verdict(), Verdict::kHolds) << result << " (theorem-4.2)";
+  }
+  EXPECT_EQ(convergence_finding(a, ga, "Theorem 4.3"), convergence_finding(b, gb, "Theorem 4.3"));
+  const std::string text = fixed.report_text(a);
+  EXPECT_EQ(text.find("hypotheses fail"), std::string::npos) << text;
+}
+
+// With M depending on q the fixed run's ||eps_k|| is not computed: the rule is "not checked", never
+// "fails" (the manipulator of section 6, whose M(q) has cos q2 terms).
+TEST(Guarantees, AFixedStepWithAVaryingMassDoesNotClaimTheRuleFails) {
+  const Simulation sim = Simulation::from_file(ScenePath("manipulator.json"), {"integrator.t_end=0.1"});
+  const RunSummary s = sim.run(nullptr);
+  const Guarantees g = sim.guarantees(s);
+  EXPECT_EQ(Hypothesis(g, "Theorem 4.2", "the step rule").verdict, Verdict::kNotChecked);
+}
+
+// m x'' = -c x' with no set-valued term and h = 2 (m = c = 1): V^{k+1} = V^k / (1 + c h / m) = V^k / 3,
+// V^k = 3^-k, never 0. It falls below the smallest normal double (2^-1022) at k = ceil(1022 ln 2 / ln 3)
+// = 645 and then to 0.0 by underflow: neither a rest nor convergence, and the report says which it is.
+TEST(Guarantees, AVelocityThatUnderflowsToZeroIsNotAtRest) {
+  const nlohmann::json doc = {
+      {"name", "viscous"},
+      {"system",
+       {{"type", "lagrangian"}, {"coordinates", {"x"}}, {"mass", {{1}}}, {"controller", {{{"type", "quadratic"}, {"weights", {1}}}}}}},
+      {"initial", {{"q", {0}}, {"v", {1}}}},
+      {"integrator", {{"h", 2}, {"t_end", 4000}}}};
+  const Simulation sim = Simulation::from_json(doc);
+  const RunSummary s = sim.run(nullptr);
+  ASSERT_EQ(s.status, RunStatus::kCompleted) << s.message;
+  EXPECT_EQ(s.v_final[0], 0.0);  // the float did reach 0.0
+  EXPECT_FALSE(s.rest_step.has_value());
+  EXPECT_FALSE(s.converged_step.has_value());
+  const std::int64_t expected = static_cast<std::int64_t>(std::ceil(1022.0 * std::log(2.0) / std::log(3.0)));
+  ASSERT_EQ(expected, 645);
+  ASSERT_TRUE(s.below_normal_step.has_value());
+  EXPECT_NEAR(static_cast<double>(*s.below_normal_step), static_cast<double>(expected), 1.0);
+  EXPECT_EQ(*s.below_normal_time, 2.0 * static_cast<double>(*s.below_normal_step));
+  const std::string text = sim.report_text(s);
+  EXPECT_NE(text.find("decayed below the smallest normal number"), std::string::npos) << text;
+  EXPECT_EQ(text.find("converged"), std::string::npos) << text;
+  EXPECT_EQ(sim.report_json(s)["converged_step"], nullptr);
+}
+
+// docs/numerics.md says what the Figure 6.4 and 6.5 reports show: ||grad V|| = b m2 g sin(th2(0)) =
+// 0.5 * 9.81 * sin(1) = 4.127 at t = 0 above (alpha - beta) / 2, and (4.16) failing (F reads t).
+TEST(Guarantees, PaperFigures64And65FailOnTheGradientAtTheStart) {
+  for (const char* name : {"manipulator-fig6.4.json", "manipulator-fig6.5.json"}) {
+    const Simulation sim = Simulation::from_file(ScenePath(name), {"integrator.t_end=0.5"});
+    const RunSummary s = sim.run(nullptr);
+    const Guarantees g = sim.guarantees(s);
+    const HypothesisCheck& a41 = Hypothesis(g, "Theorem 4.2", "Assumption 4.1 2)-3)");
+    EXPECT_EQ(a41.verdict, Verdict::kFails) << name;
+    const std::string expected = "||grad V|| reaches " + std::to_string(0.5 * 9.81 * std::sin(1.0)).substr(0, 5) + " at t = 0 ";
+    EXPECT_NE(a41.detail.find(expected), std::string::npos) << name << ": " << a41.detail;
+    EXPECT_EQ(Hypothesis(g, "Theorem 4.3", "(4.16)").verdict, Verdict::kFails) << name;
+  }
+}
+
+// Assumption 4.1 2)-3) for all q, proved: the manipulator with g = 0.9 has grad V = (0, b m2 g sin th2),
+// so ||grad V|| <= b m2 g = 0.45 <= (alpha - 0) / 2 = 0.5 for every q (alpha = 1, no F). With g = 9.81 the
+// bound 4.905 proves nothing, and the visited states decide (here: fail at t = 0).
+TEST(Guarantees, Assumption41IsProvedForAllStatesWhenTheBoundsShowIt) {
+  const Simulation small = Simulation::from_file(ScenePath("manipulator.json"), {"parameters.g=0.9", "integrator.t_end=0.5"});
+  const RunSummary s = small.run(nullptr);
+  const HypothesisCheck& h = Hypothesis(small.guarantees(s), "Theorem 4.2", "Assumption 4.1 2)-3)");
+  EXPECT_EQ(h.verdict, Verdict::kHolds);
+  EXPECT_EQ(h.scope, kForAllStates) << h.detail;
+  ASSERT_TRUE(small.lagrangian()->compiled->gradient_bound.has_value());
+  EXPECT_GE(*small.lagrangian()->compiled->gradient_bound, 0.5 * 1.0 * 0.9);
+  EXPECT_LE(*small.lagrangian()->compiled->gradient_bound, 0.45 * (1.0 + 1e-9));
+  EXPECT_EQ(*small.lagrangian()->compiled->force_bound, 0.0);
+
+  // g = 1.1: the bound b m2 g = 0.55 > 0.5 proves nothing, while the short run from th2 = -1 sees
+  // ||grad V|| = 0.55 |sin th2| ~ 0.46 <= 0.5: it holds on the states visited only, and says so.
+  const Simulation wide = Simulation::from_file(ScenePath("manipulator.json"), {"parameters.g=1.1", "integrator.t_end=0.2"});
+  const RunSummary w = wide.run(nullptr);
+  const HypothesisCheck& v = Hypothesis(wide.guarantees(w), "Theorem 4.2", "Assumption 4.1 2)-3)");
+  EXPECT_EQ(v.verdict, Verdict::kHolds) << v.detail;
+  EXPECT_EQ(v.scope, kOnVisitedStates);
+  EXPECT_NE(v.detail.find("which do not prove it"), std::string::npos) << v.detail;
+  EXPECT_NE(wide.report_text(w).find("holds (on the states visited): Assumption 4.1 2)-3)"), std::string::npos);
+}
+
+// Two identical contacts y >= 0 under a resting ball: the gradients (1) and (1) are dependent (rank 1 of
+// 2), so the reactions are not unique, and the report says so; with one contact they are.
+TEST(Guarantees, DependentContactGradientsMakeTheReactionsNonUnique) {
+  nlohmann::json doc = read_scene_file(ScenePath("bouncing-ball-e0.json"));
+  const Simulation one = Simulation::from_json(doc);
+  const RunSummary s1 = one.run(nullptr);
+  EXPECT_EQ(one.report_json(s1)["contacts"]["reactions_unique_at_end"], true);
+  doc["system"]["constraints"].push_back({{"name", "ground2"}, {"gap", "y"}, {"restitution", "e"}});
+  const Simulation two = Simulation::from_json(doc);
+  const RunSummary s2 = two.run(nullptr);
+  EXPECT_EQ(s2.q_final, s1.q_final);  // the motion is the same
+  const nlohmann::json j = two.report_json(s2);
+  EXPECT_EQ(j["contacts"]["reactions_unique_at_end"], false);
+  EXPECT_EQ(j["contacts"]["active_gradient_rank"], 1);
+  EXPECT_EQ(j["contacts"]["active_at_end"], nlohmann::json({"ground", "ground2"}));
+  EXPECT_NE(two.report_text(s2).find("reactions     not unique at the final state"), std::string::npos) << two.report_text(s2);
+}
+
+// `--set parameters.M1=5` for m1: an override cannot create a parameter (the typo would run the nominal
+// scene), and a parameter the document declares but no expression reads is a warning in the report.
+TEST(Guarantees, AMisspeltParameterIsRefusedOrWarnedOf) {
+  try {
+    Simulation::from_file(ScenePath("manipulator.json"), {"parameters.M1=5"});
+    ADD_FAILURE() << "no error";
+  } catch (const SceneError& e) {
+    EXPECT_EQ(e.pointer(), "/parameters/M1");
+    EXPECT_NE(e.reason().find("its parameters: I, b, g, m1, m2"), std::string::npos) << e.what();
+  }
+  nlohmann::json doc = read_scene_file(ScenePath("manipulator.json"));
+  doc["parameters"]["unused"] = 3;
+  const Simulation sim = Simulation::from_json(doc);
+  EXPECT_EQ(sim.lagrangian()->unread_parameters, std::vector<std::string>{"unused"});
+  const RunSummary s = sim.run(nullptr);
+  EXPECT_EQ(sim.report_json(s)["warnings"], nlohmann::json({"parameter 'unused' is not read by any expression of the scene"}));
+  EXPECT_NE(sim.report_text(s).find("  warnings      parameter 'unused' is not read"), std::string::npos);
+  // A parameter read only through another parameter is read.
+  doc["parameters"]["unused"] = "2*m1";
+  doc["parameters"]["m2"] = "unused/2";
+  EXPECT_TRUE(Simulation::from_json(doc).lagrangian()->unread_parameters.empty());
 }
 
 // r_0 = 2 h ||C(Q^0, V^0)||_2 / lambda_min(M(Q^0)) from the paper's closed-form M and C, with Eigen's

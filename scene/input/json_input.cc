@@ -241,6 +241,14 @@ void apply_override(nlohmann::json& doc, const std::string& assignment) {
         throw SceneError(ptr, "override path: index " + tok + " is out of range (size " + std::to_string(node->size()) + ")");
       node = &(*node)[idx];
     } else if (node->is_object() || node->is_null()) {
+      // A parameter is set, never created: `--set parameters.M1=5` for m1 would otherwise add a parameter
+      // that nothing reads and run the nominal scene.
+      if (i == 1 && tokens[0] == "parameters" && node->is_object() && !node->contains(tok)) {
+        std::string names;
+        for (auto it = node->begin(); it != node->end(); ++it) names += (names.empty() ? "" : ", ") + it.key();
+        throw SceneError(ptr, "override sets parameter '" + tok +
+                                  "', which the scene does not have (its parameters: " + (names.empty() ? "none" : names) + ")");
+      }
       node = &(*node)[tok];
     } else {
       throw SceneError(ptr, "override path goes through " + type_name(*node) + ", not an object or array");

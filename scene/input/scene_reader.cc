@@ -107,6 +107,23 @@ void SceneReader::check_all_parameters() {
   for (const auto& entry : params_) parameter(entry.first);
 }
 
+std::vector<std::string> SceneReader::unread_parameters() const {
+  // Read: named by an expression of the scene, or by a parameter that is read.
+  std::set<std::string> read = read_params_;
+  std::vector<std::string> pending(read.begin(), read.end());
+  while (!pending.empty()) {
+    const std::string name = pending.back();
+    pending.pop_back();
+    if (auto it = param_reads_.find(name); it != param_reads_.end())
+      for (const std::string& other : it->second)
+        if (read.insert(other).second) pending.push_back(other);
+  }
+  std::vector<std::string> unread;
+  for (const auto& entry : params_)
+    if (!read.count(entry.first)) unread.push_back(entry.first);
+  return unread;
+}
+
 Node SceneReader::parameter(const std::string& name) {
   if (auto it = param_nodes_.find(name); it != param_nodes_.end()) return it->second;
   if (auto it = std::find(free_params_.begin(), free_params_.end(), name); it != free_params_.end()) {
@@ -117,7 +134,9 @@ Node SceneReader::parameter(const std::string& name) {
   }
   if (resolving_.count(name)) throw SceneError("/parameters/" + json_pointer_token(name), "parameter '" + name + "' depends on itself");
   resolving_.insert(name);
+  resolving_order_.push_back(name);
   const Node node = constant_node(*params_.at(name), "/parameters/" + json_pointer_token(name));
+  resolving_order_.pop_back();
   resolving_.erase(name);
   param_nodes_[name] = node;
   return node;
@@ -145,7 +164,14 @@ Node SceneReader::expression(const json& j, const std::string& ptr, unsigned all
       disallowed = name;
       return std::nullopt;
     }
-    if (params_.count(name)) return parameter(name);
+    if (params_.count(name)) {
+      // Who reads it: an expression of the scene, or the parameter being resolved (unread_parameters).
+      if (resolving_order_.empty())
+        read_params_.insert(name);
+      else
+        param_reads_[resolving_order_.back()].insert(name);
+      return parameter(name);
+    }
     return std::nullopt;
   };
   try {

@@ -63,6 +63,9 @@ class SceneReader {
   // division by zero in an unused parameter is still an error. Called once the coordinates are known,
   // so that a parameter naming one is told it cannot.
   void check_all_parameters();
+  // The parameters no expression of the scene reads (directly, or through a parameter that is read), in
+  // name order: the report warns of them. (An override cannot create a parameter: apply_override.)
+  std::vector<std::string> unread_parameters() const;
   Node parameter(const std::string& name);
   Node expression(const json& j, const std::string& ptr, unsigned allowed, const std::string& what);
   Node constant_node(const json& j, const std::string& ptr);
@@ -92,7 +95,10 @@ class SceneReader {
   std::map<std::string, const json*> params_;
   std::map<std::string, Node> param_nodes_;
   std::set<std::string> resolving_;
-  std::map<std::string, int> coord_slot_;  // a coordinate's variable: 1..n positions, n+1..2n velocities
+  std::vector<std::string> resolving_order_;                  // the parameters being resolved, innermost last
+  std::set<std::string> read_params_;                         // named by an expression of the scene
+  std::map<std::string, std::set<std::string>> param_reads_;  // parameter -> the parameters its value names
+  std::map<std::string, int> coord_slot_;                     // a coordinate's variable: 1..n positions, n+1..2n velocities
   // Parameters kept free (ParametricLagrangianScene): parameter k is the variable 1 + 2n + k of the
   // expressions, a named constant of the tapes set when they are bound, never folded in. Anything that
   // needs its value while compiling (a gain, the step, the initial state, another parameter) fails with

@@ -60,13 +60,26 @@ Guarantee theorem41(const RunSummary& s, Detail detail) {
   return g;
 }
 
-// Assumption 4.1 2)-3) from the largest ||F|| and ||grad V|| at the recorded states. Any beta the
-// assumption could use is at least the largest ||F|| seen, so a failure found here is a failure of the
-// assumption; "holds" covers the recorded states only.
-HypothesisCheck assumption41_forces(const RunSummary& s, double alpha, Detail detail) {
-  const ForceBoundTrack& f = s.force_bounds;
+// Assumption 4.1 2)-3), for all states when the expressions' interval bounds prove it
+// (CompiledLagrangian::gradient_bound, force_bound), else from the largest ||F|| and ||grad V|| at the
+// recorded states. Any beta the assumption could use is at least the largest ||F|| seen, so a failure found
+// at a recorded state is a failure of the assumption; a "holds" from them covers the states visited only,
+// and says so (scope).
+HypothesisCheck assumption41_forces(const LagrangianScene& scene, const RunSummary& s, double alpha, Detail detail) {
   HypothesisCheck h{"Assumption 4.1 2)-3): sup ||F|| <= beta < alpha and ||grad V(q)|| <= (alpha - beta) / 2 for all q",
                     Verdict::kNotChecked, ""};
+  const CompiledLagrangian* c = scene.compiled.get();
+  if (c && c->gradient_bound && c->force_bound && *c->force_bound < alpha && *c->gradient_bound <= 0.5 * (alpha - *c->force_bound)) {
+    h.verdict = Verdict::kHolds;
+    h.scope = kForAllStates;
+    h.detail = detail_text(detail, [&] {
+      return "for every q, v and t in [t0, t_end], by interval bounds of the expressions: ||F|| <= " + fmt(*c->force_bound) +
+             " = beta < alpha = " + fmt(alpha) + ", ||grad V|| <= " + fmt(*c->gradient_bound) +
+             " <= (alpha - beta) / 2 = " + fmt(0.5 * (alpha - *c->force_bound));
+    });
+    return h;
+  }
+  const ForceBoundTrack& f = s.force_bounds;
   if (f.samples == 0) {
     h.detail = "no state was recorded";
     return h;
@@ -74,6 +87,7 @@ HypothesisCheck assumption41_forces(const RunSummary& s, double alpha, Detail de
   const bool force_too_large = f.max_force >= alpha;
   const bool gradient_too_large = !force_too_large && f.max_gradient > 0.5 * (alpha - f.max_force);
   h.verdict = force_too_large || gradient_too_large ? Verdict::kFails : Verdict::kHolds;
+  if (h.verdict == Verdict::kHolds) h.scope = kOnVisitedStates;
   if (detail == Detail::kVerdicts) return h;
   const std::string where = " (checked at " + std::to_string(f.samples) +
                             " recorded states, every 16th of those the run recorded (every /output/every-th step)" +
@@ -85,23 +99,53 @@ HypothesisCheck assumption41_forces(const RunSummary& s, double alpha, Detail de
                " > (alpha - beta) / 2 = " + fmt(0.5 * (alpha - f.max_force)) +
                " even with the smallest beta = max ||F|| = " + fmt(f.max_force) + where;
   } else {
+    const std::string why_not_all =
+        c && c->gradient_bound && c->force_bound
+            ? "; over all states the interval bounds give ||F|| <= " + fmt(*c->force_bound) +
+                  " and ||grad V|| <= " + fmt(*c->gradient_bound) + ", which do not prove it"
+            : std::string("; not proved for all states (") +
+                  (c && c->robot ? "a robot's gravity is not bounded here" : "an expression has no finite interval bound") + ")";
     h.detail = "max ||F|| = " + fmt(f.max_force) + " < alpha = " + fmt(alpha) + ", max ||grad V|| = " + fmt(f.max_gradient) +
-               " <= (alpha - max ||F||) / 2" + where + "; the sup over all states is not checked";
+               " <= (alpha - max ||F||) / 2" + where + why_not_all;
   }
   return h;
 }
 
+// Whether eps_k of (4.9) is 0 at every step of every run of the scene, whatever h: M constant (so its
+// difference quotient is 0) and C identically 0 (no Coriolis matrix, or Christoffel symbols of a constant
+// M). Decided from the scene's structure, not from the states visited.
+bool eps_identically_zero(const LagrangianScene& scene) {
+  if (!scene.compiled || !scene.compiled->constant_mass || scene.compiled->robot) return false;
+  return scene.coriolis == CoriolisSource::kNone || scene.coriolis == CoriolisSource::kChristoffel;
+}
+
 Guarantee theorem42(const LagrangianScene& scene, const RunSummary& s, const Guarantee& t41, Detail detail) {
+  // The rule's condition is checked on the run actually made, whatever /integrator/step_rule says: the
+  // proof uses only h_k <= h_{k-1}, ||eps_k(h_k)|| <= 2 eta at the h_k taken ((4.10)) and (4.2) (Theorem
+  // 4.1's condition, checked at every step). With eps_k = 0 identically, every h satisfies the first two
+  // on a fixed grid (its last step is only shorter) and k3 = 0 makes k1 / (2 k3 ||V^k||) infinite: a
+  // fixed h is exactly the h_k the rule chooses (docs/stress.md).
   const bool rule = scene.settings.step_rule == StepRule::kTheorem42;
-  Guarantee g{"Theorem 4.2", "E_k = 1/2 <M(Q^k) V^k, V^k> non-increasing, Q^k convergent and V^k -> 0", rule, {}};
+  const bool fixed = scene.settings.step_rule == StepRule::kFixed;
+  const bool eps_zero = eps_identically_zero(scene);
+  const bool holds_here = rule || (eps_zero && fixed);
+  Guarantee g{"Theorem 4.2", "E_k = 1/2 <M(Q^k) V^k, V^k> non-increasing, Q^k convergent and V^k -> 0", holds_here, {}};
   g.hypotheses.push_back(
       {"the hypotheses of Theorem 4.1 (Assumptions 3.1, 3.2)", t41.verdict(), detail_text(detail, [] { return "see Theorem 4.1"; })});
+  const char* rule_name = fixed ? "fixed" : rule ? "theorem-4.2" : "theorem-4.1";
+  // A rule that is not enforced and not shown to hold on this run is not checked: "fails" would claim a
+  // step where ||eps_k|| > 2 eta, which nothing computed.
   g.hypotheses.push_back({"the step rule of Theorem 4.2 (h_k <= h_{k-1}, ||eps_k|| <= 2 eta of (4.9))",
-                          rule ? Verdict::kHolds : Verdict::kFails, detail_text(detail, [&] {
-                            return rule ? std::string("step_rule theorem-4.2 enforces it at every step")
-                                        : std::string("the run used step_rule ") +
-                                              (scene.settings.step_rule == StepRule::kFixed ? "fixed" : "theorem-4.1") +
-                                              ", which does not (use theorem-4.2 for this guarantee)";
+                          holds_here ? Verdict::kHolds : Verdict::kNotChecked, detail_text(detail, [&] {
+                            if (rule) return std::string("step_rule theorem-4.2 enforces it at every step");
+                            if (holds_here)
+                              return std::string(
+                                         "M is constant and C = 0, so eps_k = 0 at every step for every h, and the "
+                                         "run's h_k (step_rule ") +
+                                     rule_name + ") are one h, shorter only to land on t_end: the rule's condition holds on this run";
+                            return std::string("the run used step_rule ") + rule_name +
+                                   " and M depends on q (or C is not 0): ||eps_k|| was not computed at its steps (use theorem-4.2 "
+                                   "for this guarantee)";
                           })});
   const double eta = scene.controller.eta(), alpha = scene.controller.alpha();
   const bool a1 = eta > 0.0 && alpha > 0.0;
@@ -110,7 +154,7 @@ Guarantee theorem42(const LagrangianScene& scene, const RunSummary& s, const Gua
                             return "from the controller's coefficients: eta = min w_i / 2 = " + fmt(eta) +
                                    ", alpha = min a_i + a_norm = " + fmt(alpha);
                           })});
-  g.hypotheses.push_back(assumption41_forces(s, alpha, detail));
+  g.hypotheses.push_back(assumption41_forces(scene, s, alpha, detail));
   if (scene.forces_smooth_everywhere) {
     const bool robot = scene.compiled && scene.compiled->robot;
     g.hypotheses.push_back(
@@ -133,6 +177,14 @@ Guarantee theorem42(const LagrangianScene& scene, const RunSummary& s, const Gua
   return g;
 }
 
+bool final_state_finite(const RunSummary& s) {
+  for (double x : s.q_final)
+    if (!std::isfinite(x)) return false;
+  for (double x : s.v_final)
+    if (!std::isfinite(x)) return false;
+  return !s.q_final.empty();
+}
+
 Guarantee theorem43(const LagrangianScene& scene, const RunSummary& s, const Guarantee& t42, Detail detail) {
   // Theorem 4.3 is stated for the algorithm of Theorem 4.2, under its assumptions.
   Guarantee g{"Theorem 4.3", "Q^k = Q* for every k >= some N (finite-step convergence to an equilibrium)", t42.relied_on, {}};
@@ -146,7 +198,8 @@ Guarantee theorem43(const LagrangianScene& scene, const RunSummary& s, const Gua
   in.detail = detail_text(detail, [&] {
     return s.equilibrium.evaluated ? "dist(-F - grad V, dPhi(0)) = " + fmt(s.equilibrium.residual) +
                                          (s.equilibrium.interior ? ", in the interior" : ", not in the interior")
-                                   : std::string("the forces are not finite at the final state");
+           : final_state_finite(s) ? std::string("-F(Q*, 0) - grad V(Q*) is not finite at the final position")
+                                   : std::string("the run's final state is not finite: no position to check");
   });
   g.hypotheses.push_back(in);
   return g;
@@ -368,7 +421,7 @@ Guarantee lemma3(const LagrangianScene& scene, const RunSummary& s) {
 
 Guarantees lagrangian_guarantees(const LagrangianScene& scene, const RunSummary& s, Detail detail) {
   Guarantees g;
-  if (scene.scheme == Scheme::kAbl && scene.settings.velocity_update == VelocityUpdate::kImplicit) {
+  if (traits(scene.scheme).theorems_4_1_to_4_3) {
     g.items.push_back(theorem41(s, detail));
     g.items.push_back(theorem42(scene, s, g.items.back(), detail));
     g.items.push_back(theorem43(scene, s, g.items.back(), detail));
@@ -458,8 +511,11 @@ nlohmann::json guarantees_json(const Guarantees& g) {
   nlohmann::json out = nlohmann::json::array();
   for (const Guarantee& x : g.items) {
     nlohmann::json hs = nlohmann::json::array();
-    for (const HypothesisCheck& h : x.hypotheses)
-      hs.push_back({{"hypothesis", h.name}, {"verdict", to_string(h.verdict)}, {"detail", h.detail}});
+    for (const HypothesisCheck& h : x.hypotheses) {
+      nlohmann::json one = {{"hypothesis", h.name}, {"verdict", to_string(h.verdict)}, {"detail", h.detail}};
+      if (!h.scope.empty()) one["scope"] = h.scope;  // only for a hypothesis over all states
+      hs.push_back(one);
+    }
     out.push_back(
         {{"result", x.result}, {"claim", x.claim}, {"verdict", to_string(x.verdict())}, {"relied_on", x.relied_on}, {"hypotheses", hs}});
   }
@@ -474,7 +530,8 @@ std::string guarantees_text(const Guarantees& g) {
        << (x.relied_on ? "" : " [not relied on by this run]") << "\n";
     first = false;
     for (const HypothesisCheck& h : x.hypotheses)
-      os << "                  " << to_string(h.verdict) << ": " << h.name << "; " << h.detail << "\n";
+      os << "                  " << to_string(h.verdict) << (h.scope.empty() ? "" : " (" + h.scope + ")") << ": " << h.name << "; "
+         << h.detail << "\n";
   }
   return os.str();
 }

@@ -7,6 +7,8 @@
 #include <cstdio>
 #include <sstream>
 
+#include <Eigen/Dense>
+
 namespace moreau::scene {
 namespace {
 
@@ -60,11 +62,13 @@ nlohmann::json matrix_json(const Eigen::MatrixXd& M) {
 
 // Which update the run used, named for what it is (a conservative part gains or keeps energy by it).
 std::string update_description(const LagrangianScene& scene) {
-  if (scene.scheme == Scheme::kMoreauJean)
-    return "Moreau-Jean as implemented: impulses and dPhi implicit at V^{k+1}, smooth forces explicit at (Q^k, V^k), position "
-           "Q^{k+1} = Q^k + h V^{k+1} (" +
-           scene.position_update + "): a symplectic Euler for the smooth part, not the theta-method with implicit smooth forces";
-  if (scene.settings.velocity_update == VelocityUpdate::kImplicit)
+  if (traits(scene.scheme).contacts)
+    return std::string(
+               "Moreau-Jean as implemented: impulses and dPhi implicit at V^{k+1}, smooth forces explicit at (Q^k, V^k), "
+               "position Q^{k+1} = Q^k + h V^{k+1} (") +
+           to_string(scene.contact_settings.position_update) +
+           "): a symplectic Euler for the smooth part, not the theta-method with implicit smooth forces";
+  if (traits(scene.scheme).theorems_4_1_to_4_3)
     return "(0.2): velocity implicit (V^{k+1} in the inclusion), position explicit Q^{k+1} = Q^k + h V^k: a conservative part "
            "(a spring) gains energy at O(h)";
   return "explicit peer of (0.2): velocity and position explicit, with the single-valued sign";
@@ -141,7 +145,7 @@ void exact_text(std::ostream& os, const ExactComparison& c) {
 // The run's rest time: the summary's for (0.2); for moreau-jean the contact diagnostics' (V == 0.0 to the end).
 ExactComparison lagrangian_exact(const LagrangianScene& scene, const RunSummary& s, const ContactDiagnostics* contacts) {
   std::optional<double> rest = s.rest_time;
-  if (scene.scheme == Scheme::kMoreauJean) {
+  if (traits(scene.scheme).contacts) {
     rest.reset();
     if (contacts && contacts->rest_step >= 0) rest = contacts->rest_time;
   }
@@ -189,7 +193,7 @@ MechanicalEnergy mechanical_energy(const LagrangianScene& scene, const RunSummar
   e.cannot_rise = !scene.has_force;
   e.dissipation_tracked = s.dissipation_tracked;
   if (!e.dissipation_tracked)
-    e.why_not_tracked = scene.scheme == Scheme::kMoreauJean ? "the contact scheme does not separate its impulses' work"
+    e.why_not_tracked = traits(scene.scheme).contacts ? "the contact scheme does not separate its impulses' work"
                         : s.status == RunStatus::kFailed
                             ? "the run failed before its end"
                             : "only the implicit scheme (0.2) tracks it (the explicit peer's xi is not in dPhi(V^{k+1}))";
@@ -255,6 +259,21 @@ void mechanical_text(std::ostream& os, const MechanicalEnergy& e) {
   }
 }
 
+// What the report warns of: the parameters that no expression reads (a misspelt name?).
+std::vector<std::string> scene_warnings(const std::vector<std::string>& unread_parameters) {
+  std::vector<std::string> out;
+  for (const std::string& p : unread_parameters) out.push_back("parameter '" + p + "' is not read by any expression of the scene");
+  return out;
+}
+
+void warnings_text(std::ostream& os, const std::vector<std::string>& unread_parameters) {
+  bool first = true;
+  for (const std::string& w : scene_warnings(unread_parameters)) {
+    os << (first ? "  warnings      " : "                ") << w << "\n";
+    first = false;
+  }
+}
+
 // Rest and convergence as the report states them (guarantees.h: ConvergenceFinding).
 nlohmann::json convergence_json(const RunSummary& s, const Guarantees& g) {
   nlohmann::json j = {{"finding", describe(convergence_finding(s, g, "Theorem 4.3"))},
@@ -262,14 +281,29 @@ nlohmann::json convergence_json(const RunSummary& s, const Guarantees& g) {
                       {"rest_time", s.rest_time ? num(*s.rest_time) : nlohmann::json(nullptr)},
                       {"rest_steps_to_end", s.rest_step ? nlohmann::json(s.steps - *s.rest_step) : nlohmann::json(nullptr)},
                       {"min_rest_steps", RunSummary::kMinRestSteps}};
+  if (s.below_normal_step) {  // only when it happened: V decayed below the smallest normal double, not a rest
+    j["below_normal_step"] = *s.below_normal_step;
+    j["below_normal_time"] = num(*s.below_normal_time);
+  }
   return j;
+}
+
+// A state that decayed below the smallest normal double without the law holding it (RunSummary::
+// below_normal_step): not a rest, said so; empty when there is none.
+std::string below_normal_text(const RunSummary& s, const char* what) {
+  if (!s.below_normal_step) return "";
+  return std::string(what) + " decayed below the smallest normal number (2.2e-308) from step " + std::to_string(*s.below_normal_step) +
+         " (t = " + fmt(*s.below_normal_time) + ") to the end, and the set-valued law does not hold it at 0: not a rest";
 }
 
 // The convergence line of the text report.
 std::string convergence_text(const RunSummary& s, const Guarantees& g, const char* what) {
   std::ostringstream os;
   const ConvergenceFinding f = convergence_finding(s, g, "Theorem 4.3");
-  if (f == ConvergenceFinding::kNotAtRest) return std::string(what) + " is not exactly 0 at the last step";
+  if (f == ConvergenceFinding::kNotAtRest) {
+    const std::string below = below_normal_text(s, what);
+    return below.empty() ? std::string(what) + " is not exactly 0 at the last step" : below;
+  }
   const std::int64_t window = s.steps - *s.rest_step;
   os << describe(f) << ": " << what << " == 0.0 exactly from step " << *s.rest_step << " (t = " << fmt(*s.rest_time) << ") to the end, "
      << window << " step" << (window == 1 ? "" : "s");
@@ -286,12 +320,59 @@ std::string name_of(const LagrangianScene& scene, int i) {
   return i >= 0 && i < static_cast<int>(scene.constraint_names.size()) ? scene.constraint_names[i] : "?";
 }
 
-void add_contacts(nlohmann::json& j, const LagrangianScene& scene, const ContactDiagnostics* c) {
+// The contacts active at the end of the run (gap within ten times one step's fall, h^2 |M^-1 grad U|, as
+// Lemma 3's check takes it) and the rank of their gradients: with dependent gradients (two identical
+// constraints y >= 0) the motion is determined but the reactions are not: the solver's split of the
+// impulse between those contacts is one of many.
+struct ActiveContacts {
+  std::vector<int> active;
+  int rank = 0;
+  bool unique() const { return rank == static_cast<int>(active.size()); }
+};
+
+ActiveContacts active_contacts_at_end(const LagrangianScene& scene, const RunSummary& s) {
+  ActiveContacts out;
+  const CompiledLagrangian* c = scene.compiled.get();
+  const int n = scene.n, m = static_cast<int>(scene.constraint_names.size());
+  if (!c || m == 0 || static_cast<int>(s.q_final.size()) != n) return out;
+  std::vector<double> slots(static_cast<std::size_t>(1 + 2 * n), 0.0);
+  slots[0] = s.t_final;
+  for (int i = 0; i < n; ++i) slots[static_cast<std::size_t>(1 + i)] = s.q_final[static_cast<std::size_t>(i)];
+  std::vector<double> split(static_cast<std::size_t>(2 * n));
+  ForceTerms(*c).split(s.t_final, slots.data() + 1, slots.data() + 1 + n, split.data(), split.data() + n);
+  std::vector<double> cons(c->constraint_tape.num_outputs()), scratch(c->constraint_tape.scratch_size());
+  c->constraint_tape.eval(slots.data(), cons.data(), scratch.data());
+  const double grad_u = Eigen::Map<const Eigen::VectorXd>(split.data(), n).norm();
+  const double h = scene.settings.h;
+  const double gap_tol = 10.0 * h * h * grad_u / std::max(s.mass.lambda_min, 1e-300) + 1e-12;
+  for (int i = 0; i < m; ++i)
+    if (std::isfinite(cons[static_cast<std::size_t>(i)]) && cons[static_cast<std::size_t>(i)] <= gap_tol) out.active.push_back(i);
+  if (out.active.empty()) return out;
+  Eigen::MatrixXd H(static_cast<int>(out.active.size()), n);
+  for (std::size_t a = 0; a < out.active.size(); ++a)
+    for (int j = 0; j < n; ++j) H(static_cast<int>(a), j) = cons[static_cast<std::size_t>(m + out.active[a] * n + j)];
+  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(H);
+  qr.setThreshold(1e-10);
+  out.rank = static_cast<int>(qr.rank());
+  return out;
+}
+
+std::string reactions_text(const LagrangianScene& scene, const ActiveContacts& a) {
+  std::string names;
+  for (std::size_t k = 0; k < a.active.size(); ++k)
+    names += (k ? ", " : "") + scene.constraint_names[static_cast<std::size_t>(a.active[k])];
+  if (a.unique()) return "unique at the final state (active: " + (names.empty() ? std::string("none") : names) + ")";
+  return "not unique at the final state: the gradients of the active contacts " + names + " are linearly dependent (rank " +
+         std::to_string(a.rank) + " of " + std::to_string(a.active.size()) +
+         "); the motion is determined, the split of the reactions between them is not (the solver's is one of many)";
+}
+
+void add_contacts(nlohmann::json& j, const LagrangianScene& scene, const RunSummary& s, const ContactDiagnostics* c) {
   nlohmann::json cons = nlohmann::json::array();
   for (std::size_t i = 0; i < scene.constraint_names.size(); ++i)
     cons.push_back({{"name", scene.constraint_names[i]}, {"gap", scene.constraint_gaps[i]}, {"restitution", scene.restitution[i]}});
   j["constraints"] = cons;
-  j["position_update"] = scene.position_update;
+  j["position_update"] = to_string(scene.contact_settings.position_update);
   if (!c) return;
   nlohmann::json impacts = nlohmann::json::array();
   for (const ImpactEvent& e : c->impacts) {
@@ -312,7 +393,13 @@ void add_contacts(nlohmann::json& j, const LagrangianScene& scene, const Contact
                       {"step", c->settle_step[i] >= 0 ? nlohmann::json(c->settle_step[i]) : nlohmann::json(nullptr)},
                       {"time", c->settle_step[i] >= 0 ? num(c->settle_time[i]) : nlohmann::json(nullptr)}});
   }
+  const ActiveContacts at_end = active_contacts_at_end(scene, s);
+  nlohmann::json active_names = nlohmann::json::array();
+  for (int i : at_end.active) active_names.push_back(name_of(scene, i));
   j["contacts"] = {
+      {"active_at_end", active_names},
+      {"active_gradient_rank", at_end.rank},
+      {"reactions_unique_at_end", at_end.unique()},
       {"impact_count", c->impact_count},
       {"impacts", impacts},
       {"impacts_truncated", c->impacts_truncated},
@@ -325,7 +412,7 @@ void add_contacts(nlohmann::json& j, const LagrangianScene& scene, const Contact
       {"active_steps", c->active_steps},
       {"impulse_steps", c->impulse_steps},
       {"position_correction",
-       {{"mode", scene.position_correction},
+       {{"mode", position_correction_name(scene.contact_settings.correct_positions)},
         {"corrected_steps", c->corrected_steps},
         {"max_correction", num(c->max_correction)},
         {"largest_violation_removed", num(c->largest_violation)},
@@ -342,6 +429,7 @@ std::string contact_text(const LagrangianScene& scene, const RunSummary& s, cons
   os << "Moreau: " << (scene.name.empty() ? "scene" : scene.name) << " (" << scene.n << " DOF: " << names << "), scheme "
      << scheme_name(scene.scheme) << ", fixed h = " << fmt(scene.settings.h) << ", t in [" << fmt(scene.settings.t0) << ", "
      << fmt(scene.settings.t_end) << "]\n";
+  warnings_text(os, scene.unread_parameters);
   os << "  status        " << to_string(s.status) << ": " << s.steps << " steps to t = " << fmt(s.t_final) << "\n";
   if (!s.message.empty()) os << "  message       " << s.message << "\n";
   os << "  final state   q = " << vec(s.q_final) << "\n";
@@ -351,6 +439,7 @@ std::string contact_text(const LagrangianScene& scene, const RunSummary& s, cons
        << " >= 0, e = " << fmt(scene.restitution[i]) << "\n";
   }
   if (c) {
+    os << "  reactions     " << reactions_text(scene, active_contacts_at_end(scene, s)) << "\n";
     os << "  impacts       " << c->impact_count << " impact" << (c->impact_count == 1 ? "" : "s");
     if (!c->impacts.empty()) os << " (t, constraint, U-, U+, impulse, the step's dT, dT of eq. 9)";
     os << "\n";
@@ -373,6 +462,8 @@ std::string contact_text(const LagrangianScene& scene, const RunSummary& s, cons
          << " (the step also integrates the smooth forces and the controller over h)\n";
     if (c->rest_step >= 0) {
       os << "  rest          v == 0.0 exactly from step " << c->rest_step << " (t = " << fmt(c->rest_time) << ") to the end\n";
+    } else if (s.below_normal_step) {
+      os << "  rest          " << below_normal_text(s, "v") << "\n";
     } else {
       os << "  rest          v is not exactly 0 at the last step\n";
     }
@@ -383,7 +474,8 @@ std::string contact_text(const LagrangianScene& scene, const RunSummary& s, cons
     }
     os << "  smallest gap  " << fmt(c->smallest_gap) << " (" << name_of(scene, c->smallest_gap_constraint)
        << ", t = " << fmt(c->smallest_gap_time) << ")" << (c->smallest_gap < 0.0 ? ": penetration" : "") << "\n";
-    os << "  positions     update " << scene.position_update << "; correction " << scene.position_correction;
+    os << "  positions     update " << to_string(scene.contact_settings.position_update) << "; correction "
+       << position_correction_name(scene.contact_settings.correct_positions);
     if (c->correction_enabled) {
       os << ": " << c->corrected_steps << " steps projected onto h >= 0";
       if (c->corrected_steps > 0)
@@ -393,11 +485,10 @@ std::string contact_text(const LagrangianScene& scene, const RunSummary& s, cons
     os << "\n";
     const EnergyTrack& w = c->lagrange_dirichlet;
     os << "  Lemma 3       W = 1/2 <M v, v> + U(q)" << (c->potential_known ? "" : " (no potential given: kinetic only)") << " "
-       << (w.nonincreasing ? "non-increasing" : "increased") << " including impacts: W_0 = " << fmt(w.initial)
-       << ", W_N = " << fmt(w.final);
+       << (w.nonincreasing ? "non-increasing" : "not monotone") << " including impacts: ";
     if (!w.nonincreasing)
-      os << " (" << w.increases << " rises, largest " << fmt(w.max_increase) << ", first at t = " << fmt(w.first_increase_time) << ")";
-    os << "\n";
+      os << w.increases << " rises, largest " << fmt(w.max_increase) << ", first at t = " << fmt(w.first_increase_time) << "; ";
+    os << "W_0 = " << fmt(w.initial) << ", W_N = " << fmt(w.final) << "\n";
   }
   os << "  update        " << update_description(scene) << "\n";
   exact_text(os, lagrangian_exact(scene, s, c));
@@ -418,6 +509,7 @@ std::string report_text(const LagrangianScene& scene, const RunSummary& s) { ret
 nlohmann::json report_json(const LagrangianScene& scene, const RunSummary& s, const ContactDiagnostics* contacts) {
   nlohmann::json j;
   j["scene"] = scene.name;
+  if (!scene.unread_parameters.empty()) j["warnings"] = scene_warnings(scene.unread_parameters);
   j["status"] = to_string(s.status);
   if (!s.message.empty()) j["message"] = s.message;
   j["scheme"] = scheme_name(scene.scheme);
@@ -439,11 +531,11 @@ nlohmann::json report_json(const LagrangianScene& scene, const RunSummary& s, co
   j["mechanical_energy"] = mechanical_json(mechanical_energy(scene, s, s.energy_initial, s.energy_final));
   j["update"] = update_description(scene);
   if (const ExactComparison ex = lagrangian_exact(scene, s, contacts); !ex.json.is_null()) j["exact"] = ex.json;
-  if (scene.scheme == Scheme::kMoreauJean) {
+  if (traits(scene.scheme).contacts) {
     j["system"] = "lagrangian";
     // E_k here is the kinetic energy, which falls and rises with the potential; Lemma 3's W is below.
     j["energy"]["kind"] = "kinetic 1/2 <M v, v>; the Lagrange-Dirichlet W is lagrange_dirichlet";
-    add_contacts(j, scene, contacts);
+    add_contacts(j, scene, s, contacts);
   } else {
     j["equilibrium"] = {{"residual", num(s.equilibrium.residual)}, {"interior", s.equilibrium.interior}};
   }
@@ -464,13 +556,14 @@ nlohmann::json report_json(const LagrangianScene& scene, const RunSummary& s, co
 }
 
 std::string report_text(const LagrangianScene& scene, const RunSummary& s, const ContactDiagnostics* contacts) {
-  if (scene.scheme == Scheme::kMoreauJean) return contact_text(scene, s, contacts);
+  if (traits(scene.scheme).contacts) return contact_text(scene, s, contacts);
   std::ostringstream os;
   std::string names;
   for (std::size_t i = 0; i < scene.coordinates.size(); ++i) names += (i ? ", " : "") + scene.coordinates[i];
   os << "Moreau: " << (scene.name.empty() ? "scene" : scene.name) << " (" << scene.n << " DOF: " << names << "), scheme "
      << scheme_name(scene.scheme) << ", " << rule_name(scene.settings.step_rule) << " h = " << fmt(scene.settings.h) << ", t in ["
      << fmt(scene.settings.t0) << ", " << fmt(scene.settings.t_end) << "]\n";
+  warnings_text(os, scene.unread_parameters);
   os << "  status        " << to_string(s.status) << ": " << s.steps << " steps to t = " << fmt(s.t_final);
   if (scene.settings.step_rule != StepRule::kFixed) os << " (h_k from " << fmt(s.h_min) << " to " << fmt(s.h_max) << ")";
   os << "\n";
@@ -484,12 +577,13 @@ std::string report_text(const LagrangianScene& scene, const RunSummary& s, const
        << (s.equilibrium.residual == 0.0 ? " (an equilibrium)" : " (not an equilibrium)")
        << "; in the interior: " << (s.equilibrium.interior ? "yes" : "no") << "\n";
   }
-  os << "  energy        E_k = 1/2 <M(Q^k) V^k, V^k> " << (s.energy_nonincreasing ? "non-increasing" : "increased")
-     << ": E_0 = " << fmt(s.energy_initial) << ", E_N = " << fmt(s.energy_final);
-  if (!s.energy_nonincreasing) {
-    os << " (" << s.energy_increases << " rises, largest " << fmt(s.energy_max_increase) << ")";
-  }
-  os << "\n";
+  // "Not monotone", with the rises first: E_N may well be below E_0 (a rise is one step's E_{k+1} > E_k).
+  os << "  energy        E_k = 1/2 <M(Q^k) V^k, V^k> ";
+  if (s.energy_nonincreasing)
+    os << "non-increasing: ";
+  else
+    os << "not monotone: " << s.energy_increases << " rises, largest " << fmt(s.energy_max_increase) << "; ";
+  os << "E_0 = " << fmt(s.energy_initial) << ", E_N = " << fmt(s.energy_final) << "\n";
   mechanical_text(os, mechanical_energy(scene, s, s.energy_initial, s.energy_final));
   os << "  update        " << update_description(scene) << "\n";
   exact_text(os, lagrangian_exact(scene, s, contacts));
@@ -571,6 +665,7 @@ nlohmann::json stability_json(const LureScene& sc, const Guarantees& g) {
 nlohmann::json report_json(const LureScene& sc, const RunSummary& s, const LureDiagnostics* d) {
   nlohmann::json j;
   j["scene"] = sc.name;
+  if (!sc.unread_parameters.empty()) j["warnings"] = scene_warnings(sc.unread_parameters);
   j["system"] = "lure";
   j["status"] = to_string(s.status);
   if (!s.message.empty()) j["message"] = s.message;
@@ -625,6 +720,7 @@ std::string report_text(const LureScene& sc, const RunSummary& s, const LureDiag
      << "; " << sc.m << " output" << (sc.m == 1 ? "" : "s") << ", feedback " << fb << "), scheme " << scheme_name(sc.scheme)
      << ", theta = " << fmt(sc.settings.theta) << ", h = " << fmt(sc.settings.h) << ", t in [" << fmt(sc.settings.t0) << ", "
      << fmt(sc.settings.t_end) << "]\n";
+  warnings_text(os, sc.unread_parameters);
   os << "  status        " << to_string(s.status) << ": " << s.steps << " steps to t = " << fmt(s.t_final) << "\n";
   if (!s.message.empty()) os << "  message       " << s.message << "\n";
   os << "  final state   x = " << vec(s.q_final) << "\n";
@@ -633,6 +729,8 @@ std::string report_text(const LureScene& sc, const RunSummary& s, const LureDiag
   }
   if (s.converged_step) {
     os << "  rest          x == 0.0 exactly from step " << *s.converged_step << " (t = " << fmt(*s.converged_time) << ") to the end\n";
+  } else if (s.below_normal_step) {
+    os << "  rest          " << below_normal_text(s, "x") << "\n";
   } else if (d) {
     bool any = false;
     for (std::size_t i = 0; i < d->output_rest_step.size(); ++i) {
@@ -668,10 +766,10 @@ std::string report_text(const LureScene& sc, const RunSummary& s, const LureDiag
   if (d && d->storage.evaluated) {
     const EnergyTrack& w = d->storage;
     os << "  storage       W = 1/2 x^T P x (P " << (sc.storage_source == "scene" ? "from the scene" : "found by the test") << ") "
-       << (w.nonincreasing ? "non-increasing" : "increased") << ": W_0 = " << fmt(w.initial) << ", W_N = " << fmt(w.final);
+       << (w.nonincreasing ? "non-increasing: " : "not monotone: ");
     if (!w.nonincreasing)
-      os << " (" << w.increases << " rises, largest " << fmt(w.max_increase) << ", first at t = " << fmt(w.first_increase_time) << ")";
-    os << "\n";
+      os << w.increases << " rises, largest " << fmt(w.max_increase) << ", first at t = " << fmt(w.first_increase_time) << "; ";
+    os << "W_0 = " << fmt(w.initial) << ", W_N = " << fmt(w.final) << "\n";
   } else {
     os << "  storage       no storage matrix P: W not evaluated\n";
   }

@@ -24,10 +24,17 @@
 
 namespace moreau::scene {
 
+// What a "holds" covers, for a hypothesis that quantifies over all states ("for all q"): proved for every
+// state, or seen on the states the run visited only. Empty for a hypothesis about the run itself ("at
+// every step") or one decided exactly.
+inline const std::string kForAllStates = "for all states";
+inline const std::string kOnVisitedStates = "on the states visited";
+
 struct HypothesisCheck {
   std::string name;  // e.g. "Assumption 3.1: M(Q^k) positive definite at every step"
   Verdict verdict = Verdict::kNotChecked;
   std::string detail;  // the numbers (margin, first failure, worst value), or why it was not checked
+  std::string scope;   // kForAllStates, kOnVisitedStates, or empty (see above)
 };
 
 struct Guarantee {
