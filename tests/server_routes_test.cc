@@ -1,8 +1,9 @@
 // The server's route table (server/src/routes.h) against the OpenAPI document it serves
 // (server/openapi.json, compiled in byte for byte): the same operations in the same order, each with its
-// operationId, its query parameters and whether it needs the token; and the matchers derived from the
-// table (the router's regular expressions, the segment matcher behind Allow and the query check) agree
-// with each other and with the Allow header the document implies.
+// operationId, its query parameters and whether it needs the token; the figure kinds and formats the
+// document lists are the names of figure_kind.h; and the matchers derived from the table (the router's
+// regular expressions, the segment matcher behind Allow and the query check) agree with each other and
+// with the Allow header the document implies.
 #include <cctype>
 #include <ostream>
 #include <regex>
@@ -17,6 +18,7 @@
 #include <nlohmann/json.hpp>
 
 #include "embedded_files.h"
+#include "moreau/analysis/figure_kind.h"
 #include "routes.h"
 
 namespace {
@@ -124,6 +126,39 @@ TEST(ServerRoutes, TableIsTheOpenApiDocument) {
     const bool post = r.method == moreau::server::Method::kPost;
     EXPECT_EQ(r.handler == nullptr, post) << r.path;
     EXPECT_EQ(r.body_handler == nullptr, !post) << r.path;
+  }
+}
+
+TEST(ServerRoutes, FigureKindsAndFormatsAreTheDocumentsNames) {
+  using moreau::scene::CampaignFigure;
+  using moreau::scene::FigureFormat;
+  using moreau::scene::StudyFigure;
+  using moreau::scene::TrajectoryFigure;
+  const ordered_json doc = document();
+  auto query_schema = [&](const char* path, const char* name) {
+    for (const auto& p : doc["paths"][path]["get"]["parameters"])
+      if (p["in"] == "query" && p["name"] == name) return p["schema"];
+    ADD_FAILURE() << path << " documents no query parameter " << name;
+    return ordered_json();
+  };
+  auto names = [](const ordered_json& schema) { return schema.value("enum", std::vector<std::string>{}); };
+  struct Case {
+    const char* path;
+    std::vector<std::string> kinds;
+    std::string default_kind;
+  };
+  for (const Case& c : {Case{"/v1/jobs/{id}/figure", moreau::scene::figure_names<TrajectoryFigure>(),
+                             moreau::scene::figure_name(moreau::scene::default_figure<TrajectoryFigure>())},
+                        Case{"/v1/studies/{id}/figure", moreau::scene::figure_names<StudyFigure>(),
+                             moreau::scene::figure_name(moreau::scene::default_figure<StudyFigure>())},
+                        Case{"/v1/campaigns/{id}/figure", moreau::scene::figure_names<CampaignFigure>(),
+                             moreau::scene::figure_name(moreau::scene::default_figure<CampaignFigure>())}}) {
+    SCOPED_TRACE(c.path);
+    const ordered_json kind = query_schema(c.path, "kind"), format = query_schema(c.path, "format");
+    EXPECT_EQ(names(kind), c.kinds);
+    EXPECT_EQ(kind.value("default", ""), c.default_kind);
+    EXPECT_EQ(names(format), moreau::scene::figure_names<FigureFormat>());
+    EXPECT_EQ(format.value("default", ""), moreau::scene::figure_name(moreau::scene::default_figure<FigureFormat>()));
   }
 }
 

@@ -3,7 +3,6 @@
 #include <cstdint>
 #include <filesystem>
 #include <iostream>
-#include <map>
 #include <optional>
 #include <shared_mutex>
 #include <string>
@@ -15,6 +14,7 @@
 #include "figures.h"
 #include "job_access.h"
 #include "moreau/analysis/campaign.h"
+#include "moreau/analysis/figure_kind.h"
 #include "moreau/scene/simulation.h"
 #include "responses.h"
 #include "storage.h"
@@ -25,6 +25,10 @@ namespace fs = std::filesystem;
 using json = nlohmann::json;
 using httplib::Request;
 using httplib::Response;
+using scene::CampaignFigure;
+using scene::FigureFormat;
+using scene::StudyFigure;
+using scene::TrajectoryFigure;
 
 namespace {
 
@@ -37,9 +41,18 @@ struct StoredFileUnreadable {
 // ... or when the job was deleted (pruned) meanwhile: a 404.
 struct JobDeleted {};
 
+// The ?kind= of a figure of `Kind`: its default when absent, or nullopt after answering 400.
+template <class Kind>
+std::optional<Kind> figure_kind(const Request& req, Response& res) {
+  if (!req.has_param("kind")) return scene::default_figure<Kind>();
+  const auto kind = scene::figure_from_name<Kind>(req.get_param_value("kind"));
+  if (!kind) send_error(res, 400, "bad query", "", "kind must be " + scene::figure_name_list<Kind>());
+  return kind;
+}
+
 struct FigureRequest {
   std::pair<int, int> size{kDefaultFigureWidth, kDefaultFigureHeight};
-  FigureFormat format = FigureFormat::kPng;
+  FigureFormat format = scene::default_figure<FigureFormat>();
 };
 
 // The requested figure: size (width, height: 64 to 4096, default 1200x800, at most --max-figure-pixels in
@@ -64,24 +77,25 @@ std::optional<FigureRequest> figure_request(const ApiContext& api, const Request
                    std::to_string(static_cast<std::int64_t>(f.size.first) * f.size.second));
     return std::nullopt;
   }
-  const std::string format = req.has_param("format") ? req.get_param_value("format") : "png";
-  if (format != "png" && format != "svg") {
-    send_error(res, 400, "bad query", "", "query parameter 'format' must be png or svg");
-    return std::nullopt;
+  if (req.has_param("format")) {
+    const auto format = scene::figure_from_name<FigureFormat>(req.get_param_value("format"));
+    if (!format) {
+      send_error(res, 400, "bad query", "", "query parameter 'format' must be " + scene::figure_name_list<FigureFormat>());
+      return std::nullopt;
+    }
+    f.format = *format;
   }
-  f.format = format == "svg" ? FigureFormat::kSvg : FigureFormat::kPng;
   return f;
 }
 
 // Answers with the figure `draw` makes (422 if it throws, 500 if a stored file is unreadable). At the
-// default size it is read from, or written to, `cache_stem` + ".png" or ".svg": a name from a fixed
-// list, never from the request.
-template <class Draw>
-void send_figure(ApiContext& api, const Request& req, Response& res, const Job& job, const fs::path& cache_stem, const FigureRequest& f,
-                 Draw&& draw) {
+// default size it is read from, or written to, the job's file "figure-KIND.png" or ".svg": a name from the
+// kinds' table, never from the request.
+template <class Kind, class Draw>
+void send_figure(ApiContext& api, const Request& req, Response& res, const Job& job, Kind kind, const FigureRequest& f, Draw&& draw) {
   const bool svg = f.format == FigureFormat::kSvg;
   const char* content_type = svg ? "image/svg+xml" : "image/png";
-  const fs::path cache = cache_stem.string() + (svg ? ".svg" : ".png");
+  const fs::path cache = job.dir / (std::string("figure-") + scene::figure_name(kind) + "." + scene::figure_name(f.format));
   const bool default_size = f.size == std::pair<int, int>{kDefaultFigureWidth, kDefaultFigureHeight};
   if (default_size) {
     std::shared_lock files(job.files_mu);  // the cache is the job's file: never read one being deleted
@@ -131,8 +145,8 @@ void send_figure(ApiContext& api, const Request& req, Response& res, const Job& 
 void job_figure(ApiContext& api, const Request& req, Response& res) {
   auto job = job_for(api, req, res);
   if (!job) return;
-  const std::string kind = req.has_param("kind") ? req.get_param_value("kind") : "state";
-  if (!is_figure_kind(kind)) return send_error(res, 400, "bad query", "", "kind must be state, energy, step or phase");
+  const auto kind = figure_kind<TrajectoryFigure>(req, res);
+  if (!kind) return;
   const auto figure = figure_request(api, req, res);
   if (!figure) return;
   if (!final_with(*job, &Job::has_trajectory)) {
@@ -140,9 +154,7 @@ void job_figure(ApiContext& api, const Request& req, Response& res) {
                       std::string("the job is ") + to_string(state_of(*job)) + "; figures are drawn once it has finished");
   }
   if (is_deleted(*job)) return send_deleted(res);
-  static const std::map<std::string, std::string> kFiles = {
-      {"state", "figure-state"}, {"energy", "figure-energy"}, {"step", "figure-step"}, {"phase", "figure-phase"}};
-  send_figure(api, req, res, *job, job->dir / kFiles.at(kind), *figure, [&] {
+  send_figure(api, req, res, *job, *kind, *figure, [&] {
     std::error_code size_ec;
     const auto bytes = fs::file_size(job->dir / "trajectory.csv", size_ec);
     if (!size_ec && static_cast<std::int64_t>(bytes) > api.config.max_figure_source_bytes) {
@@ -171,44 +183,43 @@ void job_figure(ApiContext& api, const Request& req, Response& res) {
         }
       }
     }
-    return figure_image(kind, *csv, converged, figure->size.first, figure->size.second, job->scene_name + " (" + job->id.substr(0, 8) + ")",
-                        figure->format, system ? &*system : nullptr);
+    return figure_image(*kind, *csv, converged, figure->size.first, figure->size.second,
+                        job->scene_name + " (" + job->id.substr(0, 8) + ")", figure->format, system ? &*system : nullptr);
   });
 }
 
 void study_figure(ApiContext& api, const Request& req, Response& res) {
   auto job = job_for(api, req, res, JobKind::kStudy);
   if (!job) return;
-  const std::string kind = req.has_param("kind") ? req.get_param_value("kind") : "work";
-  if (kind != "work" && kind != "order") return send_error(res, 400, "bad query", "", "kind must be work or order");
+  const auto kind = figure_kind<StudyFigure>(req, res);
+  if (!kind) return;
   const auto figure = figure_request(api, req, res);
   if (!figure) return;
   if (!final_with(*job, &Job::has_report)) {
     return send_error(res, 409, "no table yet", "",
                       std::string("the study is ") + to_string(state_of(*job)) + "; figures are drawn once it is done");
   }
-  send_figure(api, req, res, *job, job->dir / (kind == "work" ? "figure-work" : "figure-order"), *figure, [&] {
+  send_figure(api, req, res, *job, *kind, *figure, [&] {
     bool deleted = false;
     auto result = job_file(*job, &Job::has_report, "result.json", &deleted);
     if (deleted) throw JobDeleted{};
     if (!result) throw StoredFileUnreadable{"stored study result unreadable"};
-    return study_figure_image(kind, *result, figure->size.first, figure->size.second, figure->format);
+    return study_figure_image(*kind, *result, figure->size.first, figure->size.second, figure->format);
   });
 }
 
 void campaign_figure(ApiContext& api, const Request& req, Response& res) {
   auto job = job_for(api, req, res, JobKind::kCampaign);
   if (!job) return;
-  const std::string kind = req.has_param("kind") ? req.get_param_value("kind") : "convergence-cdf";
-  if (kind != "convergence-cdf" && kind != "inputs" && kind != "success-map")
-    return send_error(res, 400, "bad query", "", "kind must be convergence-cdf, inputs or success-map");
+  const auto kind = figure_kind<CampaignFigure>(req, res);
+  if (!kind) return;
   const auto figure = figure_request(api, req, res);
   if (!figure) return;
   if (!final_with(*job, &Job::has_report)) {
     return send_error(res, 409, "no summary yet", "",
                       std::string("the campaign is ") + to_string(state_of(*job)) + "; figures are drawn once every sample is done");
   }
-  send_figure(api, req, res, *job, job->dir / ("figure-" + kind), *figure, [&] {
+  send_figure(api, req, res, *job, *kind, *figure, [&] {
     bool deleted = false;
     auto spec_text = job_file(*job, &Job::has_report, "campaign.json", &deleted);
     if (deleted) throw JobDeleted{};
@@ -219,7 +230,7 @@ void campaign_figure(ApiContext& api, const Request& req, Response& res) {
     // Read under the files lock: the records are read whole (a few numbers per sample are kept).
     std::shared_lock files(job->files_mu);
     if (job->deleted) throw JobDeleted{};
-    return campaign_figure_image(kind, scene::CampaignSpec::from_json(spec_doc, ""), job->dir.string(), job->t_end, figure->size.first,
+    return campaign_figure_image(*kind, scene::CampaignSpec::from_json(spec_doc, ""), job->dir.string(), job->t_end, figure->size.first,
                                  figure->size.second, figure->format);
   });
 }
