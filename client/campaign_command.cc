@@ -275,8 +275,8 @@ void write_figures(const std::string& dir_name) {
   const auto outcomes = scene::read_campaign_outcomes(spec, dir.string());
   const double t_end = scene::Simulation::from_json(spec.scene).t_end();
   fs::create_directories(dir / "figures");
-  for (const auto& [name, figure] : scene::campaign_figures(spec, outcomes, t_end)) {
-    const fs::path path = dir / "figures" / (name + ".png");
+  for (const auto& [kind, figure] : scene::campaign_figures(spec, outcomes, t_end)) {
+    const fs::path path = dir / "figures" / (std::string(scene::figure_name(kind)) + ".png");
     render::render_png(figure, path.string());
     std::fprintf(stderr, "moreau campaign: figure %s\n", path.string().c_str());
   }

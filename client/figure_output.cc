@@ -35,7 +35,8 @@ void FigureFlags::add_to(CLI::App* cmd) {
   cmd->add_option("--t0", t0, "Start of the time window");
   cmd->add_option("--t1", t1, "End of the time window");
   cmd->add_option("--y-scale", y_scale, "linear or log (default: the figure kind's)")->check(CLI::IsMember({"linear", "log"}));
-  cmd->add_option("--format", format, "png or svg (default: from the file name)")->check(CLI::IsMember({"png", "svg"}));
+  cmd->add_option("--format", format, "png or svg (default: from the file name)")
+      ->check(CLI::IsMember(scene::figure_names<scene::FigureFormat>()));
 }
 
 std::optional<double> exact_rest_time(const render::TimeSeriesData& data) {
@@ -53,11 +54,11 @@ std::optional<double> exact_rest_time(const render::TimeSeriesData& data) {
 
 std::pair<std::string, std::string> parse_figure_spec(const std::string& spec) {
   const std::size_t eq = spec.find('=');
-  if (eq == std::string::npos) return {"state", spec};
+  if (eq == std::string::npos) return {scene::figure_name(scene::default_figure<scene::TrajectoryFigure>()), spec};
   return {spec.substr(0, eq), spec.substr(eq + 1)};
 }
 
-void write_figure(const std::string& kind, const render::TimeSeriesData& input, const FigureFlags& flags, const std::string& path) {
+void write_figure(scene::TrajectoryFigure kind, const render::TimeSeriesData& input, const FigureFlags& flags, const std::string& path) {
   render::TimeSeriesData data = input;
   if (!data.converged_time) data.converged_time = exact_rest_time(data);
   render::FigureOptions opt;
@@ -78,21 +79,10 @@ void write_figure(const std::string& kind, const render::TimeSeriesData& input, 
   if (flags.y_scale == "log") opt.y_scale = render::Scale::log;
   if (flags.y_scale == "linear") opt.y_scale = render::Scale::linear;
 
-  render::Figure fig;
-  if (kind == "state")
-    fig = render::state_figure(data, opt);
-  else if (kind == "energy")
-    fig = render::energy_figure(data, opt);
-  else if (kind == "step")
-    fig = render::step_figure(data, opt);
-  else if (kind == "phase")
-    fig = render::phase_figure(data, opt);
-  else
-    throw std::runtime_error("unknown figure kind '" + kind + "' (expected state, energy, step or phase)");
-
-  std::string format = flags.format;
-  if (format.empty()) format = path.size() > 4 && path.substr(path.size() - 4) == ".svg" ? "svg" : "png";
-  if (format == "svg") {
+  const render::Figure fig = scene::trajectory_figure(kind, data, opt);
+  std::optional<scene::FigureFormat> format = scene::figure_from_name<scene::FigureFormat>(flags.format);  // "" when not given
+  if (!format) format = path.size() > 4 && path.substr(path.size() - 4) == ".svg" ? scene::FigureFormat::kSvg : scene::FigureFormat::kPng;
+  if (*format == scene::FigureFormat::kSvg) {
     std::ofstream out(path, std::ios::binary);
     out << render::render_svg(fig);
     if (!out) throw std::runtime_error("cannot write '" + path + "'");

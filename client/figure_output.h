@@ -9,6 +9,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "moreau/analysis/figure_kind.h"
 #include "moreau/core/observer.h"
 #include "moreau/render/figures.h"
 
@@ -41,14 +42,14 @@ struct FigureFlags {
 // exactly 0.0 up to the end.
 std::optional<double> exact_rest_time(const render::TimeSeriesData& data);
 
-// Draws figure `kind` (state, energy, step, phase) of `data` into `path`. Throws std::runtime_error
-// (or std::invalid_argument from render's validation) with a clear message.
-void write_figure(const std::string& kind, const render::TimeSeriesData& data, const FigureFlags& flags, const std::string& path);
+// Draws figure `kind` of `data` (scene::trajectory_figure) into `path`. Throws std::runtime_error (or
+// std::invalid_argument from render's validation) with a clear message.
+void write_figure(scene::TrajectoryFigure kind, const render::TimeSeriesData& data, const FigureFlags& flags, const std::string& path);
 
 // Reads a trajectory CSV as written by `moreau run --out`: t, h, q..., v..., energy.
 render::TimeSeriesData read_trajectory_csv(const std::string& path);
 
-// Splits "KIND=FILE" (or a bare FILE, kind state).
+// Splits "KIND=FILE" (or a bare FILE, kind state), the kind as written.
 std::pair<std::string, std::string> parse_figure_spec(const std::string& spec);
 
 }  // namespace moreau::cli

@@ -10,14 +10,14 @@ namespace moreau::cli {
 
 void register_plot_command(CLI::App& app, Actions& actions) {
   struct Options {
-    std::string csv, kind = "state", out, scene;
+    std::string csv, kind = scene::figure_name(scene::default_figure<scene::TrajectoryFigure>()), out, scene;
     FigureFlags flags;
   };
   auto opt = std::make_shared<Options>();
   auto* cmd = app.add_subcommand("plot", "Draw a figure of a trajectory CSV (PNG through OSMesa, or SVG)");
   cmd->add_option("trajectory", opt->csv, "Trajectory CSV from `moreau run --out`")->required();
-  cmd->add_option("--kind", opt->kind, "state, energy, step or phase")
-      ->check(CLI::IsMember({"state", "energy", "step", "phase"}))
+  cmd->add_option("--kind", opt->kind, scene::figure_name_list<scene::TrajectoryFigure>())
+      ->check(CLI::IsMember(scene::figure_names<scene::TrajectoryFigure>()))
       ->capture_default_str();
   cmd->add_option("-o,--output", opt->out, "Output file (.png or .svg)")->required();
   cmd->add_option("--scene", opt->scene,
@@ -28,7 +28,7 @@ void register_plot_command(CLI::App& app, Actions& actions) {
     try {
       render::TimeSeriesData data = read_trajectory_csv(opt->csv);
       if (!opt->scene.empty()) scene::label_for_system(data, scene::Simulation::from_file(opt->scene));
-      write_figure(opt->kind, data, opt->flags, opt->out);
+      write_figure(*scene::figure_from_name<scene::TrajectoryFigure>(opt->kind), data, opt->flags, opt->out);  // checked by --kind
       return 0;
     } catch (const std::exception& e) {
       std::cerr << "moreau plot: " << e.what() << "\n";

@@ -21,6 +21,7 @@
 #include "commands.h"
 #include "remote_command_list.h"
 #include "terminal_text.h"
+#include "moreau/analysis/figure_kind.h"
 #include "moreau/scene/scene.h"
 
 // After Eigen (through scene.h): httplib.h brings <resolv.h>, whose `_res` macro breaks Eigen.
@@ -390,7 +391,7 @@ int result(const ResultOptions& o) {
 struct FigureOptions {
   Remote remote;
   std::string id;
-  std::string kind = "state";
+  std::string kind = scene::figure_name(scene::default_figure<scene::TrajectoryFigure>());
   std::string out;
   std::string size;
 };
@@ -407,7 +408,7 @@ int figure(const FigureOptions& o) {
   }
   // SVG when the file is named so (drawn by the server without GL), else PNG.
   const bool svg = o.out.size() >= 4 && o.out.compare(o.out.size() - 4, 4, ".svg") == 0;
-  if (svg) query += "&format=svg";
+  if (svg) query += std::string("&format=") + scene::figure_name(scene::FigureFormat::kSvg);
   auto c = o.remote.client();
   auto r = c->Get("/v1/jobs/" + o.id + "/figure" + query);
   if (!ok(r)) return report_failure(o.remote, r, o.kind + " figure of " + o.id);
@@ -528,9 +529,9 @@ void register_remote_commands(CLI::App& app, Actions& actions) {
     auto o = std::make_shared<FigureOptions>();
     auto* cmd = app.add_subcommand("figure", std::string(remote_command_description("figure")));
     cmd->add_option("id", o->id, "Job id")->required();
-    cmd->add_option("--kind", o->kind, "state, energy, step or phase")
+    cmd->add_option("--kind", o->kind, scene::figure_name_list<scene::TrajectoryFigure>())
         ->capture_default_str()
-        ->check(CLI::IsMember({"state", "energy", "step", "phase"}));
+        ->check(CLI::IsMember(scene::figure_names<scene::TrajectoryFigure>()));
     cmd->add_option("-o,--out", o->out, "File to write: PNG, or SVG if its name ends in .svg")->required();
     cmd->add_option("--size", o->size, "WIDTHxHEIGHT in pixels (default 1200x800)");
     o->remote.add_to(cmd);

@@ -86,12 +86,16 @@ int run(const RunOptions& opt) {
     fan.add(&*csv);
   }
   std::optional<TimeSeriesRecorder> recorder;
+  std::vector<std::pair<scene::TrajectoryFigure, std::string>> figures;  // kind, file
   for (const auto& spec : opt.figures) {
-    const std::string kind = parse_figure_spec(spec).first;
-    if (kind != "state" && kind != "energy" && kind != "step" && kind != "phase") {
-      std::cerr << "moreau: --figure " << spec << ": unknown kind '" << kind << "' (expected state, energy, step or phase)\n";
+    const auto [name, path] = parse_figure_spec(spec);
+    const std::optional<scene::TrajectoryFigure> kind = scene::figure_from_name<scene::TrajectoryFigure>(name);
+    if (!kind) {
+      std::cerr << "moreau: --figure " << spec << ": unknown kind '" << name << "' (expected "
+                << scene::figure_name_list<scene::TrajectoryFigure>() << ")\n";
       return 2;
     }
+    figures.emplace_back(*kind, path);
   }
   if (!opt.figures.empty()) {
     recorder.emplace(with_units(opt.scene_path, sim->position_names(), false), with_units(opt.scene_path, sim->velocity_names(), true));
@@ -124,8 +128,7 @@ int run(const RunOptions& opt) {
     scene::label_for_system(recorder->data(), *sim);                  // a Lur'e system: state x, output y, storage W
     if (const ContactDiagnostics* contacts = diagnostics.contacts())  // impacts are marked on the time axis
       for (const auto& impact : contacts->impacts) recorder->data().impact_times.push_back(impact.t);
-    for (const auto& spec : opt.figures) {
-      const auto [kind, path] = parse_figure_spec(spec);
+    for (const auto& [kind, path] : figures) {
       try {
         write_figure(kind, recorder->data(), opt.figure_flags, path);
       } catch (const std::exception& e) {

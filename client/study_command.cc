@@ -51,8 +51,8 @@ int study(const StudyOptions& opt) {
   }
   try {
     if (!opt.csv.empty()) write_text(opt.csv, result.to_csv());
-    if (!opt.work_png.empty()) render::render_png(scene::study_figure("work", result), opt.work_png);
-    if (!opt.order_png.empty()) render::render_png(scene::study_figure("order", result), opt.order_png);
+    if (!opt.work_png.empty()) render::render_png(scene::study_figure(scene::StudyFigure::kWork, result), opt.work_png);
+    if (!opt.order_png.empty()) render::render_png(scene::study_figure(scene::StudyFigure::kOrder, result), opt.order_png);
   } catch (const std::exception& e) {
     std::cerr << "moreau study: " << e.what() << "\n";
     return 1;

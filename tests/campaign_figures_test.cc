@@ -48,9 +48,9 @@ TEST(CampaignFigures, CdfInputsAndSuccessMapFromKnownOutcomes) {
                                                  outcome(2, true, 2.0, 1.2, 2.0), outcome(3, false, 0.0, 2.0, 5.0)};
   const auto figures = campaign_figures(spec, outcomes, 4.0);
   ASSERT_EQ(figures.size(), 3u);
-  EXPECT_EQ(figures[0].first, "convergence-cdf");
-  EXPECT_EQ(figures[1].first, "inputs");
-  EXPECT_EQ(figures[2].first, "success-map");
+  EXPECT_EQ(figures[0].first, CampaignFigure::kConvergenceCdf);
+  EXPECT_EQ(figures[1].first, CampaignFigure::kInputs);
+  EXPECT_EQ(figures[2].first, CampaignFigure::kSuccessMap);
 
   // The CDF: 0 -> 1/4 at t = 1, -> 2/4 at 2, -> 3/4 at 3, held to t_end = 4 (one sample never converged).
   const render::Series& cdf = figures[0].second.panels.at(0).series.at(0);
@@ -80,15 +80,15 @@ TEST(CampaignFigures, CdfInputsAndSuccessMapFromKnownOutcomes) {
   EXPECT_EQ(map.series.at(1).y, (std::vector<double>{5.0}));
 
   // Each is a figure the renderer accepts (SVG: no OpenGL needed here).
-  for (const auto& [name, f] : figures) EXPECT_THAT(render::render_svg(f), ::testing::HasSubstr("<svg")) << name;
+  for (const auto& [kind, f] : figures) EXPECT_THAT(render::render_svg(f), ::testing::HasSubstr("<svg")) << figure_name(kind);
 }
 
 TEST(CampaignFigures, NothingConvergedLeavesTheCdfOut) {
   const CampaignSpec spec = two_input_spec();
   const auto figures = campaign_figures(spec, {outcome(0, false, 0, 1.0, 1.0), outcome(1, false, 0, 1.5, 2.0)}, 4.0);
   ASSERT_EQ(figures.size(), 2u);
-  EXPECT_EQ(figures[0].first, "inputs");
-  EXPECT_EQ(figures[1].first, "success-map");
+  EXPECT_EQ(figures[0].first, CampaignFigure::kInputs);
+  EXPECT_EQ(figures[1].first, CampaignFigure::kSuccessMap);
   EXPECT_EQ(figures[1].second.panels.at(0).series.size(), 1u);
 }
 

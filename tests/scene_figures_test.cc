@@ -1,11 +1,17 @@
-// analysis/figures: the bridge from a scene's results to render/'s series, labelled for the kind of system.
+// analysis/figures: the bridge from a scene's results to render/'s series, labelled for the kind of system,
+// and the figure kinds' names (figure_kind.h).
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <iterator>
+#include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
+#include "moreau/analysis/figure_kind.h"
 #include "moreau/analysis/figures.h"
+#include "moreau/render/render.h"
 #include "moreau/scene/simulation.h"
 
 using moreau::render::TimeSeriesData;
@@ -53,4 +59,68 @@ TEST(SceneFigures, LagrangianSystemsKeepTheMechanicalLabels) {
   EXPECT_EQ(d.v_title, "Velocities");
   EXPECT_FALSE(d.state_space);
   EXPECT_EQ(d.energy_label, "E = 1/2 <M v, v>");
+}
+
+namespace {
+
+using moreau::scene::CampaignFigure;
+using moreau::scene::default_figure;
+using moreau::scene::figure_from_name;
+using moreau::scene::figure_name;
+using moreau::scene::figure_name_list;
+using moreau::scene::FigureFormat;
+using moreau::scene::FigureNames;
+using moreau::scene::StudyFigure;
+using moreau::scene::TrajectoryFigure;
+
+// Every kind of the table named, and read back from its name; nothing else is a name.
+template <class Kind>
+void expect_names_read_both_ways(const std::vector<std::string>& names) {
+  ASSERT_EQ(std::size(FigureNames<Kind>::kTable), names.size());
+  for (std::size_t i = 0; i < names.size(); ++i) {
+    const Kind kind = FigureNames<Kind>::kTable[i].first;
+    EXPECT_EQ(figure_name(kind), names[i]);
+    EXPECT_EQ(figure_from_name<Kind>(names[i]), kind) << names[i];
+    EXPECT_EQ(figure_from_name<Kind>(names[i] + " "), std::nullopt) << names[i];
+    EXPECT_EQ(static_cast<std::size_t>(kind), i) << "the table lists the enumerators in order";
+  }
+  EXPECT_EQ(figure_from_name<Kind>(""), std::nullopt);
+  EXPECT_EQ(moreau::scene::figure_names<Kind>(), names);
+}
+
+}  // namespace
+
+// The names the API (server/openapi.json), the command line and the cached figures' files have always
+// used, and the lists the error messages give.
+TEST(FigureKinds, NamesReadBothWaysAndListAsTheMessagesDo) {
+  expect_names_read_both_ways<TrajectoryFigure>({"state", "energy", "step", "phase"});
+  expect_names_read_both_ways<StudyFigure>({"work", "order"});
+  expect_names_read_both_ways<CampaignFigure>({"convergence-cdf", "inputs", "success-map"});
+  expect_names_read_both_ways<FigureFormat>({"png", "svg"});
+  EXPECT_EQ(figure_name_list<TrajectoryFigure>(), "state, energy, step or phase");
+  EXPECT_EQ(figure_name_list<StudyFigure>(), "work or order");
+  EXPECT_EQ(figure_name_list<CampaignFigure>(), "convergence-cdf, inputs or success-map");
+  EXPECT_EQ(figure_name_list<FigureFormat>(), "png or svg");
+  EXPECT_EQ(default_figure<TrajectoryFigure>(), TrajectoryFigure::kState);
+  EXPECT_EQ(default_figure<FigureFormat>(), FigureFormat::kPng);
+}
+
+// Each trajectory kind is drawn by render/'s builder of that name (compared as SVG, which needs no GL).
+TEST(SceneFigures, EachTrajectoryKindIsDrawnByItsBuilder) {
+  TimeSeriesData d = states(2, 6);
+  d.h.assign(d.t.size(), 0.1);
+  d.energy = {1.0, 0.5, 0.25, 0.125, 0.0625, 0.03125};
+  moreau::render::FigureOptions opt;
+  opt.title = "t";
+  const std::pair<TrajectoryFigure, moreau::render::Figure> expected[] = {
+      {TrajectoryFigure::kState, moreau::render::state_figure(d, opt)},
+      {TrajectoryFigure::kEnergy, moreau::render::energy_figure(d, opt)},
+      {TrajectoryFigure::kStep, moreau::render::step_figure(d, opt)},
+      {TrajectoryFigure::kPhase, moreau::render::phase_figure(d, opt)},
+  };
+  for (const auto& [kind, figure] : expected) {
+    SCOPED_TRACE(figure_name(kind));
+    const std::string svg = moreau::scene::encode_figure(moreau::scene::trajectory_figure(kind, d, opt), FigureFormat::kSvg);
+    EXPECT_EQ(svg, moreau::render::render_svg(figure));
+  }
 }

@@ -12,9 +12,9 @@ std::string count_text(std::size_t k, std::size_t n) { return std::to_string(k) 
 
 }  // namespace
 
-std::vector<std::pair<std::string, render::Figure>> campaign_figures(const CampaignSpec& spec, const std::vector<CampaignOutcome>& outcomes,
-                                                                     double t_end) {
-  std::vector<std::pair<std::string, render::Figure>> figures;
+std::vector<std::pair<CampaignFigure, render::Figure>> campaign_figures(const CampaignSpec& spec,
+                                                                        const std::vector<CampaignOutcome>& outcomes, double t_end) {
+  std::vector<std::pair<CampaignFigure, render::Figure>> figures;
   const std::size_t n = outcomes.size();
   std::size_t successes = 0;
   for (const auto& o : outcomes) successes += o.success;
@@ -50,7 +50,7 @@ std::vector<std::pair<std::string, render::Figure>> campaign_figures(const Campa
     render::Figure f;
     f.title = spec.name + ": convergence time, " + count_text(successes, n) + " samples succeeded";
     f.panels.push_back(std::move(p));
-    figures.emplace_back("convergence-cdf", std::move(f));
+    figures.emplace_back(CampaignFigure::kConvergenceCdf, std::move(f));
   }
 
   // Each numeric input against the convergence time; the samples that did not succeed apart, at t_end.
@@ -88,7 +88,7 @@ std::vector<std::pair<std::string, render::Figure>> campaign_figures(const Campa
   }
   if (!inputs.panels.empty()) {
     inputs.height_px = std::clamp(260 * panels + 80, 400, 2400);
-    figures.emplace_back("inputs", std::move(inputs));
+    figures.emplace_back(CampaignFigure::kInputs, std::move(inputs));
   }
 
   // The success region in the plane of two inputs.
@@ -115,7 +115,7 @@ std::vector<std::pair<std::string, render::Figure>> campaign_figures(const Campa
       render::Figure f;
       f.title = spec.name + ": success region, " + count_text(successes, n) + " samples succeeded";
       f.panels.push_back(std::move(p));
-      figures.emplace_back("success-map", std::move(f));
+      figures.emplace_back(CampaignFigure::kSuccessMap, std::move(f));
     }
   }
   return figures;

@@ -1,8 +1,8 @@
 #include "moreau/analysis/figures.h"
 
+#include "moreau/render/render.h"
 #include "moreau/scene/scene.h"
 
-#include <stdexcept>
 #include <utility>
 
 namespace moreau::scene {
@@ -68,12 +68,26 @@ std::vector<render::SchemeRuns> study_scheme_runs(const StudyResult& result) {
   return runs;
 }
 
-render::Figure study_figure(const std::string& kind, const StudyResult& result, render::FigureOptions options) {
+render::Figure trajectory_figure(TrajectoryFigure kind, const render::TimeSeriesData& data, const render::FigureOptions& options) {
+  switch (kind) {
+    case TrajectoryFigure::kState: return render::state_figure(data, options);
+    case TrajectoryFigure::kEnergy: return render::energy_figure(data, options);
+    case TrajectoryFigure::kStep: return render::step_figure(data, options);
+    case TrajectoryFigure::kPhase: return render::phase_figure(data, options);
+  }
+  return render::state_figure(data, options);  // not reached: the switch covers every kind
+}
+
+render::Figure study_figure(StudyFigure kind, const StudyResult& result, render::FigureOptions options) {
   if (options.title.empty()) options.title = result.scene + ": max error of q against " + result.reference;
   const auto runs = study_scheme_runs(result);
-  if (kind == "work") return render::work_figure(runs, options);
-  if (kind == "order") return render::order_figure(runs, options);
-  throw std::invalid_argument("unknown study figure '" + kind + "' (expected work or order)");
+  return kind == StudyFigure::kWork ? render::work_figure(runs, options) : render::order_figure(runs, options);
+}
+
+std::string encode_figure(const render::Figure& figure, FigureFormat format) {
+  if (format == FigureFormat::kSvg) return render::render_svg(figure);
+  const std::vector<std::uint8_t> png = render::render_png_bytes(figure);
+  return std::string(png.begin(), png.end());
 }
 
 }  // namespace moreau::scene

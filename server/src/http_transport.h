@@ -10,7 +10,7 @@
 //     connection never keeps an ordinary request waiting for a thread;
 //   - a request's headers must arrive within `header_timeout` and at most `max_header_bytes`; its body
 //     within `body_timeout` and at most `max_raw_body_bytes` as sent (the decoded size is bounded by the
-//     handler that reads it, see BodyReader in server.cc);
+//     handler that reads it, read_body in request_screening.h);
 //   - an idle keep-alive connection is closed after `keep_alive_timeout`, and after `keep_alive_requests`
 //     requests.
 // Handlers learn about their connection through current_connection() (same thread).
@@ -27,7 +27,7 @@
 #include <string>
 
 // After Eigen: httplib.h pulls in <resolv.h>, whose `_res` macro breaks Eigen's product kernels if it
-// comes first (server.cc includes the scene headers before this one).
+// comes first (the server's files include the scene and job headers before this one).
 #include <httplib.h>
 
 namespace moreau::server {

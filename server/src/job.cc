@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "moreau/analysis/figure_kind.h"
+
 namespace moreau::server {
 using json = nlohmann::json;
 
@@ -71,6 +73,11 @@ std::string figure_link_name(std::string kind) {
   std::replace(kind.begin(), kind.end(), '-', '_');
   return kind + "_figure";
 }
+// A link to each figure of `Kind` (figure_kind.h) of the job at `url`.
+template <class Kind>
+void add_figure_links(json& links, const std::string& url) {
+  for (const auto& [kind, name] : scene::FigureNames<Kind>::kTable) links[figure_link_name(name)] = url + "/figure?kind=" + name;
+}
 }  // namespace
 
 json job_json(const Job& job, const json* report) {
@@ -99,8 +106,7 @@ json job_json(const Job& job, const json* report) {
     if (job.has_report && final) {
       links["table"] = url + "/table";
       links["csv"] = url + "/table?format=csv";
-      links["work_figure"] = url + "/figure?kind=work";
-      links["order_figure"] = url + "/figure?kind=order";
+      add_figure_links<scene::StudyFigure>(links, url);
     }
   } else if (job.kind == JobKind::kCampaign) {
     const std::int64_t done = job.state == JobState::kDone ? job.rows_total : job.rows_done.load();
@@ -115,7 +121,7 @@ json job_json(const Job& job, const json* report) {
     if (job.has_report && final) {
       links["summary"] = url + "/summary";
       links["summary_text"] = url + "/summary?format=text";
-      for (const char* kind : {"convergence-cdf", "inputs", "success-map"}) links[figure_link_name(kind)] = url + "/figure?kind=" + kind;
+      add_figure_links<scene::CampaignFigure>(links, url);
     }
   } else {
     double t = job.t_now.load();
@@ -134,7 +140,7 @@ json job_json(const Job& job, const json* report) {
     if (job.has_report && final) links["report"] = url + "/report";
     if (job.has_trajectory && final) {
       links["trajectory"] = url + "/trajectory";
-      links["figure"] = url + "/figure?kind=state";
+      links["figure"] = url + "/figure?kind=" + scene::figure_name(scene::default_figure<scene::TrajectoryFigure>());
     }
   }
   j["links"] = links;

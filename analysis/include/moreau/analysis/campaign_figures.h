@@ -8,18 +8,19 @@
 
 #include "moreau/render/figure.h"
 #include "moreau/analysis/campaign.h"
+#include "moreau/analysis/figure_kind.h"
 
 namespace moreau::scene {
 
-// By name:
-//   "convergence-cdf": the fraction of all samples converged by time t (an empirical CDF that levels off
-//       at the fraction that converged), t from the convergence times;
-//   "inputs": one panel per numeric input (at most 8), the input against the convergence time, samples
-//       that did not succeed drawn apart at t_end;
-//   "success-map": the plane of the two map inputs, successes and the others apart.
+// By kind, in the order of CampaignFigure:
+//   kConvergenceCdf ("convergence-cdf"): the fraction of all samples converged by time t (an empirical
+//       CDF that levels off at the fraction that converged), t from the convergence times;
+//   kInputs ("inputs"): one panel per numeric input (at most 8), the input against the convergence time,
+//       samples that did not succeed drawn apart at t_end;
+//   kSuccessMap ("success-map"): the plane of the two map inputs, successes and the others apart.
 // A figure without data to draw (no sample converged; fewer than two numeric inputs) is left out.
 // `t_end` is the scene's end time.
-std::vector<std::pair<std::string, render::Figure>> campaign_figures(const CampaignSpec& spec, const std::vector<CampaignOutcome>& outcomes,
-                                                                     double t_end);
+std::vector<std::pair<CampaignFigure, render::Figure>> campaign_figures(const CampaignSpec& spec,
+                                                                        const std::vector<CampaignOutcome>& outcomes, double t_end);
 
 }  // namespace moreau::scene

@@ -1,7 +1,7 @@
 // The figures of a scene's results: a trajectory read back from its CSV (trajectory_csv.h) and a study's
-// table (study.h) as the plain series of render/'s figure builders. The one bridge between scene/ and
-// render/, used by `moreau plot`, `moreau study` and the server alike; render/ itself knows nothing of
-// scenes, integrators or studies.
+// table (study.h) as the plain series of render/'s figure builders, drawn by kind (figure_kind.h). The one
+// bridge between scene/ and render/, used by `moreau run --figure`, `moreau plot`, `moreau study` and the
+// server alike; render/ itself knows nothing of scenes, integrators or studies.
 #pragma once
 
 #include <string>
@@ -9,6 +9,7 @@
 
 #include "moreau/render/figures.h"
 #include "moreau/scene/simulation.h"
+#include "moreau/analysis/figure_kind.h"
 #include "moreau/analysis/study.h"
 #include "moreau/scene/trajectory_csv.h"
 
@@ -29,9 +30,16 @@ void label_for_system(render::TimeSeriesData& data, const Simulation& sim);
 // max error of q is positive (a log axis cannot show 0): h, that error, and the timed run's wall time.
 std::vector<render::SchemeRuns> study_scheme_runs(const StudyResult& result);
 
-// "work" (error against run time) or "order" (error against h, with the fitted slopes). The title
-// defaults to "<scene>: max error of q against <reference>". Throws std::invalid_argument for another
-// kind.
-render::Figure study_figure(const std::string& kind, const StudyResult& result, render::FigureOptions options = {});
+// Figure `kind` of a trajectory: render/'s state, energy, step or phase figure of `data`. The one place a
+// trajectory figure's kind chooses its drawing, for the command line and the server. Throws
+// std::invalid_argument (render's validation) for data the figure cannot show.
+render::Figure trajectory_figure(TrajectoryFigure kind, const render::TimeSeriesData& data, const render::FigureOptions& options = {});
+
+// The work figure (error against run time) or the order figure (error against h, with the fitted slopes).
+// The title defaults to "<scene>: max error of q against <reference>".
+render::Figure study_figure(StudyFigure kind, const StudyResult& result, render::FigureOptions options = {});
+
+// A figure as the bytes of a file: PNG (rasterized through OSMesa) or SVG text.
+std::string encode_figure(const render::Figure& figure, FigureFormat format);
 
 }  // namespace moreau::scene

@@ -1,0 +1,58 @@
+#include "static_page.h"
+
+#include <string>
+#include <string_view>
+
+#include "conditional.h"
+#include "embedded_files.h"
+#include "responses.h"
+
+namespace moreau::server {
+
+using httplib::Request;
+using httplib::Response;
+
+namespace {
+
+// One file of the web page. Its policy lets the page load only its own script and style, and images it
+// made from fetched figures (blob:) or its empty icon (data:, which spares the browser a /favicon.ico
+// request).
+void send_page_file(const Request& req, Response& res, std::string_view text, const std::string& etag, const char* type) {
+  // Before the conditional answer: a 304 carries the page's policy too (a cache may update the stored
+  // answer's headers from it), never the API's, which would forbid the page its own script.
+  res.set_header("Content-Security-Policy",
+                 "default-src 'none'; script-src 'self'; style-src 'self'; img-src 'self' blob: data:; connect-src 'self'; "
+                 "base-uri 'none'; form-action 'none'; frame-ancestors 'none'");
+  res.set_header("X-Content-Type-Options", "nosniff");
+  res.set_header("Referrer-Policy", "no-referrer");
+  res.set_header("Cache-Control", "no-cache");
+  if (not_modified(req, res, etag)) return;
+  res.status = 200;
+  res.set_content(std::string(text), type);
+}
+
+}  // namespace
+
+void web_page(ApiContext&, const Request& req, Response& res) {
+  static const std::string etag = strong_etag(web_index_html());
+  send_page_file(req, res, web_index_html(), etag, "text/html; charset=utf-8");
+}
+
+void web_page_script(ApiContext&, const Request& req, Response& res) {
+  static const std::string etag = strong_etag(web_app_js());
+  send_page_file(req, res, web_app_js(), etag, "text/javascript; charset=utf-8");
+}
+
+void web_page_style(ApiContext&, const Request& req, Response& res) {
+  static const std::string etag = strong_etag(web_style_css());
+  send_page_file(req, res, web_style_css(), etag, "text/css; charset=utf-8");
+}
+
+void openapi(ApiContext&, const Request& req, Response& res) {
+  static const std::string etag = strong_etag(openapi_document());
+  if (not_modified(req, res, etag)) return;
+  res.status = 200;
+  res.set_content(std::string(openapi_document()), "application/json");
+}
+
+}  // namespace moreau::server
