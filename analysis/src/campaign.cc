@@ -28,6 +28,8 @@
 #include <boost/math/distributions/normal.hpp>
 #include <boost/random/sobol.hpp>
 
+#include "campaign_sensitivity.h"
+#include "moreau/analysis/sensitivity.h"
 #include "moreau/core/observer.h"
 #include "moreau/core/stepping_driver.h"
 #include "moreau/platform/fnv1a.h"
@@ -226,7 +228,8 @@ std::string campaign_spec_hash(const json& document) {
 
 CampaignSpec CampaignSpec::from_json(const json& spec, const std::string& base_dir) {
   if (!spec.is_object()) throw SceneError("/", "a campaign spec is a JSON object");
-  only_fields(spec, "", {"name", "description", "scene", "inputs", "sampler", "seed", "samples", "target", "full_report", "map"});
+  only_fields(spec, "",
+              {"name", "description", "scene", "inputs", "sampler", "seed", "samples", "target", "full_report", "map", "sensitivity"});
   CampaignSpec s;
   s.document = spec;
   if (spec.contains("name") && !spec["name"].is_string()) throw SceneError("/name", "expected a string");
@@ -328,7 +331,9 @@ CampaignSpec CampaignSpec::from_json(const json& spec, const std::string& base_d
     s.seed = spec["seed"].get<std::uint64_t>();
   }
 
-  if (s.sampler == Sampler::kGrid) {
+  if (spec.contains("sensitivity")) {
+    campaign_detail::read_campaign_sensitivity(spec, s);  // Saltelli's design: N (k + 2) samples
+  } else if (s.sampler == Sampler::kGrid) {
     // The full grid: the product of every input's points, the last input varying fastest.
     std::int64_t total = 1;
     for (std::size_t k = 0; k < s.inputs.size(); ++k) {
@@ -424,7 +429,14 @@ CampaignDesign::CampaignDesign(const CampaignSpec& spec) : spec_(spec) {
 }
 
 std::vector<double> CampaignDesign::unit_point(std::int64_t i) const {
-  const std::size_t d = spec_.inputs.size();
+  // Saltelli's design (sensitivity.h): sample i is one block of row j = i / (k + 2), and the row is the
+  // base sampler's point j in [0, 1)^(2k) (a, then b). Monte Carlo and Sobol only (the spec's reader).
+  std::optional<SaltelliPlace> place;
+  if (spec_.sobol) {
+    place = saltelli_place(i, static_cast<int>(spec_.inputs.size()));
+    i = place->row;
+  }
+  const std::size_t d = place ? 2 * spec_.inputs.size() : spec_.inputs.size();
   std::vector<double> u(d);
   const auto ui = static_cast<std::uint64_t>(i);
   switch (spec_.sampler) {
@@ -462,6 +474,7 @@ std::vector<double> CampaignDesign::unit_point(std::int64_t i) const {
       break;
     }
   }
+  if (place) return saltelli_point(u, place->block);
   return u;
 }
 
@@ -874,6 +887,7 @@ json summarize_rows(const CampaignSpec& spec, const std::vector<CampaignOutcome>
                                                     : "converged, with the final q within the target's tolerance"},
             {"convergence_time", quantiles_of(conv_times)},
             {"target_distance", quantiles_of(errors)}};
+  s["success_rate_95"].update(campaign_detail::success_interval_assumptions(spec));
 
   // The worst samples: failures first (invalid, failed run, did not succeed), then the largest distance
   // to the target, then the latest convergence; ties by index.
@@ -933,6 +947,7 @@ json summarize_rows(const CampaignSpec& spec, const std::vector<CampaignOutcome>
   }
   s["sensitivity"] = {{"method", "Spearman rank correlation of each outcome with each input (null: constant or fewer than 3 samples)"},
                       {"inputs", sens}};
+  if (spec.sobol) s["sobol"] = campaign_detail::summarize_campaign_sobol(spec, rows, sens);
   return s;
 }
 
@@ -950,11 +965,12 @@ std::string format_campaign_summary(const json& s) {
   std::ostringstream o;
   char line[256];
   const std::int64_t n = s["samples"], k = s["successes"];
-  std::snprintf(line, sizeof line, "%s: %lld of %lld samples succeeded (%.2f%%; 95%% Wilson interval [%.2f%%, %.2f%%])\n",
+  std::snprintf(line, sizeof line, "%s: %lld of %lld samples succeeded (%.2f%%; 95%% Wilson interval [%.2f%%, %.2f%%]%s)\n",
                 s["name"].get<std::string>().c_str(), static_cast<long long>(k), static_cast<long long>(n),
                 100.0 * s["success_rate"].get<double>(), 100.0 * s["success_rate_95"]["low"].get<double>(),
-                100.0 * s["success_rate_95"]["high"].get<double>());
-  o << line << "  success means " << s["success_means"].get<std::string>() << "\n";
+                100.0 * s["success_rate_95"]["high"].get<double>(),
+                s["success_rate_95"].contains("assumes") ? ", which assumes independent samples" : "");
+  o << line << campaign_detail::format_success_interval_note(s) << "  success means " << s["success_means"].get<std::string>() << "\n";
   std::snprintf(line, sizeof line, "  converged %lld, failed runs %lld, invalid samples %lld, a hypothesis failed in %lld\n",
                 static_cast<long long>(s["converged"].get<std::int64_t>()), static_cast<long long>(s["failed_runs"].get<std::int64_t>()),
                 static_cast<long long>(s["invalid_samples"].get<std::int64_t>()),
@@ -982,6 +998,7 @@ std::string format_campaign_summary(const json& s) {
     }
     o << "\n";
   }
+  o << campaign_detail::format_campaign_sobol(s);
   o << "  worst samples:";
   for (const json& w : s["worst"]) o << " " << w["index"].get<std::int64_t>() << (w["success"].get<bool>() ? "" : "*");
   o << " (* did not succeed)\n";

@@ -5,8 +5,10 @@
 // number of samples. Sample i's values depend only on the spec and i (never on the worker or the order
 // in which samples run), so any split of the index range over processes or threads gives the same
 // samples. Each sample's record (its inputs and outcomes) is one JSON line; the summary gives the success
-// rate with its Wilson interval, quantiles of the convergence time and of the final error, the worst
-// samples and Spearman rank correlations of each outcome with each input.
+// rate with its Wilson interval (labelled by what it assumes: independent samples), quantiles of the
+// convergence time and of the final error, the worst samples and Spearman rank correlations of each
+// outcome with each input; with the spec's "sensitivity", the samples are Saltelli's design and the
+// summary adds each outcome's Sobol indices (sensitivity.h) and which inputs matter by which measure.
 //
 // Files of a campaign directory:
 //   campaign.json       the spec as run (a directory holds one campaign: another spec is refused)
@@ -79,6 +81,15 @@ bool is_campaign_name(const std::string& name);
 // that two documents equal as JSON values (1 and 1.0) have one hash. Every record carries it.
 std::string campaign_spec_hash(const nlohmann::json& document);
 
+// Variance-based sensitivity (sensitivity.h; the spec's "sensitivity": {"method": "sobol", "base_samples":
+// N}): the samples are Saltelli's design of N rows over the base sampler (Monte Carlo or Sobol) in
+// [0, 1)^(2k), N (k + 2) samples in all, and the summary gives first-order and total Sobol indices with
+// bootstrap intervals. Sample i is block i mod (k + 2) of row i / (k + 2) (saltelli_place).
+struct CampaignSobol {
+  std::int64_t base_samples = 0;  // N
+  int resamples = 100;            // bootstrap resamples of the rows (SALib's default)
+};
+
 struct CampaignSpec {
   std::string name;
   nlohmann::json scene;  // the scene document the samples override
@@ -96,8 +107,9 @@ struct CampaignSpec {
   // Whether each record carries the run's whole report (about 4 kB for the manipulator); false keeps the
   // records to their outcomes (about 300 bytes), for campaigns of millions of samples.
   bool full_report = true;
-  nlohmann::json document;  // the spec as given, with the scene inlined: what campaign.json stores
-  std::string hash;         // campaign_spec_hash(document): the "spec_hash" of every record
+  std::optional<CampaignSobol> sobol;  // the spec's "sensitivity"
+  nlohmann::json document;             // the spec as given, with the scene inlined: what campaign.json stores
+  std::string hash;                    // campaign_spec_hash(document): the "spec_hash" of every record
 
   // Validates a spec. `base_dir` resolves a scene given as a file path. Throws SceneError naming the
   // field (a JSON pointer into the spec) and what is wrong.
