@@ -728,7 +728,8 @@ PositiveRealnessTest test_strict_positive_realness(const Eigen::MatrixXd& A, con
                   "frequency domain (strictly proper G, Tao and Ioannou 1988), decided exactly in rational arithmetic on the "
                   "matrices as stored: A Hurwitz by Routh's test on det(sI - A); G(jw) + G(jw)^H > 0 for every w by a Sturm "
                   "sequence of det N(jw) = q(w^2), N the numerator of the Popov function (degree %d in w^2, %d positive "
-                  "crossings, one exact definiteness test between each two); CB = (CB)^T > 0 and -(CAB + (CAB)^T) > 0 for "
+                  "crossings; N(jw) > 0 tested exactly once between each two and beyond the last); CB = (CB)^T > 0 and "
+                  "-(CAB + (CAB)^T) > 0 for "
                   "w -> infinity. Second decider, floating point on the balanced realisation: the Popov pencil (QZ, %d "
                   "candidate frequencies, %d evaluations of G(jw), wc = %.3g) says %s",
                   q_degree, static_cast<int>(r.crossings.size()), static_cast<int>(r.crossing_candidates.size()), r.frequencies, r.wc,
