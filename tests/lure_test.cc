@@ -369,6 +369,37 @@ TEST(AbsoluteStability, ReportGivesAWitnessForANarrowDipAndLemmasFail) {
   EXPECT_EQ(text.find("strictly positive real: holds"), std::string::npos);
 }
 
+// A badly scaled minimal SPR realisation, G(s) = 1/(s + 1) + 0.5 s/(s^2 + s + 1e14) (Re G(jw) = 1/(1 + w^2)
+// + 0.5 w^2 / ((1e14 - w^2)^2 + w^2) > 0; exact Kalman determinants far from 0: see
+// absolute_stability_exact_test.cc). The report used to say "minimal (PBH): fails (margin 1e-21)" and so
+// "Lemma 1 fails"; it now says that the exact tests decided, and which.
+TEST(AbsoluteStability, ReportDecidesABadlyScaledRealisationExactly) {
+  json doc = Scene("lure-relay-2state.json");
+  doc["system"]["A"] = {{-1, 0, 0}, {0, 0, 1}, {0, -1e14, -1}};
+  doc["system"]["B"] = {{1}, {0}, {1}};
+  doc["system"]["C"] = {{1, 0, 0.5}};
+  doc["initial"]["x"] = {1, 0, 0};
+  doc["integrator"]["t_end"] = 0.01;
+  const Simulation sim = Simulation::from_json(doc);
+  const RunSummary s = sim.run(nullptr);
+  const json rep = sim.report_json(s);
+  const json& st = rep["absolute_stability"];
+  EXPECT_EQ(st["minimal"]["verdict"], "holds");
+  EXPECT_EQ(st["minimal"]["exact"], true);
+  EXPECT_EQ(st["minimal"]["controllability_rank"], 3);
+  EXPECT_EQ(st["A_hurwitz"]["verdict"], "holds");
+  EXPECT_EQ(st["high_frequency_condition"]["verdict"], "holds");
+  EXPECT_EQ(st["frequency_condition"]["decided_by"], "Sturm (exact)");
+  EXPECT_EQ(st["strictly_positive_real"], "holds");
+  EXPECT_EQ(rep["guarantees"][0]["verdict"], "holds");
+  EXPECT_EQ(rep["guarantees"][1]["verdict"], "holds");
+  const std::string text = sim.report_text(s);
+  EXPECT_NE(text.find("minimal: holds (Kalman rank test, exact"), std::string::npos) << text;
+  EXPECT_NE(text.find("A Hurwitz holds (Routh's test on det(sI - A), exact"), std::string::npos) << text;
+  EXPECT_NE(text.find("(decided by Sturm (exact))"), std::string::npos) << text;
+  EXPECT_EQ(text.find("fails"), std::string::npos) << text;
+}
+
 // ---- Simulation: the columns and the report -----------------------------------------------------------
 TEST(Lure, SimulationNamesTheColumnsAndReports) {
   const Simulation sim = Simulation::from_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/lure-relay-2state.json");

@@ -8,6 +8,8 @@
 #include <limits>
 #include <vector>
 
+#include "lti_exact.h"
+
 namespace moreau {
 namespace {
 
@@ -118,10 +120,12 @@ PopovValue popov_value(const Eigen::MatrixXd& A, const Eigen::MatrixXd& B, const
   return p;
 }
 
-// The Popov-Belevitch-Hautus margin: min over the eigenvalues l of A of sigma_min([A - l I, B]) / scale.
+// The Popov-Belevitch-Hautus margin: min over the eigenvalues l of A of sigma_min([A - l I, B]) / scale,
+// scale = max(|A|, |B|): unchanged when A and B are multiplied by one number.
 double pbh_margin(const Eigen::MatrixXd& A, const Eigen::MatrixXd& B, const Eigen::VectorXcd& eigenvalues) {
   const int n = static_cast<int>(A.rows()), m = static_cast<int>(B.cols());
-  const double scale = std::max({1.0, max_abs(A), max_abs(B)});
+  double scale = std::max(max_abs(A), max_abs(B));
+  if (!(scale > 0.0)) scale = 1.0;
   double margin = std::numeric_limits<double>::infinity();
   for (int k = 0; k < eigenvalues.size(); ++k) {
     Eigen::MatrixXcd R(n, n + m);
@@ -172,10 +176,295 @@ std::vector<double> crossing_candidates(const Eigen::MatrixXd& A, const Eigen::M
   return w;
 }
 
+// A diagonal similarity x = D x_b with D = diag(d), d_i powers of two: A_b = D^-1 A D, B_b = D^-1 B,
+// C_b = C D, computed without rounding (only exponents change). Parlett and Reinsch's iteration (as in
+// LAPACK's gebal) on [A B; C 0] with only the state coordinates scaled: each step brings the norm of a
+// state's column of [A; C] and of its row of [A, B] (off the diagonal) within a factor of 2 of each other.
+struct Balanced {
+  Eigen::MatrixXd A, B, C;
+  Eigen::VectorXd d;
+  bool identity = true;
+};
+
+Balanced balance(const Eigen::MatrixXd& A, const Eigen::MatrixXd& B, const Eigen::MatrixXd& C) {
+  Balanced b{A, B, C, Eigen::VectorXd::Ones(A.rows()), true};
+  const int n = static_cast<int>(A.rows());
+  for (int sweep = 0; sweep < 200; ++sweep) {
+    bool changed = false;
+    for (int i = 0; i < n; ++i) {
+      double c = b.C.col(i).norm(), r = b.B.row(i).norm();
+      for (int k = 0; k < n; ++k)
+        if (k != i) c = std::hypot(c, b.A(k, i)), r = std::hypot(r, b.A(i, k));
+      if (!(c > 0.0) || !(r > 0.0) || !std::isfinite(c) || !std::isfinite(r)) continue;
+      double f = 1.0;
+      const double s = c + r;
+      while (c < r / 2.0 && f < 0x1p500) c *= 2.0, r /= 2.0, f *= 2.0;
+      while (c >= 2.0 * r && f > 0x1p-500) c /= 2.0, r *= 2.0, f /= 2.0;
+      if (c + r >= 0.95 * s) continue;
+      b.A.col(i) *= f;
+      b.A.row(i) /= f;
+      b.B.row(i) /= f;
+      b.C.col(i) *= f;
+      b.d(i) *= f;
+      changed = true;
+    }
+    if (!changed) break;
+  }
+  b.identity = (b.d.array() == 1.0).all();
+  return b;
+}
+
+namespace ex = lti_exact;
+
+// The exact decision of (ii) (see the header): N(s) = P(s) d(-s) + P(-s)^T d(s), q(w^2) = det N(jw).
+struct ExactFrequency {
+  Verdict verdict = Verdict::kNotChecked;
+  std::vector<double> crossings;
+  double witness_omega = -1.0;
+  bool witness_singular = false;     // Phi(jw) singular there (a crossing where Phi only touches 0)
+  bool witness_beyond_last = false;  // the witness lies beyond the last crossing (high frequency)
+  ex::Rational witness_w;            // the exact frequency checked
+  bool witness_value_exact = false;  // SISO: the value below is Phi(jw) rounded once
+  double witness_value = 0.0;
+  int degree = 0;  // of q
+};
+
+// A polynomial matrix: entry (i, j) is a polynomial in s.
+using PolyMatrix = std::vector<std::vector<ex::Poly>>;
+
+ex::Poly poly_mul(const ex::Poly& a, const ex::Poly& b) {
+  if (a.empty() || b.empty()) return {};
+  ex::Poly c(a.size() + b.size() - 1);
+  for (std::size_t i = 0; i < a.size(); ++i)
+    for (std::size_t j = 0; j < b.size(); ++j) c[i + j] += a[i] * b[j];
+  while (!c.empty() && c.back() == 0) c.pop_back();
+  return c;
+}
+
+ex::Poly poly_add(ex::Poly a, const ex::Poly& b) {
+  if (a.size() < b.size()) a.resize(b.size());
+  for (std::size_t i = 0; i < b.size(); ++i) a[i] += b[i];
+  while (!a.empty() && a.back() == 0) a.pop_back();
+  return a;
+}
+
+ex::Poly reflect(ex::Poly p) {  // p(-s)
+  for (std::size_t i = 1; i < p.size(); i += 2) p[i] = -p[i];
+  return p;
+}
+
+// N(jw) is Hermitian: Re from the even powers, Im from the odd ones. Its definiteness is that of the real
+// symmetric [[Re, -Im], [Im, Re]].
+bool numerator_positive_definite(const PolyMatrix& N, const ex::Rational& w) {
+  const int m = static_cast<int>(N.size());
+  ex::Matrix H(2 * m, 2 * m);
+  for (int i = 0; i < m; ++i)
+    for (int j = 0; j < m; ++j) {
+      ex::Rational re = 0, im = 0, wp = 1;
+      for (std::size_t k = 0; k < N[i][j].size(); ++k) {
+        // (jw)^k = j^k w^k: j^0 = 1, j^1 = j, j^2 = -1, j^3 = -j.
+        const ex::Rational t = N[i][j][k] * wp;
+        switch (k % 4) {
+          case 0: re += t; break;
+          case 1: im += t; break;
+          case 2: re -= t; break;
+          case 3: im -= t; break;
+        }
+        wp *= w;
+      }
+      H(i, j) = re;
+      H(m + i, m + j) = re;
+      H(i, m + j) = -im;
+      H(m + i, j) = im;
+    }
+  return ex::positive_definite(H);
+}
+
+// A rational w with lo < w^2 < hi (hi < 0: no upper end), preferring a double near the middle.
+ex::Rational frequency_in(const ex::Rational& lo, const ex::Rational& hi) {
+  const bool open = hi < 0;
+  const double mid = open ? 4.0 * ex::to_double(lo) + 1.0 : ex::to_double((lo + hi) / 2);
+  const ex::Rational w0 = ex::to_rational(std::sqrt(mid));
+  if (w0 * w0 > lo && (open || w0 * w0 < hi)) return w0;
+  // Narrower than the spacing of doubles: bisect on w.
+  ex::Rational a = 0, b = 1;
+  while (b * b <= (open ? lo : hi)) b *= 2;
+  if (open) return b;
+  for (;;) {
+    const ex::Rational c = (a + b) / 2;
+    const ex::Rational c2 = c * c;
+    if (c2 <= lo) {
+      a = c;
+    } else if (c2 >= hi) {
+      b = c;
+    } else {
+      return c;
+    }
+  }
+}
+
+ExactFrequency exact_frequency(const ex::Matrix& A, const ex::Matrix& B, const ex::Matrix& C, const ex::Resolvent& res, double wc) {
+  const int n = A.rows, m = B.cols;
+  ExactFrequency out;
+  // P(s) = C adj(sI - A) B = sum_k C M_k B s^{n-1-k}.
+  PolyMatrix P(m, std::vector<ex::Poly>(m, ex::Poly(n)));
+  for (int k = 0; k < n; ++k) {
+    const ex::Matrix CMB = C * (res.M[k] * B);
+    for (int i = 0; i < m; ++i)
+      for (int j = 0; j < m; ++j) P[i][j][n - 1 - k] = CMB(i, j);
+  }
+  const ex::Poly d = res.d, dm = reflect(res.d);
+  PolyMatrix N(m, std::vector<ex::Poly>(m));
+  for (int i = 0; i < m; ++i)
+    for (int j = 0; j < m; ++j) N[i][j] = poly_add(poly_mul(P[i][j], dm), poly_mul(reflect(P[j][i]), d));
+  // r(v) with det N(s) = r(s^2); q(u) = r(-u), so that det N(jw) = q(w^2).
+  ex::Poly r;
+  if (m == 1) {
+    for (std::size_t k = 0; k < N[0][0].size(); k += 2) r.push_back(N[0][0][k]);
+  } else {
+    const int deg_r = m * (2 * n - 1) / 2;
+    std::vector<ex::Rational> x, y;
+    for (int i = 0; i <= deg_r; ++i) {
+      ex::Matrix Ni(m, m);
+      for (int a = 0; a < m; ++a)
+        for (int b = 0; b < m; ++b) Ni(a, b) = ex::evaluate(N[a][b], ex::Rational(i));
+      x.push_back(ex::Rational(i * i));
+      y.push_back(ex::determinant(Ni));
+    }
+    // Newton's divided differences, then the monomial coefficients.
+    std::vector<ex::Rational> coef = y;
+    for (int j = 1; j <= deg_r; ++j)
+      for (int i = deg_r; i >= j; --i) coef[i] = (coef[i] - coef[i - 1]) / (x[i] - x[i - j]);
+    r = {coef[deg_r]};
+    for (int i = deg_r - 1; i >= 0; --i) {
+      r = poly_mul(r, ex::Poly{-x[i], ex::Rational(1)});
+      r = poly_add(r, ex::Poly{coef[i]});
+    }
+  }
+  while (!r.empty() && r.back() == 0) r.pop_back();
+  ex::Poly q = reflect(r);
+  out.degree = ex::degree(q);
+  auto siso_value = [&](const ex::Rational& w) {
+    // Phi(jw) = N(jw) / |d(jw)|^2 (N even for m = 1), times 1 + (w/wc)^2.
+    const ex::Rational u = w * w;
+    ex::Rational dre = 0, dim = 0, wp = 1;
+    for (std::size_t k = 0; k < d.size(); ++k) {
+      const ex::Rational t = d[k] * wp;
+      if (k % 4 == 0) dre += t;
+      if (k % 4 == 1) dim += t;
+      if (k % 4 == 2) dre -= t;
+      if (k % 4 == 3) dim -= t;
+      wp *= w;
+    }
+    const ex::Rational wcr = ex::to_rational(wc);
+    return ex::to_double((1 + u / (wcr * wcr)) * ex::evaluate(q, u) / (dre * dre + dim * dim));
+  };
+  auto set_witness = [&](const ex::Rational& w, bool singular, bool beyond) {
+    out.verdict = Verdict::kFails;
+    out.witness_w = w;
+    out.witness_omega = ex::to_double(w);
+    out.witness_singular = singular;
+    out.witness_beyond_last = beyond;
+    if (m == 1) {
+      out.witness_value = siso_value(w);
+      out.witness_value_exact = true;
+    }
+  };
+  if (!numerator_positive_definite(N, ex::Rational(0))) {
+    set_witness(ex::Rational(0), ex::evaluate(q, ex::Rational(0)) == 0, false);
+    return out;
+  }
+  const std::vector<ex::RootInterval> roots = ex::positive_roots(q);
+  for (const ex::RootInterval& ri : roots) out.crossings.push_back(std::sqrt(ex::to_double((ri.lo + ri.hi) / 2)));
+  // One exact definiteness test per interval between crossings (the first, from 0, is known positive).
+  for (std::size_t g = 1; g <= roots.size(); ++g) {
+    const ex::Rational lo = roots[g - 1].hi, hi = g < roots.size() ? roots[g].lo : ex::Rational(-1);
+    const ex::Rational w = frequency_in(lo, hi);
+    if (!numerator_positive_definite(N, w)) {
+      set_witness(w, false, g == roots.size());
+      return out;
+    }
+  }
+  if (!roots.empty()) {
+    // Positive on both sides of every crossing: Phi(jw) is singular at the crossing itself.
+    const ex::RootInterval& ri = roots.front();
+    set_witness(ri.lo == ri.hi ? ri.lo : (ri.lo + ri.hi) / 2, true, false);
+    out.witness_omega = out.crossings.front();
+    if (m == 1) out.witness_value = 0.0;
+    return out;
+  }
+  out.verdict = Verdict::kHolds;
+  return out;
+}
+
 std::string format(const char* fmt, double a, double b = 0.0, double c = 0.0) {
   char buf[256];
   std::snprintf(buf, sizeof buf, fmt, a, b, c);
   return buf;
+}
+
+// A certificate P on {P = P^T, B^T P = C} (see the header): the search and its check.
+struct Certificate {
+  Verdict verdict = Verdict::kNotChecked;
+  Eigen::MatrixXd P;
+  StorageMatrixCheck check;
+  std::string method;
+};
+
+Certificate search_certificate(const Eigen::MatrixXd& A, const Eigen::MatrixXd& B, const Eigen::MatrixXd& C) {
+  Certificate r;
+  const int n = static_cast<int>(A.rows());
+  const int p = static_cast<int>(C.rows());
+  const int np = n * (n + 1) / 2;
+  std::vector<std::pair<int, int>> idx;
+  for (int i = 0; i < n; ++i)
+    for (int j = i; j < n; ++j) idx.emplace_back(i, j);
+  auto assemble = [&](const Eigen::VectorXd& pv) {
+    Eigen::MatrixXd P(n, n);
+    for (int k = 0; k < np; ++k) P(idx[k].first, idx[k].second) = P(idx[k].second, idx[k].first) = pv(k);
+    return P;
+  };
+  const int rows = p * n;
+  Eigen::MatrixXd E(rows, np);
+  for (int k = 0; k < np; ++k) {
+    Eigen::VectorXd e = Eigen::VectorXd::Zero(np);
+    e(k) = 1.0;
+    const Eigen::MatrixXd BtP = B.transpose() * assemble(e);
+    E.col(k) = Eigen::Map<const Eigen::VectorXd>(BtP.data(), rows);
+  }
+  const Eigen::VectorXd c = Eigen::Map<const Eigen::VectorXd>(C.data(), rows);
+  Eigen::JacobiSVD<Eigen::MatrixXd> svd(E, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  const Eigen::VectorXd p0 = svd.solve(c);
+  if ((E * p0 - c).cwiseAbs().maxCoeff() > 1e-10 * (1.0 + c.cwiseAbs().maxCoeff())) {
+    r.verdict = Verdict::kFails;
+    r.method = "no symmetric P satisfies B^T P = C (the linear equations are inconsistent)";
+    return r;
+  }
+  const Eigen::VectorXd sv = svd.singularValues();
+  const double tol = 1e-12 * std::max(1.0, sv.size() ? sv(0) : 1.0);
+  int rank_e = 0;
+  for (int i = 0; i < sv.size(); ++i)
+    if (sv(i) > tol) ++rank_e;
+  const Eigen::MatrixXd Nul = svd.matrixV().rightCols(np - rank_e);
+  auto objective = [&](const Eigen::VectorXd& z) {
+    const Eigen::MatrixXd P = assemble(p0 + Nul * z);
+    const double lp = sym_eigenvalues(P)(0);
+    const Eigen::VectorXd el = sym_eigenvalues(-(P * A + A.transpose() * P));
+    return std::min(lp, el(0));
+  };
+  Eigen::VectorXd z = Eigen::VectorXd::Zero(Nul.cols());
+  if (Nul.cols() > 0) z = nelder_mead_max(objective, z, std::max(1.0, p0.cwiseAbs().maxCoeff()), 20000);
+  r.P = assemble(p0 + Nul * z);
+  r.check = check_storage_matrix(A, B, C, r.P);
+  // A search that does not find P proves nothing either way: the certificate is then undetermined.
+  r.verdict = r.check.all() ? Verdict::kHolds : Verdict::kUndetermined;
+  char buf[400];
+  std::snprintf(buf, sizeof buf,
+                "searched the %d-dimensional affine set of symmetric P with B^T P = C for the largest "
+                "min(lambda_min(P), lambda_min(-(PA + A^T P))) by Nelder-Mead: %s (margin %.3g)",
+                static_cast<int>(Nul.cols()), r.verdict == Verdict::kHolds ? "found, and checked" : "none found", objective(z));
+  r.method = buf;
+  return r;
 }
 
 }  // namespace
@@ -201,11 +490,40 @@ StorageMatrixCheck check_storage_matrix(const Eigen::MatrixXd& A, const Eigen::M
 
 MinimalityCheck check_minimality(const Eigen::MatrixXd& A, const Eigen::MatrixXd& B, const Eigen::MatrixXd& C) {
   MinimalityCheck c;
-  Eigen::EigenSolver<Eigen::MatrixXd> eig(A, false);
-  c.controllability_margin = pbh_margin(A, B, eig.eigenvalues());
-  c.observability_margin = pbh_margin(A.transpose(), C.transpose(), eig.eigenvalues());
-  c.controllable = banded(c.controllability_margin, 1e-12, 1e-8);
-  c.observable = banded(c.observability_margin, 1e-12, 1e-8);
+  const int n = static_cast<int>(A.rows());
+  const Balanced bal = balance(A, B, C);
+  Eigen::EigenSolver<Eigen::MatrixXd> eig(bal.A, false);
+  c.controllability_margin = pbh_margin(bal.A, bal.B, eig.eigenvalues());
+  c.observability_margin = pbh_margin(bal.A.transpose(), bal.C.transpose(), eig.eigenvalues());
+  if (n <= kExactMaxStates) {
+    // Kalman's rank test on the matrices as stored, in rational arithmetic: a rank below n is an exact
+    // uncontrollable (unobservable) subspace, not a small margin.
+    const ex::Matrix Ae = ex::Matrix::from(A), Be = ex::Matrix::from(B), Ce = ex::Matrix::from(C);
+    const int m = Be.cols, p = Ce.rows;
+    ex::Matrix K(n, n * m), O(n * p, n);
+    ex::Matrix AkB = Be, CAk = Ce;
+    for (int k = 0; k < n; ++k) {
+      for (int i = 0; i < n; ++i)
+        for (int j = 0; j < m; ++j) K(i, k * m + j) = AkB(i, j);
+      for (int i = 0; i < p; ++i)
+        for (int j = 0; j < n; ++j) O(k * p + i, j) = CAk(i, j);
+      if (k + 1 < n) AkB = Ae * AkB, CAk = CAk * Ae;
+    }
+    c.exact = true;
+    c.controllability_rank = ex::rank(K);
+    c.observability_rank = ex::rank(O);
+    c.controllable = c.controllability_rank == n ? Verdict::kHolds : Verdict::kFails;
+    c.observable = c.observability_rank == n ? Verdict::kHolds : Verdict::kFails;
+    c.method = "Kalman rank test, exact in rational arithmetic on the matrices as stored: rank [B, AB, ..., A^(n-1) B] = " +
+               std::to_string(c.controllability_rank) + ", rank [C; CA; ...; CA^(n-1)] = " + std::to_string(c.observability_rank) +
+               " (n = " + std::to_string(n) + ")";
+  } else {
+    // A small margin is no proof of a lost mode: only a clear margin decides.
+    c.controllable = c.controllability_margin > 1e-8 ? Verdict::kHolds : Verdict::kUndetermined;
+    c.observable = c.observability_margin > 1e-8 ? Verdict::kHolds : Verdict::kUndetermined;
+    c.method = "Popov-Belevitch-Hautus margins of the balanced realisation (n = " + std::to_string(n) + " > " +
+               std::to_string(kExactMaxStates) + ", too large for the exact test): holds above 1e-8, otherwise undetermined";
+  }
   return c;
 }
 
@@ -214,16 +532,33 @@ PositiveRealnessTest test_strict_positive_realness(const Eigen::MatrixXd& A, con
   const int n = static_cast<int>(A.rows());
   const int m = static_cast<int>(B.cols());
   const int p = static_cast<int>(C.rows());
+  // The floating-point tests work on the balanced realisation: the same G(s), with margins that do not
+  // depend on how the state was scaled.
+  const Balanced bal = balance(A, B, C);
+  const Eigen::MatrixXd& Ab = bal.A;
+  const Eigen::MatrixXd& Bb = bal.B;
+  const Eigen::MatrixXd& Cb = bal.C;
+  r.exact = n <= kExactMaxStates && p == m;
 
-  // (i) A Hurwitz. Eigenvalues of a non-normal A can move by about sqrt(eps) |A|: inside that band the
-  // answer is undetermined.
-  Eigen::EigenSolver<Eigen::MatrixXd> eig(A, false);
+  // (i) A Hurwitz. Exactly by Routh's test on det(sI - A); otherwise from the eigenvalues, which for a
+  // non-normal A can move by about sqrt(eps) |A|: inside that band the answer is undetermined.
+  Eigen::EigenSolver<Eigen::MatrixXd> eig(Ab, false);
   const Eigen::VectorXcd lambda = eig.eigenvalues();
   r.spectral_abscissa = lambda.real().maxCoeff();
-  r.hurwitz_tolerance = std::sqrt(kEps) * std::max(1.0, max_abs(A));
-  r.hurwitz = banded(-r.spectral_abscissa, -r.hurwitz_tolerance, r.hurwitz_tolerance);
+  r.hurwitz_tolerance = std::sqrt(kEps) * std::max(1.0, max_abs(Ab));
   const double rho = lambda.cwiseAbs().maxCoeff();
   r.wc = std::max(1.0, rho);
+  ex::Matrix Ae, Be, Ce;
+  ex::Resolvent res;
+  if (n <= kExactMaxStates) {
+    Ae = ex::Matrix::from(A), Be = ex::Matrix::from(B), Ce = ex::Matrix::from(C);
+    res = ex::resolvent(Ae);
+    r.hurwitz = ex::hurwitz(res.d) ? Verdict::kHolds : Verdict::kFails;
+    r.hurwitz_method = "Routh's test on det(sI - A), exact";
+  } else {
+    r.hurwitz = banded(-r.spectral_abscissa, -r.hurwitz_tolerance, r.hurwitz_tolerance);
+    r.hurwitz_method = "eigenvalues of the balanced A (floating point, band sqrt(eps) |A|)";
+  }
 
   if (p != m) {
     r.cb = r.high_frequency = r.frequency = Verdict::kFails;
@@ -234,23 +569,42 @@ PositiveRealnessTest test_strict_positive_realness(const Eigen::MatrixXd& A, con
     return r;
   }
 
-  // (iii) CB = (CB)^T > 0 and -(CAB + (CAB)^T) > 0, each with a round-off band.
-  const Eigen::MatrixXd CB = C * B;
-  const double cb_scale = std::max(max_abs(C) * max_abs(B), 1e-300);
+  // (iii) CB = (CB)^T > 0 and -(CAB + (CAB)^T) > 0. CB and CAB are invariant to the state's scaling; in
+  // floating point they are computed from the balanced realisation, each with a round-off band.
+  const Eigen::MatrixXd CB = Cb * Bb;
+  const double cb_scale = std::max(max_abs(Cb) * max_abs(Bb), 1e-300);
   r.cb_asymmetry = max_abs(CB - CB.transpose()) / cb_scale;
   r.cb_min_eigenvalue = sym_eigenvalues(CB)(0);
-  const double cb_tol = 100.0 * (n + 1) * kEps * cb_scale;
-  r.cb = r.cb_asymmetry > 100.0 * (n + 1) * kEps ? Verdict::kFails : banded(r.cb_min_eigenvalue, -cb_tol, cb_tol);
-  if (r.cb == Verdict::kHolds && r.cb_asymmetry > 0.0) r.cb = Verdict::kUndetermined;  // symmetric only up to round-off
-  const Eigen::MatrixXd CAB = C * A * B;
+  const Eigen::MatrixXd CAB = Cb * (Ab * Bb);
   r.high_frequency_min_eigenvalue = sym_eigenvalues(-(CAB + CAB.transpose()))(0);
-  const double hf_tol = 100.0 * (n + 1) * kEps * std::max(max_abs(C) * max_abs(A) * max_abs(B), 1e-300);
-  r.high_frequency = banded(r.high_frequency_min_eigenvalue, -hf_tol, hf_tol);
+  const double roundoff_asymmetry = 100.0 * (n + 1) * kEps;
+  bool cb_roundoff_asymmetric = false;
+  if (r.exact) {
+    const ex::Matrix CBe = Ce * Be, CABe = Ce * (Ae * Be);
+    if (ex::symmetric(CBe)) {
+      r.cb = ex::positive_definite(CBe) ? Verdict::kHolds : Verdict::kFails;
+    } else {
+      // Not symmetric as stored; by no more than the rounding of the entries: undetermined (header).
+      cb_roundoff_asymmetric = r.cb_asymmetry <= roundoff_asymmetry;
+      r.cb = cb_roundoff_asymmetric ? Verdict::kUndetermined : Verdict::kFails;
+    }
+    ex::Matrix S = CABe + CABe.transpose();
+    for (ex::Rational& v : S.a) v = -v;
+    r.high_frequency = ex::positive_definite(S) ? Verdict::kHolds : Verdict::kFails;
+  } else {
+    const double cb_tol = 100.0 * (n + 1) * kEps * cb_scale;
+    r.cb = r.cb_asymmetry > roundoff_asymmetry ? Verdict::kFails : banded(r.cb_min_eigenvalue, -cb_tol, cb_tol);
+    if (r.cb == Verdict::kHolds && r.cb_asymmetry > 0.0) r.cb = Verdict::kUndetermined;  // symmetric only up to round-off
+    const double hf_tol = 100.0 * (n + 1) * kEps * std::max(max_abs(Cb) * max_abs(Ab) * max_abs(Bb), 1e-300);
+    r.high_frequency = banded(r.high_frequency_min_eigenvalue, -hf_tol, hf_tol);
+  }
 
-  // (ii) Exactly, from the crossing candidates (only meaningful for a Hurwitz A: otherwise G has poles on
-  // or right of the axis and SPR already fails).
+  int q_degree = 0;
+  // (ii) Only meaningful for a Hurwitz A: otherwise G has poles on or right of the axis and SPR already
+  // fails. The Popov-pencil test runs in every case (it gives the margin, and is the second decider); the
+  // exact Sturm test decides when it ran.
   if (r.hurwitz == Verdict::kHolds) {
-    r.crossing_candidates = crossing_candidates(A, B, C);
+    r.crossing_candidates = crossing_candidates(Ab, Bb, Cb);
     const bool qz_converged = !r.crossing_candidates.empty();
     if (!qz_converged) r.crossing_candidates = {0.0};  // a failure found below still stands; "holds" cannot
     std::vector<double> points;
@@ -264,16 +618,17 @@ PositiveRealnessTest test_strict_positive_realness(const Eigen::MatrixXd& A, con
     std::sort(points.begin(), points.end());
     std::vector<PopovValue> values;
     values.reserve(points.size());
-    for (double w : points) values.push_back(popov_value(A, B, C, w, r.wc));
+    for (double w : points) values.push_back(popov_value(Ab, Bb, Cb, w, r.wc));
     r.frequencies = static_cast<int>(points.size());
     std::size_t jmin = 0;
     bool undetermined = false;
+    double pencil_witness = -1.0, pencil_value = 0.0;
     for (std::size_t j = 0; j < points.size(); ++j) {
       if (values[j].value < values[jmin].value) jmin = j;
       if (values[j].value < -values[j].tolerance) {
-        if (r.witness_omega < 0.0 || values[j].value < r.witness_value) {
-          r.witness_omega = points[j];
-          r.witness_value = values[j].value;
+        if (pencil_witness < 0.0 || values[j].value < pencil_value) {
+          pencil_witness = points[j];
+          pencil_value = values[j].value;
         }
       } else if (values[j].value <= values[j].tolerance) {
         undetermined = true;
@@ -285,29 +640,52 @@ PositiveRealnessTest test_strict_positive_realness(const Eigen::MatrixXd& A, con
       double a = points[jmin > 0 ? jmin - 1 : 0], b = points[std::min(points.size() - 1, jmin + 1)];
       const double g = 0.5 * (std::sqrt(5.0) - 1.0);
       double x1 = b - g * (b - a), x2 = a + g * (b - a);
-      PopovValue f1 = popov_value(A, B, C, x1, r.wc), f2 = popov_value(A, B, C, x2, r.wc);
+      PopovValue f1 = popov_value(Ab, Bb, Cb, x1, r.wc), f2 = popov_value(Ab, Bb, Cb, x2, r.wc);
       r.frequencies += 2;
       for (int it = 0; it < 60 && b - a > 1e-15 * b; ++it) {
         if (f1.value < f2.value) {
-          b = x2, x2 = x1, f2 = f1, x1 = b - g * (b - a), f1 = popov_value(A, B, C, x1, r.wc);
+          b = x2, x2 = x1, f2 = f1, x1 = b - g * (b - a), f1 = popov_value(Ab, Bb, Cb, x1, r.wc);
         } else {
-          a = x1, x1 = x2, f1 = f2, x2 = a + g * (b - a), f2 = popov_value(A, B, C, x2, r.wc);
+          a = x1, x1 = x2, f1 = f2, x2 = a + g * (b - a), f2 = popov_value(Ab, Bb, Cb, x2, r.wc);
         }
         ++r.frequencies;
       }
       const PopovValue& best = f1.value < f2.value ? f1 : f2;
       if (best.value < fmin) {
         fmin = best.value, wmin = f1.value < f2.value ? x1 : x2, tmin = best.tolerance;
-        if (best.value < -best.tolerance && (r.witness_omega < 0.0 || best.value < r.witness_value)) {
-          r.witness_omega = wmin;
-          r.witness_value = best.value;
+        if (best.value < -best.tolerance && (pencil_witness < 0.0 || best.value < pencil_value)) {
+          pencil_witness = wmin;
+          pencil_value = best.value;
         }
       }
+    }
+    r.frequency_pencil = pencil_witness >= 0.0 ? Verdict::kFails : undetermined || !qz_converged ? Verdict::kUndetermined : Verdict::kHolds;
+    if (r.exact) {
+      const ExactFrequency e = exact_frequency(Ae, Be, Ce, res, r.wc);
+      q_degree = e.degree;
+      r.frequency_exact = e.verdict;
+      r.crossings = e.crossings;
+      r.frequency = e.verdict;
+      r.frequency_method = "Sturm (exact)";
+      if (e.verdict == Verdict::kFails) {
+        r.witness_omega = e.witness_omega;
+        r.witness_value = e.witness_value_exact ? e.witness_value : popov_value(Ab, Bb, Cb, e.witness_omega, r.wc).value;
+        if (e.witness_singular) r.witness_value = 0.0;
+        // A failure beyond the last crossing caused by a CB asymmetric only by round-off (header).
+        if (e.witness_beyond_last && cb_roundoff_asymmetric) r.frequency = Verdict::kUndetermined;
+      }
+      if (e.verdict == Verdict::kFails && !e.witness_singular && r.witness_value < fmin) {
+        fmin = r.witness_value, wmin = r.witness_omega, tmin = 0.0;
+      }
+    } else {
+      r.frequency = r.frequency_pencil;
+      r.frequency_method = "Popov pencil (floating point)";
+      r.witness_omega = pencil_witness;
+      r.witness_value = pencil_value;
     }
     r.min_frequency_eigenvalue = fmin;
     r.argmin_omega = wmin;
     r.frequency_tolerance = tmin;
-    r.frequency = r.witness_omega >= 0.0 ? Verdict::kFails : undetermined || !qz_converged ? Verdict::kUndetermined : Verdict::kHolds;
   } else {
     r.frequency = Verdict::kNotChecked;
   }
@@ -315,25 +693,57 @@ PositiveRealnessTest test_strict_positive_realness(const Eigen::MatrixXd& A, con
   r.spr = all_of(all_of(r.hurwitz, r.cb), r.high_frequency);
   if (r.hurwitz == Verdict::kHolds) r.spr = all_of(r.spr, r.frequency);
   if (r.hurwitz == Verdict::kFails) {
-    r.witness = format("A is not Hurwitz: an eigenvalue has real part %.6g >= 0", r.spectral_abscissa);
+    r.witness = r.exact ? format("A is not Hurwitz: Routh's test on det(sI - A) fails (exact; max Re lambda = %.6g)", r.spectral_abscissa)
+                        : format("A is not Hurwitz: an eigenvalue has real part %.6g >= 0", r.spectral_abscissa);
   } else if (r.frequency == Verdict::kFails) {
-    r.witness =
-        format("G(jw) + G(jw)^H is not positive definite at w = %.9g: (1 + (w/wc)^2) lambda_min = %.6g", r.witness_omega, r.witness_value);
+    if (r.witness_value == 0.0 && r.frequency_exact == Verdict::kFails) {
+      r.witness =
+          format("G(jw) + G(jw)^H is singular at w = %.17g (exact: det = 0 there, positive definite on both sides)", r.witness_omega);
+    } else {
+      r.witness = format("G(jw) + G(jw)^H is not positive definite at w = %.17g: (1 + (w/wc)^2) lambda_min = %.6g", r.witness_omega,
+                         r.witness_value);
+      if (r.frequency_exact == Verdict::kFails) r.witness += " (its sign decided exactly)";
+    }
+    // Where it fails, between which crossings (each located to the spacing of doubles).
+    const std::vector<double>& x = r.crossings;
+    for (std::size_t i = 0; i < x.size(); ++i) {
+      if (x[i] > r.witness_omega) {
+        if (i > 0)
+          r.witness +=
+              format("; it fails between the crossings at w = %.17g and %.17g (a band %.6g wide)", x[i - 1], x[i], x[i] - x[i - 1]);
+        break;
+      }
+      if (i + 1 == x.size() && r.witness_omega > x[i]) r.witness += format("; it fails for every w beyond the crossing at w = %.17g", x[i]);
+    }
   } else if (r.cb == Verdict::kFails) {
-    r.witness = r.cb_asymmetry > 100.0 * (n + 1) * kEps ? format("CB is not symmetric (relative asymmetry %.3g)", r.cb_asymmetry)
-                                                        : format("CB is not positive definite: lambda_min(CB) = %.6g", r.cb_min_eigenvalue);
+    r.witness = r.cb_asymmetry > 0.0 ? format("CB is not symmetric (relative asymmetry %.3g)", r.cb_asymmetry)
+                                     : format("CB is not positive definite: lambda_min(CB) = %.6g", r.cb_min_eigenvalue);
   } else if (r.high_frequency == Verdict::kFails) {
     r.witness = format("-(CAB + (CAB)^T) is not positive definite (lambda_min = %.6g): G(jw) + G(jw)^H < 0 for large w",
                        r.high_frequency_min_eigenvalue);
   }
-  char buf[640];
-  std::snprintf(buf, sizeof buf,
-                "frequency domain, exact (strictly proper G, Tao and Ioannou 1988): A Hurwitz from its eigenvalues; "
-                "G(jw) + G(jw)^H > 0 for every w, decided at the candidate frequencies where its determinant can vanish (%d: 0 and "
-                "the |Im| of the finite generalized eigenvalues of the Popov function's Rosenbrock pencil, by QZ), at the "
-                "midpoints between them and beyond the last (%d evaluations of G(jw) with a log sweep for the margin, "
-                "wc = %.3g); CB = (CB)^T > 0 and -(CAB + (CAB)^T) > 0 for w -> infinity",
-                static_cast<int>(r.crossing_candidates.size()), r.frequencies, r.wc);
+  char buf[1200];
+  if (r.exact) {
+    std::snprintf(buf, sizeof buf,
+                  "frequency domain (strictly proper G, Tao and Ioannou 1988), decided exactly in rational arithmetic on the "
+                  "matrices as stored: A Hurwitz by Routh's test on det(sI - A); G(jw) + G(jw)^H > 0 for every w by a Sturm "
+                  "sequence of det N(jw) = q(w^2), N the numerator of the Popov function (degree %d in w^2, %d positive "
+                  "crossings; N(jw) > 0 tested exactly once between each two and beyond the last); CB = (CB)^T > 0 and "
+                  "-(CAB + (CAB)^T) > 0 for "
+                  "w -> infinity. Second decider, floating point on the balanced realisation: the Popov pencil (QZ, %d "
+                  "candidate frequencies, %d evaluations of G(jw), wc = %.3g) says %s",
+                  q_degree, static_cast<int>(r.crossings.size()), static_cast<int>(r.crossing_candidates.size()), r.frequencies, r.wc,
+                  to_string(r.frequency_pencil));
+  } else {
+    std::snprintf(buf, sizeof buf,
+                  "frequency domain (strictly proper G, Tao and Ioannou 1988), in floating point on the balanced realisation "
+                  "(n = %d > %d, too large for the exact test): A Hurwitz from its eigenvalues; G(jw) + G(jw)^H > 0 for every "
+                  "w, decided at the candidate frequencies where its determinant can vanish (%d: 0 and the |Im| of the finite "
+                  "generalized eigenvalues of the Popov function's Rosenbrock pencil, by QZ), at the midpoints between them "
+                  "and beyond the last (%d evaluations of G(jw) with a log sweep for the margin, wc = %.3g); CB = (CB)^T > 0 "
+                  "and -(CAB + (CAB)^T) > 0 for w -> infinity",
+                  n, kExactMaxStates, static_cast<int>(r.crossing_candidates.size()), r.frequencies, r.wc);
+  }
   r.method = buf;
 
   // A certificate P on {P = P^T, B^T P = C}: sought only when the frequency test says SPR (otherwise none
@@ -346,54 +756,25 @@ PositiveRealnessTest test_strict_positive_realness(const Eigen::MatrixXd& A, con
     r.storage_method = "not attempted (n > 12)";
     return r;
   }
-  const int np = n * (n + 1) / 2;
-  std::vector<std::pair<int, int>> idx;
-  for (int i = 0; i < n; ++i)
-    for (int j = i; j < n; ++j) idx.emplace_back(i, j);
-  auto assemble = [&](const Eigen::VectorXd& pv) {
-    Eigen::MatrixXd P(n, n);
-    for (int k = 0; k < np; ++k) P(idx[k].first, idx[k].second) = P(idx[k].second, idx[k].first) = pv(k);
-    return P;
-  };
-  const int rows = p * n;
-  Eigen::MatrixXd E(rows, np);
-  for (int k = 0; k < np; ++k) {
-    Eigen::VectorXd e = Eigen::VectorXd::Zero(np);
-    e(k) = 1.0;
-    const Eigen::MatrixXd BtP = B.transpose() * assemble(e);
-    E.col(k) = Eigen::Map<const Eigen::VectorXd>(BtP.data(), rows);
+  Certificate cert = search_certificate(A, B, C);
+  if (cert.verdict != Verdict::kHolds && cert.verdict != Verdict::kFails && !bal.identity) {
+    // Badly scaled as given: search on the balanced realisation. Its P_b gives P = D^-1 P_b D^-1 for the
+    // given one (D of powers of two: exact), and the conditions checked on (A_b, B_b, C_b, P_b) are those
+    // on (A, B, C, P) by the similarity.
+    Certificate cb = search_certificate(Ab, Bb, Cb);
+    if (cb.verdict == Verdict::kHolds) {
+      const Eigen::VectorXd dinv = bal.d.cwiseInverse();
+      cb.P = dinv.asDiagonal() * cb.P * dinv.asDiagonal();
+      cb.method +=
+          " on the balanced realisation x = D x_b (D diagonal, powers of two; P = D^-1 P_b D^-1, checked on the balanced "
+          "realisation)";
+      cert = cb;
+    }
   }
-  const Eigen::VectorXd c = Eigen::Map<const Eigen::VectorXd>(C.data(), rows);
-  Eigen::JacobiSVD<Eigen::MatrixXd> svd(E, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  const Eigen::VectorXd p0 = svd.solve(c);
-  if ((E * p0 - c).cwiseAbs().maxCoeff() > 1e-10 * (1.0 + c.cwiseAbs().maxCoeff())) {
-    r.certificate = Verdict::kFails;
-    r.storage_method = "no symmetric P satisfies B^T P = C (the linear equations are inconsistent)";
-    return r;
-  }
-  const Eigen::VectorXd sv = svd.singularValues();
-  const double tol = 1e-12 * std::max(1.0, sv.size() ? sv(0) : 1.0);
-  int rank_e = 0;
-  for (int i = 0; i < sv.size(); ++i)
-    if (sv(i) > tol) ++rank_e;
-  const Eigen::MatrixXd Nul = svd.matrixV().rightCols(np - rank_e);
-  auto objective = [&](const Eigen::VectorXd& z) {
-    const Eigen::MatrixXd P = assemble(p0 + Nul * z);
-    const double lp = sym_eigenvalues(P)(0);
-    const Eigen::VectorXd el = sym_eigenvalues(-(P * A + A.transpose() * P));
-    return std::min(lp, el(0));
-  };
-  Eigen::VectorXd z = Eigen::VectorXd::Zero(Nul.cols());
-  if (Nul.cols() > 0) z = nelder_mead_max(objective, z, std::max(1.0, p0.cwiseAbs().maxCoeff()), 20000);
-  r.P = assemble(p0 + Nul * z);
-  r.storage_check = check_storage_matrix(A, B, C, r.P);
-  // A search that does not find P proves nothing either way: the certificate is then undetermined.
-  r.certificate = r.storage_check.all() ? Verdict::kHolds : Verdict::kUndetermined;
-  std::snprintf(buf, sizeof buf,
-                "searched the %d-dimensional affine set of symmetric P with B^T P = C for the largest "
-                "min(lambda_min(P), lambda_min(-(PA + A^T P))) by Nelder-Mead: %s (margin %.3g)",
-                static_cast<int>(Nul.cols()), r.storage_found() ? "found, and checked" : "none found", objective(z));
-  r.storage_method = buf;
+  r.certificate = cert.verdict;
+  r.P = cert.P;
+  r.storage_check = cert.check;
+  r.storage_method = cert.method;
   if (r.spr == Verdict::kUndetermined && r.storage_found()) {
     // The frequency test was inside its round-off band, but a checked P proves SPR (KYP lemma, sufficiency).
     r.spr = Verdict::kHolds;

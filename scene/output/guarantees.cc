@@ -453,14 +453,19 @@ HypothesisCheck spr_check(const LureScene& sc) {
   }
   const PositiveRealnessTest& t = sc.spr;
   h.verdict = t.spr;
+  const char* how = t.exact ? ", exact" : ", floating point";
   if (t.spr == Verdict::kFails) {
-    h.detail = t.witness;
+    h.detail = t.witness + " (decided " + (t.exact ? "exactly, in rational arithmetic" : "in floating point") + ")";
   } else {
-    h.detail = "A Hurwitz " + std::string(to_string(t.hurwitz)) + " (max Re lambda " + fmt(t.spectral_abscissa) +
-               "); G(jw) + G(jw)^H > 0 for all w " + to_string(t.frequency) + " (smallest (1 + (w/wc)^2) lambda_min found " +
-               fmt(t.min_frequency_eigenvalue) + " at w = " + fmt(t.argmin_omega) + ", round-off " + fmt(t.frequency_tolerance) +
-               "); CB = (CB)^T > 0 " + to_string(t.cb) + "; -(CAB + (CAB)^T) > 0 " + to_string(t.high_frequency) + "; certificate P " +
-               (t.storage_found() ? "found and checked" : "not found");
+    h.detail = "A Hurwitz " + std::string(to_string(t.hurwitz)) + " (" + t.hurwitz_method + "; max Re lambda " + fmt(t.spectral_abscissa) +
+               "); G(jw) + G(jw)^H > 0 for all w " + to_string(t.frequency) +
+               (t.frequency_method.empty() ? std::string() : " (decided by " + t.frequency_method + ")") +
+               (t.exact && t.frequency_pencil != Verdict::kNotChecked
+                    ? "; the Popov pencil in floating point says " + std::string(to_string(t.frequency_pencil))
+                    : std::string()) +
+               " (smallest (1 + (w/wc)^2) lambda_min found " + fmt(t.min_frequency_eigenvalue) + " at w = " + fmt(t.argmin_omega) +
+               ", round-off " + fmt(t.frequency_tolerance) + "); CB = (CB)^T > 0 " + to_string(t.cb) + how + "; -(CAB + (CAB)^T) > 0 " +
+               to_string(t.high_frequency) + how + "; certificate P " + (t.storage_found() ? "found and checked" : "not found");
   }
   return h;
 }
@@ -468,8 +473,8 @@ HypothesisCheck spr_check(const LureScene& sc) {
 HypothesisCheck minimality_check(const LureScene& sc) {
   const MinimalityCheck& m = sc.minimality;
   return {"a) (A, B, C) minimal (controllable and observable)", m.verdict(),
-          "PBH: controllable " + std::string(to_string(m.controllable)) + " (margin " + fmt(m.controllability_margin) + "), observable " +
-              to_string(m.observable) + " (margin " + fmt(m.observability_margin) + ")"};
+          "controllable " + std::string(to_string(m.controllable)) + ", observable " + to_string(m.observable) + ": " + m.method +
+              "; PBH margins of the balanced realisation " + fmt(m.controllability_margin) + ", " + fmt(m.observability_margin)};
 }
 
 }  // namespace

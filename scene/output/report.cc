@@ -617,7 +617,15 @@ nlohmann::json stability_json(const LureScene& sc, const Guarantees& g) {
                   {"controllability_margin", num(mc.controllability_margin)},
                   {"observable", to_string(mc.observable)},
                   {"observability_margin", num(mc.observability_margin)},
-                  {"test", "Popov-Belevitch-Hautus: min over the eigenvalues l of A of sigma_min([A - l I, B]) and of [A - l I; C]"}};
+                  {"exact", mc.exact},
+                  {"decided_by", mc.method},
+                  {"test", "Kalman ranks in exact rational arithmetic (n <= " + std::to_string(kExactMaxStates) +
+                               "); margins: Popov-Belevitch-Hautus on the balanced realisation, min over the eigenvalues l of A of "
+                               "sigma_min([A - l I, B]) and of [A - l I; C], relative to max(|A|, |B|) and max(|A|, |C|)"}};
+  if (mc.exact) {
+    j["minimal"]["controllability_rank"] = mc.controllability_rank;
+    j["minimal"]["observability_rank"] = mc.observability_rank;
+  }
   if (sc.P) {
     const StorageMatrixCheck& c = sc.p_check;
     j["P"] = "given";
@@ -634,8 +642,11 @@ nlohmann::json stability_json(const LureScene& sc, const Guarantees& g) {
   j["strictly_positive_real"] = to_string(t.spr);
   if (!t.witness.empty()) j["witness"] = t.witness;
   j["test"] = t.method;
-  j["A_hurwitz"] = {
-      {"verdict", to_string(t.hurwitz)}, {"spectral_abscissa", num(t.spectral_abscissa)}, {"tolerance", num(t.hurwitz_tolerance)}};
+  j["exact"] = t.exact;
+  j["A_hurwitz"] = {{"verdict", to_string(t.hurwitz)},
+                    {"decided_by", t.hurwitz_method},
+                    {"spectral_abscissa", num(t.spectral_abscissa)},
+                    {"tolerance", num(t.hurwitz_tolerance)}};
   nlohmann::json freq = {{"verdict", to_string(t.frequency)},
                          {"min_scaled_eigenvalue", num(t.min_frequency_eigenvalue)},
                          {"at_omega", num(t.argmin_omega)},
@@ -643,6 +654,10 @@ nlohmann::json stability_json(const LureScene& sc, const Guarantees& g) {
                          {"wc", num(t.wc)},
                          {"crossing_candidates", t.crossing_candidates},
                          {"evaluations", t.frequencies}};
+  if (!t.frequency_method.empty()) freq["decided_by"] = t.frequency_method;
+  if (t.frequency_exact != Verdict::kNotChecked) freq["exact_sturm"] = to_string(t.frequency_exact);
+  if (t.frequency_pencil != Verdict::kNotChecked) freq["popov_pencil"] = to_string(t.frequency_pencil);
+  if (t.frequency_exact != Verdict::kNotChecked) freq["crossings"] = t.crossings;
   if (t.witness_omega >= 0.0) freq["witness"] = {{"omega", num(t.witness_omega)}, {"scaled_eigenvalue", num(t.witness_value)}};
   j["frequency_condition"] = freq;
   j["CB_symmetric_positive_definite"] = {
@@ -751,15 +766,18 @@ std::string report_text(const LureScene& sc, const RunSummary& s, const LureDiag
     const PositiveRealnessTest& t = sc.spr;
     os << "  Lemmas 1-2    P not given; (A, B, C) strictly positive real: " << to_string(t.spr)
        << (t.witness.empty() ? "" : " (" + t.witness + ")") << "\n";
-    os << "                A Hurwitz " << to_string(t.hurwitz) << " (max Re lambda " << fmt(t.spectral_abscissa)
-       << "); G(jw) + G(jw)^H > 0 " << to_string(t.frequency) << " (smallest (1 + (w/wc)^2) lambda_min " << fmt(t.min_frequency_eigenvalue)
-       << " at w = " << fmt(t.argmin_omega) << "); CB = (CB)^T > 0 " << to_string(t.cb) << "; -(CAB + (CAB)^T) > 0 "
-       << to_string(t.high_frequency) << "\n";
+    os << "                A Hurwitz " << to_string(t.hurwitz) << " (" << t.hurwitz_method << "; max Re lambda " << fmt(t.spectral_abscissa)
+       << "); G(jw) + G(jw)^H > 0 " << to_string(t.frequency)
+       << (t.frequency_method.empty() ? std::string() : " (decided by " + t.frequency_method + ")")
+       << " (smallest (1 + (w/wc)^2) lambda_min " << fmt(t.min_frequency_eigenvalue) << " at w = " << fmt(t.argmin_omega)
+       << "); CB = (CB)^T > 0 " << to_string(t.cb) << "; -(CAB + (CAB)^T) > 0 " << to_string(t.high_frequency)
+       << (t.exact ? " (both exact)" : "") << "\n";
     os << "                how: " << t.method << "\n";
     os << "                certificate: " << to_string(t.certificate) << ": " << t.storage_method << "\n";
   }
-  os << "                minimal (PBH): " << to_string(sc.minimality.verdict()) << " (controllability margin "
-     << fmt(sc.minimality.controllability_margin) << ", observability margin " << fmt(sc.minimality.observability_margin) << ")\n";
+  os << "                minimal: " << to_string(sc.minimality.verdict()) << " (" << sc.minimality.method
+     << "; PBH margins of the balanced realisation " << fmt(sc.minimality.controllability_margin) << ", "
+     << fmt(sc.minimality.observability_margin) << ")\n";
   if (!graphs_contain_origin(sc))
     os << "                (0, 0) is not on every feedback graph: Lemma 2 (x = 0 exponentially stable, W non-increasing) "
           "does not apply\n";
