@@ -129,8 +129,10 @@ class LureIntegrator {
   const double* q() const { return x_.data(); }
   const double* v() const { return v_.data(); }
   double energy() const { return energy_; }
-  // Read from the values (RestTracker): 0.0 exactly, not reached through the subnormal numbers.
-  RestState rest_state() const { return rest_.state(); }
+  // Read from the values (RestTracker): 0.0 exactly, not reached through the subnormal numbers. The
+  // driver asks once per step, after the step is complete (and at the start): the update happens here,
+  // on the state as it stands then (updating the same state twice changes nothing).
+  RestState rest_state() const { return rest_.update(x_); }
   double energy_allowance(double e_old, double /*e_initial*/) const { return storage_allowance(x_, e_old); }
 
   // Row 0: y_0 = C x_0, w_0 the least-norm element of d phi(y_0).
@@ -175,7 +177,6 @@ class LureIntegrator {
   }
 
   bool arrive(std::int64_t k, double t, StepFailure& f) {
-    rest_.update(x_);
     LureDiagnostics& d = *d_;
     if (!x_.allFinite()) return f.at(k, t, x_.data(), nullptr, "the state became non-finite");
     for (int i = 0; i < m_; ++i) {
@@ -274,7 +275,7 @@ class LureIntegrator {
   bool square_invertible_ = false;
   Mat<N> c_square_;
   Eigen::PartialPivLU<Mat<N>> c_lu_;
-  RestTracker rest_;
+  mutable RestTracker rest_;
 };
 
 }  // namespace moreau

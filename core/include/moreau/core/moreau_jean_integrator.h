@@ -211,8 +211,10 @@ class MoreauJeanIntegrator {
   const double* q() const { return q_.data(); }
   const double* v() const { return v_.data(); }
   double energy() const { return kinetic_; }
-  // Read from the values (RestTracker): 0.0 exactly, not reached through the subnormal numbers.
-  RestState rest_state() const { return rest_.state(); }
+  // Read from the values (RestTracker): 0.0 exactly, not reached through the subnormal numbers. The
+  // driver asks once per step, after the step is complete (and at the start): the update happens here,
+  // on the state as it stands then (updating the same state twice changes nothing).
+  RestState rest_state() const { return rest_.update(v_); }
   double energy_allowance(double /*e_old*/, double e_initial) const {
     return 64.0 * std::numeric_limits<double>::epsilon() * std::max(kinetic_, e_initial);
   }
@@ -389,7 +391,6 @@ class MoreauJeanIntegrator {
   // Q^{k+1}, V^{k+1} become the state: finiteness, the gaps (and the optional position correction), the
   // settled contacts, and the terms and energies at the new state.
   bool arrive(std::int64_t k, double t, StepFailure& f) {
-    rest_.update(v_);
     ContactDiagnostics& d = *d_;
     if (!qn_.allFinite() || !vn_.allFinite()) return f.at(k, t, q_.data(), v_.data(), "the state became non-finite");
     if (nc_ > 0) {
@@ -766,7 +767,7 @@ class MoreauJeanIntegrator {
   GraphInclusionSolver<Eigen::Dynamic> corr_solver_;
   Eigen::MatrixXd Dc_;
   Eigen::VectorXd qc_, uc_, wc_;
-  RestTracker rest_;
+  mutable RestTracker rest_;
 };
 
 }  // namespace moreau
