@@ -14,13 +14,13 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
-#include <cstdio>
 #include <limits>
 #include <string>
 #include <utility>
 
 #include "moreau/core/observer.h"
 #include "moreau/core/run_summary.h"
+#include "moreau/platform/number_text.h"
 
 namespace moreau {
 
@@ -182,9 +182,7 @@ class RunRecorder {
     if (v && finite(v)) s_.v_final.assign(v, v + n_);
     s_.energy_nonincreasing = s_.energy_increases == 0;
     s_.status = RunStatus::kFailed;
-    char where[96];
-    std::snprintf(where, sizeof where, "step %lld (t = %.17g): ", static_cast<long long>(k), t);
-    s_.message = where + why;
+    s_.message = "step " + std::to_string(k) + " (t = " + platform::shortest(t) + "): " + why;
     return close();
   }
 
