@@ -1,20 +1,15 @@
 #include "json_checks.h"
 
 #include <algorithm>
-#include <sstream>
 
+#include "moreau/platform/number_text.h"
 #include "moreau/scene/scene.h"
 
 namespace moreau::scene::detail {
 
 using nlohmann::json;
 
-std::string format(double v) {
-  std::ostringstream os;
-  os.precision(12);
-  os << v;
-  return os.str();
-}
+std::string format(double v) { return platform::significant(v, 12); }
 
 std::string type_name(const json& j) {
   if (j.is_null()) return "null";

@@ -9,7 +9,8 @@
 
 namespace moreau::scene::detail {
 
-// A number as error messages quote it (12 significant digits).
+// A number as error messages quote it: 12 significant digits, "nan", "inf", "-inf"
+// (moreau/platform/number_text.h).
 std::string format(double v);
 // "a number", "an array", ...: what a JSON value is, for error messages.
 std::string type_name(const nlohmann::json& j);
