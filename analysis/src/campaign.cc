@@ -31,6 +31,8 @@
 #include "moreau/core/observer.h"
 #include "moreau/core/stepping_driver.h"
 #include "moreau/platform/fnv1a.h"
+#include "moreau/platform/number_text.h"
+#include "moreau/scene/json_number.h"
 #include "moreau/scene/line_reader.h"
 #include "moreau/scene/scene.h"
 #include "moreau/scene/simulation.h"
@@ -599,10 +601,9 @@ class ExtremaTracker final : public RunObserver {
   double max_abs_q = 0.0, max_energy = 0.0;
 };
 
-json number_or_null(double x) { return std::isfinite(x) ? json(x) : json(nullptr); }
 json numbers(const std::vector<double>& v) {
   json a = json::array();
-  for (double x : v) a.push_back(number_or_null(x));
+  for (double x : v) a.push_back(finite_or_null(x));
   return a;
 }
 
@@ -658,7 +659,7 @@ json CampaignSampleRunner::record_of(std::int64_t i, const std::vector<json>& va
   const bool completed = summary.status == RunStatus::kCompleted;
   record["status"] = to_string(summary.status);
   record["converged"] = summary.converged_step.has_value();
-  record["converged_time"] = summary.converged_time ? json(*summary.converged_time) : json(nullptr);
+  record["converged_time"] = summary.converged_time ? finite_or_null(*summary.converged_time) : json(nullptr);
   record["final_q"] = numbers(summary.q_final);
   record["final_v"] = numbers(summary.v_final);
   // No target: nothing to check. A final state of another size than the target's (a sample that
@@ -668,12 +669,12 @@ json CampaignSampleRunner::record_of(std::int64_t i, const std::vector<json>& va
     distance = 0.0;
     for (std::size_t k = 0; k < spec.target_q.size(); ++k) distance += std::pow(summary.q_final[k] - spec.target_q[k], 2);
     distance = std::sqrt(distance);
-    record["target_distance"] = number_or_null(distance);
+    record["target_distance"] = finite_or_null(distance);
   } else {
     record["target_distance"] = nullptr;
   }
-  record["max_abs_q"] = number_or_null(extrema.max_abs_q);
-  record["max_energy"] = number_or_null(extrema.max_energy);
+  record["max_abs_q"] = finite_or_null(extrema.max_abs_q);
+  record["max_energy"] = finite_or_null(extrema.max_energy);
   record["steps"] = summary.steps;
   const std::string failure = completed ? sim.hypothesis_failure(summary) : std::string();
   record["hypothesis_failed"] = failure.empty() ? json(nullptr) : json(failure);
@@ -825,7 +826,6 @@ json quantiles_of(std::vector<double> v) {
   return q;
 }
 
-double as_number(const json& j) { return j.is_number() ? j.get<double>() : std::nan(""); }
 }  // namespace
 
 namespace {
@@ -838,12 +838,12 @@ CampaignOutcome row_of(const CampaignSpec& spec, const json& r) {
   row.converged = r.value("converged", false);
   row.failure_class = status == "invalid" ? 3 : status == "failed" ? 2 : !row.success ? 1 : 0;
   row.hypothesis_failed = r.contains("hypothesis_failed") && r["hypothesis_failed"].is_string();
-  auto number = [&](const char* key) { return r.contains(key) ? as_number(r[key]) : std::nan(""); };
+  auto number = [&](const char* key) { return r.contains(key) ? number_or_nan(r[key]) : std::nan(""); };
   row.converged_time = row.converged ? number("converged_time") : std::nan("");
   row.target_distance = number("target_distance");
   row.max_abs_q = number("max_abs_q");
   const json& inputs = r.contains("inputs") ? r["inputs"] : json::object();
-  for (const auto& in : spec.inputs) row.inputs.push_back(inputs.contains(in.path) ? as_number(inputs[in.path]) : std::nan(""));
+  for (const auto& in : spec.inputs) row.inputs.push_back(inputs.contains(in.path) ? number_or_nan(inputs[in.path]) : std::nan(""));
   return row;
 }
 
@@ -893,7 +893,7 @@ json summarize_rows(const CampaignSpec& spec, const std::vector<CampaignOutcome>
   for (std::size_t k = 0; k < worst_count; ++k) {
     const CampaignOutcome& r = rows[order[k]];
     json inputs = json::object();
-    for (std::size_t d = 0; d < spec.inputs.size(); ++d) inputs[spec.inputs[d].path] = number_or_null(r.inputs[d]);
+    for (std::size_t d = 0; d < spec.inputs.size(); ++d) inputs[spec.inputs[d].path] = finite_or_null(r.inputs[d]);
     worst.push_back({{"index", r.index},
                      {"inputs", inputs},
                      {"success", r.success},
@@ -901,8 +901,8 @@ json summarize_rows(const CampaignSpec& spec, const std::vector<CampaignOutcome>
                                  : r.failure_class == 2 ? "failed run"
                                  : r.success            ? "succeeded"
                                                         : "did not succeed"},
-                     {"converged_time", number_or_null(r.converged_time)},
-                     {"target_distance", number_or_null(r.target_distance)}});
+                     {"converged_time", finite_or_null(r.converged_time)},
+                     {"target_distance", finite_or_null(r.target_distance)}});
   }
   s["worst"] = worst;
 
@@ -1093,7 +1093,8 @@ std::string csv_cell(const json& j) {
     return out + "\"";
   }
   if (j.is_boolean()) return j.get<bool>() ? "1" : "0";
-  if (j.is_structured()) return csv_cell(json(j.dump()));  // a discrete value that is an array or object: quoted
+  if (j.is_structured()) return csv_cell(json(j.dump()));               // a discrete value that is an array or object: quoted
+  if (j.is_number_float()) return platform::shortest(j.get<double>());  // reads back bit for bit, as in every CSV
   return j.dump();
 }
 
@@ -1200,7 +1201,7 @@ std::int64_t check_record(const CampaignSpec& spec, const CampaignDesign& design
     throw bad("sample " + std::to_string(i) + "'s inputs are not the spec's " + std::to_string(drawn.size()) + " inputs");
   for (std::size_t k = 0; k < drawn.size(); ++k) {
     const std::string& path = spec.inputs[k].path;
-    const json want = drawn[k].is_number_float() && !std::isfinite(drawn[k].get<double>()) ? json(nullptr) : drawn[k];
+    const json want = drawn[k].is_number_float() ? finite_or_null(drawn[k].get<double>()) : drawn[k];
     const auto got = inputs->find(path);
     if (got == inputs->end() || *got != want)
       throw bad("sample " + std::to_string(i) + "'s input " + path + " is " +
