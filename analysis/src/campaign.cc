@@ -46,72 +46,45 @@ namespace {
 
 // ---- the spec ----
 
-std::string describe(const json& j) {
-  std::string s = j.dump();
-  return s.size() > 60 ? s.substr(0, 57) + "..." : s;
-}
+// The checks and quoting of the spec's JSON are scene/input/json_checks.h's, as for a scene.
+using detail::brief;
+using detail::check_fields;
+using detail::path_as_pointer;
+using detail::required_field;
 
 double finite_number(const json& j, const std::string& ptr) {
-  if (!j.is_number()) throw SceneError(ptr, "expected a number, got " + describe(j));
+  if (!j.is_number()) throw SceneError(ptr, "expected a number, got " + brief(j));
   const double v = j.get<double>();
   if (!std::isfinite(v)) throw SceneError(ptr, "expected a finite number");
   return v;
 }
 
-const json& member(const json& obj, const std::string& ptr, const char* name) {
-  if (!obj.contains(name)) throw SceneError(ptr, std::string("missing '") + name + "'");
-  return obj[name];
-}
-
-void only_fields(const json& obj, const std::string& ptr, std::initializer_list<const char*> allowed) {
-  for (const auto& item : obj.items()) {
-    const std::string& key = item.key();  // a variable, not a structured binding: clang 14 cannot capture those
-    if (std::none_of(allowed.begin(), allowed.end(), [&](const char* a) { return key == a; }))
-      throw SceneError(ptr + "/" + json_pointer_token(key), "unknown field '" + key + "'");
-  }
-}
-
-// "/parameters/m2", or dotted "parameters.m2" / "initial.q.0" (also "initial.q/0"), as a JSON pointer.
-std::string as_pointer(const std::string& path) {
-  if (!path.empty() && path[0] == '/') return path;
-  std::string ptr, token;
-  for (char c : path + ".") {
-    if (c == '.' || c == '/') {
-      ptr += "/" + json_pointer_token(token);
-      token.clear();
-    } else {
-      token += c;
-    }
-  }
-  return ptr;
-}
-
 InputDistribution parse_distribution(const json& d, const std::string& ptr) {
-  if (!d.is_object()) throw SceneError(ptr, "expected an object with a 'type', got " + describe(d));
-  const json& type = member(d, ptr, "type");
+  if (!d.is_object()) throw SceneError(ptr, "expected an object with a 'type', got " + brief(d));
+  const json& type = required_field(d, ptr, "type");
   if (!type.is_string()) throw SceneError(ptr + "/type", "expected a string");
   const std::string t = type.get<std::string>();
   InputDistribution r;
   auto bounds = [&](bool positive) {
-    r.low = finite_number(member(d, ptr, "low"), ptr + "/low");
-    r.high = finite_number(member(d, ptr, "high"), ptr + "/high");
+    r.low = finite_number(required_field(d, ptr, "low"), ptr + "/low");
+    r.high = finite_number(required_field(d, ptr, "high"), ptr + "/high");
     if (!(r.low < r.high)) throw SceneError(ptr + "/high", "the bounds are inverted or equal: low must be below high");
     if (positive && !(r.low > 0.0)) throw SceneError(ptr + "/low", "a log-uniform distribution needs low > 0");
     if (!std::isfinite(r.high - r.low)) throw SceneError(ptr + "/high", "high - low overflows a double");
   };
   if (t == "uniform") {
-    only_fields(d, ptr, {"type", "low", "high"});
+    check_fields(d, ptr, {"type", "low", "high"});
     r.kind = InputDistribution::Kind::kUniform;
     bounds(false);
   } else if (t == "log-uniform") {
-    only_fields(d, ptr, {"type", "low", "high"});
+    check_fields(d, ptr, {"type", "low", "high"});
     r.kind = InputDistribution::Kind::kLogUniform;
     bounds(true);
   } else if (t == "normal") {
-    only_fields(d, ptr, {"type", "mean", "std", "low", "high"});
+    check_fields(d, ptr, {"type", "mean", "std", "low", "high"});
     r.kind = InputDistribution::Kind::kNormal;
-    r.mean = finite_number(member(d, ptr, "mean"), ptr + "/mean");
-    r.stddev = finite_number(member(d, ptr, "std"), ptr + "/std");
+    r.mean = finite_number(required_field(d, ptr, "mean"), ptr + "/mean");
+    r.stddev = finite_number(required_field(d, ptr, "std"), ptr + "/std");
     if (!(r.stddev > 0.0)) throw SceneError(ptr + "/std", "the standard deviation must be positive");
     bounds(false);
     // Phi(b) - Phi(a) must not vanish: bounds many deviations away from the mean leave nothing to draw.
@@ -126,7 +99,7 @@ InputDistribution parse_distribution(const json& d, const std::string& ptr) {
   } else if (t == "discrete" || t == "grid") {
     r.kind = t == "grid" ? InputDistribution::Kind::kGrid : InputDistribution::Kind::kDiscrete;
     if (d.contains("values")) {
-      only_fields(d, ptr, {"type", "values"});
+      check_fields(d, ptr, {"type", "values"});
       const json& v = d["values"];
       if (!v.is_array() || v.empty()) throw SceneError(ptr + "/values", "expected a non-empty array of values");
       if (v.size() > 1'000'000) throw SceneError(ptr + "/values", "more than 1000000 values");
@@ -136,9 +109,9 @@ InputDistribution parse_distribution(const json& d, const std::string& ptr) {
         r.values.push_back(v[i]);
       }
     } else if (t == "grid") {
-      only_fields(d, ptr, {"type", "low", "high", "count"});
+      check_fields(d, ptr, {"type", "low", "high", "count"});
       bounds(false);
-      const json& c = member(d, ptr, "count");
+      const json& c = required_field(d, ptr, "count");
       if (!c.is_number_integer() || c.get<std::int64_t>() < 2 || c.get<std::int64_t>() > 1'000'000)
         throw SceneError(ptr + "/count", "expected a whole number of points in [2, 1000000]");
       const auto n = c.get<std::int64_t>();
@@ -228,17 +201,17 @@ std::string campaign_spec_hash(const json& document) {
 
 CampaignSpec CampaignSpec::from_json(const json& spec, const std::string& base_dir) {
   if (!spec.is_object()) throw SceneError("/", "a campaign spec is a JSON object");
-  only_fields(spec, "", {"name", "description", "scene", "inputs", "sampler", "seed", "samples", "target", "full_report", "map"});
+  check_fields(spec, "", {"name", "description", "scene", "inputs", "sampler", "seed", "samples", "target", "full_report", "map"});
   CampaignSpec s;
   s.document = spec;
   if (spec.contains("name") && !spec["name"].is_string()) throw SceneError("/name", "expected a string");
   s.name = spec.value("name", "campaign");
   // Names are data: they reach Slurm's batch script and command lines, file names and messages.
   if (!is_campaign_name(s.name))
-    throw SceneError("/name", detail::brief(json(s.name)) + " is not a campaign name: 1 to " + std::to_string(kMaxCampaignNameLength) +
+    throw SceneError("/name", brief(json(s.name)) + " is not a campaign name: 1 to " + std::to_string(kMaxCampaignNameLength) +
                                   " characters, each a letter A-Z or a-z, a digit, '.', '_' or '-'");
   // The scene: inline, or a file relative to the spec's directory.
-  const json& scene = member(spec, "", "scene");
+  const json& scene = required_field(spec, "", "scene");
   if (scene.is_string()) {
     fs::path p = scene.get<std::string>();
     if (p.is_relative()) p = fs::path(base_dir) / p;
@@ -260,7 +233,7 @@ CampaignSpec CampaignSpec::from_json(const json& spec, const std::string& base_d
     throw SceneError("/scene" + (e.pointer() == "/" ? std::string() : e.pointer()), e.reason());
   }
 
-  const json& inputs = member(spec, "", "inputs");
+  const json& inputs = required_field(spec, "", "inputs");
   if (!inputs.is_array() || inputs.empty()) throw SceneError("/inputs", "expected a non-empty array of uncertain inputs");
   if (inputs.size() > static_cast<std::size_t>(kMaxCampaignInputs))
     throw SceneError("/inputs", "more than " + std::to_string(kMaxCampaignInputs) + " inputs");
@@ -270,12 +243,12 @@ CampaignSpec CampaignSpec::from_json(const json& spec, const std::string& base_d
     const std::string ptr = "/inputs/" + std::to_string(k);
     const json& in = inputs[k];
     if (!in.is_object()) throw SceneError(ptr, "expected an object with 'path' and 'distribution'");
-    only_fields(in, ptr, {"path", "distribution"});
-    const json& path = member(in, ptr, "path");
+    check_fields(in, ptr, {"path", "distribution"});
+    const json& path = required_field(in, ptr, "path");
     if (!path.is_string() || path.get<std::string>().empty())
       throw SceneError(ptr + "/path", "expected a scene path such as /parameters/m2");
     CampaignInput ci;
-    ci.path = as_pointer(path.get<std::string>());
+    ci.path = path_as_pointer(path.get<std::string>());
     json::json_pointer jp;
     try {
       jp = json::json_pointer(ci.path);
@@ -298,7 +271,7 @@ CampaignSpec CampaignSpec::from_json(const json& spec, const std::string& base_d
       if (b.compare(0, a.size(), a) == 0 && b.size() > a.size() && b[a.size()] == '/')
         throw SceneError(ptr + "/path", "'" + ci.path + "' and the input '" + other.path + "' overlap (one holds the other)");
     }
-    ci.distribution = parse_distribution(member(in, ptr, "distribution"), ptr + "/distribution");
+    ci.distribution = parse_distribution(required_field(in, ptr, "distribution"), ptr + "/distribution");
     // The values of discrete inputs and grids are held in memory: a few kilobytes of spec must not ask
     // for gigabytes.
     total_values += ci.distribution.values.size();
@@ -347,9 +320,9 @@ CampaignSpec CampaignSpec::from_json(const json& spec, const std::string& base_d
       throw SceneError("/samples", "the grid has " + std::to_string(total) + " points; leave 'samples' out or give that number");
     s.samples = total;
   } else {
-    const json& n = member(spec, "", "samples");
+    const json& n = required_field(spec, "", "samples");
     if (!n.is_number_integer() || n.get<std::int64_t>() < 1)
-      throw SceneError("/samples", "expected a whole number of samples >= 1, got " + describe(n));
+      throw SceneError("/samples", "expected a whole number of samples >= 1, got " + brief(n));
     s.samples = n.get<std::int64_t>();
     if (s.samples > kMaxCampaignSamples)
       throw SceneError("/samples", "more than the limit of " + std::to_string(kMaxCampaignSamples) + " samples");
@@ -367,7 +340,7 @@ CampaignSpec CampaignSpec::from_json(const json& spec, const std::string& base_d
     for (std::size_t k = 0; k < 2; ++k) {
       const std::string ptr = "/map/" + std::to_string(k);
       if (!m[k].is_string()) throw SceneError(ptr, "expected the path of an input");
-      const std::string path = as_pointer(m[k].get<std::string>());
+      const std::string path = path_as_pointer(m[k].get<std::string>());
       const auto it = std::find_if(s.inputs.begin(), s.inputs.end(), [&](const CampaignInput& in) { return in.path == path; });
       if (it == s.inputs.end()) throw SceneError(ptr, "'" + m[k].get<std::string>() + "' is not one of the inputs");
       if (!it->distribution.numeric()) throw SceneError(ptr, "'" + path + "' takes values that are not numbers");
@@ -388,13 +361,13 @@ CampaignSpec CampaignSpec::from_json(const json& spec, const std::string& base_d
   if (spec.contains("target")) {
     const json& t = spec["target"];
     if (!t.is_object()) throw SceneError("/target", "expected {\"q\": [...], \"tolerance\": ...}");
-    only_fields(t, "/target", {"q", "tolerance"});
-    const json& q = member(t, "/target", "q");
+    check_fields(t, "/target", {"q", "tolerance"});
+    const json& q = required_field(t, "/target", "q");
     const int n = Simulation::from_json(s.scene).dof();
     if (!q.is_array() || static_cast<int>(q.size()) != n)
       throw SceneError("/target/q", "expected an array of " + std::to_string(n) + " numbers (the scene's coordinates)");
     for (std::size_t i = 0; i < q.size(); ++i) s.target_q.push_back(finite_number(q[i], "/target/q/" + std::to_string(i)));
-    s.target_tolerance = finite_number(member(t, "/target", "tolerance"), "/target/tolerance");
+    s.target_tolerance = finite_number(required_field(t, "/target", "tolerance"), "/target/tolerance");
     if (s.target_tolerance < 0.0) throw SceneError("/target/tolerance", "expected a number >= 0");
   }
   s.hash = campaign_spec_hash(s.document);
@@ -1179,7 +1152,7 @@ void write_summary(const fs::path& dir, const json& summary) {
 namespace {
 
 // A record's value for a message: its serialization, at most about 200 bytes of it (whole UTF-8 characters).
-std::string quoted(const json& j) { return j.is_null() ? std::string("nothing") : detail::brief(j); }
+std::string quoted(const json& j) { return j.is_null() ? std::string("nothing") : brief(j); }
 
 // Refuses (std::runtime_error at `where`, "'FILE' line N") a record that is not sample i of this campaign
 // as the spec defines it: another spec's hash (or none), inputs other than those the sampler draws for

@@ -51,4 +51,28 @@ void check_fields(const json& obj, const std::string& ptr, const std::vector<std
   }
 }
 
+const json& required_field(const json& obj, const std::string& ptr, const char* name) {
+  if (!obj.contains(name)) throw SceneError(ptr, std::string("missing '") + name + "'");
+  return obj[name];
+}
+
+std::string path_as_pointer(const std::string& path) {
+  if (!path.empty() && path[0] == '/') return path;
+  std::string ptr, token;
+  // Appended piece by piece: `"/" + std::string` trips a false -Wrestrict in GCC 12 (bug 105329).
+  auto end_token = [&] {
+    ptr += '/';
+    ptr += json_pointer_token(token);
+    token.clear();
+  };
+  for (char c : path) {
+    if (c == '.' || c == '/')
+      end_token();
+    else
+      token += c;
+  }
+  end_token();
+  return ptr;
+}
+
 }  // namespace moreau::scene::detail

@@ -1,5 +1,6 @@
-// The checks and quoting every reader of scene JSON uses (the compilers, the text and file readers):
-// one home, so that every error names its field and quotes input the same way.
+// The checks and quoting every reader of scene JSON uses (the compilers, the text and file readers, and
+// analysis/src/campaign.cc for a campaign's spec): one home, so that every error names its field and
+// quotes input the same way.
 #pragma once
 
 #include <string>
@@ -24,5 +25,10 @@ std::string brief(const nlohmann::json& j);
 // Throw SceneError at `ptr` unless `j` is an object / has only the `allowed` fields.
 void require_object(const nlohmann::json& j, const std::string& ptr);
 void check_fields(const nlohmann::json& obj, const std::string& ptr, const std::vector<std::string>& allowed);
+// The field `name` of the object `obj` (at `ptr`); SceneError "missing 'name'" at `ptr` when absent.
+const nlohmann::json& required_field(const nlohmann::json& obj, const std::string& ptr, const char* name);
+// A path into a document as a JSON pointer: "/parameters/m2" as it is, or dotted, "parameters.m2" and
+// "initial.q.0" (also "initial.q/0"), each token escaped (json_pointer_token).
+std::string path_as_pointer(const std::string& path);
 
 }  // namespace moreau::scene::detail
