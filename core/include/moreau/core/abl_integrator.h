@@ -48,6 +48,7 @@
 #include "moreau/core/step_conditions.h"
 #include "moreau/core/stepping_driver.h"
 #include "moreau/core/types.h"
+#include "moreau/platform/number_text.h"
 
 namespace moreau {
 
@@ -189,8 +190,8 @@ class AblIntegrator {
     } else {
       if (!solver_.solve(P_, x_, y_, st)) {
         return f.at(k, t, q_.data(), v_.data(),
-                    "the one-step inclusion (6.5) was not solved to round-off (residual " + std::to_string(st.residual) + ", tolerance " +
-                        std::to_string(st.tolerance) + ")");
+                    "the one-step inclusion (6.5) was not solved to round-off (residual " + platform::significant(st.residual, 3) +
+                        ", tolerance " + platform::significant(st.tolerance, 3) + ")");
       }
       // The work done against dPhi over the step, h_k <xi, V^{k+1}> with xi = -(P y + x) + W y in dPhi(y):
       // the same for every element of dPhi(y) (dissipation_rate in controller.h), so it needs no multiplier.
