@@ -22,6 +22,7 @@
 #include "remote_command_list.h"
 #include "terminal_text.h"
 #include "moreau/analysis/figure_kind.h"
+#include "moreau/platform/number_text.h"
 #include "moreau/scene/scene.h"
 
 // After Eigen (through scene.h): httplib.h brings <resolv.h>, whose `_res` macro breaks Eigen.
@@ -121,11 +122,8 @@ int guarded(F&& command) {
   }
 }
 
-std::string fmt(double v) {
-  char buf[40];
-  std::snprintf(buf, sizeof buf, "%.10g", v);
-  return buf;
-}
+// Numbers for a person: 10 significant digits.
+std::string fmt(double v) { return platform::significant(v, 10); }
 
 bool is_final(const std::string& state) { return state == "done" || state == "failed" || state == "cancelled"; }
 

@@ -26,6 +26,7 @@
 #include "commands.h"
 #include "remote_command_list.h"
 #include "terminal_text.h"
+#include "moreau/platform/number_text.h"
 #include "moreau/render/figures.h"
 #include "moreau/render/render.h"
 
@@ -65,11 +66,8 @@ struct JobView {
 
 constexpr std::size_t kMaxPoints = 20000;
 
-std::string fmt(double v, int precision = 6) {
-  char buf[40];
-  std::snprintf(buf, sizeof buf, "%.*g", precision, v);
-  return buf;
-}
+// Numbers on the live lines: 6 significant digits unless said otherwise.
+std::string fmt(double v, int digits = 6) { return platform::significant(v, digits); }
 
 std::string vec(const std::vector<double>& x) {
   std::string s = "[";

@@ -7,9 +7,11 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <limits>
 #include <vector>
 
 #include "moreau/core/models/manipulator.h"
+#include "moreau/scene/json_number.h"
 #include "moreau/scene/scene.h"
 #include "moreau/scene/scene_model.h"
 #include "moreau/scene/simulation.h"
@@ -719,6 +721,25 @@ TEST(Scene, UrdfJointNamesFollowTheCoordinateNameRule) {
             0u)
       << scene_error(two_joint_scene("a", "a-dot"));
   EXPECT_EQ(scene_error(two_joint_scene("a-b", "a_b")), "/system/urdf/text: joint 'a_b' (line 8): duplicate name 'a_b'");
+}
+
+// JSON has no NaN or infinity: a writer puts null for them (never an invalid document, never a string),
+// the reader of that JSON gets NaN back, and the document read back equals the value written.
+TEST(JsonNumber, NonFiniteValuesAreNullAndReadBackAsNaN) {
+  const double nan = std::numeric_limits<double>::quiet_NaN(), inf = std::numeric_limits<double>::infinity();
+  for (const double v : {nan, -nan, inf, -inf}) {
+    const nlohmann::json j = finite_or_null(v);
+    EXPECT_TRUE(j.is_null());
+    EXPECT_TRUE(std::isnan(number_or_nan(j)));
+  }
+  EXPECT_EQ(finite_or_null(0.1).get<double>(), 0.1);
+  EXPECT_TRUE(std::signbit(finite_or_null(-0.0).get<double>()));
+  const nlohmann::json doc = {{"error", finite_or_null(nan)}, {"h", finite_or_null(0.1)}};
+  EXPECT_EQ(doc.dump(), R"({"error":null,"h":0.1})");
+  EXPECT_EQ(nlohmann::json::parse(doc.dump()), doc);
+  EXPECT_EQ(number_or_nan(nlohmann::json::parse("0.1")), 0.1);
+  EXPECT_EQ(number_or_nan(nlohmann::json(3)), 3.0);
+  EXPECT_TRUE(std::isnan(number_or_nan(nlohmann::json("1"))));
 }
 
 }  // namespace

@@ -33,6 +33,8 @@
 #include "moreau/core/observer.h"
 #include "moreau/core/stepping_driver.h"
 #include "moreau/platform/fnv1a.h"
+#include "moreau/platform/number_text.h"
+#include "moreau/scene/json_number.h"
 #include "moreau/scene/line_reader.h"
 #include "moreau/scene/scene.h"
 #include "moreau/scene/simulation.h"
@@ -46,72 +48,45 @@ namespace {
 
 // ---- the spec ----
 
-std::string describe(const json& j) {
-  std::string s = j.dump();
-  return s.size() > 60 ? s.substr(0, 57) + "..." : s;
-}
+// The checks and quoting of the spec's JSON are scene/input/json_checks.h's, as for a scene.
+using detail::brief;
+using detail::check_fields;
+using detail::path_as_pointer;
+using detail::required_field;
 
 double finite_number(const json& j, const std::string& ptr) {
-  if (!j.is_number()) throw SceneError(ptr, "expected a number, got " + describe(j));
+  if (!j.is_number()) throw SceneError(ptr, "expected a number, got " + brief(j));
   const double v = j.get<double>();
   if (!std::isfinite(v)) throw SceneError(ptr, "expected a finite number");
   return v;
 }
 
-const json& member(const json& obj, const std::string& ptr, const char* name) {
-  if (!obj.contains(name)) throw SceneError(ptr, std::string("missing '") + name + "'");
-  return obj[name];
-}
-
-void only_fields(const json& obj, const std::string& ptr, std::initializer_list<const char*> allowed) {
-  for (const auto& item : obj.items()) {
-    const std::string& key = item.key();  // a variable, not a structured binding: clang 14 cannot capture those
-    if (std::none_of(allowed.begin(), allowed.end(), [&](const char* a) { return key == a; }))
-      throw SceneError(ptr + "/" + json_pointer_token(key), "unknown field '" + key + "'");
-  }
-}
-
-// "/parameters/m2", or dotted "parameters.m2" / "initial.q.0" (also "initial.q/0"), as a JSON pointer.
-std::string as_pointer(const std::string& path) {
-  if (!path.empty() && path[0] == '/') return path;
-  std::string ptr, token;
-  for (char c : path + ".") {
-    if (c == '.' || c == '/') {
-      ptr += "/" + json_pointer_token(token);
-      token.clear();
-    } else {
-      token += c;
-    }
-  }
-  return ptr;
-}
-
 InputDistribution parse_distribution(const json& d, const std::string& ptr) {
-  if (!d.is_object()) throw SceneError(ptr, "expected an object with a 'type', got " + describe(d));
-  const json& type = member(d, ptr, "type");
+  if (!d.is_object()) throw SceneError(ptr, "expected an object with a 'type', got " + brief(d));
+  const json& type = required_field(d, ptr, "type");
   if (!type.is_string()) throw SceneError(ptr + "/type", "expected a string");
   const std::string t = type.get<std::string>();
   InputDistribution r;
   auto bounds = [&](bool positive) {
-    r.low = finite_number(member(d, ptr, "low"), ptr + "/low");
-    r.high = finite_number(member(d, ptr, "high"), ptr + "/high");
+    r.low = finite_number(required_field(d, ptr, "low"), ptr + "/low");
+    r.high = finite_number(required_field(d, ptr, "high"), ptr + "/high");
     if (!(r.low < r.high)) throw SceneError(ptr + "/high", "the bounds are inverted or equal: low must be below high");
     if (positive && !(r.low > 0.0)) throw SceneError(ptr + "/low", "a log-uniform distribution needs low > 0");
     if (!std::isfinite(r.high - r.low)) throw SceneError(ptr + "/high", "high - low overflows a double");
   };
   if (t == "uniform") {
-    only_fields(d, ptr, {"type", "low", "high"});
+    check_fields(d, ptr, {"type", "low", "high"});
     r.kind = InputDistribution::Kind::kUniform;
     bounds(false);
   } else if (t == "log-uniform") {
-    only_fields(d, ptr, {"type", "low", "high"});
+    check_fields(d, ptr, {"type", "low", "high"});
     r.kind = InputDistribution::Kind::kLogUniform;
     bounds(true);
   } else if (t == "normal") {
-    only_fields(d, ptr, {"type", "mean", "std", "low", "high"});
+    check_fields(d, ptr, {"type", "mean", "std", "low", "high"});
     r.kind = InputDistribution::Kind::kNormal;
-    r.mean = finite_number(member(d, ptr, "mean"), ptr + "/mean");
-    r.stddev = finite_number(member(d, ptr, "std"), ptr + "/std");
+    r.mean = finite_number(required_field(d, ptr, "mean"), ptr + "/mean");
+    r.stddev = finite_number(required_field(d, ptr, "std"), ptr + "/std");
     if (!(r.stddev > 0.0)) throw SceneError(ptr + "/std", "the standard deviation must be positive");
     bounds(false);
     // Phi(b) - Phi(a) must not vanish: bounds many deviations away from the mean leave nothing to draw.
@@ -126,7 +101,7 @@ InputDistribution parse_distribution(const json& d, const std::string& ptr) {
   } else if (t == "discrete" || t == "grid") {
     r.kind = t == "grid" ? InputDistribution::Kind::kGrid : InputDistribution::Kind::kDiscrete;
     if (d.contains("values")) {
-      only_fields(d, ptr, {"type", "values"});
+      check_fields(d, ptr, {"type", "values"});
       const json& v = d["values"];
       if (!v.is_array() || v.empty()) throw SceneError(ptr + "/values", "expected a non-empty array of values");
       if (v.size() > 1'000'000) throw SceneError(ptr + "/values", "more than 1000000 values");
@@ -136,9 +111,9 @@ InputDistribution parse_distribution(const json& d, const std::string& ptr) {
         r.values.push_back(v[i]);
       }
     } else if (t == "grid") {
-      only_fields(d, ptr, {"type", "low", "high", "count"});
+      check_fields(d, ptr, {"type", "low", "high", "count"});
       bounds(false);
-      const json& c = member(d, ptr, "count");
+      const json& c = required_field(d, ptr, "count");
       if (!c.is_number_integer() || c.get<std::int64_t>() < 2 || c.get<std::int64_t>() > 1'000'000)
         throw SceneError(ptr + "/count", "expected a whole number of points in [2, 1000000]");
       const auto n = c.get<std::int64_t>();
@@ -228,7 +203,7 @@ std::string campaign_spec_hash(const json& document) {
 
 CampaignSpec CampaignSpec::from_json(const json& spec, const std::string& base_dir) {
   if (!spec.is_object()) throw SceneError("/", "a campaign spec is a JSON object");
-  only_fields(spec, "",
+  check_fields(spec, "",
               {"name", "description", "scene", "inputs", "sampler", "seed", "samples", "target", "full_report", "map", "sensitivity"});
   CampaignSpec s;
   s.document = spec;
@@ -236,10 +211,10 @@ CampaignSpec CampaignSpec::from_json(const json& spec, const std::string& base_d
   s.name = spec.value("name", "campaign");
   // Names are data: they reach Slurm's batch script and command lines, file names and messages.
   if (!is_campaign_name(s.name))
-    throw SceneError("/name", detail::brief(json(s.name)) + " is not a campaign name: 1 to " + std::to_string(kMaxCampaignNameLength) +
+    throw SceneError("/name", brief(json(s.name)) + " is not a campaign name: 1 to " + std::to_string(kMaxCampaignNameLength) +
                                   " characters, each a letter A-Z or a-z, a digit, '.', '_' or '-'");
   // The scene: inline, or a file relative to the spec's directory.
-  const json& scene = member(spec, "", "scene");
+  const json& scene = required_field(spec, "", "scene");
   if (scene.is_string()) {
     fs::path p = scene.get<std::string>();
     if (p.is_relative()) p = fs::path(base_dir) / p;
@@ -261,7 +236,7 @@ CampaignSpec CampaignSpec::from_json(const json& spec, const std::string& base_d
     throw SceneError("/scene" + (e.pointer() == "/" ? std::string() : e.pointer()), e.reason());
   }
 
-  const json& inputs = member(spec, "", "inputs");
+  const json& inputs = required_field(spec, "", "inputs");
   if (!inputs.is_array() || inputs.empty()) throw SceneError("/inputs", "expected a non-empty array of uncertain inputs");
   if (inputs.size() > static_cast<std::size_t>(kMaxCampaignInputs))
     throw SceneError("/inputs", "more than " + std::to_string(kMaxCampaignInputs) + " inputs");
@@ -271,12 +246,12 @@ CampaignSpec CampaignSpec::from_json(const json& spec, const std::string& base_d
     const std::string ptr = "/inputs/" + std::to_string(k);
     const json& in = inputs[k];
     if (!in.is_object()) throw SceneError(ptr, "expected an object with 'path' and 'distribution'");
-    only_fields(in, ptr, {"path", "distribution"});
-    const json& path = member(in, ptr, "path");
+    check_fields(in, ptr, {"path", "distribution"});
+    const json& path = required_field(in, ptr, "path");
     if (!path.is_string() || path.get<std::string>().empty())
       throw SceneError(ptr + "/path", "expected a scene path such as /parameters/m2");
     CampaignInput ci;
-    ci.path = as_pointer(path.get<std::string>());
+    ci.path = path_as_pointer(path.get<std::string>());
     json::json_pointer jp;
     try {
       jp = json::json_pointer(ci.path);
@@ -299,7 +274,7 @@ CampaignSpec CampaignSpec::from_json(const json& spec, const std::string& base_d
       if (b.compare(0, a.size(), a) == 0 && b.size() > a.size() && b[a.size()] == '/')
         throw SceneError(ptr + "/path", "'" + ci.path + "' and the input '" + other.path + "' overlap (one holds the other)");
     }
-    ci.distribution = parse_distribution(member(in, ptr, "distribution"), ptr + "/distribution");
+    ci.distribution = parse_distribution(required_field(in, ptr, "distribution"), ptr + "/distribution");
     // The values of discrete inputs and grids are held in memory: a few kilobytes of spec must not ask
     // for gigabytes.
     total_values += ci.distribution.values.size();
@@ -350,9 +325,9 @@ CampaignSpec CampaignSpec::from_json(const json& spec, const std::string& base_d
       throw SceneError("/samples", "the grid has " + std::to_string(total) + " points; leave 'samples' out or give that number");
     s.samples = total;
   } else {
-    const json& n = member(spec, "", "samples");
+    const json& n = required_field(spec, "", "samples");
     if (!n.is_number_integer() || n.get<std::int64_t>() < 1)
-      throw SceneError("/samples", "expected a whole number of samples >= 1, got " + describe(n));
+      throw SceneError("/samples", "expected a whole number of samples >= 1, got " + brief(n));
     s.samples = n.get<std::int64_t>();
     if (s.samples > kMaxCampaignSamples)
       throw SceneError("/samples", "more than the limit of " + std::to_string(kMaxCampaignSamples) + " samples");
@@ -370,7 +345,7 @@ CampaignSpec CampaignSpec::from_json(const json& spec, const std::string& base_d
     for (std::size_t k = 0; k < 2; ++k) {
       const std::string ptr = "/map/" + std::to_string(k);
       if (!m[k].is_string()) throw SceneError(ptr, "expected the path of an input");
-      const std::string path = as_pointer(m[k].get<std::string>());
+      const std::string path = path_as_pointer(m[k].get<std::string>());
       const auto it = std::find_if(s.inputs.begin(), s.inputs.end(), [&](const CampaignInput& in) { return in.path == path; });
       if (it == s.inputs.end()) throw SceneError(ptr, "'" + m[k].get<std::string>() + "' is not one of the inputs");
       if (!it->distribution.numeric()) throw SceneError(ptr, "'" + path + "' takes values that are not numbers");
@@ -391,13 +366,13 @@ CampaignSpec CampaignSpec::from_json(const json& spec, const std::string& base_d
   if (spec.contains("target")) {
     const json& t = spec["target"];
     if (!t.is_object()) throw SceneError("/target", "expected {\"q\": [...], \"tolerance\": ...}");
-    only_fields(t, "/target", {"q", "tolerance"});
-    const json& q = member(t, "/target", "q");
+    check_fields(t, "/target", {"q", "tolerance"});
+    const json& q = required_field(t, "/target", "q");
     const int n = Simulation::from_json(s.scene).dof();
     if (!q.is_array() || static_cast<int>(q.size()) != n)
       throw SceneError("/target/q", "expected an array of " + std::to_string(n) + " numbers (the scene's coordinates)");
     for (std::size_t i = 0; i < q.size(); ++i) s.target_q.push_back(finite_number(q[i], "/target/q/" + std::to_string(i)));
-    s.target_tolerance = finite_number(member(t, "/target", "tolerance"), "/target/tolerance");
+    s.target_tolerance = finite_number(required_field(t, "/target", "tolerance"), "/target/tolerance");
     if (s.target_tolerance < 0.0) throw SceneError("/target/tolerance", "expected a number >= 0");
   }
   s.hash = campaign_spec_hash(s.document);
@@ -612,10 +587,9 @@ class ExtremaTracker final : public RunObserver {
   double max_abs_q = 0.0, max_energy = 0.0;
 };
 
-json number_or_null(double x) { return std::isfinite(x) ? json(x) : json(nullptr); }
 json numbers(const std::vector<double>& v) {
   json a = json::array();
-  for (double x : v) a.push_back(number_or_null(x));
+  for (double x : v) a.push_back(finite_or_null(x));
   return a;
 }
 
@@ -671,7 +645,7 @@ json CampaignSampleRunner::record_of(std::int64_t i, const std::vector<json>& va
   const bool completed = summary.status == RunStatus::kCompleted;
   record["status"] = to_string(summary.status);
   record["converged"] = summary.converged_step.has_value();
-  record["converged_time"] = summary.converged_time ? json(*summary.converged_time) : json(nullptr);
+  record["converged_time"] = summary.converged_time ? finite_or_null(*summary.converged_time) : json(nullptr);
   record["final_q"] = numbers(summary.q_final);
   record["final_v"] = numbers(summary.v_final);
   // No target: nothing to check. A final state of another size than the target's (a sample that
@@ -681,12 +655,12 @@ json CampaignSampleRunner::record_of(std::int64_t i, const std::vector<json>& va
     distance = 0.0;
     for (std::size_t k = 0; k < spec.target_q.size(); ++k) distance += std::pow(summary.q_final[k] - spec.target_q[k], 2);
     distance = std::sqrt(distance);
-    record["target_distance"] = number_or_null(distance);
+    record["target_distance"] = finite_or_null(distance);
   } else {
     record["target_distance"] = nullptr;
   }
-  record["max_abs_q"] = number_or_null(extrema.max_abs_q);
-  record["max_energy"] = number_or_null(extrema.max_energy);
+  record["max_abs_q"] = finite_or_null(extrema.max_abs_q);
+  record["max_energy"] = finite_or_null(extrema.max_energy);
   record["steps"] = summary.steps;
   const std::string failure = completed ? sim.hypothesis_failure(summary) : std::string();
   record["hypothesis_failed"] = failure.empty() ? json(nullptr) : json(failure);
@@ -838,7 +812,6 @@ json quantiles_of(std::vector<double> v) {
   return q;
 }
 
-double as_number(const json& j) { return j.is_number() ? j.get<double>() : std::nan(""); }
 }  // namespace
 
 namespace {
@@ -851,12 +824,12 @@ CampaignOutcome row_of(const CampaignSpec& spec, const json& r) {
   row.converged = r.value("converged", false);
   row.failure_class = status == "invalid" ? 3 : status == "failed" ? 2 : !row.success ? 1 : 0;
   row.hypothesis_failed = r.contains("hypothesis_failed") && r["hypothesis_failed"].is_string();
-  auto number = [&](const char* key) { return r.contains(key) ? as_number(r[key]) : std::nan(""); };
+  auto number = [&](const char* key) { return r.contains(key) ? number_or_nan(r[key]) : std::nan(""); };
   row.converged_time = row.converged ? number("converged_time") : std::nan("");
   row.target_distance = number("target_distance");
   row.max_abs_q = number("max_abs_q");
   const json& inputs = r.contains("inputs") ? r["inputs"] : json::object();
-  for (const auto& in : spec.inputs) row.inputs.push_back(inputs.contains(in.path) ? as_number(inputs[in.path]) : std::nan(""));
+  for (const auto& in : spec.inputs) row.inputs.push_back(inputs.contains(in.path) ? number_or_nan(inputs[in.path]) : std::nan(""));
   return row;
 }
 
@@ -907,7 +880,7 @@ json summarize_rows(const CampaignSpec& spec, const std::vector<CampaignOutcome>
   for (std::size_t k = 0; k < worst_count; ++k) {
     const CampaignOutcome& r = rows[order[k]];
     json inputs = json::object();
-    for (std::size_t d = 0; d < spec.inputs.size(); ++d) inputs[spec.inputs[d].path] = number_or_null(r.inputs[d]);
+    for (std::size_t d = 0; d < spec.inputs.size(); ++d) inputs[spec.inputs[d].path] = finite_or_null(r.inputs[d]);
     worst.push_back({{"index", r.index},
                      {"inputs", inputs},
                      {"success", r.success},
@@ -915,8 +888,8 @@ json summarize_rows(const CampaignSpec& spec, const std::vector<CampaignOutcome>
                                  : r.failure_class == 2 ? "failed run"
                                  : r.success            ? "succeeded"
                                                         : "did not succeed"},
-                     {"converged_time", number_or_null(r.converged_time)},
-                     {"target_distance", number_or_null(r.target_distance)}});
+                     {"converged_time", finite_or_null(r.converged_time)},
+                     {"target_distance", finite_or_null(r.target_distance)}});
   }
   s["worst"] = worst;
 
@@ -1110,7 +1083,8 @@ std::string csv_cell(const json& j) {
     return out + "\"";
   }
   if (j.is_boolean()) return j.get<bool>() ? "1" : "0";
-  if (j.is_structured()) return csv_cell(json(j.dump()));  // a discrete value that is an array or object: quoted
+  if (j.is_structured()) return csv_cell(json(j.dump()));               // a discrete value that is an array or object: quoted
+  if (j.is_number_float()) return platform::shortest(j.get<double>());  // reads back bit for bit, as in every CSV
   return j.dump();
 }
 
@@ -1195,7 +1169,7 @@ void write_summary(const fs::path& dir, const json& summary) {
 namespace {
 
 // A record's value for a message: its serialization, at most about 200 bytes of it (whole UTF-8 characters).
-std::string quoted(const json& j) { return j.is_null() ? std::string("nothing") : detail::brief(j); }
+std::string quoted(const json& j) { return j.is_null() ? std::string("nothing") : brief(j); }
 
 // Refuses (std::runtime_error at `where`, "'FILE' line N") a record that is not sample i of this campaign
 // as the spec defines it: another spec's hash (or none), inputs other than those the sampler draws for
@@ -1217,7 +1191,7 @@ std::int64_t check_record(const CampaignSpec& spec, const CampaignDesign& design
     throw bad("sample " + std::to_string(i) + "'s inputs are not the spec's " + std::to_string(drawn.size()) + " inputs");
   for (std::size_t k = 0; k < drawn.size(); ++k) {
     const std::string& path = spec.inputs[k].path;
-    const json want = drawn[k].is_number_float() && !std::isfinite(drawn[k].get<double>()) ? json(nullptr) : drawn[k];
+    const json want = drawn[k].is_number_float() ? finite_or_null(drawn[k].get<double>()) : drawn[k];
     const auto got = inputs->find(path);
     if (got == inputs->end() || *got != want)
       throw bad("sample " + std::to_string(i) + "'s input " + path + " is " +

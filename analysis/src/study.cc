@@ -9,7 +9,9 @@
 #include <limits>
 #include <sstream>
 
+#include "moreau/platform/number_text.h"
 #include "moreau/scene/guarantees.h"
+#include "moreau/scene/json_number.h"
 #include "moreau/scene/scene_model.h"
 
 namespace moreau::scene {
@@ -153,14 +155,10 @@ double slope(const std::vector<double>& h, const std::vector<double>& e) {
   return den == 0.0 ? kNaN : (m * sxy - sx * sy) / den;
 }
 
-nlohmann::json num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+nlohmann::json num(double v) { return finite_or_null(v); }
 
-std::string fmt(double v) {
-  if (std::isnan(v)) return "NaN";  // not printf's "nan" or "-nan"
-  char buf[40];
-  std::snprintf(buf, sizeof buf, "%.10g", v);
-  return buf;
-}
+// Numbers in messages: 10 significant digits.
+std::string fmt(double v) { return platform::significant(v, 10); }
 
 // Largest --eval-points and --repeats: the bounds POST /v1/studies has (docs/api.md).
 constexpr int kMaxEvalPoints = 100000;
@@ -318,9 +316,7 @@ StudyResult run_study(const LagrangianScene& scene, const StudySettings& st) {
     result.reference_converged_time = scene.exact_rest_time;
   } else {
     const double h_ref = st.reference_h ? *st.reference_h : *std::min_element(st.h.begin(), st.h.end()) / 10.0;
-    char buf[64];
-    std::snprintf(buf, sizeof buf, "abl at h = %g", h_ref);
-    result.reference = buf;
+    result.reference = "abl at h = " + platform::significant(h_ref, 6);
     GridSampler sampler(grid, n, std::numeric_limits<double>::infinity(), st.cancel);
     const RunSummary ref = run_scheme(scene, Scheme::kAbl, h_ref, st, &sampler, 1, true);
     if (ref.status != RunStatus::kCompleted) throw SceneError("--reference", "the reference run failed: " + ref.message);
@@ -568,7 +564,7 @@ StudyResult::Order order_theory(const LagrangianScene& scene, Scheme scheme) {
 }
 
 StudyResult StudyResult::from_json(const nlohmann::json& j) {
-  auto number = [](const nlohmann::json& v) { return v.is_number() ? v.get<double>() : kNaN; };
+  auto number = [](const nlohmann::json& v) { return number_or_nan(v); };
   auto optional = [](const nlohmann::json& v) { return v.is_number() ? std::optional<double>(v.get<double>()) : std::nullopt; };
   if (!j.is_object() || !j.contains("rows") || !j["rows"].is_array() || !j.contains("orders") || !j["orders"].is_array())
     throw std::invalid_argument("not a study result: expected an object with rows and orders");
@@ -618,16 +614,11 @@ StudyResult StudyResult::from_json(const nlohmann::json& j) {
 
 std::string StudyResult::to_csv() const {
   std::ostringstream os;
-  os.precision(17);
   os << "scheme,h,status,steps,wall_seconds,q_max_error,q_l2_error,v_max_error,v_l2_error,final_error,"
         "converged_time,converged_time_error,chatter_sign_changes,chatter_amplitude\n";
-  // A value that is not a number (the errors of a failed row) is an empty cell, as JSON has null.
-  auto cell = [](double v) {
-    std::ostringstream o;
-    o.precision(17);
-    if (std::isfinite(v)) o << v;
-    return o.str();
-  };
+  // Each number in shortest round-trip form (it reads back bit for bit); a value that is not a number
+  // (the errors of a failed row) is an empty cell, as JSON has null.
+  auto cell = [](double v) { return std::isfinite(v) ? platform::shortest(v) : std::string(); };
   auto opt = [&](const std::optional<double>& v) { return v ? cell(*v) : std::string(); };
   for (const auto& r : rows) {
     os << scheme_name(r.scheme) << ',' << cell(r.h) << ',' << r.status << ',' << r.steps << ',' << cell(r.wall_seconds) << ','
@@ -645,11 +636,7 @@ namespace {
 std::string guarantees_summary_text(const StudyResult& r) {
   std::ostringstream os;
   os << "  guarantees  of each run above (every row's full section is in the JSON):\n";
-  auto h_text = [](double h) {
-    char buf[32];
-    std::snprintf(buf, sizeof buf, "%.3g", h);
-    return std::string(buf);
-  };
+  auto h_text = [](double h) { return platform::significant(h, 3); };
   // The first hypothesis of `g` (one guarantee's JSON) with verdict `v`, as "name: detail".
   auto first_with = [](const nlohmann::json& g, const std::string& v) {
     for (const auto& x : g.value("hypotheses", nlohmann::json::array()))

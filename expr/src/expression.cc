@@ -14,6 +14,8 @@
 #include <string>
 #include <utility>
 
+#include "moreau/platform/number_text.h"
+
 namespace moreau::expr {
 
 namespace {
@@ -114,13 +116,6 @@ constexpr FunctionInfo kFunctions[] = {
     {"exp", Op::kExp, 1},   {"log", Op::kLog, 1},     {"sqrt", Op::kSqrt, 1}, {"abs", Op::kAbs, 1},   {"min", Op::kMin, 2},
     {"max", Op::kMax, 2},   {"pow", Op::kPow, 2},
 };
-
-std::string format_number(double v) {
-  char buf[64];
-  auto [end, ec] = std::to_chars(buf, buf + sizeof buf, v);  // shortest text that reads back exactly
-  if (ec != std::errc()) return "?";
-  return std::string(buf, end);
-}
 
 // ---------------------------------------------------------------------------------------------------------
 // Parser: recursive descent over the grammar in the header. Every recursive step goes through a DepthGuard,
@@ -687,10 +682,10 @@ std::string Graph::to_string(Node f, const SlotNamer& slot_name) const {
         // Appended piece by piece: `"(" + std::string` trips a false -Wrestrict in GCC 12 at -O3.
         if (std::signbit(e.value) && !std::isnan(e.value)) {
           out += '(';
-          out += format_number(e.value);
+          out += platform::shortest(e.value);  // the shortest text that reads back exactly
           out += ')';
         } else {
-          out += format_number(e.value);
+          out += platform::shortest(e.value);
         }
         break;
       case Op::kVar:

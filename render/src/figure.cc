@@ -3,6 +3,8 @@
 #include <cmath>
 #include <sstream>
 
+#include "moreau/platform/number_text.h"
+
 namespace moreau::render {
 namespace {
 
@@ -28,12 +30,12 @@ void check_axis(const Axis& axis, const std::string& where, const char* name) {
   if (axis.max && !std::isfinite(*axis.max)) fail(w, "maximum is not finite");
   if (axis.min && axis.max && !(*axis.min < *axis.max)) {
     std::ostringstream os;
-    os << "minimum " << *axis.min << " is not below maximum " << *axis.max;
+    os << "minimum " << platform::significant(*axis.min, 6) << " is not below maximum " << platform::significant(*axis.max, 6);
     fail(w, os.str());
   }
   if (axis.scale == Scale::log) {
-    if (axis.min && *axis.min <= 0) fail(w, "log scale needs a positive minimum, got " + std::to_string(*axis.min));
-    if (axis.max && *axis.max <= 0) fail(w, "log scale needs a positive maximum, got " + std::to_string(*axis.max));
+    if (axis.min && *axis.min <= 0) fail(w, "log scale needs a positive minimum, got " + platform::significant(*axis.min, 6));
+    if (axis.max && *axis.max <= 0) fail(w, "log scale needs a positive maximum, got " + platform::significant(*axis.max, 6));
   }
   if (!std::isfinite(axis.padding) || axis.padding < 0 || axis.padding > 1) fail(w, "padding must be within [0, 1]");
 }
@@ -42,12 +44,12 @@ void check_values(const std::vector<double>& v, Scale scale, const std::string& 
   for (std::size_t i = 0; i < v.size(); ++i) {
     if (!std::isfinite(v[i])) {
       std::ostringstream os;
-      os << name << "[" << i << "] is " << v[i] << " (NaN and Inf cannot be drawn)";
+      os << name << "[" << i << "] is " << platform::non_finite_text(v[i]) << " (NaN and Inf cannot be drawn)";
       fail(where, os.str());
     }
     if (scale == Scale::log && v[i] <= 0) {
       std::ostringstream os;
-      os << name << "[" << i << "] = " << v[i] << " is not positive, but the " << name << " axis is logarithmic";
+      os << name << "[" << i << "] = " << platform::significant(v[i], 6) << " is not positive, but the " << name << " axis is logarithmic";
       fail(where, os.str());
     }
   }

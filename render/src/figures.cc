@@ -3,18 +3,16 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <limits>
 #include <numeric>
+
+#include "moreau/platform/number_text.h"
 
 namespace moreau::render {
 namespace {
 
-std::string fmt(double v, const char* spec = "%.3g") {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, spec, v);
-  return buf;
-}
+// Numbers in messages and labels: 3 significant digits.
+std::string fmt(double v) { return platform::significant(v, 3); }
 
 std::string coordinate_name(const std::vector<std::string>& names, std::size_t i, const char* prefix) {
   if (i < names.size() && !names[i].empty()) return names[i];
@@ -346,7 +344,7 @@ Figure study_figure(const std::vector<SchemeRuns>& runs, const FigureOptions& o,
     s.label = r.scheme.empty() ? "scheme " + std::to_string(k + 1) : r.scheme;
     if (!work) {
       const OrderFit fit = fit_order(r.h, r.error);
-      if (std::isfinite(fit.slope)) s.label += " (slope " + fmt(fit.slope, "%.2f") + ")";
+      if (std::isfinite(fit.slope)) s.label += " (slope " + platform::fixed(fit.slope, 2) + ")";
     }
     std::vector<std::size_t> order(xs.size());
     std::iota(order.begin(), order.end(), std::size_t{0});

@@ -4,10 +4,10 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <sstream>
 #include <unordered_set>
 
 #include "font.h"
+#include "moreau/platform/number_text.h"
 
 namespace moreau::render {
 namespace detail {
@@ -78,10 +78,8 @@ Limits axis_limits(const Axis& axis, Range data, const std::string& where) {
   const double span = b - a;
   if (!std::isfinite(a) || !std::isfinite(b) || !std::isfinite(span) ||
       !(span > 1e-12 * std::max({std::abs(a), std::abs(b), log ? 1.0 : 0.0}))) {
-    std::ostringstream os;
-    os.precision(12);
-    os << where << ": the range [" << lim.lo << ", " << lim.hi << "] is too " << (std::isfinite(span) ? "narrow" : "wide") << " to draw";
-    throw FigureError(os.str());
+    throw FigureError(where + ": the range [" + platform::significant(lim.lo, 12) + ", " + platform::significant(lim.hi, 12) + "] is too " +
+                      (std::isfinite(span) ? "narrow" : "wide") + " to draw");
   }
   return lim;
 }

@@ -1,20 +1,15 @@
 #include "json_checks.h"
 
 #include <algorithm>
-#include <sstream>
 
+#include "moreau/platform/number_text.h"
 #include "moreau/scene/scene.h"
 
 namespace moreau::scene::detail {
 
 using nlohmann::json;
 
-std::string format(double v) {
-  std::ostringstream os;
-  os.precision(12);
-  os << v;
-  return os.str();
-}
+std::string format(double v) { return platform::significant(v, 12); }
 
 std::string type_name(const json& j) {
   if (j.is_null()) return "null";
@@ -54,6 +49,30 @@ void check_fields(const json& obj, const std::string& ptr, const std::vector<std
                        "unknown field '" + utf8_prefix(it.key(), 200) + "' (expected one of: " + join(allowed) + ")");
     }
   }
+}
+
+const json& required_field(const json& obj, const std::string& ptr, const char* name) {
+  if (!obj.contains(name)) throw SceneError(ptr, std::string("missing '") + name + "'");
+  return obj[name];
+}
+
+std::string path_as_pointer(const std::string& path) {
+  if (!path.empty() && path[0] == '/') return path;
+  std::string ptr, token;
+  // Appended piece by piece: `"/" + std::string` trips a false -Wrestrict in GCC 12 (bug 105329).
+  auto end_token = [&] {
+    ptr += '/';
+    ptr += json_pointer_token(token);
+    token.clear();
+  };
+  for (char c : path) {
+    if (c == '.' || c == '/')
+      end_token();
+    else
+      token += c;
+  }
+  end_token();
+  return ptr;
 }
 
 }  // namespace moreau::scene::detail

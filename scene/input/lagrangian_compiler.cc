@@ -12,6 +12,7 @@
 #include <set>
 #include <stdexcept>
 
+#include "moreau/platform/number_text.h"
 #include "moreau/scene/urdf.h"
 #include "scene_reader.h"
 
@@ -226,8 +227,9 @@ class LagrangianCompiler : SceneReader {
       const Node q = graph_.variable(1 + lim.coordinate);
       const std::string& name = coord_names_[static_cast<std::size_t>(lim.coordinate)];
       const std::pair<Node, std::string> sides[] = {
-          {graph_.binary(Op::kSub, q, graph_.constant(lim.lower)), name + " - (" + format(lim.lower) + ")"},
-          {graph_.binary(Op::kSub, graph_.constant(lim.upper), q), format(lim.upper) + " - " + name}};
+          // The gap as expression text, whose numbers read back as the URDF's limits exactly.
+          {graph_.binary(Op::kSub, q, graph_.constant(lim.lower)), name + " - (" + platform::shortest(lim.lower) + ")"},
+          {graph_.binary(Op::kSub, graph_.constant(lim.upper), q), platform::shortest(lim.upper) + " - " + name}};
       for (int side = 0; side < 2; ++side) {
         gaps_.push_back(sides[side].first);
         for (int j = 0; j < n_; ++j) gap_gradients_.push_back(graph_.derivative(sides[side].first, 1 + j));

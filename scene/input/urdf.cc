@@ -6,7 +6,6 @@
 #include <dlfcn.h>
 
 #include <cmath>
-#include <cstdio>
 #include <map>
 #include <mutex>
 #include <set>
@@ -14,6 +13,7 @@
 #include <Eigen/Geometry>
 
 #include "moreau/platform/install_paths.h"
+#include "moreau/platform/number_text.h"
 #include "urdf_description.h"
 
 namespace moreau::scene {
@@ -45,11 +45,7 @@ DescribeFn describe_fn() {
   return fn;
 }
 
-std::string number(double x) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.10g", x);
-  return buf;
-}
+std::string number(double x) { return platform::significant(x, 10); }
 
 std::string at_line(int line) { return line > 0 ? " (line " + std::to_string(line) + ")" : std::string(); }
 

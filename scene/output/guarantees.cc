@@ -1,19 +1,17 @@
 #include "moreau/scene/guarantees.h"
 
 #include <cmath>
-#include <cstdio>
 #include <sstream>
 
 #include <Eigen/Dense>
 
+#include "moreau/platform/number_text.h"
+
 namespace moreau::scene {
 namespace {
 
-std::string fmt(double v) {
-  char buf[40];
-  std::snprintf(buf, sizeof buf, "%.6g", v);
-  return buf;
-}
+// Numbers in the hypotheses' details: 6 significant digits.
+std::string fmt(double v) { return platform::significant(v, 6); }
 
 // A hypothesis's detail text, built only when asked for.
 template <class Text>

@@ -1,6 +1,8 @@
 #include "moreau/scene/report.h"
 
+#include "moreau/platform/number_text.h"
 #include "moreau/scene/guarantees.h"
+#include "moreau/scene/json_number.h"
 #include "moreau/scene/scene_model.h"
 
 #include <algorithm>
@@ -21,11 +23,8 @@ const char* rule_name(StepRule r) {
   return "?";
 }
 
-std::string fmt(double v) {
-  char buf[40];
-  std::snprintf(buf, sizeof buf, "%.10g", v);
-  return buf;
-}
+// Numbers in the text report: 10 significant digits.
+std::string fmt(double v) { return platform::significant(v, 10); }
 
 std::string vec(const std::vector<double>& v) {
   std::string out = "(";
@@ -33,8 +32,7 @@ std::string vec(const std::vector<double>& v) {
   return out + ")";
 }
 
-// JSON has no NaN or Inf: a non-finite value becomes null rather than an invalid document.
-nlohmann::json num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+nlohmann::json num(double v) { return finite_or_null(v); }
 
 nlohmann::json energy_json(const EnergyTrack& e) {
   if (!e.evaluated) return nullptr;
@@ -97,9 +95,7 @@ ExactComparison compare_with_exact(const char* var, const std::vector<double>& d
     return std::pair<double, double>{e, size};
   };
   auto percent = [](double e, double size) {
-    char buf[48] = "";
-    if (size > 0.0) std::snprintf(buf, sizeof buf, " (%.3g%% of its size)", 100.0 * e / size);
-    return std::string(buf);
+    return size > 0.0 ? " (" + platform::significant(100.0 * e / size, 3) + "% of its size)" : std::string();
   };
   if (!declared_rest.empty()) {
     const auto [e, size] = max_diff(final_state, declared_rest);

@@ -8,12 +8,14 @@
 #include <stdexcept>
 #include <string_view>
 
+#include "moreau/platform/number_text.h"
 #include "moreau/scene/line_reader.h"
 
 namespace moreau::scene {
 namespace {
 constexpr std::size_t kBufferBytes = 1 << 20;
 constexpr std::size_t kMaxRowBytes = 64;  // per value, including the separator
+static_assert(kMaxRowBytes > platform::kShortestMaxChars);
 }  // namespace
 
 TrajectoryCsvWriter::TrajectoryCsvWriter(const std::string& path, const std::vector<std::string>& q_names,
@@ -39,8 +41,7 @@ TrajectoryCsvWriter::~TrajectoryCsvWriter() {
 }
 
 void TrajectoryCsvWriter::put(double value) {
-  auto [end, ec] = std::to_chars(buffer_.data() + used_, buffer_.data() + buffer_.size(), value);
-  (void)ec;
+  char* end = platform::write_shortest(buffer_.data() + used_, buffer_.data() + buffer_.size(), value);
   used_ = static_cast<std::size_t>(end - buffer_.data());
 }
 

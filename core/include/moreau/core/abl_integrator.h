@@ -49,6 +49,7 @@
 #include "moreau/core/stepping_driver.h"
 #include "moreau/core/time_grid.h"
 #include "moreau/core/types.h"
+#include "moreau/platform/number_text.h"
 
 namespace moreau {
 
@@ -240,10 +241,8 @@ class AblIntegrator {
       return "the one-step inclusion (6.5) has non-finite data: P = M/h + C + W or x = g - M V^k / h is not finite";
     if (!std::isfinite(st.residual) || !std::isfinite(st.tolerance))
       return "the one-step inclusion (6.5) was not solved: P = M/h + C + W is singular to working precision";
-    char buf[160];
-    std::snprintf(buf, sizeof buf, "the one-step inclusion (6.5) was not solved to round-off (residual %.3g above the tolerance %.3g)",
-                  st.residual, st.tolerance);
-    return buf;
+    return "the one-step inclusion (6.5) was not solved to round-off (residual " + platform::significant(st.residual, 3) +
+           " above the tolerance " + platform::significant(st.tolerance, 3) + ")";
   }
 
   // For the report: which factorisation solved the step's linear systems.

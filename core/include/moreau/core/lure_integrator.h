@@ -38,7 +38,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
-#include <cstdio>
 #include <limits>
 #include <optional>
 #include <string>
@@ -52,6 +51,7 @@
 #include "moreau/core/stepping_driver.h"
 #include "moreau/core/time_grid.h"
 #include "moreau/core/types.h"
+#include "moreau/platform/number_text.h"
 
 namespace moreau {
 
@@ -163,10 +163,9 @@ class LureIntegrator {
     q_.noalias() = C_ * xf_;
     GraphSolveStats st;
     if (!solver_.solve(sm.D, q_, graph_ptrs_.data(), u_, w_, st)) {
-      char buf[160];
-      std::snprintf(buf, sizeof buf, "the one-step generalized equation was not solved to round-off (residual %.3g, tolerance %.3g)",
-                    st.residual, st.tolerance);
-      return f.at(k, t, x_.data(), nullptr, buf);
+      return f.at(k, t, x_.data(), nullptr,
+                  "the one-step generalized equation was not solved to round-off (residual " + platform::significant(st.residual, 3) +
+                      ", tolerance " + platform::significant(st.tolerance, 3) + ")");
     }
     rec.solver_step(st.iterations, st.residual, st.used_fallback);
     xn_.noalias() = xf_ - sm.G * w_;

@@ -28,11 +28,12 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <limits>
 #include <string>
 #include <utility>
 #include <vector>
+
+#include "moreau/platform/number_text.h"
 
 namespace moreau {
 
@@ -283,12 +284,7 @@ class MonotoneGraph {
     if (a == 0.0) return std::abs(b);
     return std::hypot(a, b);
   }
-  static std::string fmt(double v) {
-    if (std::isnan(v)) return "NaN";  // not printf's "nan" or "-nan"
-    char buf[32];
-    std::snprintf(buf, sizeof buf, "%.10g", v);
-    return buf;
-  }
+  static std::string fmt(double v) { return platform::significant(v, 10); }
 
   void build_pieces() {
     const double inf = std::numeric_limits<double>::infinity();

@@ -72,7 +72,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
-#include <cstdio>
 #include <limits>
 #include <string>
 #include <vector>
@@ -89,6 +88,7 @@
 #include "moreau/core/stepping_driver.h"
 #include "moreau/core/time_grid.h"
 #include "moreau/core/types.h"
+#include "moreau/platform/number_text.h"
 
 namespace moreau {
 
@@ -327,10 +327,9 @@ class MoreauJeanIntegrator {
       solver_.use_leading(m);
       GraphSolveStats st;
       if (!solver_.solve(D_, qv_, ptrs_.data(), u_, w_, st)) {
-        char buf[200];
-        std::snprintf(buf, sizeof buf, "the one-step complementarity problem was not solved to round-off (residual %.3g, tolerance %.3g)",
-                      st.residual, st.tolerance);
-        return f.at(k, t, q.data(), v.data(), buf);
+        return f.at(k, t, q.data(), v.data(),
+                    "the one-step complementarity problem was not solved to round-off (residual " + platform::significant(st.residual, 3) +
+                        ", tolerance " + platform::significant(st.tolerance, 3) + ")");
       }
       rec.solver_step(st.iterations, st.residual, st.used_fallback);
       vn_ = vf_;

@@ -33,7 +33,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <cstdio>
 #include <limits>
 #include <string>
 
@@ -42,6 +41,7 @@
 
 #include "moreau/core/run_summary.h"
 #include "moreau/core/types.h"
+#include "moreau/platform/number_text.h"
 
 namespace moreau {
 
@@ -57,13 +57,12 @@ struct StepCheck {
 };
 
 // Why a run stops when M(Q^k) is not positive definite, naming q (the recorder adds the step and t).
+// q is written to read back exactly (the state where the run stopped), lambda_min to 6 digits.
 inline std::string not_positive_definite(double lambda_min, const double* q, int n) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.6g", lambda_min);
-  std::string why = std::string("M(q) is not positive definite (Assumption 3.1): lambda_min(M) = ") + buf + " at q = (";
+  std::string why = "M(q) is not positive definite (Assumption 3.1): lambda_min(M) = " + platform::significant(lambda_min, 6) + " at q = (";
   for (int i = 0; i < n; ++i) {
-    std::snprintf(buf, sizeof buf, "%s%.17g", i ? ", " : "", q[i]);
-    why += buf;
+    if (i) why += ", ";
+    why += platform::shortest(q[i]);
   }
   return why + ")";
 }

@@ -14,7 +14,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
-#include <cstdio>
 #include <limits>
 #include <optional>
 #include <string>
@@ -24,6 +23,7 @@
 #include "moreau/core/types.h"
 #include "moreau/core/run_summary.h"
 #include "moreau/core/time_grid.h"
+#include "moreau/platform/number_text.h"
 
 namespace moreau {
 
@@ -231,9 +231,7 @@ class RunRecorder {
     if (v && finite(v)) s_.v_final.assign(v, v + n_);
     s_.energy_nonincreasing = s_.energy_increases == 0;
     s_.status = RunStatus::kFailed;
-    char where[96];
-    std::snprintf(where, sizeof where, "step %lld (t = %.17g): ", static_cast<long long>(k), t);
-    s_.message = where + why;
+    s_.message = "step " + std::to_string(k) + " (t = " + platform::shortest(t) + "): " + why;
     return close();
   }
 

@@ -1,6 +1,7 @@
 // Writes the trajectory as CSV while the run goes: t, h, q_1..q_n, v_1..v_n, energy. Rows are
-// formatted with std::to_chars (shortest round-trip form) into a large buffer, so output costs little and
-// memory does not grow with the number of steps.
+// formatted in shortest round-trip form (platform::write_shortest, std::to_chars; a value that is not
+// finite as nan, inf or -inf) into a large buffer, so output costs little and memory does not grow with
+// the number of steps.
 #pragma once
 
 #include <cstdio>
