@@ -2,11 +2,12 @@
 // Lagrangian scene: the coordinates, and for a robot from URDF each joint (type, parent, axis, the mass
 // it moves, limits, friction in Phi), then the compiled sizes (coordinates, constraints, band of M and
 // C), the scheme and the linear solver the step will use. For a Lur'e scene: states, outputs, feedback.
-#include <iomanip>
+
 #include <iostream>
 
 #include "commands.h"
 #include "moreau/core/one_step_solver.h"
+#include "moreau/platform/number_text.h"
 #include "moreau/scene/scene.h"
 #include "moreau/scene/scene_model.h"
 #include "moreau/scene/scheme.h"
@@ -20,9 +21,8 @@ struct InspectOptions {
 };
 
 std::string vec3(const Eigen::Vector3d& v) {
-  std::ostringstream os;
-  os << std::setprecision(6) << "(" << v.x() << ", " << v.y() << ", " << v.z() << ")";
-  return os.str();
+  using platform::significant;
+  return "(" + significant(v.x(), 6) + ", " + significant(v.y(), 6) + ", " + significant(v.z(), 6) + ")";
 }
 
 // The factorisation OneStepSolver will choose for this scene (its own rule, applied by configuring one).

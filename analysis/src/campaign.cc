@@ -805,9 +805,8 @@ json quantiles_of(std::vector<double> v) {
   q["min"] = v.front();
   q["max"] = v.back();
   for (double p : kQuantiles) {
-    char key[8];
-    std::snprintf(key, sizeof key, "p%02d", static_cast<int>(std::lround(p * 100)));
-    q[key] = quantile_sorted(v, p);
+    const int percent = static_cast<int>(std::lround(p * 100));
+    q[(percent < 10 ? "p0" : "p") + std::to_string(percent)] = quantile_sorted(v, p);
   }
   return q;
 }
@@ -936,35 +935,32 @@ json summarize_campaign(const CampaignSpec& spec, const std::vector<json>& recor
 
 std::string format_campaign_summary(const json& s) {
   std::ostringstream o;
-  char line[256];
+  const auto percent = [](const json& rate) { return platform::fixed(100.0 * rate.get<double>(), 2) + "%"; };
+  const auto g4 = [](const json& v) { return platform::significant(v.get<double>(), 4); };
   const std::int64_t n = s["samples"], k = s["successes"];
-  std::snprintf(line, sizeof line, "%s: %lld of %lld samples succeeded (%.2f%%; 95%% Wilson interval [%.2f%%, %.2f%%]%s)\n",
-                s["name"].get<std::string>().c_str(), static_cast<long long>(k), static_cast<long long>(n),
-                100.0 * s["success_rate"].get<double>(), 100.0 * s["success_rate_95"]["low"].get<double>(),
-                100.0 * s["success_rate_95"]["high"].get<double>(),
-                s["success_rate_95"].contains("assumes") ? ", which assumes independent samples" : "");
-  o << line << campaign_detail::format_success_interval_note(s) << "  success means " << s["success_means"].get<std::string>() << "\n";
-  std::snprintf(line, sizeof line, "  converged %lld, failed runs %lld, invalid samples %lld, a hypothesis failed in %lld\n",
-                static_cast<long long>(s["converged"].get<std::int64_t>()), static_cast<long long>(s["failed_runs"].get<std::int64_t>()),
-                static_cast<long long>(s["invalid_samples"].get<std::int64_t>()),
-                static_cast<long long>(s["hypothesis_failed"].get<std::int64_t>()));
-  o << line;
+  o << s["name"].get<std::string>() << ": " << k << " of " << n << " samples succeeded (" << percent(s["success_rate"])
+    << "; 95% Wilson interval [" << percent(s["success_rate_95"]["low"]) << ", " << percent(s["success_rate_95"]["high"]) << "]"
+    << (s["success_rate_95"].contains("assumes") ? ", which assumes independent samples" : "") << ")\n";
+  o << campaign_detail::format_success_interval_note(s) << "  success means " << s["success_means"].get<std::string>() << "\n";
+  o << "  converged " << s["converged"].get<std::int64_t>() << ", failed runs " << s["failed_runs"].get<std::int64_t>()
+    << ", invalid samples " << s["invalid_samples"].get<std::int64_t>() << ", a hypothesis failed in "
+    << s["hypothesis_failed"].get<std::int64_t>() << "\n";
   for (const char* key : {"convergence_time", "target_distance"}) {
     const json& q = s[key];
     if (q["count"] == 0) continue;
-    std::snprintf(line, sizeof line, "  %-16s min %.4g  p05 %.4g  p25 %.4g  median %.4g  p75 %.4g  p95 %.4g  max %.4g (%lld samples)\n",
-                  key, q["min"].get<double>(), q["p05"].get<double>(), q["p25"].get<double>(), q["p50"].get<double>(),
-                  q["p75"].get<double>(), q["p95"].get<double>(), q["max"].get<double>(),
-                  static_cast<long long>(q["count"].get<std::int64_t>()));
-    o << line;
+    std::string label = key;
+    label.resize(std::max<std::size_t>(label.size(), 16), ' ');
+    o << "  " << label << " min " << g4(q["min"]) << "  p05 " << g4(q["p05"]) << "  p25 " << g4(q["p25"]) << "  median "
+      << g4(q["p50"]) << "  p75 " << g4(q["p75"]) << "  p95 " << g4(q["p95"]) << "  max " << g4(q["max"]) << " ("
+      << q["count"].get<std::int64_t>() << " samples)\n";
   }
   o << "  rank correlation (Spearman) with success / convergence time / target distance / max |q|:\n";
   for (const json& r : s["sensitivity"]["inputs"]) {
     o << "    " << r["input"].get<std::string>() << ":";
     for (const char* key : {"success", "converged_time", "target_distance", "max_abs_q"}) {
       if (r[key].is_number()) {
-        std::snprintf(line, sizeof line, " %+.3f", r[key].get<double>());
-        o << line;
+        const double rho = r[key].get<double>();
+        o << " " << (std::signbit(rho) ? "" : "+") << platform::fixed(rho, 3);
       } else {
         o << " -";
       }

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "moreau/analysis/sensitivity.h"
+#include "moreau/platform/number_text.h"
 
 namespace moreau::scene::campaign_detail {
 using json = nlohmann::json;
@@ -212,11 +213,9 @@ std::string format_success_interval_note(const json& summary) {
   std::string s = "  the interval does not hold for this design: " + w["design"].get<std::string>() + "\n";
   if (summary.contains("sobol") && summary["sobol"].contains("success_rate_ab")) {
     const json& ab = summary["sobol"]["success_rate_ab"];
-    char line[256];
-    std::snprintf(line, sizeof line, "  over its %lld A and B points, independent draws: %.2f%%, 95%% Wilson interval [%.2f%%, %.2f%%]\n",
-                  static_cast<long long>(ab["samples"].get<std::int64_t>()), 100.0 * ab["rate"].get<double>(),
-                  100.0 * ab["low"].get<double>(), 100.0 * ab["high"].get<double>());
-    s += line;
+    const auto percent = [](const json& rate) { return platform::fixed(100.0 * rate.get<double>(), 2) + "%"; };
+    s += "  over its " + std::to_string(ab["samples"].get<std::int64_t>()) + " A and B points, independent draws: " +
+         percent(ab["rate"]) + ", 95% Wilson interval [" + percent(ab["low"]) + ", " + percent(ab["high"]) + "]\n";
   }
   return s;
 }
@@ -225,12 +224,9 @@ std::string format_campaign_sobol(const json& summary) {
   if (!summary.contains("sobol")) return "";
   const json& s = summary["sobol"];
   std::ostringstream o;
-  char line[512];
-  std::snprintf(line, sizeof line,
-                "  Sobol indices (Saltelli's design, %lld rows of %s; first order S: Saltelli et al. 2010, total ST: Jansen 1999; "
-                "95%% bootstrap intervals):\n",
-                static_cast<long long>(s["base_samples"].get<std::int64_t>()), s["base_sampler"].get<std::string>().c_str());
-  o << line;
+  o << "  Sobol indices (Saltelli's design, " << s["base_samples"].get<std::int64_t>() << " rows of "
+    << s["base_sampler"].get<std::string>()
+    << "; first order S: Saltelli et al. 2010, total ST: Jansen 1999; 95% bootstrap intervals):\n";
   if (!s["outcomes"].is_array()) {
     o << "    not computed: " << s.value("why", "") << "\n";
     return o.str();
@@ -240,9 +236,7 @@ std::string format_campaign_sobol(const json& summary) {
     const char* label = key.c_str();
     for (const Outcome& out : kOutcomes)
       if (key == out.key) label = out.label;
-    std::snprintf(line, sizeof line, "    %s (%lld of %lld rows):", label, static_cast<long long>(e["rows"].get<std::int64_t>()),
-                  static_cast<long long>(s["base_samples"].get<std::int64_t>()));
-    o << line;
+    o << "    " << label << " (" << e["rows"].get<std::int64_t>() << " of " << s["base_samples"].get<std::int64_t>() << " rows):";
     if (!e["indices"].is_array()) {
       o << " " << e.value("why", "") << "\n";
       continue;
@@ -250,10 +244,9 @@ std::string format_campaign_sobol(const json& summary) {
     o << "\n";
     for (const json& in : e["indices"]) {
       const json &f = in["first_order"], &t = in["total"];
-      std::snprintf(line, sizeof line, "      %s: S %.3f [%.3f, %.3f]  ST %.3f [%.3f, %.3f]\n", in["input"].get<std::string>().c_str(),
-                    f["estimate"].get<double>(), f["low"].get<double>(), f["high"].get<double>(), t["estimate"].get<double>(),
-                    t["low"].get<double>(), t["high"].get<double>());
-      o << line;
+      const auto f3 = [](const json& v) { return platform::fixed(v.get<double>(), 3); };
+      o << "      " << in["input"].get<std::string>() << ": S " << f3(f["estimate"]) << " [" << f3(f["low"]) << ", " << f3(f["high"])
+        << "]  ST " << f3(t["estimate"]) << " [" << f3(t["low"]) << ", " << f3(t["high"]) << "]\n";
     }
     o << "      matter " << e["verdict"].get<std::string>() << "\n";
   }

@@ -8,6 +8,8 @@
 #include <boost/math/distributions/normal.hpp>
 #include <boost/random/sobol.hpp>
 
+#include "moreau/platform/number_text.h"
+
 namespace moreau::scene {
 
 // ---- the design ----
@@ -222,11 +224,7 @@ std::string join(const std::vector<std::string>& items) {
   for (std::size_t i = 0; i < items.size(); ++i) s += (i == 0 ? "" : i + 1 == items.size() ? " and " : ", ") + items[i];
   return s;
 }
-std::string format_threshold(double t) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%g", t);
-  return buf;
-}
+std::string format_threshold(double t) { return platform::significant(t, 6); }
 }  // namespace
 
 std::string describe_importance(const std::vector<std::string>& names, const std::vector<InputImportance>& importance, double threshold) {

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <string_view>
 
+#include "moreau/platform/number_text.h"
 #include "moreau/scene/simulation.h"
 
 namespace moreau::scene {
@@ -152,7 +153,7 @@ StressOutcome run_stress_case(const StressCase& c) {
   const bool completed = o.summary.status == RunStatus::kCompleted;
   if (c.expect_completed && !completed) o.failures.push_back("did not complete: " + o.summary.message);
   if (c.expect_energy_nonincreasing && o.summary.energy_nonincreasing != *c.expect_energy_nonincreasing)
-    o.failures.push_back(std::string("energy ") + (o.summary.energy_nonincreasing ? "non-increasing" : "increased") +
+    o.failures.push_back(std::string("energy ") + (o.summary.energy_nonincreasing ? "non-increasing" : "not monotone") +
                          ", expected otherwise");
   if (c.expect_converged && o.summary.converged_step.has_value() != *c.expect_converged)
     o.failures.push_back(std::string(o.summary.converged_step ? "came to rest" : "did not come to rest") + ", expected otherwise");
@@ -160,15 +161,22 @@ StressOutcome run_stress_case(const StressCase& c) {
 }
 
 std::string format_outcome(const StressOutcome& o) {
-  char line[512];
-  char conv[64] = "moving at t_end";
-  if (o.summary.converged_time) std::snprintf(conv, sizeof conv, "rest from t = %.4g", *o.summary.converged_time);
-  std::snprintf(line, sizeof line, "%-30s abl  %-9s %-14s energy %-14s %-22s solver max %d it, res %.1e, h_k in [%.2g, %.2g]  %6.2f s  %s",
-                o.c->name.c_str(), to_string(o.summary.status), o.finite ? "finite" : "NON-FINITE",
-                o.summary.energy_nonincreasing ? "non-increasing" : "increased", conv, o.summary.solver.max_iterations,
-                o.summary.solver.max_residual, o.summary.h_min, o.summary.h_max, o.seconds,
-                o.failures.empty() ? (o.c->within_theory ? "PASS" : "PASS (outside theory)") : "FAIL");
-  std::string s = line;
+  using platform::significant;
+  // Columns padded on the right to a width (a table for people; numbers to a few significant digits).
+  const auto column = [](std::string text, std::size_t width) {
+    if (text.size() < width) text.append(width - text.size(), ' ');
+    return text;
+  };
+  const std::string conv = o.summary.converged_time ? "rest from t = " + significant(*o.summary.converged_time, 4) : "moving at t_end";
+  std::string seconds = platform::fixed(o.seconds, 2);
+  if (seconds.size() < 6) seconds.insert(0, 6 - seconds.size(), ' ');
+  std::string s = column(o.c->name, 30) + " abl  " + column(to_string(o.summary.status), 9) + " " +
+                  column(o.finite ? "finite" : "NON-FINITE", 14) + " energy " +
+                  column(o.summary.energy_nonincreasing ? "non-increasing" : "not monotone", 14) + " " + column(conv, 22) +
+                  " solver max " + std::to_string(o.summary.solver.max_iterations) + " it, res " +
+                  significant(o.summary.solver.max_residual, 2) + ", h_k in [" + significant(o.summary.h_min, 2) + ", " +
+                  significant(o.summary.h_max, 2) + "]  " + seconds + " s  " +
+                  (o.failures.empty() ? (o.c->within_theory ? "PASS" : "PASS (outside theory)") : "FAIL");
   for (const auto& f : o.failures) s += "\n    " + f;
   return s;
 }

@@ -697,41 +697,38 @@ std::string guarantees_summary_text(const StudyResult& r) {
 
 std::string StudyResult::to_text() const {
   std::ostringstream os;
-  char line[320];
+  // A table for people: columns padded to a width, numbers to a few significant digits (platform's
+  // formatter); a value that is not a number (the errors of a failed row, an order fitted from fewer than
+  // two points) is shown as "-".
+  const auto left = [](std::string text, std::size_t width) {
+    if (text.size() < width) text.append(width - text.size(), ' ');
+    return text;
+  };
+  const auto right = [](std::string text, std::size_t width) {
+    if (text.size() < width) text.insert(0, width - text.size(), ' ');
+    return text;
+  };
+  const auto g4 = [](double v) { return std::isfinite(v) ? platform::significant(v, 4) : std::string("-"); };
+  const auto fixed3 = [](double v) { return std::isfinite(v) ? platform::fixed(v, 3) : std::string("-"); };
   os << "Study of " << scene << " against the " << reference << "\n";
-  std::snprintf(line, sizeof line, "  %-11s %-9s %-10s %10s %11s %11s %11s %11s %8s %10s\n", "scheme", "h", "status", "steps", "wall [s]",
-                "q max err", "v max err", "final err", "chatter", "t_conv");
-  os << line;
-  // A value that is not a number (the errors of a failed row, an order fitted from fewer than two
-  // points) is shown as "-".
-  auto sci = [](double v) {
-    char buf[32] = "-";
-    if (std::isfinite(v)) std::snprintf(buf, sizeof buf, "%.3e", v);
-    return std::string(buf);
-  };
-  auto fixed3 = [](double v) {
-    char buf[32] = "-";
-    if (std::isfinite(v)) std::snprintf(buf, sizeof buf, "%.3f", v);
-    return std::string(buf);
-  };
+  os << "  " << left("scheme", 11) << " " << left("h", 9) << " " << left("status", 10) << " " << right("steps", 10) << " "
+     << right("wall [s]", 11) << " " << right("q max err", 11) << " " << right("v max err", 11) << " " << right("final err", 11) << " "
+     << right("chatter", 8) << " " << right("t_conv", 10) << "\n";
   for (const auto& r : rows) {
-    char conv[32] = "-";
-    if (r.converged_time && std::isfinite(*r.converged_time)) std::snprintf(conv, sizeof conv, "%.4g", *r.converged_time);
-    std::snprintf(line, sizeof line, "  %-11s %-9.3g %-10s %10lld %11s %11s %11s %11s %8lld %10s\n", scheme_name(r.scheme), r.h,
-                  r.status.c_str(), static_cast<long long>(r.steps), sci(r.wall_seconds).c_str(), sci(r.q_max_error).c_str(),
-                  sci(r.v_max_error).c_str(), sci(r.final_error).c_str(), static_cast<long long>(r.chatter_sign_changes), conv);
-    os << line;
+    const std::string conv =
+        r.converged_time && std::isfinite(*r.converged_time) ? platform::significant(*r.converged_time, 4) : std::string("-");
+    os << "  " << left(scheme_name(r.scheme), 11) << " " << left(platform::significant(r.h, 3), 9) << " " << left(r.status, 10) << " "
+       << right(std::to_string(r.steps), 10) << " " << right(g4(r.wall_seconds), 11) << " " << right(g4(r.q_max_error), 11) << " "
+       << right(g4(r.v_max_error), 11) << " " << right(g4(r.final_error), 11) << " " << right(std::to_string(r.chatter_sign_changes), 8)
+       << " " << right(conv, 10) << "\n";
   }
   for (const auto& o : orders) {
-    std::snprintf(line, sizeof line, "  order of %-11s q: %s   v: %s   (measured)\n", scheme_name(o.scheme), fixed3(o.q_max).c_str(),
-                  fixed3(o.v_max).c_str());
-    os << line;
+    os << "  order of " << left(scheme_name(o.scheme), 11) << " q: " << fixed3(o.q_max) << "   v: " << fixed3(o.v_max) << "   (measured)\n";
     os << "              theory: " << (o.theory_order ? o.theory + ", order " + fixed3(*o.theory_order) : o.theory) << "; " << o.theory_note
        << "\n";
   }
   os << guarantees_summary_text(*this);
-  std::snprintf(line, sizeof line, "  study wall time %.2f s\n", wall_seconds);
-  os << line;
+  os << "  study wall time " << platform::fixed(wall_seconds, 2) << " s\n";
   return os.str();
 }
 

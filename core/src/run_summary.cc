@@ -1,6 +1,8 @@
 #include "moreau/core/run_summary.h"
 
-#include <cstdio>
+#include <string>
+
+#include "moreau/platform/number_text.h"
 
 namespace moreau {
 
@@ -30,23 +32,18 @@ void RunSummary::add_phase(const std::string& name, double seconds) {
 }
 
 std::string RunSummary::BriefReport() const {
-  char buf[512];
-  char conv[96];
+  using platform::significant;
+  std::string conv = "not at rest";
   if (converged_step) {
-    std::snprintf(conv, sizeof conv, "v == 0 from step %lld (t = %.6g)", static_cast<long long>(*converged_step),
-                  converged_time.value_or(0.0));
+    conv = "v == 0 from step " + std::to_string(*converged_step) + " (t = " + significant(converged_time.value_or(0.0), 6) + ")";
   } else if (below_normal_step) {
-    std::snprintf(conv, sizeof conv, "below the smallest normal number from step %lld (not a rest)",
-                  static_cast<long long>(*below_normal_step));
-  } else {
-    std::snprintf(conv, sizeof conv, "not at rest");
+    conv = "below the smallest normal number from step " + std::to_string(*below_normal_step) + " (not a rest)";
   }
-  std::snprintf(buf, sizeof buf,
-                "%s: %lld steps to t = %.6g, %s, energy %s (%.6g -> %.6g), solver max %d iterations, "
-                "residual %.2e, %.3f s",
-                to_string(status), static_cast<long long>(steps), t_final, conv, energy_nonincreasing ? "non-increasing" : "not monotone",
-                energy_initial, energy_final, solver.max_iterations, solver.max_residual, wall_seconds());
-  std::string line = buf;
+  std::string line = std::string(to_string(status)) + ": " + std::to_string(steps) + " steps to t = " + significant(t_final, 6) + ", " +
+                     conv + ", energy " + (energy_nonincreasing ? "non-increasing" : "not monotone") + " (" +
+                     significant(energy_initial, 6) + " -> " + significant(energy_final, 6) + "), solver max " +
+                     std::to_string(solver.max_iterations) + " iterations, residual " + significant(solver.max_residual, 3) + ", " +
+                     platform::fixed(wall_seconds(), 3) + " s";
   if (!message.empty()) line += ": " + message;
   return line;
 }

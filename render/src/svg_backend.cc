@@ -9,6 +9,7 @@
 #include <type_traits>
 
 #include "backends.h"
+#include "moreau/platform/number_text.h"
 
 namespace moreau::render::detail {
 
@@ -72,9 +73,7 @@ namespace {
 std::string num(double v) {
   // Pixel coordinates: two decimals are far below what any viewer resolves.
   v = std::clamp(v, -1e6, 1e6);
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.2f", v);
-  std::string s = buf;
+  std::string s = platform::fixed(v, 2);
   while (s.back() == '0') s.pop_back();
   if (s.back() == '.') s.pop_back();
   if (s == "-0") s = "0";
@@ -89,9 +88,7 @@ std::string color(Rgba c) {
 
 std::string opacity(Rgba c, const char* attr) {
   if (c.a == 255) return {};
-  char buf[48];
-  std::snprintf(buf, sizeof buf, " %s=\"%.3f\"", attr, c.a / 255.0);
-  return buf;
+  return std::string(" ") + attr + "=\"" + platform::fixed(c.a / 255.0, 3) + "\"";
 }
 
 class Writer {

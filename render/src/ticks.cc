@@ -5,6 +5,7 @@
 #include <limits>
 #include <string>
 
+#include "moreau/platform/number_text.h"
 #include "moreau/render/layout.h"
 
 namespace moreau::render {
@@ -29,9 +30,7 @@ std::string trim_zeros(std::string s) {
 std::string log_label(double m, int k) {
   const double v = m * std::pow(10.0, k);
   if (v >= 1e-3 && v < 1e4) {
-    char buf[64];
-    std::snprintf(buf, sizeof buf, "%.6g", v);
-    return buf;
+    return platform::significant(v, 6);
   }
   if (m == 1) return decade_label(k);
   return std::to_string(static_cast<int>(m)) + "\u00D7" + decade_label(k);
@@ -59,13 +58,11 @@ std::string format_tick(double v, double step, double magnitude) {
   if (std::abs(v) < step * 1e-9) v = 0;
   const double mag = std::abs(v);
   if (magnitude <= 0) magnitude = mag;
-  char buf[64];
   if (magnitude >= 1e5 || step < 1e-4) {
     if (mag == 0) return "0";
     const int e = static_cast<int>(std::floor(std::log10(mag) + 1e-12));
     const int decimals = std::clamp(e - step_exp, 0, 15);
-    std::snprintf(buf, sizeof buf, "%.*f", decimals, v / std::pow(10.0, e));
-    std::string mant = trim_zeros(buf);
+    std::string mant = trim_zeros(platform::fixed(v / std::pow(10.0, e), decimals));
     if (mant == "10" || mant == "-10") {  // rounding carried into the next decade
       mant = mant[0] == '-' ? "-1" : "1";
       return mant + "e" + std::to_string(e + 1);
@@ -73,8 +70,7 @@ std::string format_tick(double v, double step, double magnitude) {
     return mant + "e" + std::to_string(e);
   }
   const int decimals = std::clamp(-step_exp, 0, 10);
-  std::snprintf(buf, sizeof buf, "%.*f", decimals, v);
-  return buf;
+  return platform::fixed(v, decimals);
 }
 
 std::vector<Tick> linear_ticks(double lo, double hi, int max_ticks) {

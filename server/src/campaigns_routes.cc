@@ -8,6 +8,7 @@
 #include "job_access.h"
 #include "moreau/analysis/campaign.h"
 #include "moreau/scene/simulation.h"
+#include "moreau/platform/number_text.h"
 #include "responses.h"
 #include "submission.h"
 
@@ -39,7 +40,7 @@ void prepare_campaign(ApiContext& api, Job& job, const json& spec_doc) {
   if (spec_doc.contains("samples") && spec_doc["samples"].is_number() &&
       spec_doc["samples"].get<double>() > static_cast<double>(cfg.max_campaign_samples))
     throw BadRequest{400, "invalid request", "/campaign/samples",
-                     (spec_doc["samples"].is_number_float() ? fmt_g(spec_doc["samples"].get<double>()) : spec_doc["samples"].dump()) +
+                     (spec_doc["samples"].is_number_float() ? platform::shortest(spec_doc["samples"].get<double>()) : spec_doc["samples"].dump()) +
                          " samples; this server runs at most " + std::to_string(cfg.max_campaign_samples) +
                          " per campaign (run larger ones with moreau campaign, on one machine or a Slurm cluster)",
                      "request"};
@@ -58,7 +59,7 @@ void prepare_campaign(ApiContext& api, Job& job, const json& spec_doc) {
   const std::int64_t planned = sim.planned_steps();
   if (planned > cfg.max_steps)
     throw BadRequest{400, "invalid scene", "/integrator/h",
-                     "h = " + fmt_g(sim.h()) + " over [" + fmt_g(sim.t0()) + ", " + fmt_g(sim.t_end()) + "] needs " +
+                     "h = " + platform::shortest(sim.h()) + " over [" + platform::shortest(sim.t0()) + ", " + platform::shortest(sim.t_end()) + "] needs " +
                          std::to_string(planned) + " steps per sample; this server runs at most " + std::to_string(cfg.max_steps) +
                          " steps per run",
                      "scene"};

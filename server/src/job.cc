@@ -4,14 +4,14 @@
 #include <cmath>
 
 #include "moreau/analysis/figure_kind.h"
+#include "moreau/scene/json_number.h"
 
 namespace moreau::server {
 using json = nlohmann::json;
+using scene::finite_or_null;
 
 namespace {
 constexpr std::size_t kMaxEventsKept = 512;  // per job, for late subscribers; older progress is dropped
-
-json finite_or_null(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
 }  // namespace
 
 std::optional<JobState> parse_state(const std::string& s) {

@@ -9,6 +9,7 @@
 #include "job_observer.h"
 #include "moreau/scene/scene.h"
 #include "moreau/scene/trajectory_csv.h"
+#include "moreau/platform/number_text.h"
 #include "storage.h"
 
 namespace moreau::server {
@@ -24,9 +25,7 @@ double seconds_since(Clock::time_point t0) { return std::chrono::duration<double
 
 // Why a job stopped by --max-job-seconds failed; `where` says how far it got.
 std::string timed_out_reason(double max_job_seconds, const std::string& where) {
-  char limit[32];
-  std::snprintf(limit, sizeof limit, "%g", max_job_seconds);
-  return std::string("the job ran longer than this server's limit of ") + limit +
+  return "the job ran longer than this server's limit of " + platform::shortest(max_job_seconds) +
          " s of wall-clock time (--max-job-seconds) and was stopped " + where + "; what it wrote is kept";
 }
 

@@ -14,6 +14,7 @@
 #include "conditional.h"
 #include "job_access.h"
 #include "moreau/scene/simulation.h"
+#include "moreau/platform/number_text.h"
 #include "responses.h"
 #include "submission.h"
 #include "trajectory.h"
@@ -154,7 +155,7 @@ void prepare_run(ApiContext& api, Job& job, const json& doc, const StreamSetting
   scene::RunLimits limits;
   if (planned > cfg.max_steps) {
     throw BadRequest{400, "invalid scene", "/integrator/h",
-                     "h = " + fmt_g(sim.h()) + " over [" + fmt_g(sim.t0()) + ", " + fmt_g(sim.t_end()) + "] needs " +
+                     "h = " + platform::shortest(sim.h()) + " over [" + platform::shortest(sim.t0()) + ", " + platform::shortest(sim.t_end()) + "] needs " +
                          (fixed ? "" : "at least ") + std::to_string(planned) + " steps; this server runs at most " +
                          std::to_string(cfg.max_steps) + " steps per job",
                      "scene"};
@@ -300,8 +301,8 @@ void job_trajectory(ApiContext& api, const Request& req, Response& res) {
     std::error_code ec;
     const auto size = fs::file_size(job->dir / "trajectory.csv", ec);
     const auto mtime = fs::last_write_time(job->dir / "trajectory.csv", ec);
-    char window_text[96];
-    std::snprintf(window_text, sizeof window_text, "|%.17g|%.17g|%lld", window.from, window.to, static_cast<long long>(window.every));
+    const std::string window_text =
+        "|" + platform::shortest(window.from) + "|" + platform::shortest(window.to) + "|" + std::to_string(window.every);
     identity = job->id + "|" + std::to_string(size) + "|" + std::to_string(mtime.time_since_epoch().count()) + "|" + format + window_text;
   }
   if (not_modified(req, res, weak_etag(identity))) return;

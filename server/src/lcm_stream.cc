@@ -14,6 +14,8 @@
 #include <moreau/job_event_t.hpp>
 #include <moreau/state_t.hpp>
 
+#include "moreau/platform/number_text.h"
+
 namespace moreau::server {
 
 void set_channels(StreamSettings& s, const std::string& job_id) {
@@ -300,26 +302,24 @@ void StreamObserver::publish_and_advance(const Sample& s) {
 void StreamObserver::on_impact(const ImpactEvent& e) {
   if (++impacts_seen_ > kMaxImpactEvents) return;
   // key=value pairs: a line to read, and fields to parse (docs/streaming.md).
-  char text[256];
-  std::snprintf(text, sizeof text, "contact=%d pre=%.17g post=%.17g restitution=%.17g impulse=%.17g", e.constraint, e.pre, e.post,
-                e.restitution, e.impulse);
+  using platform::shortest;
+  const std::string text = "contact=" + std::to_string(e.constraint) + " pre=" + shortest(e.pre) + " post=" + shortest(e.post) +
+                           " restitution=" + shortest(e.restitution) + " impulse=" + shortest(e.impulse);
   held_.push_back({HeldEvent::Kind::kImpact, e.step, e.t, text, std::nullopt});
 }
 
 void StreamObserver::on_rest_detected(std::int64_t from_step, double from_t, std::int64_t step, double t) {
-  char text[320];
-  std::snprintf(text, sizeof text,
-                "v == 0.0 exactly from step %lld (t = %.17g), detected at step %lld (t = %.17g) after %lld steps at rest; "
-                "final if the rest lasts to the end and the final state is an equilibrium of the scheme, "
-                "else a convergence_withdrawn event follows",
-                static_cast<long long>(from_step), from_t, static_cast<long long>(step), t, static_cast<long long>(step - from_step));
+  const std::string text = "v == 0.0 exactly from step " + std::to_string(from_step) + " (t = " + platform::shortest(from_t) +
+                           "), detected at step " + std::to_string(step) + " (t = " + platform::shortest(t) + ") after " +
+                           std::to_string(step - from_step) +
+                           " steps at rest; final if the rest lasts to the end and the final state is an equilibrium of the "
+                           "scheme, else a convergence_withdrawn event follows";
   held_.push_back({HeldEvent::Kind::kConverged, from_step, from_t, text, from_step});
 }
 
 void StreamObserver::on_rest_ended(std::int64_t from_step, std::int64_t step, double t) {
-  char text[200];
-  std::snprintf(text, sizeof text, "v != 0 at step %lld (t = %.17g): the rest from step %lld ended, the run is no longer converged",
-                static_cast<long long>(step), t, static_cast<long long>(from_step));
+  const std::string text = "v != 0 at step " + std::to_string(step) + " (t = " + platform::shortest(t) + "): the rest from step " +
+                           std::to_string(from_step) + " ended, the run is no longer converged";
   held_.push_back({HeldEvent::Kind::kConvergenceWithdrawn, step, t, text, std::nullopt});
 }
 

@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "conditional.h"
+#include "moreau/platform/number_text.h"
 
 namespace moreau::server {
 
@@ -44,19 +45,13 @@ std::string no_endpoint(const Request& req) {
   return "no endpoint " + req.method.substr(0, 16) + " " + req.path.substr(0, 256) + "; see docs/api.md for the endpoints";
 }
 
-std::string fmt_g(double v) {
-  char buf[40];
-  std::snprintf(buf, sizeof buf, "%.10g", v);
-  return buf;
-}
-
 std::optional<double> number_param(const Request& req, const char* name, double lo, double hi) {
   if (!req.has_param(name)) return std::nullopt;
   const std::string v = req.get_param_value(name);
   char* end = nullptr;
   const double d = std::strtod(v.c_str(), &end);
   if (v.empty() || *end != '\0' || !std::isfinite(d) || d < lo || d > hi)
-    throw std::invalid_argument(std::string("query parameter '") + name + "' must be a number in [" + fmt_g(lo) + ", " + fmt_g(hi) + "]");
+    throw std::invalid_argument(std::string("query parameter '") + name + "' must be a number in [" + platform::shortest(lo) + ", " + platform::shortest(hi) + "]");
   return d;
 }
 
