@@ -3,17 +3,48 @@
 #include <algorithm>
 #include <cmath>
 #include <complex>
-#include <cstdio>
 #include <functional>
 #include <limits>
 #include <vector>
 
 #include "lti_exact.h"
+#include "moreau/platform/number_text.h"
 
 namespace moreau {
 namespace {
 
 constexpr double kEps = std::numeric_limits<double>::epsilon();
+
+// The exact deciders' numbers grow with the bits of the entries as well as with n: entries spread over
+// 1e-300 to 1e300 (a hostile scene) made minimality take about 4 s and SPR 1.7 s at n = 8. The exact
+// tests run only when the binary exponents of the nonzero entries of A, B and C span at most this many
+// bits (about 1e-38 to 1e38 around 1); wider realisations take the floating-point tests on the balanced
+// realisation, where a small margin is "undetermined", never "fails".
+constexpr int kExactMaxExponentSpread = 256;
+
+int exponent_spread(const Eigen::MatrixXd& A, const Eigen::MatrixXd& B, const Eigen::MatrixXd& C) {
+  int lo = std::numeric_limits<int>::max(), hi = std::numeric_limits<int>::min();
+  for (const Eigen::MatrixXd* X : {&A, &B, &C})
+    for (Eigen::Index k = 0; k < X->size(); ++k) {
+      const double x = X->data()[k];
+      if (x == 0.0 || !std::isfinite(x)) continue;
+      int e = 0;
+      std::frexp(x, &e);
+      lo = std::min(lo, e), hi = std::max(hi, e);
+    }
+  return hi < lo ? 0 : hi - lo;
+}
+
+// Why a realisation is decided in floating point, or empty when the exact tests run.
+std::string why_not_exact(const Eigen::MatrixXd& A, const Eigen::MatrixXd& B, const Eigen::MatrixXd& C) {
+  const int n = static_cast<int>(A.rows());
+  if (n > kExactMaxStates) return "n = " + std::to_string(n) + " > " + std::to_string(kExactMaxStates) + ", too large for the exact test";
+  const int spread = exponent_spread(A, B, C);
+  if (spread > kExactMaxExponentSpread)
+    return "entries spanning 2^" + std::to_string(spread) + " > 2^" + std::to_string(kExactMaxExponentSpread) +
+           ", too wide for the exact test";
+  return "";
+}
 
 double max_abs(const Eigen::MatrixXd& X) { return X.size() ? X.cwiseAbs().maxCoeff() : 0.0; }
 
@@ -397,11 +428,11 @@ ExactFrequency exact_frequency(const ex::Matrix& A, const ex::Matrix& B, const e
   return out;
 }
 
-std::string format(const char* fmt, double a, double b = 0.0, double c = 0.0) {
-  char buf[256];
-  std::snprintf(buf, sizeof buf, fmt, a, b, c);
-  return buf;
-}
+// Numbers in verdicts' witnesses: frequencies exactly (they locate a crossing to the spacing of doubles, and
+// may be read back), other values to 6 or 3 significant digits.
+std::string exact_text(double v) { return platform::shortest(v); }
+std::string g6(double v) { return platform::significant(v, 6); }
+std::string g3(double v) { return platform::significant(v, 3); }
 
 // A certificate P on {P = P^T, B^T P = C} (see the header): the search and its check.
 struct Certificate {
@@ -458,12 +489,10 @@ Certificate search_certificate(const Eigen::MatrixXd& A, const Eigen::MatrixXd& 
   r.check = check_storage_matrix(A, B, C, r.P);
   // A search that does not find P proves nothing either way: the certificate is then undetermined.
   r.verdict = r.check.all() ? Verdict::kHolds : Verdict::kUndetermined;
-  char buf[400];
-  std::snprintf(buf, sizeof buf,
-                "searched the %d-dimensional affine set of symmetric P with B^T P = C for the largest "
-                "min(lambda_min(P), lambda_min(-(PA + A^T P))) by Nelder-Mead: %s (margin %.3g)",
-                static_cast<int>(Nul.cols()), r.verdict == Verdict::kHolds ? "found, and checked" : "none found", objective(z));
-  r.method = buf;
+  r.method = "searched the " + std::to_string(Nul.cols()) +
+             "-dimensional affine set of symmetric P with B^T P = C for the largest min(lambda_min(P), "
+             "lambda_min(-(PA + A^T P))) by Nelder-Mead: " +
+             (r.verdict == Verdict::kHolds ? "found, and checked" : "none found") + " (margin " + g3(objective(z)) + ")";
   return r;
 }
 
@@ -495,7 +524,8 @@ MinimalityCheck check_minimality(const Eigen::MatrixXd& A, const Eigen::MatrixXd
   Eigen::EigenSolver<Eigen::MatrixXd> eig(bal.A, false);
   c.controllability_margin = pbh_margin(bal.A, bal.B, eig.eigenvalues());
   c.observability_margin = pbh_margin(bal.A.transpose(), bal.C.transpose(), eig.eigenvalues());
-  if (n <= kExactMaxStates) {
+  const std::string floating_point_because = why_not_exact(A, B, C);
+  if (floating_point_because.empty()) {
     // Kalman's rank test on the matrices as stored, in rational arithmetic: a rank below n is an exact
     // uncontrollable (unobservable) subspace, not a small margin.
     const ex::Matrix Ae = ex::Matrix::from(A), Be = ex::Matrix::from(B), Ce = ex::Matrix::from(C);
@@ -521,8 +551,8 @@ MinimalityCheck check_minimality(const Eigen::MatrixXd& A, const Eigen::MatrixXd
     // A small margin is no proof of a lost mode: only a clear margin decides.
     c.controllable = c.controllability_margin > 1e-8 ? Verdict::kHolds : Verdict::kUndetermined;
     c.observable = c.observability_margin > 1e-8 ? Verdict::kHolds : Verdict::kUndetermined;
-    c.method = "Popov-Belevitch-Hautus margins of the balanced realisation (n = " + std::to_string(n) + " > " +
-               std::to_string(kExactMaxStates) + ", too large for the exact test): holds above 1e-8, otherwise undetermined";
+    c.method = "Popov-Belevitch-Hautus margins of the balanced realisation (" + floating_point_because +
+               "): holds above 1e-8, otherwise undetermined";
   }
   return c;
 }
@@ -538,7 +568,9 @@ PositiveRealnessTest test_strict_positive_realness(const Eigen::MatrixXd& A, con
   const Eigen::MatrixXd& Ab = bal.A;
   const Eigen::MatrixXd& Bb = bal.B;
   const Eigen::MatrixXd& Cb = bal.C;
-  r.exact = n <= kExactMaxStates && p == m;
+  // Why the floating-point tests decide, or empty when the exact ones can (a non-square G returns below).
+  const std::string floating_point_because = why_not_exact(A, B, C);
+  r.exact = floating_point_because.empty() && p == m;
 
   // (i) A Hurwitz. Exactly by Routh's test on det(sI - A); otherwise from the eigenvalues, which for a
   // non-normal A can move by about sqrt(eps) |A|: inside that band the answer is undetermined.
@@ -550,7 +582,7 @@ PositiveRealnessTest test_strict_positive_realness(const Eigen::MatrixXd& A, con
   r.wc = std::max(1.0, rho);
   ex::Matrix Ae, Be, Ce;
   ex::Resolvent res;
-  if (n <= kExactMaxStates) {
+  if (floating_point_because.empty()) {
     Ae = ex::Matrix::from(A), Be = ex::Matrix::from(B), Ce = ex::Matrix::from(C);
     res = ex::resolvent(Ae);
     r.hurwitz = ex::hurwitz(res.d) ? Verdict::kHolds : Verdict::kFails;
@@ -693,15 +725,14 @@ PositiveRealnessTest test_strict_positive_realness(const Eigen::MatrixXd& A, con
   r.spr = all_of(all_of(r.hurwitz, r.cb), r.high_frequency);
   if (r.hurwitz == Verdict::kHolds) r.spr = all_of(r.spr, r.frequency);
   if (r.hurwitz == Verdict::kFails) {
-    r.witness = r.exact ? format("A is not Hurwitz: Routh's test on det(sI - A) fails (exact; max Re lambda = %.6g)", r.spectral_abscissa)
-                        : format("A is not Hurwitz: an eigenvalue has real part %.6g >= 0", r.spectral_abscissa);
+    r.witness = r.exact ? "A is not Hurwitz: Routh's test on det(sI - A) fails (exact; max Re lambda = " + g6(r.spectral_abscissa) + ")"
+                        : "A is not Hurwitz: an eigenvalue has real part " + g6(r.spectral_abscissa) + " >= 0";
   } else if (r.frequency == Verdict::kFails) {
     if (r.witness_value == 0.0 && r.frequency_exact == Verdict::kFails) {
       r.witness =
-          format("G(jw) + G(jw)^H is singular at w = %.17g (exact: det = 0 there, positive definite on both sides)", r.witness_omega);
+          "G(jw) + G(jw)^H is singular at w = " + exact_text(r.witness_omega) + " (exact: det = 0 there, positive definite on both sides)";
     } else {
-      r.witness = format("G(jw) + G(jw)^H is not positive definite at w = %.17g: (1 + (w/wc)^2) lambda_min = %.6g", r.witness_omega,
-                         r.witness_value);
+      r.witness = "G(jw) + G(jw)^H is not positive definite at w = " + exact_text(r.witness_omega) + ": (1 + (w/wc)^2) lambda_min = " + g6(r.witness_value);
       if (r.frequency_exact == Verdict::kFails) r.witness += " (its sign decided exactly)";
     }
     // Where it fails, between which crossings (each located to the spacing of doubles).
@@ -710,41 +741,40 @@ PositiveRealnessTest test_strict_positive_realness(const Eigen::MatrixXd& A, con
       if (x[i] > r.witness_omega) {
         if (i > 0)
           r.witness +=
-              format("; it fails between the crossings at w = %.17g and %.17g (a band %.6g wide)", x[i - 1], x[i], x[i] - x[i - 1]);
+              "; it fails between the crossings at w = " + exact_text(x[i - 1]) + " and " + exact_text(x[i]) + " (a band " + g6(x[i] - x[i - 1]) + " wide)";
         break;
       }
-      if (i + 1 == x.size() && r.witness_omega > x[i]) r.witness += format("; it fails for every w beyond the crossing at w = %.17g", x[i]);
+      if (i + 1 == x.size() && r.witness_omega > x[i]) r.witness += "; it fails for every w beyond the crossing at w = " + exact_text(x[i]);
     }
   } else if (r.cb == Verdict::kFails) {
-    r.witness = r.cb_asymmetry > 0.0 ? format("CB is not symmetric (relative asymmetry %.3g)", r.cb_asymmetry)
-                                     : format("CB is not positive definite: lambda_min(CB) = %.6g", r.cb_min_eigenvalue);
+    r.witness = r.cb_asymmetry > 0.0 ? "CB is not symmetric (relative asymmetry " + g3(r.cb_asymmetry) + ")"
+                                     : "CB is not positive definite: lambda_min(CB) = " + g6(r.cb_min_eigenvalue);
   } else if (r.high_frequency == Verdict::kFails) {
-    r.witness = format("-(CAB + (CAB)^T) is not positive definite (lambda_min = %.6g): G(jw) + G(jw)^H < 0 for large w",
-                       r.high_frequency_min_eigenvalue);
+    r.witness = "-(CAB + (CAB)^T) is not positive definite (lambda_min = " + g6(r.high_frequency_min_eigenvalue) +
+                "): G(jw) + G(jw)^H < 0 for large w";
   }
-  char buf[1200];
+  const std::string wc = g3(r.wc);
   if (r.exact) {
-    std::snprintf(buf, sizeof buf,
-                  "frequency domain (strictly proper G, Tao and Ioannou 1988), decided exactly in rational arithmetic on the "
-                  "matrices as stored: A Hurwitz by Routh's test on det(sI - A); G(jw) + G(jw)^H > 0 for every w by a Sturm "
-                  "sequence of det N(jw) = q(w^2), N the numerator of the Popov function (degree %d in w^2, %d positive "
-                  "crossings; N(jw) > 0 tested exactly once between each two and beyond the last); CB = (CB)^T > 0 and "
-                  "-(CAB + (CAB)^T) > 0 for "
-                  "w -> infinity. Second decider, floating point on the balanced realisation: the Popov pencil (QZ, %d "
-                  "candidate frequencies, %d evaluations of G(jw), wc = %.3g) says %s",
-                  q_degree, static_cast<int>(r.crossings.size()), static_cast<int>(r.crossing_candidates.size()), r.frequencies, r.wc,
-                  to_string(r.frequency_pencil));
+    r.method = "frequency domain (strictly proper G, Tao and Ioannou 1988), decided exactly in rational arithmetic on the "
+               "matrices as stored: A Hurwitz by Routh's test on det(sI - A); G(jw) + G(jw)^H > 0 for every w by a Sturm "
+               "sequence of det N(jw) = q(w^2), N the numerator of the Popov function (degree " +
+               std::to_string(q_degree) + " in w^2, " + std::to_string(r.crossings.size()) +
+               " positive crossings; N(jw) > 0 tested exactly once between each two and beyond the last); CB = (CB)^T > 0 and "
+               "-(CAB + (CAB)^T) > 0 for w -> infinity. Second decider, floating point on the balanced realisation: the "
+               "Popov pencil (QZ, " +
+               std::to_string(r.crossing_candidates.size()) + " candidate frequencies, " + std::to_string(r.frequencies) +
+               " evaluations of G(jw), wc = " + wc + ") says " + to_string(r.frequency_pencil);
   } else {
-    std::snprintf(buf, sizeof buf,
-                  "frequency domain (strictly proper G, Tao and Ioannou 1988), in floating point on the balanced realisation "
-                  "(n = %d > %d, too large for the exact test): A Hurwitz from its eigenvalues; G(jw) + G(jw)^H > 0 for every "
-                  "w, decided at the candidate frequencies where its determinant can vanish (%d: 0 and the |Im| of the finite "
-                  "generalized eigenvalues of the Popov function's Rosenbrock pencil, by QZ), at the midpoints between them "
-                  "and beyond the last (%d evaluations of G(jw) with a log sweep for the margin, wc = %.3g); CB = (CB)^T > 0 "
-                  "and -(CAB + (CAB)^T) > 0 for w -> infinity",
-                  n, kExactMaxStates, static_cast<int>(r.crossing_candidates.size()), r.frequencies, r.wc);
+    r.method = "frequency domain (strictly proper G, Tao and Ioannou 1988), in floating point on the balanced realisation "
+               "(" +
+               floating_point_because + "): A Hurwitz from its eigenvalues; G(jw) + G(jw)^H > 0 for every w, decided at "
+               "the candidate frequencies where its determinant can vanish (" +
+               std::to_string(r.crossing_candidates.size()) +
+               ": 0 and the |Im| of the finite generalized eigenvalues of the Popov function's Rosenbrock pencil, by QZ), at "
+               "the midpoints between them and beyond the last (" +
+               std::to_string(r.frequencies) + " evaluations of G(jw) with a log sweep for the margin, wc = " + wc +
+               "); CB = (CB)^T > 0 and -(CAB + (CAB)^T) > 0 for w -> infinity";
   }
-  r.method = buf;
 
   // A certificate P on {P = P^T, B^T P = C}: sought only when the frequency test says SPR (otherwise none
   // exists, by the KYP lemma).
