@@ -5,6 +5,7 @@
 
 #include <Eigen/Dense>
 
+#include "active_constraints.h"
 #include "moreau/platform/number_text.h"
 
 namespace moreau::scene {
@@ -19,26 +20,33 @@ std::string detail_text(Detail detail, Text&& text) {
   return detail == Detail::kFull ? std::string(text()) : std::string();
 }
 
-// Assumption 3.1 (M_1) at the states the run visited.
-HypothesisCheck mass_check(const RunSummary& s, Detail detail) {
-  HypothesisCheck h{"Assumption 3.1: M(Q^k) positive definite at every step (lambda_min(M) > 0)", s.mass.verdict(), ""};
+// Assumption 3.1 (M_1): M(q) symmetric positive definite for all q. Proved for all q when M is constant
+// (the scene's M reads no coordinate, and no robot adds its own): every step then checks the one M. Otherwise
+// only the states the run visited are checked, and a "holds" says so (scope).
+HypothesisCheck mass_check(const LagrangianScene& scene, const RunSummary& s, Detail detail) {
+  HypothesisCheck h{"Assumption 3.1: M(q) positive definite (lambda_min(M) > 0)", s.mass.verdict(), ""};
+  const bool constant = scene.compiled && scene.compiled->constant_mass && !scene.compiled->robot;
+  if (h.verdict == Verdict::kHolds) h.scope = constant ? kForAllStates : kOnVisitedStates;
   if (detail == Detail::kVerdicts) return h;
   if (s.mass.checked == 0) {
     h.detail = "no step was taken";
   } else if (h.verdict == Verdict::kHolds) {
-    h.detail = "checked at " + std::to_string(s.mass.checked) + " steps; smallest lambda_min(M) " + (s.mass.lambda_min_exact ? "" : ">= ") +
-               fmt(s.mass.lambda_min) + " at t = " + fmt(s.mass.at_time) +
-               (s.mass.lambda_min_exact ? "" : " (a certified lower bound: Gershgorin's, or M - s I has a Cholesky factor)") +
-               " (the global bound k1 of the assumption is not checked, only the visited states)";
+    const std::string smallest = std::string(s.mass.lambda_min_exact ? "" : ">= ") + fmt(s.mass.lambda_min);
+    const std::string bound =
+        s.mass.lambda_min_exact ? "" : " (a certified lower bound: Gershgorin's, or M - s I has a Cholesky factor)";
+    h.detail = constant ? "M is constant (no entry reads q): lambda_min(M) " + smallest + bound + ", so k1 = lambda_min(M) for every q"
+                        : "checked at the " + std::to_string(s.mass.checked) + " steps' Q^k; smallest lambda_min(M) " + smallest +
+                              " at t = " + fmt(s.mass.at_time) + bound +
+                              " (the global bound k1 of the assumption is not checked, only the visited states)";
   } else {
     h.detail = "lambda_min(M) = " + fmt(s.mass.lambda_min) + " at t = " + fmt(s.mass.at_time) + ": the run stopped there";
   }
   return h;
 }
 
-Guarantee theorem41(const RunSummary& s, Detail detail) {
+Guarantee theorem41(const LagrangianScene& scene, const RunSummary& s, Detail detail) {
   Guarantee g{"Theorem 4.1", "each step of (0.2) has exactly one solution (Q^{k+1}, V^{k+1})", true, {}};
-  g.hypotheses.push_back(mass_check(s, detail));
+  g.hypotheses.push_back(mass_check(scene, s, detail));
   const StepConditionTrack& c = s.theorem41;
   HypothesisCheck h{"(4.2): h_k k3 ||V^k|| <= k1 / 2 at every step, with k1 = lambda_min(M(Q^k)) and k3 ||V^k|| = ||C(Q^k, V^k)||_2",
                     c.verdict(), ""};
@@ -149,14 +157,17 @@ Guarantee theorem42(const LagrangianScene& scene, const RunSummary& s, const Gua
                           })});
   const double eta = scene.controller.eta(), alpha = scene.controller.alpha();
   const bool a1 = eta > 0.0 && alpha > 0.0;
+  // For every v, from Phi's form (a sum of weighted |v_i|, w_i v_i^2 / 2 and a_norm ||v||): proved, not sampled.
   g.hypotheses.push_back({"Assumption 4.1 1): Phi(v) >= eta ||v||^2 + alpha ||v|| + Phi(0) with eta > 0, alpha > 0",
                           a1 ? Verdict::kHolds : Verdict::kFails, detail_text(detail, [&] {
-                            return "from the controller's coefficients: eta = min w_i / 2 = " + fmt(eta) +
+                            return "from the controller's coefficients, for every v: eta = min w_i / 2 = " + fmt(eta) +
                                    ", alpha = min a_i + a_norm = " + fmt(alpha);
-                          })});
+                          }),
+                          a1 ? kForAllStates : std::string()});
   g.hypotheses.push_back(assumption41_forces(scene, s, alpha, detail));
   if (scene.forces_smooth_everywhere) {
     const bool robot = scene.compiled && scene.compiled->robot;
+    // From the expressions' operations, over all of R^(1+2n): proved for all states.
     g.hypotheses.push_back(
         {"Assumption 3.3: F continuous and locally Lipschitz, grad V locally Lipschitz", Verdict::kHolds, detail_text(detail, [&] {
            return std::string(robot ? "gravity's part of grad V comes from the URDF robot (a polynomial in the joint "
@@ -165,7 +176,8 @@ Guarantee theorem42(const LagrangianScene& scene, const RunSummary& s, const Gua
                   "grad V and F are built only from +, -, *, integer powers, sin, cos, atan, sinh, cosh, tanh and exp: "
                   "C-infinity on all of R^(1+2n), so locally Lipschitz, uniformly in t on [t0, t_end]; Phi convex by "
                   "construction";
-         })});
+         }),
+         kForAllStates});
   } else {
     g.hypotheses.push_back(
         {"Assumption 3.3: F continuous and locally Lipschitz, grad V locally Lipschitz", Verdict::kNotChecked, detail_text(detail, [] {
@@ -360,25 +372,12 @@ Guarantee lemma3(const LagrangianScene& scene, const RunSummary& s) {
   } else if (!c || !c->has_potential) {
     strict.detail = "the scene gives no potential U";
   } else {
-    std::vector<double> slots(static_cast<std::size_t>(1 + 2 * n), 0.0);
-    slots[0] = s.t_final;
-    for (int i = 0; i < n; ++i) slots[1 + i] = s.q_final[i];
-    std::vector<double> split(static_cast<std::size_t>(2 * n));
-    ForceTerms(*c).split(s.t_final, slots.data() + 1, slots.data() + 1 + n, split.data(), split.data() + n);
-    std::vector<double> cons(c->constraint_tape.num_outputs()), scratch2(c->constraint_tape.scratch_size());
-    c->constraint_tape.eval(slots.data(), cons.data(), scratch2.data());
-    const Eigen::VectorXd grad_u = Eigen::Map<const Eigen::VectorXd>(split.data(), n);
+    const detail::ActiveConstraints at_end = detail::active_constraints_at_end(scene, s);
+    const Eigen::VectorXd& grad_u = at_end.grad_u;
     const double scale = 1.0 + grad_u.norm();
-    // A velocity-level scheme rests with a gap of up to about one step's fall, h^2 |M^{-1} grad U|: a
-    // constraint within ten times that is active.
-    const double h = scene.settings.h;
-    const double gap_tol = 10.0 * h * h * grad_u.norm() / std::max(s.mass.lambda_min, 1e-300) + 1e-12;
-    std::vector<int> active;
-    for (int i = 0; i < m; ++i)
-      if (cons[i] <= gap_tol) active.push_back(i);
-    Eigen::MatrixXd Ht(n, static_cast<int>(active.size()));
-    for (std::size_t a = 0; a < active.size(); ++a)
-      for (int j = 0; j < n; ++j) Ht(j, static_cast<int>(a)) = cons[m + active[a] * n + j];
+    const double gap_tol = at_end.gap_tolerance;
+    const std::vector<int>& active = at_end.active;
+    const Eigen::MatrixXd Ht = at_end.gradients.transpose();
     if (active.empty()) {
       if (grad_u.norm() > 1e-9 * scale) {
         strict.verdict = Verdict::kFails;
@@ -422,13 +421,13 @@ Guarantee lemma3(const LagrangianScene& scene, const RunSummary& s) {
 Guarantees lagrangian_guarantees(const LagrangianScene& scene, const RunSummary& s, Detail detail) {
   Guarantees g;
   if (traits(scene.scheme).theorems_4_1_to_4_3) {
-    g.items.push_back(theorem41(s, detail));
+    g.items.push_back(theorem41(scene, s, detail));
     g.items.push_back(theorem42(scene, s, g.items.back(), detail));
     g.items.push_back(theorem43(scene, s, g.items.back(), detail));
   } else {
     // Moreau-Jean (and the explicit peer) are not the scheme (0.2): the theorems of Adly, Brogliato and
     // Le do not apply; what still holds of the model is checked.
-    Guarantee m{"Assumption 3.1", "the kinetic energy 1/2 <M v, v> is a norm of v (a mass matrix)", true, {mass_check(s, detail)}};
+    Guarantee m{"Assumption 3.1", "the kinetic energy 1/2 <M v, v> is a norm of v (a mass matrix)", true, {mass_check(scene, s, detail)}};
     g.items.push_back(m);
     // Lemma 3 is not relied on: with the verdicts alone it is left out.
     if (!scene.constraint_names.empty() && detail == Detail::kFull) g.items.push_back(lemma3(scene, s));

@@ -11,6 +11,8 @@
 
 #include <Eigen/Dense>
 
+#include "active_constraints.h"
+
 namespace moreau::scene {
 namespace {
 
@@ -328,26 +330,10 @@ struct ActiveContacts {
 
 ActiveContacts active_contacts_at_end(const LagrangianScene& scene, const RunSummary& s) {
   ActiveContacts out;
-  const CompiledLagrangian* c = scene.compiled.get();
-  const int n = scene.n, m = static_cast<int>(scene.constraint_names.size());
-  if (!c || m == 0 || static_cast<int>(s.q_final.size()) != n) return out;
-  std::vector<double> slots(static_cast<std::size_t>(1 + 2 * n), 0.0);
-  slots[0] = s.t_final;
-  for (int i = 0; i < n; ++i) slots[static_cast<std::size_t>(1 + i)] = s.q_final[static_cast<std::size_t>(i)];
-  std::vector<double> split(static_cast<std::size_t>(2 * n));
-  ForceTerms(*c).split(s.t_final, slots.data() + 1, slots.data() + 1 + n, split.data(), split.data() + n);
-  std::vector<double> cons(c->constraint_tape.num_outputs()), scratch(c->constraint_tape.scratch_size());
-  c->constraint_tape.eval(slots.data(), cons.data(), scratch.data());
-  const double grad_u = Eigen::Map<const Eigen::VectorXd>(split.data(), n).norm();
-  const double h = scene.settings.h;
-  const double gap_tol = 10.0 * h * h * grad_u / std::max(s.mass.lambda_min, 1e-300) + 1e-12;
-  for (int i = 0; i < m; ++i)
-    if (std::isfinite(cons[static_cast<std::size_t>(i)]) && cons[static_cast<std::size_t>(i)] <= gap_tol) out.active.push_back(i);
+  const detail::ActiveConstraints at_end = detail::active_constraints_at_end(scene, s);
+  out.active = at_end.active;
   if (out.active.empty()) return out;
-  Eigen::MatrixXd H(static_cast<int>(out.active.size()), n);
-  for (std::size_t a = 0; a < out.active.size(); ++a)
-    for (int j = 0; j < n; ++j) H(static_cast<int>(a), j) = cons[static_cast<std::size_t>(m + out.active[a] * n + j)];
-  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(H);
+  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(at_end.gradients);
   qr.setThreshold(1e-10);
   out.rank = static_cast<int>(qr.rank());
   return out;
@@ -442,12 +428,15 @@ std::string contact_text(const LagrangianScene& scene, const RunSummary& s, cons
     const std::size_t shown = std::min<std::size_t>(c->impacts.size(), 12);
     for (std::size_t k = 0; k < shown; ++k) {
       const ImpactEvent& e = c->impacts[k];
-      char line[256];
-      char eq9[32] = "not evaluated";
-      if (e.reference_evaluated) std::snprintf(eq9, sizeof eq9, "%.5g", e.eq9_change);
-      std::snprintf(line, sizeof line, "                t = %-10.6g %-8s U- = %-11.5g U+ = %-11.5g P = %-11.5g dT = %-11.5g eq.9 %s\n", e.t,
-                    name_of(scene, e.constraint).c_str(), e.pre, e.post, e.impulse, e.kinetic_change, eq9);
-      os << line;
+      // A table for people: each column padded on the right, numbers to 5 or 6 significant digits.
+      const auto column = [](std::string text, std::size_t width) {
+        if (text.size() < width) text.append(width - text.size(), ' ');
+        return text;
+      };
+      const auto g5 = [&](double v) { return column(platform::significant(v, 5), 11); };
+      os << "                t = " << column(platform::significant(e.t, 6), 10) << " " << column(name_of(scene, e.constraint), 8)
+         << " U- = " << g5(e.pre) << " U+ = " << g5(e.post) << " P = " << g5(e.impulse) << " dT = " << g5(e.kinetic_change) << " eq.9 "
+         << (e.reference_evaluated ? platform::significant(e.eq9_change, 5) : "not evaluated") << "\n";
     }
     if (c->impact_count > static_cast<std::int64_t>(shown))
       os << "                ... " << c->impact_count - static_cast<std::int64_t>(shown) << " more (all in --json"
