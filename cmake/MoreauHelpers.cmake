@@ -6,6 +6,8 @@ function(moreau_add_test)
   add_executable(${T_NAME} ${T_SOURCES})
   target_link_libraries(${T_NAME} PRIVATE ${T_LIBS} GTest::gtest_main GTest::gmock)
   target_compile_definitions(${T_NAME} PRIVATE MOREAU_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
+  # tests/support/ (fixtures shared by the parts' tests) is included as "support/...".
+  target_include_directories(${T_NAME} PRIVATE ${PROJECT_SOURCE_DIR}/tests)
   gtest_discover_tests(${T_NAME} WORKING_DIRECTORY ${PROJECT_SOURCE_DIR} DISCOVERY_TIMEOUT 60)
 endfunction()
 

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Runs every shipped scene (scenes/*.json) with `moreau run` and compares what it produces with the
-reference results checked in under tests/scene_results/: the report, apart from its wall-clock timings,
+reference results checked in under tests/scene/results/: the report, apart from its wall-clock timings,
 and the SHA-256 of the trajectory CSV (numbers written shortest-round-trip, so equal hashes mean equal
 doubles, bit for bit).
 

@@ -5,12 +5,12 @@
 #
 # Options (CI passes all three; a user needs none):
 #   --browser-test  what the web page's browser test needs: Debian's chromium, and puppeteer-core from the
-#                   npm registry into tests/browser/node_modules (npm ci, from the lock file), with the
+#                   npm registry into tests/server/browser/node_modules (npm ci, from the lock file), with the
 #                   machine's Node.js. Without it that test is not registered (CMake says so).
 #   --format-check  clang-format (Debian's, version 14), which CI runs over every C++ file: the tree is
 #                   formatted by .clang-format, and a difference fails CI.
 #   --slurm-test    slurmctld, slurmd, slurm-client and munge, for the test that runs a campaign through a
-#                   real single-node Slurm cluster (tests/slurm/). On a machine with systemd, Debian enables
+#                   real single-node Slurm cluster (tests/client/slurm/). On a machine with systemd, Debian enables
 #                   and starts those daemons when it installs them, so they are not installed by default;
 #                   without them that test is skipped (exit 77), unless MOREAU_REQUIRE_SLURM=1.
 # apt's output goes to a log, shown only if apt fails.
@@ -44,29 +44,29 @@ packages=(
   libexpat1-dev                      # the URDF module: nesting and size checked by a non-recursive XML parser first
   liborocos-kdl-dev                  # tests: KDL, the independent reference for the rigid-body algorithms
   libgtest-dev libgmock-dev libbenchmark-dev  # tests, benchmarks
-  iproute2                           # `ip`, for tests/lcm_udpm_netns.sh (multicast in a private netns)
+  iproute2                           # `ip`, for tests/server/lcm_udpm_netns.sh (multicast in a private netns)
   python3                            # scripts/check-scene-results.py (shipped scenes against references)
-  python3-jsonschema                 # tests/check_openapi.py (server/openapi.json against the OpenAPI 3.1 schema)
-  python3-numpy                      # tests/python_client_test.py (the Python client returns numpy arrays when it can)
-  python3-yaml                       # tests/k8s_indexed_job_test.py (reads the Kubernetes manifest)
+  python3-jsonschema                 # tests/server/check_openapi.py (server/openapi.json against the OpenAPI 3.1 schema)
+  python3-numpy                      # tests/client/python_client_test.py (the Python client returns numpy arrays when it can)
+  python3-yaml                       # tests/client/k8s_indexed_job_test.py (reads the Kubernetes manifest)
 )
 if $browser_test; then packages+=(chromium); fi
 if $slurm_test; then packages+=(slurmctld slurmd slurm-client munge); fi
-if $format_check; then packages+=(clang-format); fi  # tests/slurm/: a real single-node cluster
+if $format_check; then packages+=(clang-format); fi  # tests/client/slurm/: a real single-node cluster
 
 # puppeteer-core for the browser test, once the packages are there (it drives /usr/bin/chromium).
 install_browser_driver() {
   $browser_test || return 0
-  if [ -f tests/browser/node_modules/puppeteer-core/package.json ]; then
-    echo "install-deps: puppeteer-core present in tests/browser"
+  if [ -f tests/server/browser/node_modules/puppeteer-core/package.json ]; then
+    echo "install-deps: puppeteer-core present in tests/server/browser"
     return 0
   fi
   if ! command -v npm >/dev/null 2>&1; then
     echo "install-deps: --browser-test needs npm (Node.js 18 or later) to install puppeteer-core" >&2
     exit 1
   fi
-  echo "install-deps: npm ci in tests/browser (puppeteer-core)"
-  (cd tests/browser && npm ci --no-fund --no-audit --loglevel=error)
+  echo "install-deps: npm ci in tests/server/browser (puppeteer-core)"
+  (cd tests/server/browser && npm ci --no-fund --no-audit --loglevel=error)
 }
 
 missing=()

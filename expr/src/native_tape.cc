@@ -8,7 +8,7 @@
 // or clear the sign bit as the compiler's code for -x and std::fabs does; min and max are minsd and maxsd
 // with their operands in the order that makes them the interpreter's comparisons, ties and NaNs included;
 // every other operation is a call of the very function the interpreter calls (libm's sin, cos, sincos,
-// pow, ...; the helpers of expression_arithmetic.h for sign and select). tests/expression_test.cc checks
+// pow, ...; the helpers of expression_arithmetic.h for sign and select). tests/expr/expression_test.cc checks
 // it on every operation at special values and on random expressions, and the expression fuzzer on any
 // expression it finds.
 //

@@ -8,7 +8,7 @@
 //     everywhere);
 //   - the 400 for a query parameter the operation does not read (unknown_query_parameter);
 //   - the paths open without the token (is_open_path).
-// ServerRoutes.TableIsTheOpenApiDocument (tests/server_routes_test.cc) holds the table and the document
+// ServerRoutes.TableIsTheOpenApiDocument (tests/server/server_routes_test.cc) holds the table and the document
 // to each other, both ways.
 #pragma once
 

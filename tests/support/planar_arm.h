@@ -1,5 +1,5 @@
 // The closed form of a planar n-link arm, an independent reference for the rigid-body algorithms
-// (tests/rigid_body_test.cc) and for robots read from URDF (tests/urdf_test.cc).
+// (tests/core/rigid_body_test.cc) and for robots read from URDF (tests/scene/urdf_test.cc).
 #pragma once
 
 #include <algorithm>

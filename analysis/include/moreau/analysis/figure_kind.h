@@ -76,7 +76,7 @@ template <class Kind>
 constexpr const char* figure_name(Kind kind) {
   for (const auto& [k, name] : FigureNames<Kind>::kTable)
     if (k == kind) return name;
-  return "";  // not reached: every enumerator is in its table (tests/scene_figures_test.cc)
+  return "";  // not reached: every enumerator is in its table (tests/analysis/scene_figures_test.cc)
 }
 
 // The kind a name denotes, or nullopt for a name that is none (names are compared exactly).

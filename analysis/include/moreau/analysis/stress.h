@@ -1,6 +1,6 @@
 // The stress suite: stiff and extreme scenes for the ABL scheme, each with what the theory of Adly,
 // Brogliato and Le (2016) promises for it (or that it lies outside the theory), run and checked.
-// `moreau stress` prints one line per case; tests/stress_test.cc asserts every expectation.
+// `moreau stress` prints one line per case; tests/analysis/stress_test.cc asserts every expectation.
 // The cases are documented in docs/stress.md.
 #pragma once
 

@@ -24,7 +24,7 @@
 //   momentum), so a 3 x 3 sum T over the subtree and the composite momentum give Bc_j S_j and Bc_j^T S_j;
 // - grad V = G: G_j = -S_j^T sum_{i in subtree(j)} (c_i x m_i g, m_i g);
 // - inverse dynamics by the recursive Newton-Euler algorithm (for cross-checks and tests).
-// tests/rigid_body_test.cc checks each against closed forms, against each other and against KDL.
+// tests/core/rigid_body_test.cc checks each against closed forms, against each other and against KDL.
 //
 // Floating bases are out of scope: the root link is fixed to the world.
 #pragma once

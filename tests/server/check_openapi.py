@@ -5,7 +5,7 @@
    tests/support/openapi-3.1-schema.json), every schema in it is a valid JSON Schema 2020-12, and each
    request example validates against its request body's schema.
 2. (The route table, server/src/routes.cc, is held to the document by the C++ test
-   ServerRoutes.TableIsTheOpenApiDocument, tests/server_routes_test.cc: the same operations, ids, query
+   ServerRoutes.TableIsTheOpenApiDocument, tests/server/server_routes_test.cc: the same operations, ids, query
    parameters and open paths; the router, the Allow header and the query check are derived from it.)
 3. Every documented operation answers a running moreau-server as documented: each request (with no query
    parameter, with every documented one, with an unknown one, for an id that does not exist, and without
@@ -27,7 +27,7 @@ import urllib.request
 
 import jsonschema
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "support"))
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "support"))
 from server_process import ServerProcess  # noqa: E402
 
 failures = []

@@ -12,7 +12,7 @@ src=$2
 T=$(mktemp -d /tmp/moreau-slurm-XXXXXX)
 chmod 755 "$T"
 cleanup() {
-  bash "$src/tests/slurm/cluster.sh" stop "$T/cluster"
+  bash "$src/tests/client/slurm/cluster.sh" stop "$T/cluster"
   rm -rf "$T"
 }
 trap cleanup EXIT
@@ -24,7 +24,7 @@ fail() {
   exit 1
 }
 
-bash "$src/tests/slurm/cluster.sh" start "$T/cluster" 2> "$T/start.err"
+bash "$src/tests/client/slurm/cluster.sh" start "$T/cluster" 2> "$T/start.err"
 rc=$?
 if [[ $rc == 3 ]]; then
   reason=$(cat "$T/start.err")

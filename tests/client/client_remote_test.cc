@@ -13,7 +13,7 @@
 #include <sys/wait.h>
 
 #include "server_fixture.h"
-#include "../client/terminal_text.h"  // client/: the escaping the remote commands print through
+#include "../../client/terminal_text.h"  // client/: the escaping the remote commands print through
 
 namespace moreau::server {
 namespace {

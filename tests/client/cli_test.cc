@@ -73,7 +73,7 @@ TEST(Cli, InspectShowsTheRobotWithoutRunningIt) {
 }
 
 // The example: the manipulator at h = 1 with a large initial velocity breaks (4.2) of Theorem 4.1
-// from its first step (tests/guarantees_test.cc computes r_0 from the paper's closed forms). Without
+// from its first step (tests/scene/guarantees_test.cc computes r_0 from the paper's closed forms). Without
 // --strict the run completes with a warning; with it, exit status 3. The default scene satisfies (4.2)
 // at every step and passes --strict.
 TEST(Cli, StrictFailsWhenARelieduponHypothesisFails) {

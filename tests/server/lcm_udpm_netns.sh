@@ -1,14 +1,14 @@
 #!/bin/sh
 # LCM over udpm:// between two processes, inside a private network namespace.
 #
-#   tests/lcm_udpm_netns.sh MOREAU_SERVER_BINARY MOREAU_BINARY DIR
+#   tests/server/lcm_udpm_netns.sh MOREAU_SERVER_BINARY MOREAU_BINARY DIR
 #
 # Creates a user and network namespace (unshare -rn) that has nothing but its own loopback interface,
 # turns multicast on for it and routes 224.0.0.0/4 there, then runs moreau-server (publishing on
 # udpm://239.255.76.67:7667?ttl=0) and `moreau watch --log` as separate processes, submits a streamed,
 # realtime job with `moreau submit` and waits for it. No packet can reach the machine's real network.
 # Leaves DIR/watch.log (what the watcher received) and DIR/report.json (the finished job) for
-# tests/lcm_stream_test.cc to decode, then interrupts a second watch with SIGINT (DIR/interrupt.out and
+# tests/server/lcm_stream_test.cc to decode, then interrupts a second watch with SIGINT (DIR/interrupt.out and
 # DIR/interrupt.rc, its output and exit status). Run from the source tree (it submits scenes/manipulator.json).
 set -eu
 [ $# -eq 3 ] || { echo "usage: $0 MOREAU_SERVER_BINARY MOREAU_BINARY DIR" >&2; exit 2; }

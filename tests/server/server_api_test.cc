@@ -59,7 +59,7 @@ LocalRun run_locally(const json& doc) {
 }
 
 // `strict` as `moreau run --strict`: the manipulator at h = 1 with a large initial velocity breaks (4.2)
-// of Theorem 4.1 from its first step (tests/guarantees_test.cc computes r_0 from the paper's closed
+// of Theorem 4.1 from its first step (tests/scene/guarantees_test.cc computes r_0 from the paper's closed
 // forms). Without strict the job is done and its report's guarantees say so; with strict it is failed,
 // and the report says why. A strict that is not a boolean is refused with its pointer.
 TEST(ServerApi, StrictJobFailsWhenARelieduponHypothesisFails) {
