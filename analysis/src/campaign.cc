@@ -204,7 +204,7 @@ std::string campaign_spec_hash(const json& document) {
 CampaignSpec CampaignSpec::from_json(const json& spec, const std::string& base_dir) {
   if (!spec.is_object()) throw SceneError("/", "a campaign spec is a JSON object");
   check_fields(spec, "",
-              {"name", "description", "scene", "inputs", "sampler", "seed", "samples", "target", "full_report", "map", "sensitivity"});
+               {"name", "description", "scene", "inputs", "sampler", "seed", "samples", "target", "full_report", "map", "sensitivity"});
   CampaignSpec s;
   s.document = spec;
   if (spec.contains("name") && !spec["name"].is_string()) throw SceneError("/name", "expected a string");
@@ -950,9 +950,9 @@ std::string format_campaign_summary(const json& s) {
     if (q["count"] == 0) continue;
     std::string label = key;
     label.resize(std::max<std::size_t>(label.size(), 16), ' ');
-    o << "  " << label << " min " << g4(q["min"]) << "  p05 " << g4(q["p05"]) << "  p25 " << g4(q["p25"]) << "  median "
-      << g4(q["p50"]) << "  p75 " << g4(q["p75"]) << "  p95 " << g4(q["p95"]) << "  max " << g4(q["max"]) << " ("
-      << q["count"].get<std::int64_t>() << " samples)\n";
+    o << "  " << label << " min " << g4(q["min"]) << "  p05 " << g4(q["p05"]) << "  p25 " << g4(q["p25"]) << "  median " << g4(q["p50"])
+      << "  p75 " << g4(q["p75"]) << "  p95 " << g4(q["p95"]) << "  max " << g4(q["max"]) << " (" << q["count"].get<std::int64_t>()
+      << " samples)\n";
   }
   o << "  rank correlation (Spearman) with success / convergence time / target distance / max |q|:\n";
   for (const json& r : s["sensitivity"]["inputs"]) {

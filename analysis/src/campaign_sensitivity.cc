@@ -214,8 +214,8 @@ std::string format_success_interval_note(const json& summary) {
   if (summary.contains("sobol") && summary["sobol"].contains("success_rate_ab")) {
     const json& ab = summary["sobol"]["success_rate_ab"];
     const auto percent = [](const json& rate) { return platform::fixed(100.0 * rate.get<double>(), 2) + "%"; };
-    s += "  over its " + std::to_string(ab["samples"].get<std::int64_t>()) + " A and B points, independent draws: " +
-         percent(ab["rate"]) + ", 95% Wilson interval [" + percent(ab["low"]) + ", " + percent(ab["high"]) + "]\n";
+    s += "  over its " + std::to_string(ab["samples"].get<std::int64_t>()) + " A and B points, independent draws: " + percent(ab["rate"]) +
+         ", 95% Wilson interval [" + percent(ab["low"]) + ", " + percent(ab["high"]) + "]\n";
   }
   return s;
 }
@@ -225,8 +225,7 @@ std::string format_campaign_sobol(const json& summary) {
   const json& s = summary["sobol"];
   std::ostringstream o;
   o << "  Sobol indices (Saltelli's design, " << s["base_samples"].get<std::int64_t>() << " rows of "
-    << s["base_sampler"].get<std::string>()
-    << "; first order S: Saltelli et al. 2010, total ST: Jansen 1999; 95% bootstrap intervals):\n";
+    << s["base_sampler"].get<std::string>() << "; first order S: Saltelli et al. 2010, total ST: Jansen 1999; 95% bootstrap intervals):\n";
   if (!s["outcomes"].is_array()) {
     o << "    not computed: " << s.value("why", "") << "\n";
     return o.str();

@@ -172,10 +172,9 @@ std::string format_outcome(const StressOutcome& o) {
   if (seconds.size() < 6) seconds.insert(0, 6 - seconds.size(), ' ');
   std::string s = column(o.c->name, 30) + " abl  " + column(to_string(o.summary.status), 9) + " " +
                   column(o.finite ? "finite" : "NON-FINITE", 14) + " energy " +
-                  column(o.summary.energy_nonincreasing ? "non-increasing" : "not monotone", 14) + " " + column(conv, 22) +
-                  " solver max " + std::to_string(o.summary.solver.max_iterations) + " it, res " +
-                  significant(o.summary.solver.max_residual, 2) + ", h_k in [" + significant(o.summary.h_min, 2) + ", " +
-                  significant(o.summary.h_max, 2) + "]  " + seconds + " s  " +
+                  column(o.summary.energy_nonincreasing ? "non-increasing" : "not monotone", 14) + " " + column(conv, 22) + " solver max " +
+                  std::to_string(o.summary.solver.max_iterations) + " it, res " + significant(o.summary.solver.max_residual, 2) +
+                  ", h_k in [" + significant(o.summary.h_min, 2) + ", " + significant(o.summary.h_max, 2) + "]  " + seconds + " s  " +
                   (o.failures.empty() ? (o.c->within_theory ? "PASS" : "PASS (outside theory)") : "FAIL");
   for (const auto& f : o.failures) s += "\n    " + f;
   return s;

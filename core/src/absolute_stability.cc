@@ -732,7 +732,8 @@ PositiveRealnessTest test_strict_positive_realness(const Eigen::MatrixXd& A, con
       r.witness =
           "G(jw) + G(jw)^H is singular at w = " + exact_text(r.witness_omega) + " (exact: det = 0 there, positive definite on both sides)";
     } else {
-      r.witness = "G(jw) + G(jw)^H is not positive definite at w = " + exact_text(r.witness_omega) + ": (1 + (w/wc)^2) lambda_min = " + g6(r.witness_value);
+      r.witness = "G(jw) + G(jw)^H is not positive definite at w = " + exact_text(r.witness_omega) +
+                  ": (1 + (w/wc)^2) lambda_min = " + g6(r.witness_value);
       if (r.frequency_exact == Verdict::kFails) r.witness += " (its sign decided exactly)";
     }
     // Where it fails, between which crossings (each located to the spacing of doubles).
@@ -740,8 +741,8 @@ PositiveRealnessTest test_strict_positive_realness(const Eigen::MatrixXd& A, con
     for (std::size_t i = 0; i < x.size(); ++i) {
       if (x[i] > r.witness_omega) {
         if (i > 0)
-          r.witness +=
-              "; it fails between the crossings at w = " + exact_text(x[i - 1]) + " and " + exact_text(x[i]) + " (a band " + g6(x[i] - x[i - 1]) + " wide)";
+          r.witness += "; it fails between the crossings at w = " + exact_text(x[i - 1]) + " and " + exact_text(x[i]) + " (a band " +
+                       g6(x[i] - x[i - 1]) + " wide)";
         break;
       }
       if (i + 1 == x.size() && r.witness_omega > x[i]) r.witness += "; it fails for every w beyond the crossing at w = " + exact_text(x[i]);
@@ -755,25 +756,28 @@ PositiveRealnessTest test_strict_positive_realness(const Eigen::MatrixXd& A, con
   }
   const std::string wc = g3(r.wc);
   if (r.exact) {
-    r.method = "frequency domain (strictly proper G, Tao and Ioannou 1988), decided exactly in rational arithmetic on the "
-               "matrices as stored: A Hurwitz by Routh's test on det(sI - A); G(jw) + G(jw)^H > 0 for every w by a Sturm "
-               "sequence of det N(jw) = q(w^2), N the numerator of the Popov function (degree " +
-               std::to_string(q_degree) + " in w^2, " + std::to_string(r.crossings.size()) +
-               " positive crossings; N(jw) > 0 tested exactly once between each two and beyond the last); CB = (CB)^T > 0 and "
-               "-(CAB + (CAB)^T) > 0 for w -> infinity. Second decider, floating point on the balanced realisation: the "
-               "Popov pencil (QZ, " +
-               std::to_string(r.crossing_candidates.size()) + " candidate frequencies, " + std::to_string(r.frequencies) +
-               " evaluations of G(jw), wc = " + wc + ") says " + to_string(r.frequency_pencil);
+    r.method =
+        "frequency domain (strictly proper G, Tao and Ioannou 1988), decided exactly in rational arithmetic on the "
+        "matrices as stored: A Hurwitz by Routh's test on det(sI - A); G(jw) + G(jw)^H > 0 for every w by a Sturm "
+        "sequence of det N(jw) = q(w^2), N the numerator of the Popov function (degree " +
+        std::to_string(q_degree) + " in w^2, " + std::to_string(r.crossings.size()) +
+        " positive crossings; N(jw) > 0 tested exactly once between each two and beyond the last); CB = (CB)^T > 0 and "
+        "-(CAB + (CAB)^T) > 0 for w -> infinity. Second decider, floating point on the balanced realisation: the "
+        "Popov pencil (QZ, " +
+        std::to_string(r.crossing_candidates.size()) + " candidate frequencies, " + std::to_string(r.frequencies) +
+        " evaluations of G(jw), wc = " + wc + ") says " + to_string(r.frequency_pencil);
   } else {
-    r.method = "frequency domain (strictly proper G, Tao and Ioannou 1988), in floating point on the balanced realisation "
-               "(" +
-               floating_point_because + "): A Hurwitz from its eigenvalues; G(jw) + G(jw)^H > 0 for every w, decided at "
-               "the candidate frequencies where its determinant can vanish (" +
-               std::to_string(r.crossing_candidates.size()) +
-               ": 0 and the |Im| of the finite generalized eigenvalues of the Popov function's Rosenbrock pencil, by QZ), at "
-               "the midpoints between them and beyond the last (" +
-               std::to_string(r.frequencies) + " evaluations of G(jw) with a log sweep for the margin, wc = " + wc +
-               "); CB = (CB)^T > 0 and -(CAB + (CAB)^T) > 0 for w -> infinity";
+    r.method =
+        "frequency domain (strictly proper G, Tao and Ioannou 1988), in floating point on the balanced realisation "
+        "(" +
+        floating_point_because +
+        "): A Hurwitz from its eigenvalues; G(jw) + G(jw)^H > 0 for every w, decided at "
+        "the candidate frequencies where its determinant can vanish (" +
+        std::to_string(r.crossing_candidates.size()) +
+        ": 0 and the |Im| of the finite generalized eigenvalues of the Popov function's Rosenbrock pencil, by QZ), at "
+        "the midpoints between them and beyond the last (" +
+        std::to_string(r.frequencies) + " evaluations of G(jw) with a log sweep for the margin, wc = " + wc +
+        "); CB = (CB)^T > 0 and -(CAB + (CAB)^T) > 0 for w -> infinity";
   }
 
   // A certificate P on {P = P^T, B^T P = C}: sought only when the frequency test says SPR (otherwise none

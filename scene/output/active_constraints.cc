@@ -30,8 +30,7 @@ ActiveConstraints active_constraints_at_end(const LagrangianScene& scene, const 
   }
   out.gradients.resize(static_cast<Eigen::Index>(out.active.size()), n);
   for (std::size_t a = 0; a < out.active.size(); ++a)
-    for (int j = 0; j < n; ++j)
-      out.gradients(static_cast<Eigen::Index>(a), j) = cons[static_cast<std::size_t>(m + out.active[a] * n + j)];
+    for (int j = 0; j < n; ++j) out.gradients(static_cast<Eigen::Index>(a), j) = cons[static_cast<std::size_t>(m + out.active[a] * n + j)];
   out.evaluated = true;
   return out;
 }

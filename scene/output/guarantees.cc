@@ -32,8 +32,7 @@ HypothesisCheck mass_check(const LagrangianScene& scene, const RunSummary& s, De
     h.detail = "no step was taken";
   } else if (h.verdict == Verdict::kHolds) {
     const std::string smallest = std::string(s.mass.lambda_min_exact ? "" : ">= ") + fmt(s.mass.lambda_min);
-    const std::string bound =
-        s.mass.lambda_min_exact ? "" : " (a certified lower bound: Gershgorin's, or M - s I has a Cholesky factor)";
+    const std::string bound = s.mass.lambda_min_exact ? "" : " (a certified lower bound: Gershgorin's, or M - s I has a Cholesky factor)";
     h.detail = constant ? "M is constant (no entry reads q): lambda_min(M) " + smallest + bound + ", so k1 = lambda_min(M) for every q"
                         : "checked at the " + std::to_string(s.mass.checked) + " steps' Q^k; smallest lambda_min(M) " + smallest +
                               " at t = " + fmt(s.mass.at_time) + bound +
@@ -159,24 +158,28 @@ Guarantee theorem42(const LagrangianScene& scene, const RunSummary& s, const Gua
   const bool a1 = eta > 0.0 && alpha > 0.0;
   // For every v, from Phi's form (a sum of weighted |v_i|, w_i v_i^2 / 2 and a_norm ||v||): proved, not sampled.
   g.hypotheses.push_back({"Assumption 4.1 1): Phi(v) >= eta ||v||^2 + alpha ||v|| + Phi(0) with eta > 0, alpha > 0",
-                          a1 ? Verdict::kHolds : Verdict::kFails, detail_text(detail, [&] {
-                            return "from the controller's coefficients, for every v: eta = min w_i / 2 = " + fmt(eta) +
-                                   ", alpha = min a_i + a_norm = " + fmt(alpha);
-                          }),
+                          a1 ? Verdict::kHolds : Verdict::kFails,
+                          detail_text(detail,
+                                      [&] {
+                                        return "from the controller's coefficients, for every v: eta = min w_i / 2 = " + fmt(eta) +
+                                               ", alpha = min a_i + a_norm = " + fmt(alpha);
+                                      }),
                           a1 ? kForAllStates : std::string()});
   g.hypotheses.push_back(assumption41_forces(scene, s, alpha, detail));
   if (scene.forces_smooth_everywhere) {
     const bool robot = scene.compiled && scene.compiled->robot;
     // From the expressions' operations, over all of R^(1+2n): proved for all states.
     g.hypotheses.push_back(
-        {"Assumption 3.3: F continuous and locally Lipschitz, grad V locally Lipschitz", Verdict::kHolds, detail_text(detail, [&] {
-           return std::string(robot ? "gravity's part of grad V comes from the URDF robot (a polynomial in the joint "
-                                      "positions and their sines and cosines: C-infinity); the expressions' part of "
-                                    : "") +
-                  "grad V and F are built only from +, -, *, integer powers, sin, cos, atan, sinh, cosh, tanh and exp: "
-                  "C-infinity on all of R^(1+2n), so locally Lipschitz, uniformly in t on [t0, t_end]; Phi convex by "
-                  "construction";
-         }),
+        {"Assumption 3.3: F continuous and locally Lipschitz, grad V locally Lipschitz", Verdict::kHolds,
+         detail_text(detail,
+                     [&] {
+                       return std::string(robot ? "gravity's part of grad V comes from the URDF robot (a polynomial in the joint "
+                                                  "positions and their sines and cosines: C-infinity); the expressions' part of "
+                                                : "") +
+                              "grad V and F are built only from +, -, *, integer powers, sin, cos, atan, sinh, cosh, tanh and exp: "
+                              "C-infinity on all of R^(1+2n), so locally Lipschitz, uniformly in t on [t0, t_end]; Phi convex by "
+                              "construction";
+                     }),
          kForAllStates});
   } else {
     g.hypotheses.push_back(

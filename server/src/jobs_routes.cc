@@ -155,9 +155,9 @@ void prepare_run(ApiContext& api, Job& job, const json& doc, const StreamSetting
   scene::RunLimits limits;
   if (planned > cfg.max_steps) {
     throw BadRequest{400, "invalid scene", "/integrator/h",
-                     "h = " + platform::shortest(sim.h()) + " over [" + platform::shortest(sim.t0()) + ", " + platform::shortest(sim.t_end()) + "] needs " +
-                         (fixed ? "" : "at least ") + std::to_string(planned) + " steps; this server runs at most " +
-                         std::to_string(cfg.max_steps) + " steps per job",
+                     "h = " + platform::shortest(sim.h()) + " over [" + platform::shortest(sim.t0()) + ", " +
+                         platform::shortest(sim.t_end()) + "] needs " + (fixed ? "" : "at least ") + std::to_string(planned) +
+                         " steps; this server runs at most " + std::to_string(cfg.max_steps) + " steps per job",
                      "scene"};
   }
   if (sim.max_steps() > cfg.max_steps) limits.max_steps = cfg.max_steps;

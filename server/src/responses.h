@@ -40,7 +40,6 @@ std::string no_endpoint(const httplib::Request& req);
 // which and why.
 std::optional<double> number_param(const httplib::Request& req, const char* name, double lo, double hi);
 
-
 // ASCII lower case, and a copy without leading and trailing spaces and tabs (header values).
 std::string lower(std::string s);
 std::string trim(std::string s);
