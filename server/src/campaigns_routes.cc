@@ -39,12 +39,12 @@ void prepare_campaign(ApiContext& api, Job& job, const json& spec_doc) {
   // reader's own limit is the command line's, far above it.
   if (spec_doc.contains("samples") && spec_doc["samples"].is_number() &&
       spec_doc["samples"].get<double>() > static_cast<double>(cfg.max_campaign_samples))
-    throw BadRequest{
-        400, "invalid request", "/campaign/samples",
-        (spec_doc["samples"].is_number_float() ? platform::shortest(spec_doc["samples"].get<double>()) : spec_doc["samples"].dump()) +
-            " samples; this server runs at most " + std::to_string(cfg.max_campaign_samples) +
-            " per campaign (run larger ones with moreau campaign, on one machine or a Slurm cluster)",
-        "request"};
+    throw BadRequest{400, "invalid request", "/campaign/samples",
+                     (spec_doc["samples"].is_number_float() ? platform::significant(spec_doc["samples"].get<double>(), 10)
+                                                            : spec_doc["samples"].dump()) +
+                         " samples; this server runs at most " + std::to_string(cfg.max_campaign_samples) +
+                         " per campaign (run larger ones with moreau campaign, on one machine or a Slurm cluster)",
+                     "request"};
   scene::CampaignSpec spec;
   try {
     spec = scene::CampaignSpec::from_json(spec_doc, "");
@@ -60,8 +60,8 @@ void prepare_campaign(ApiContext& api, Job& job, const json& spec_doc) {
   const std::int64_t planned = sim.planned_steps();
   if (planned > cfg.max_steps)
     throw BadRequest{400, "invalid scene", "/integrator/h",
-                     "h = " + platform::shortest(sim.h()) + " over [" + platform::shortest(sim.t0()) + ", " +
-                         platform::shortest(sim.t_end()) + "] needs " + std::to_string(planned) +
+                     "h = " + platform::significant(sim.h(), 10) + " over [" + platform::significant(sim.t0(), 10) + ", " +
+                         platform::significant(sim.t_end(), 10) + "] needs " + std::to_string(planned) +
                          " steps per sample; this server runs at most " + std::to_string(cfg.max_steps) + " steps per run",
                      "scene"};
   if (planned > cfg.max_campaign_steps / spec.samples)

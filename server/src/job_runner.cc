@@ -25,7 +25,7 @@ double seconds_since(Clock::time_point t0) { return std::chrono::duration<double
 
 // Why a job stopped by --max-job-seconds failed; `where` says how far it got.
 std::string timed_out_reason(double max_job_seconds, const std::string& where) {
-  return "the job ran longer than this server's limit of " + platform::shortest(max_job_seconds) +
+  return "the job ran longer than this server's limit of " + platform::significant(max_job_seconds, 6) +
          " s of wall-clock time (--max-job-seconds) and was stopped " + where + "; what it wrote is kept";
 }
 

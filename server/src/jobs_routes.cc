@@ -155,8 +155,8 @@ void prepare_run(ApiContext& api, Job& job, const json& doc, const StreamSetting
   scene::RunLimits limits;
   if (planned > cfg.max_steps) {
     throw BadRequest{400, "invalid scene", "/integrator/h",
-                     "h = " + platform::shortest(sim.h()) + " over [" + platform::shortest(sim.t0()) + ", " +
-                         platform::shortest(sim.t_end()) + "] needs " + (fixed ? "" : "at least ") + std::to_string(planned) +
+                     "h = " + platform::significant(sim.h(), 10) + " over [" + platform::significant(sim.t0(), 10) + ", " +
+                         platform::significant(sim.t_end(), 10) + "] needs " + (fixed ? "" : "at least ") + std::to_string(planned) +
                          " steps; this server runs at most " + std::to_string(cfg.max_steps) + " steps per job",
                      "scene"};
   }
@@ -301,9 +301,11 @@ void job_trajectory(ApiContext& api, const Request& req, Response& res) {
     std::error_code ec;
     const auto size = fs::file_size(job->dir / "trajectory.csv", ec);
     const auto mtime = fs::last_write_time(job->dir / "trajectory.csv", ec);
-    const std::string window_text =
-        "|" + platform::shortest(window.from) + "|" + platform::shortest(window.to) + "|" + std::to_string(window.every);
-    identity = job->id + "|" + std::to_string(size) + "|" + std::to_string(mtime.time_since_epoch().count()) + "|" + format + window_text;
+    // Appended piece by piece: GCC 12 warns falsely on "literal" + std::string&& here (-Wrestrict, bug 105329).
+    identity = job->id;
+    for (const std::string& part : {std::to_string(size), std::to_string(mtime.time_since_epoch().count()), format,
+                                    platform::shortest(window.from), platform::shortest(window.to), std::to_string(window.every)})
+      identity.append("|").append(part);
   }
   if (not_modified(req, res, weak_etag(identity))) return;
   res.status = 200;

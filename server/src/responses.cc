@@ -51,8 +51,8 @@ std::optional<double> number_param(const Request& req, const char* name, double 
   char* end = nullptr;
   const double d = std::strtod(v.c_str(), &end);
   if (v.empty() || *end != '\0' || !std::isfinite(d) || d < lo || d > hi)
-    throw std::invalid_argument(std::string("query parameter '") + name + "' must be a number in [" + platform::shortest(lo) + ", " +
-                                platform::shortest(hi) + "]");
+    throw std::invalid_argument(std::string("query parameter '") + name + "' must be a number in [" + platform::significant(lo, 10) + ", " +
+                                platform::significant(hi, 10) + "]");
   return d;
 }
 

@@ -33,8 +33,8 @@ inline const std::string kOnVisitedStates = "on the states visited";
 struct HypothesisCheck {
   std::string name;  // e.g. "Assumption 3.1: M(Q^k) positive definite at every step"
   Verdict verdict = Verdict::kNotChecked;
-  std::string detail;  // the numbers (margin, first failure, worst value), or why it was not checked
-  std::string scope;   // kForAllStates, kOnVisitedStates, or empty (see above)
+  std::string detail;      // the numbers (margin, first failure, worst value), or why it was not checked
+  std::string scope = {};  // kForAllStates, kOnVisitedStates, or empty (see above)
 };
 
 struct Guarantee {
