@@ -2,6 +2,7 @@
 #include <iostream>
 
 #include "commands.h"
+#include "terminal_text.h"
 
 namespace moreau::cli {
 
@@ -19,6 +20,11 @@ int run_app(CLI::App& app, const Actions& actions, int argc, char** argv) {
     std::cerr << "moreau: " << e.what() << "\n";
     return 1;
   }
+}
+
+void warn_unread_parameters(const char* prefix, const std::vector<std::string>& names) {
+  for (const std::string& p : names)
+    std::cerr << prefix << ": warning: parameter '" << terminal_safe(p) << "' is not read by any expression of the scene\n";
 }
 
 }  // namespace moreau::cli

@@ -4,6 +4,8 @@
 
 #include <functional>
 #include <map>
+#include <string>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 
@@ -30,5 +32,9 @@ void register_watch_command(CLI::App& app, Actions& actions);
 // Parses the command line and runs the chosen subcommand's action; returns the process exit code.
 // Shared by `moreau` and moreau-remote (app.cc).
 int run_app(CLI::App& app, const Actions& actions, int argc, char** argv);
+
+// On stderr, one line per parameter that the scene declares and no expression reads (likely a misspelt
+// name; the report says so too): "PREFIX: warning: parameter 'x' is not read by any expression".
+void warn_unread_parameters(const char* prefix, const std::vector<std::string>& names);
 
 }  // namespace moreau::cli

@@ -71,8 +71,7 @@ int run(const RunOptions& opt) {
   const double load_s = since(t_load);
   // Parameters nothing reads: likely a misspelt name; the report says so too.
   const std::vector<std::string>* unread = sim->lagrangian() ? &sim->lagrangian()->unread_parameters : &sim->lure()->unread_parameters;
-  for (const std::string& p : *unread)
-    std::cerr << "moreau: warning: parameter '" << terminal_safe(p) << "' is not read by any expression of the scene\n";
+  warn_unread_parameters("moreau", *unread);
 
   ObserverFan fan;
   std::optional<scene::TrajectoryCsvWriter> csv;

@@ -36,6 +36,7 @@ int study(const StudyOptions& opt) {
     nlohmann::json doc = scene::read_scene_file(opt.scene_path);
     for (const auto& o : opt.overrides) scene::apply_override(doc, o);
     const scene::LagrangianScene sc = scene::load_scene(doc);
+    warn_unread_parameters("moreau study", sc.unread_parameters);
     scene::StudySettings st;
     st.h = scene::parse_ladder(opt.ladder);
     st.schemes = scene::parse_study_schemes(opt.schemes);
