@@ -22,7 +22,7 @@ import sys
 import tempfile
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-REFERENCE_DIR = os.path.join(ROOT, "tests", "scene_results")
+REFERENCE_DIR = os.path.join(ROOT, "tests", "scene", "results")
 
 # Report fields that measure the machine rather than the result: left out of the comparison.
 TIMING_KEYS = {"phase_seconds", "wall_seconds"}

@@ -12,11 +12,13 @@
 #include <sys/file.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <functional>
 #include <fstream>
 #include <map>
+#include <numeric>
 #include <set>
 #include <sstream>
 
@@ -457,6 +459,78 @@ TEST(CampaignRun, TheSameRecordsHoweverTheSamplesAreSplit) {
   EXPECT_EQ(rows, 60u);
   fs::remove_all(one);
   fs::remove_all(two);
+}
+
+// The summary against values computed here, independently of the campaign's code: which samples succeed
+// from the relay's closed form (it rests at t* = m v0 / (a - f), m = 1.5, a = 2; success when t* <= 1
+// minus the report's rest window, so samples with t* in [0.95, 1] are left undecided here), the Wilson
+// interval in its textbook form (k + z^2/2) / (n + z^2) +- z / (n + z^2) sqrt(k (n - k) / n + z^2 / 4), and
+// Spearman's rho of v0 with the convergence time from ranks computed here (Pearson's r of the ranks).
+TEST(CampaignRun, TheSummaryIsWhatTheClosedFormsGive) {
+  const CampaignSpec s = CampaignSpec::from_json(relay_spec("monte-carlo", 120), "");
+  const fs::path dir = fresh_dir("closed-form-summary");
+  CampaignRunOptions all;
+  all.workers = 2;
+  ASSERT_EQ(run_campaign(s, dir.string(), all).ran, 120);
+  const auto records = records_of(dir);
+  ASSERT_EQ(records.size(), 120u);
+  std::int64_t sure = 0, undecided = 0;
+  std::vector<double> v0s, times;
+  for (const auto& [i, r] : records) {
+    const double f = r["inputs"]["/parameters/f"], v0 = r["inputs"]["/parameters/v0"];
+    const double t_stop = 1.5 * v0 / (2.0 - f);
+    if (t_stop < 0.95) {
+      ++sure;
+    } else if (t_stop <= 1.0) {
+      ++undecided;
+    }
+    if (r["converged_time"].is_number()) {
+      v0s.push_back(v0);
+      times.push_back(r["converged_time"].get<double>());
+      EXPECT_NEAR(times.back(), t_stop, 2e-3) << i;
+    }
+  }
+  const json summary = read_scene_file((dir / "summary.json").string());
+  const std::int64_t n = summary["samples"], k = summary["successes"];
+  EXPECT_EQ(n, 120);
+  EXPECT_GE(k, sure);
+  EXPECT_LE(k, sure + undecided);
+  EXPECT_GT(sure, 10);  // the test says something: both outcomes occur
+  EXPECT_LT(sure, 120 - 10);
+  const double z = 1.959963984540054, nn = static_cast<double>(n), kk = static_cast<double>(k);
+  const double center = (kk + z * z / 2.0) / (nn + z * z);
+  const double half = z / (nn + z * z) * std::sqrt(kk * (nn - kk) / nn + z * z / 4.0);
+  EXPECT_NEAR(summary["success_rate_95"]["low"].get<double>(), std::max(0.0, center - half), 1e-12);
+  EXPECT_NEAR(summary["success_rate_95"]["high"].get<double>(), std::min(1.0, center + half), 1e-12);
+  EXPECT_DOUBLE_EQ(summary["success_rate"].get<double>(), kk / nn);
+  // Ranks, ties sharing their average rank (rest times are multiples of h, so they tie), then Pearson's r
+  // of the ranks.
+  const auto ranks = [](const std::vector<double>& x) {
+    std::vector<std::size_t> order(x.size());
+    std::iota(order.begin(), order.end(), std::size_t{0});
+    std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return x[a] < x[b]; });
+    std::vector<double> r(x.size());
+    for (std::size_t p = 0; p < order.size();) {
+      std::size_t q = p;
+      while (q + 1 < order.size() && x[order[q + 1]] == x[order[p]]) ++q;
+      for (std::size_t j = p; j <= q; ++j) r[order[j]] = (static_cast<double>(p + 1) + static_cast<double>(q + 1)) / 2.0;
+      p = q + 1;
+    }
+    return r;
+  };
+  const std::vector<double> rx = ranks(v0s), ry = ranks(times);
+  const double m = (static_cast<double>(rx.size()) + 1.0) / 2.0;  // the mean rank, ties or not
+  double sxy = 0.0, sxx = 0.0, syy = 0.0;
+  for (std::size_t j = 0; j < rx.size(); ++j) {
+    sxy += (rx[j] - m) * (ry[j] - m);
+    sxx += (rx[j] - m) * (rx[j] - m);
+    syy += (ry[j] - m) * (ry[j] - m);
+  }
+  ASSERT_GE(rx.size(), 3u);
+  const json& v0_row = summary["sensitivity"]["inputs"][1];
+  ASSERT_EQ(v0_row["input"], "/parameters/v0");
+  EXPECT_NEAR(v0_row["converged_time"].get<double>(), sxy / std::sqrt(sxx * syy), 1e-12);
+  fs::remove_all(dir);
 }
 
 // A task completes its part by linking X.jsonl to X.jsonl.partial, then removing the .partial: another

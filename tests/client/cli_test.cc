@@ -197,6 +197,36 @@ TEST(Cli, StudyWritesTheTableAndBothFigures) {
   EXPECT_NE(bad.out.find("unknown scheme 'rk4'"), std::string::npos) << bad.out;
 }
 
+// A parameter the scene declares and no expression reads (a likely typo) is a warning on stderr from every
+// command that reads the scene: run, study and campaign.
+TEST(Cli, AnUnreadParameterIsAWarningFromRunStudyAndCampaign) {
+  const std::string dir = moreau::test_support::scratch_dir() + "/unread";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  nlohmann::json doc;
+  {
+    std::ifstream in(std::string(MOREAU_SOURCE_DIR) + "/scenes/damped-relay.json");
+    doc = nlohmann::json::parse(in);
+  }
+  doc["parameters"]["velocty"] = 1.0;
+  const std::string scene = dir + "/scene.json";
+  std::ofstream(scene) << doc.dump();
+  const char* warning = "warning: parameter 'velocty' is not read by any expression of the scene";
+  const Result run = Moreau("run " + scene);
+  ASSERT_EQ(run.status, 0) << run.out;
+  EXPECT_NE(run.out.find(std::string("moreau: ") + warning), std::string::npos) << run.out;
+  const Result study = Moreau("study " + scene + " --h 1e-2:1e-3:2 --schemes abl --repeats 1");
+  ASSERT_EQ(study.status, 0) << study.out;
+  EXPECT_NE(study.out.find(std::string("moreau study: ") + warning), std::string::npos) << study.out;
+  const Result campaign = Moreau("campaign --scene " + scene + " --vary parameters.v0=1:2:2 --quiet --out " + dir + "/campaign");
+  ASSERT_EQ(campaign.status, 0) << campaign.out;
+  EXPECT_NE(campaign.out.find(std::string("moreau campaign: ") + warning), std::string::npos) << campaign.out;
+  // A parameter that is read gives none.
+  const Result clean = Moreau("run " + std::string(MOREAU_SOURCE_DIR) + "/scenes/damped-relay.json");
+  EXPECT_EQ(clean.out.find("warning: parameter"), std::string::npos) << clean.out;
+  std::filesystem::remove_all(dir);
+}
+
 TEST(Cli, PlotReadsTheCsvBack) {
   const std::string csv = moreau::test_support::scratch_dir() + "/p.csv";
   ASSERT_EQ(Moreau("run " + kScene + " --out " + csv).status, 0);

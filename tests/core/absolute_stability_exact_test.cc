@@ -260,6 +260,32 @@ TEST(AbsoluteStabilityExact, BadlyScaledMinimalRealisationIsMinimalAndStrictlyPo
   EXPECT_LT(m2.observability_margin / m0.observability_margin, 16.0);
 }
 
+// The exact deciders' cost grows with the bits of the entries: a realisation whose entries span more than
+// 2^256 (here the same G(s) as above, its state scaled by powers of two up to 2^+-400, which change no
+// mantissa) is decided in floating point on the balanced realisation, where a small margin is
+// "undetermined", never "fails": G is minimal and SPR, so neither verdict may be "fails". Within the cap
+// the exact deciders still run, and decide both.
+TEST(AbsoluteStabilityExact, EntriesSpreadBeyondTheCapAreDecidedOnTheBalancedRealisation) {
+  const Realisation s = LagPlusResonance(0.0, 0.5, 1.0, 1e14);
+  const Realisation wide = s.Scaled(Eigen::Vector3d(0x1p-400, 1.0, 0x1p400));
+  const MinimalityCheck m = check_minimality(wide.A, wide.B, wide.C);
+  EXPECT_FALSE(m.exact);
+  EXPECT_NE(m.method.find("too wide for the exact test"), std::string::npos) << m.method;
+  EXPECT_NE(m.verdict(), Verdict::kFails) << m.method;
+  const PositiveRealnessTest t = test_strict_positive_realness(wide.A, wide.B, wide.C);
+  EXPECT_FALSE(t.exact);
+  EXPECT_NE(t.method.find("too wide for the exact test"), std::string::npos) << t.method;
+  EXPECT_NE(t.spr, Verdict::kFails) << t.witness;
+
+  const Realisation within = s.Scaled(Eigen::Vector3d(0x1p-60, 1.0, 0x1p60));
+  const MinimalityCheck e = check_minimality(within.A, within.B, within.C);
+  EXPECT_TRUE(e.exact) << e.method;
+  EXPECT_EQ(e.verdict(), Verdict::kHolds);
+  const PositiveRealnessTest te = test_strict_positive_realness(within.A, within.B, within.C);
+  EXPECT_TRUE(te.exact) << te.method;
+  EXPECT_EQ(te.spr, Verdict::kHolds) << te.witness;
+}
+
 // Re G(jw) of G = 1/(s + 1) + a/(s^2 + 0.1 s + 100) dips to -1e-9 on a band 4.6e-5 rad/s wide near
 // w = 10.05: the numerator quadratic has two positive roots (exact discriminant > 0). It was "undetermined".
 TEST(AbsoluteStabilityExact, DipToMinusOneBillionthFailsWithItsCrossings) {

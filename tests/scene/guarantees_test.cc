@@ -223,6 +223,30 @@ TEST(Guarantees, AMisspeltParameterIsRefusedOrWarnedOf) {
   EXPECT_TRUE(Simulation::from_json(doc).lagrangian()->unread_parameters.empty());
 }
 
+// Assumption 3.1 quantifies over all q. The damped relay's M = [[m]] reads no coordinate: with m = 2 > 0
+// it is positive definite for every q, and the report says so ("for all states"). The manipulator's M
+// reads th2 (m2 b cos(th2) off the diagonal): the run checks the states it visited, and says that instead.
+TEST(Guarantees, Assumption31HoldsForAllStatesOnlyWhenMIsConstant) {
+  const auto mass_hypothesis = [](const Simulation& sim) {
+    const RunSummary s = sim.run(nullptr);
+    const Guarantees g = sim.guarantees(s);
+    const Guarantee* t41 = g.find("Theorem 4.1");
+    EXPECT_NE(t41, nullptr);
+    for (const HypothesisCheck& h : t41->hypotheses)
+      if (h.name.rfind("Assumption 3.1", 0) == 0) return h;
+    ADD_FAILURE() << "no Assumption 3.1 under Theorem 4.1";
+    return HypothesisCheck{};
+  };
+  const HypothesisCheck relay = mass_hypothesis(Simulation::from_file(ScenePath("damped-relay.json")));
+  EXPECT_EQ(relay.verdict, Verdict::kHolds) << relay.detail;
+  EXPECT_EQ(relay.scope, kForAllStates) << relay.detail;
+  EXPECT_NE(relay.detail.find("lambda_min(M) 2,"), std::string::npos) << relay.detail;  // M = m = 2
+  const HypothesisCheck arm = mass_hypothesis(Simulation::from_file(ScenePath("manipulator.json"), {"integrator.t_end=0.5"}));
+  EXPECT_EQ(arm.verdict, Verdict::kHolds) << arm.detail;
+  EXPECT_EQ(arm.scope, kOnVisitedStates) << arm.detail;
+  EXPECT_NE(arm.detail.find("only the visited states"), std::string::npos) << arm.detail;
+}
+
 // r_0 = 2 h ||C(Q^0, V^0)||_2 / lambda_min(M(Q^0)) from the paper's closed-form M and C, with Eigen's
 // solvers (not the checker's closed forms).
 double InitialRatio(double h, const Vec<2>& q, const Vec<2>& v) {
