@@ -22,8 +22,9 @@ README.md and docs/*.md under --root (the repository root, default: the folder a
     removed afterwards (for commands that must write somewhere, such as `moreau campaign --out`).
     Each command has 120 s; a command named twice runs once.
   - The command must exit 0, or with N for `<!-- checked(exit=N): ... -->` (an expected failure).
-  - Every non-blank line of the block must match a whole line of the command's stdout and stderr
-    (interleaved as printed), in order: each line a later output line than the previous one's match, so
+  - Every non-blank line of the block must match a whole line of the command's output (its stdout, then
+    its stderr: apart, so that a buffered stdout cannot be cut mid-line by a message on stderr), in
+    order: each line a later output line than the previous one's match, so
     an excerpt may leave out lines anywhere. Runs of whitespace compare equal to one space, and leading
     and trailing whitespace is ignored. `...` inside a line matches any text (for wall-clock times, paths
     and the parts of a line that are not the point); a line that is exactly `...` marks left-out lines
@@ -131,7 +132,7 @@ def run(moreau, root, command):
     argv[0] = moreau
     try:
         done = subprocess.run(argv, cwd=root, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                              stderr=subprocess.STDOUT, timeout=TIMEOUT_SECONDS)
+                              stderr=subprocess.PIPE, timeout=TIMEOUT_SECONDS)
     except subprocess.TimeoutExpired:
         return None, [], f"did not finish within {TIMEOUT_SECONDS} s"
     except OSError as e:
@@ -139,7 +140,8 @@ def run(moreau, root, command):
     finally:
         if tmp:
             shutil.rmtree(tmp, ignore_errors=True)
-    return done.returncode, done.stdout.decode("utf-8", "replace").split("\n"), None
+    output = done.stdout.decode("utf-8", "replace").split("\n") + done.stderr.decode("utf-8", "replace").split("\n")
+    return done.returncode, output, None
 
 
 def check(excerpt, output):
