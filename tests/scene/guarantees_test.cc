@@ -311,6 +311,67 @@ TEST(Guarantees, VerdictsAloneAreTheFullChecksVerdicts) {
   EXPECT_EQ(failing, 2);
 }
 
+// The verdicts of the five runs above, against values computed here from closed forms and the
+// C++ model of the manipulator (models::Manipulator, not the scene's expressions), so that a mistake shared
+// by the full and the verdicts-only checks would show:
+//  1. manipulator, h = 1, V^0 = (10, 10): r_0 = 2 h ||C||_2 / lambda_min(M) > 1 at the first step, so (4.2)
+//     fails, and Theorem 4.1 is relied on: the run's hypothesis failure is Theorem 4.1's.
+//  2. manipulator under the Theorem 4.2 rule: ||grad V(q0)|| (the model's g at v = 0, F = 0) exceeds
+//     (alpha - beta) / 2 = 1/2 (alpha = min a_i = 1, beta >= 0), so Assumption 4.1 2)-3) fails, and the
+//     rule makes Theorem 4.2 relied on: its failure is the run's.
+//  3. manipulator at its fixed h: Theorem 4.2 is not relied on; nothing relied on fails.
+//  4. Coulomb oscillator: M = [[m]] constant and C = 0, so r_k = 0 and Assumption 3.1 holds for all states;
+//     no quadratic term, so eta = 0 and Assumption 4.1 1) fails; grad V(q0) = k p0 = 8.4 > 1/2.
+//  5. bouncing ball (Moreau-Jean): M = [[m]] constant: Assumption 3.1 holds for all states.
+TEST(Guarantees, TheFiveRunsVerdictsAreWhatTheClosedFormsSay) {
+  const Vec<2> q0(3.0, -1.0);
+  const Vec<2> v_fast(10.0, 10.0);
+  ASSERT_GT(InitialRatio(1.0, q0, v_fast), 1.0);
+  models::Manipulator model;
+  LagrangianTerms<2> at_rest;
+  model.evaluate(0.0, q0, Vec<2>::Zero(), at_rest);
+  ASSERT_GT(at_rest.g.norm(), 0.5);
+
+  const auto run = [](const std::string& scene, const std::vector<std::string>& overrides) {
+    const Simulation sim = Simulation::from_file(ScenePath(scene), overrides);
+    const RunSummary s = sim.run(nullptr);
+    return std::pair{sim.guarantees(s), sim.hypothesis_failure(s)};
+  };
+  {
+    const auto [g, failure] = run("manipulator.json", {"integrator.h=1", "initial.v=[10,10]", "integrator.t_end=20"});
+    EXPECT_EQ(Hypothesis(g, "Theorem 4.1", "(4.2)").verdict, Verdict::kFails);
+    EXPECT_EQ(Hypothesis(g, "Theorem 4.1", "Assumption 3.1").scope, kOnVisitedStates);
+    EXPECT_NE(failure.find("Theorem 4.1"), std::string::npos) << failure;
+  }
+  {
+    const auto [g, failure] = run("manipulator.json", {"integrator.step_rule=\"theorem-4.2\"", "integrator.t_end=2"});
+    EXPECT_EQ(Hypothesis(g, "Theorem 4.2", "Assumption 4.1 2)-3)").verdict, Verdict::kFails);
+    EXPECT_EQ(Hypothesis(g, "Theorem 4.2", "Assumption 4.1 1)").verdict, Verdict::kHolds);  // eta = 1/2, alpha = 1
+    EXPECT_NE(failure.find("Theorem 4.2"), std::string::npos) << failure;
+  }
+  {
+    const auto [g, failure] = run("manipulator.json", {"integrator.t_end=2"});
+    EXPECT_EQ(failure, "");
+  }
+  {
+    const auto [g, failure] = run("coulomb-oscillator.json", {});
+    const HypothesisCheck& mass = Hypothesis(g, "Theorem 4.1", "Assumption 3.1");
+    EXPECT_EQ(mass.verdict, Verdict::kHolds);
+    EXPECT_EQ(mass.scope, kForAllStates);
+    EXPECT_EQ(Hypothesis(g, "Theorem 4.1", "(4.2)").verdict, Verdict::kHolds);
+    EXPECT_EQ(Hypothesis(g, "Theorem 4.2", "Assumption 4.1 1)").verdict, Verdict::kFails);
+    EXPECT_EQ(Hypothesis(g, "Theorem 4.2", "Assumption 4.1 2)-3)").verdict, Verdict::kFails);
+    EXPECT_EQ(failure, "");
+  }
+  {
+    const auto [g, failure] = run("bouncing-ball-e0.5.json", {});
+    const HypothesisCheck& mass = Hypothesis(g, "Assumption 3.1", "Assumption 3.1");
+    EXPECT_EQ(mass.verdict, Verdict::kHolds);
+    EXPECT_EQ(mass.scope, kForAllStates);
+    EXPECT_EQ(failure, "");
+  }
+}
+
 // The same start under the Theorem 4.1 rule: every r_k <= 1 (the rule's purpose), and the first ratio is
 // exactly the bound's (h_0 = lambda_min / (2 ||C||_2) makes r_0 = 1).
 TEST(Guarantees, Theorem41RuleKeepsEveryRatioAtMostOne) {

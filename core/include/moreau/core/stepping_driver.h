@@ -68,18 +68,19 @@ enum class RestState { kMoving, kBelowNormal, kAtRest };
 // tell). One pass over n numbers per step.
 class RestTracker {
  public:
+  // The common cases first, since this runs at every step: the solver's statement that the law holds the
+  // velocity at 0 (a rest), else a largest entry that is a normal number (moving), after one pass.
   template <class Values>
   RestState update(const Values& x, std::optional<bool> held = std::nullopt) {
+    if (held && *held) return state_ = RestState::kAtRest;
     double largest = 0.0;
     for (Eigen::Index i = 0; i < x.size(); ++i) largest = std::max(largest, std::abs(x(i)));
-    const bool tiny = largest < std::numeric_limits<double>::min();  // below the smallest normal (or 0.0)
-    if (held)
-      state_ = *held ? RestState::kAtRest : tiny ? RestState::kBelowNormal : RestState::kMoving;
-    else if (largest == 0.0)
-      state_ = state_ == RestState::kBelowNormal ? RestState::kBelowNormal : RestState::kAtRest;
-    else
-      state_ = tiny ? RestState::kBelowNormal : RestState::kMoving;
-    return state_;
+    if (largest >= std::numeric_limits<double>::min()) return state_ = RestState::kMoving;
+    // Below the smallest normal number (or 0.0): not a rest where the solver could have said so and did
+    // not, nor a subnormal; a 0.0 without a solver's statement is a rest unless it was reached through
+    // the subnormals.
+    if (held || largest != 0.0) return state_ = RestState::kBelowNormal;
+    return state_ = state_ == RestState::kBelowNormal ? RestState::kBelowNormal : RestState::kAtRest;
   }
   RestState state() const { return state_; }
 
@@ -135,6 +136,9 @@ class RunRecorder {
   // A state below the smallest normal number without the law holding it is tracked apart
   // (RunSummary::below_normal_step): it is not a rest.
   void rest(RestState state, std::int64_t k, double t) {
+    // Moving, with no rest and no decay below the normal numbers to end: the common case, one branch.
+    // (rest_announced_ implies rest_from_ >= 0.)
+    if (state == RestState::kMoving && rest_from_ < 0 && below_normal_from_ < 0) return;
     if (state != RestState::kBelowNormal) {
       below_normal_from_ = -1;
     } else if (below_normal_from_ < 0) {
