@@ -214,7 +214,6 @@ Balanced balance(const Eigen::MatrixXd& A, const Eigen::MatrixXd& B, const Eigen
   return b;
 }
 
-
 // Numbers in verdicts' witnesses: frequencies exactly (they locate a crossing to the spacing of doubles, and
 // may be read back), other values to 6 or 3 significant digits.
 std::string exact_text(double v) { return platform::shortest(v); }
