@@ -184,18 +184,11 @@ std::pair<int, std::string> run_capture(const std::vector<std::string>& argv) {
   return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
 }
 
-// The nominal scene's parameters that no expression reads, on stderr (a sample's inputs only set values).
-void warn_unread_parameters_of(const scene::CampaignSpec& spec) {
-  const scene::Simulation nominal = scene::Simulation::from_json(spec.scene);
-  warn_unread_parameters("moreau campaign",
-                         nominal.lagrangian() ? nominal.lagrangian()->unread_parameters : nominal.lure()->unread_parameters);
-}
-
 // --slurm: writes DIR/campaign.json, the array's batch script, and submits the tasks whose blocks miss
 // samples (all of them the first time) and a collect job that runs once they all succeeded.
 int submit_to_slurm(const CampaignOptions& opt) {
   const scene::CampaignSpec spec = scene::CampaignSpec::from_file(opt.spec_path);
-  warn_unread_parameters_of(spec);
+  warn_unread_parameters("moreau campaign", spec.unread_parameters);
   if (opt.tasks < 1 || opt.tasks > 100000) throw std::runtime_error("--tasks must be in [1, 100000]");
   if (opt.cpus_per_task < 1) throw std::runtime_error("--cpus-per-task must be at least 1");
   const std::int64_t tasks = std::min<std::int64_t>(opt.tasks, spec.samples);
@@ -398,7 +391,7 @@ std::pair<std::int64_t, std::int64_t> parse_range(const std::string& text, std::
 
 int run(const CampaignOptions& opt) {
   const scene::CampaignSpec spec = scene::CampaignSpec::from_file(opt.spec_path);
-  warn_unread_parameters_of(spec);
+  warn_unread_parameters("moreau campaign", spec.unread_parameters);
   if (!opt.range.empty() && !opt.task.empty()) throw std::runtime_error("--range and --task exclude each other");
   std::int64_t begin = 0, end = spec.samples;
   if (!opt.task.empty()) {

@@ -230,8 +230,11 @@ CampaignSpec CampaignSpec::from_json(const json& spec, const std::string& base_d
     throw SceneError("/scene", "expected a scene (an object) or the path of a scene file");
   }
   // The scene itself must be valid: its errors name their field under /scene.
+  int dof = 0;
   try {
-    (void)Simulation::from_json(s.scene);
+    const Simulation nominal = Simulation::from_json(s.scene);
+    dof = nominal.dof();
+    s.unread_parameters = nominal.lagrangian() ? nominal.lagrangian()->unread_parameters : nominal.lure()->unread_parameters;
   } catch (const SceneError& e) {
     throw SceneError("/scene" + (e.pointer() == "/" ? std::string() : e.pointer()), e.reason());
   }
@@ -368,9 +371,8 @@ CampaignSpec CampaignSpec::from_json(const json& spec, const std::string& base_d
     if (!t.is_object()) throw SceneError("/target", "expected {\"q\": [...], \"tolerance\": ...}");
     check_fields(t, "/target", {"q", "tolerance"});
     const json& q = required_field(t, "/target", "q");
-    const int n = Simulation::from_json(s.scene).dof();
-    if (!q.is_array() || static_cast<int>(q.size()) != n)
-      throw SceneError("/target/q", "expected an array of " + std::to_string(n) + " numbers (the scene's coordinates)");
+    if (!q.is_array() || static_cast<int>(q.size()) != dof)
+      throw SceneError("/target/q", "expected an array of " + std::to_string(dof) + " numbers (the scene's coordinates)");
     for (std::size_t i = 0; i < q.size(); ++i) s.target_q.push_back(finite_number(q[i], "/target/q/" + std::to_string(i)));
     s.target_tolerance = finite_number(required_field(t, "/target", "tolerance"), "/target/tolerance");
     if (s.target_tolerance < 0.0) throw SceneError("/target/tolerance", "expected a number >= 0");

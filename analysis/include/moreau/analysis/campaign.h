@@ -100,6 +100,9 @@ struct CampaignSpec {
   // The target set: a sample succeeds when it converged (the report's definition) and, with a target,
   // its final q lies within `tolerance` (Euclidean distance) of target_q.
   std::vector<double> target_q;
+  // Parameters the nominal scene declares and no expression reads (a likely typo; a sample's inputs only
+  // set values): what `moreau campaign` warns of.
+  std::vector<std::string> unread_parameters;
   double target_tolerance = 0.0;
   // The two inputs (indices into `inputs`) whose plane the success map shows: the spec's "map", else the
   // first two numeric inputs; -1 when there are not two.
