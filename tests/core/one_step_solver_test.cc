@@ -47,6 +47,26 @@ TEST(OneStepSolver, RestIsExactlyZero) {
   EXPECT_EQ(y(2), 0.0);
 }
 
+// zero_by_closed_form is set exactly when -x lies in d phi(0) (then y is 0.0), and cleared by the next
+// solve that does not take that closed form.
+TEST(OneStepSolver, ClosedFormZeroIsReported) {
+  OneStepSolver<2> solver;
+  solver.configure(Vec<2>(1.0, 2.0), 0.5);
+  Mat<2> P;
+  P << 10.0, 1.0, -1.0, 10.0;
+  Vec<2> y;
+  OneStepStats st;
+  // d phi(0) is the box [-1, 1] x [-2, 2] plus the ball of radius 0.5: -x = (-1.3, 2.2) is at distance
+  // sqrt(0.13) < 0.5 from the box; (-1.3, 2.7) at sqrt(0.58) > 0.5.
+  ASSERT_TRUE(solver.solve(P, Vec<2>(1.3, -2.2), y, st));
+  EXPECT_TRUE(st.zero_by_closed_form);
+  EXPECT_EQ(y(0), 0.0);
+  EXPECT_EQ(y(1), 0.0);
+  ASSERT_TRUE(solver.solve(P, Vec<2>(1.3, -2.7), y, st));
+  EXPECT_FALSE(st.zero_by_closed_form);
+  EXPECT_GT(y.norm(), 0.0);
+}
+
 TEST(OneStepSolver, RandomNonsymmetric3) { RandomProblems<3>(3, 300, 2); }
 
 // P = S + K with S = G G^T symmetric positive definite and K skew, both zero beyond `band` from the

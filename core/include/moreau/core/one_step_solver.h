@@ -50,6 +50,10 @@ struct OneStepStats {
   double residual = 0.0;   // dist(-(P y + x), d phi(y)) of the returned y
   double tolerance = 0.0;  // the round-off bound the residual was accepted against
   bool used_fallback = false;
+  // y = 0 came from the closed form of step 1 (-x lies in d phi(0)): every component of y is exactly 0.0.
+  // The solver's own statement, for callers that need to know that the solution rests at the origin (a
+  // sliding variable on its surface) without comparing floats.
+  bool zero_by_closed_form = false;
 };
 
 template <int N>
@@ -181,6 +185,7 @@ class OneStepSolver {
         y.setZero(n);
         pattern_.setZero(n);
         stats.iterations = 0;
+        stats.zero_by_closed_form = true;
         return accept(P, x, y, scale_px, gain_scale, stats);
       }
     }
