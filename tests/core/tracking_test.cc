@@ -134,9 +134,7 @@ long FirstWithin(const Trace1& tr, double band) {
   return -1;
 }
 
-std::span<const double> From(const std::vector<double>& x, long k) {
-  return std::span<const double>(x).subspan(static_cast<std::size_t>(k));
-}
+std::vector<double> From(const std::vector<double>& x, long k) { return std::vector<double>(x.begin() + k, x.end()); }
 
 // ---------------------------------------------------------------------------------------------------
 
@@ -492,27 +490,42 @@ TEST(TrackingSaturated, BoundaryLayerPoleDecidesBetweenSmoothAndChattering) {
 // ---------------------------------------------------------------------------------------------------
 // The one-step problem's closed forms with n = 2, M^ = m I, C^ = 0, g^ = 0.
 
+// Gains for two coordinates: Lambda = lambda I, Phi = 1/2 sum w_i s_i^2 + sum a_i |s_i| + a_norm ||s||.
+TrackingGains<2> Gains2(double lambda, const Vec<2>& w, const Vec<2>& a, double a_norm, double Ts) {
+  TrackingGains<2> g;
+  g.lambda = Vec<2>(lambda, lambda);
+  g.phi.weights = w;
+  g.phi.gains = a;
+  g.phi.norm_gain = a_norm;
+  g.period = Ts;
+  return g;
+}
+
+// The implicit controller with the nominal model M^ = m I, C^ = 0, g^ = 0, its output and two
+// reference points, all sized (q_d = 0 unless a test sets it).
+struct Implicit2 {
+  Implicit2(const TrackingGains<2>& g, double m) : ctrl(g, SampledTrackingLaw::kImplicit) {
+    out.resize(2);
+    nominal.resize(2);
+    nominal.M = m * Mat<2>::Identity();
+    now.resize(2);
+    next.resize(2);
+  }
+  SampledTrackingController<2> ctrl;
+  TrackingStep<2> out;
+  LagrangianTerms<2> nominal;
+  ReferencePoint<2> now, next;
+};
+
 TEST(TrackingImplicit, SeparableGainsSoftThresholdPerComponent) {
   // P = (m / T_s + w) I, x = -m sigma_k / T_s: y_i = 0 when m |sigma_i| / T_s <= a_i, else
   // y_i = sign(sigma_i) (m |sigma_i| / T_s - a_i) / (m / T_s + w_i).
   const double m = 2.0, Ts = 0.01;
-  TrackingGains<2> g;
-  g.lambda = Vec<2>(1.0, 1.0);
-  g.phi.weights = Vec<2>(0.5, 0.5);
-  g.phi.gains = Vec<2>(1.0, 4.0);
-  g.period = Ts;
-  SampledTrackingController<2> ctrl(g, SampledTrackingLaw::kImplicit);
-  TrackingStep<2> out;
-  out.resize(2);
-  LagrangianTerms<2> nominal;
-  nominal.resize(2);
-  nominal.M = m * Mat<2>::Identity();
-  ReferencePoint<2> now, next;
-  now.resize(2);
-  next.resize(2);
+  Implicit2 c(Gains2(1.0, Vec<2>(0.5, 0.5), Vec<2>(1.0, 4.0), 0.0, Ts), m);
+  TrackingStep<2>& out = c.out;
   // q = q_d = 0, v = sigma_k = (0.03, -0.015): m |sigma| / T_s = (6, 3) against a = (1, 4).
   const Vec<2> sigma(0.03, -0.015);
-  ASSERT_TRUE(ctrl.step(Vec<2>::Zero(), sigma, now, next, nominal, out));
+  ASSERT_TRUE(c.ctrl.step(Vec<2>::Zero(), sigma, c.now, c.next, c.nominal, out));
   const double p = m / Ts + 0.5;
   EXPECT_FALSE(out.on_surface);
   EXPECT_NEAR(out.sigma_predicted(0), (6.0 - 1.0) / p, 1e-15);
@@ -586,30 +599,17 @@ TEST(TrackingImplicit, NormTermShrinksTheBall) {
   // phi = a_n ||.||: y = 0 when ||x|| = m ||sigma_k|| / T_s <= a_n, else y = (sigma_k / ||sigma_k||)
   // (m ||sigma_k|| / T_s - a_n) / (m / T_s + w).
   const double m = 1.0, Ts = 0.01, an = 3.0, w = 0.5;
-  TrackingGains<2> g;
-  g.lambda = Vec<2>(2.0, 2.0);
-  g.phi.weights = Vec<2>(w, w);
-  g.phi.gains = Vec<2>::Zero();
-  g.phi.norm_gain = an;
-  g.period = Ts;
-  SampledTrackingController<2> ctrl(g, SampledTrackingLaw::kImplicit);
-  TrackingStep<2> out;
-  out.resize(2);
-  LagrangianTerms<2> nominal;
-  nominal.resize(2);
-  nominal.M = m * Mat<2>::Identity();
-  ReferencePoint<2> now, next;
-  now.resize(2);
-  next.resize(2);
+  Implicit2 c(Gains2(2.0, Vec<2>(w, w), Vec<2>::Zero(), an, Ts), m);
+  TrackingStep<2>& out = c.out;
 
   const Vec<2> inside(0.012, -0.016);  // ||.|| = 0.02: m ||sigma|| / T_s = 2 <= 3
-  ASSERT_TRUE(ctrl.step(Vec<2>::Zero(), inside, now, next, nominal, out));
+  ASSERT_TRUE(c.ctrl.step(Vec<2>::Zero(), inside, c.now, c.next, c.nominal, out));
   EXPECT_TRUE(out.on_surface);
   EXPECT_EQ(out.sigma_predicted, Vec<2>::Zero());
   EXPECT_NEAR((out.selection - m * inside / Ts).norm(), 0.0, 1e-13);  // xi = M^ sigma_k / T_s, in a_n B
 
   const Vec<2> outside(0.06, 0.08);  // ||.|| = 0.1: 10 > 3
-  ASSERT_TRUE(ctrl.step(Vec<2>::Zero(), outside, now, next, nominal, out));
+  ASSERT_TRUE(c.ctrl.step(Vec<2>::Zero(), outside, c.now, c.next, c.nominal, out));
   EXPECT_FALSE(out.on_surface);
   const Vec<2> expected = (outside / 0.1) * ((10.0 - an) / (m / Ts + w));
   EXPECT_NEAR((out.sigma_predicted - expected).norm(), 0.0, 1e-13);
@@ -641,12 +641,7 @@ TEST(TrackingImplicit, NominalManipulatorLoopIsSchemeZeroTwoInSigma) {
   // with grad V + F = 0: E_{k+1} - E_k <= -T_s alpha ||sigma_{k+1}|| whenever ||eps_k||_2 <= 2 eta
   // (eps_k of (4.9) at V^k = v_k, eta = min w / 2); and sigma reaches 0 in finitely many steps (Thm 4.3).
   const double Ts = 2e-3;
-  TrackingGains<2> g;
-  g.lambda = Vec<2>(3.0, 3.0);
-  g.phi.weights = Vec<2>(1.0, 1.0);
-  g.phi.gains = Vec<2>(2.0, 2.0);
-  g.period = Ts;
-  SampledTrackingController<2> ctrl(g, SampledTrackingLaw::kImplicit);
+  SampledTrackingController<2> ctrl(Gains2(3.0, Vec<2>(1.0, 1.0), Vec<2>(2.0, 2.0), 0.0, Ts), SampledTrackingLaw::kImplicit);
   TrackingStep<2> out;
   out.resize(2);
   Manip plant;
@@ -661,13 +656,13 @@ TEST(TrackingImplicit, NominalManipulatorLoopIsSchemeZeroTwoInSigma) {
     ManipReference(tn, next);
     plant.at(t, q, v);
     ASSERT_TRUE(ctrl.step(q, v, now, next, plant.terms, out)) << k;
-    const Vec<2> sigma_k = (v - now.v) + g.lambda.cwiseProduct(q - now.q);
+    const Vec<2> sigma_k = (v - now.v) + ctrl.gains().lambda.cwiseProduct(q - now.q);
     const double E_k = 0.5 * sigma_k.dot(plant.terms.M * sigma_k);
     const Mat<2> M_k = plant.terms.M, C_k = plant.terms.C;
     // The plant's step.
     const Vec<2> v_next = (M_k / Ts + C_k).lu().solve(out.u - plant.terms.g + M_k * v / Ts);
     const Vec<2> q_next = q + Ts * v;
-    const Vec<2> sigma_next = (v_next - next.v) + g.lambda.cwiseProduct(q_next - next.q);
+    const Vec<2> sigma_next = (v_next - next.v) + ctrl.gains().lambda.cwiseProduct(q_next - next.q);
     EXPECT_NEAR((sigma_next - out.sigma_predicted).norm(), 0.0, 1e-11) << k;
     if (out.on_surface) {
       EXPECT_EQ(out.sigma_predicted(0), 0.0);
@@ -700,12 +695,7 @@ TEST(TrackingImplicit, ManipulatorBandUnderZeroOrderHoldIsOrderTs) {
   double band[2];
   for (int r = 0; r < 2; ++r) {
     const double Ts = r == 0 ? 4e-3 : 2e-3;
-    TrackingGains<2> g;
-    g.lambda = Vec<2>(3.0, 3.0);
-    g.phi.weights = Vec<2>::Zero();
-    g.phi.gains = Vec<2>(3.0, 3.0);
-    g.period = Ts;
-    SampledTrackingController<2> ctrl(g, SampledTrackingLaw::kImplicit);
+    SampledTrackingController<2> ctrl(Gains2(3.0, Vec<2>::Zero(), Vec<2>(3.0, 3.0), 0.0, Ts), SampledTrackingLaw::kImplicit);
     TrackingStep<2> out;
     out.resize(2);
     Manip plant;
@@ -722,7 +712,7 @@ TEST(TrackingImplicit, ManipulatorBandUnderZeroOrderHoldIsOrderTs) {
       const double t = k * Ts;
       ManipReference(t, now);
       ManipReference(t + Ts, next);
-      const Vec<2> sigma_k = (v - now.v) + g.lambda.cwiseProduct(q - now.q);
+      const Vec<2> sigma_k = (v - now.v) + ctrl.gains().lambda.cwiseProduct(q - now.q);
       if (reached >= 0 && t > 2.5) band[r] = std::max(band[r], sigma_k.cwiseAbs().maxCoeff());
       plant.at(t, q, v);
       ASSERT_TRUE(ctrl.step(q, v, now, next, plant.terms, out));

@@ -28,6 +28,10 @@ struct Sample {
   // one more than the one before it for the last state when it falls between (ceil(k / output_every)).
   // An observer with a sample_stride() above 1 sees only the numbers that are multiples of it, and the last.
   std::int64_t index = 0;
+  // What a scheme computes beside the state, named by the run (a tracking run: q_d, e, sigma and u per
+  // coordinate, Simulation::signal_names); none for most schemes.
+  int m = 0;
+  const double* signals = nullptr;
 };
 
 class RunObserver {

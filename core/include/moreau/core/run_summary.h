@@ -139,6 +139,48 @@ struct MechanicalEnergyTrack {
   double max_balance_time = 0.0;
 };
 
+// A tracking run's results (tracking_integrator.h, docs/tracking.md). A "sample" is a controller sample:
+// every T_s for a sampled law, every step for the continuous loop. "After reaching" covers the samples
+// from the reaching time to the end.
+struct TrackingSummary {
+  std::string law;                    // "continuous", "implicit", "explicit" or "saturated"
+  double period = 0.0;                // T_s (continuous: the step h)
+  std::int64_t steps_per_sample = 1;  // T_s / h
+  std::int64_t samples = 0;
+  // Continuous: sigma == 0.0 exactly at every state from reaching_time to the end, by the one-step
+  // solver's closed form. Sampled: ||sigma_k||_inf <= band at every sample from reaching_time on.
+  bool reached = false;
+  double reaching_time = 0.0;
+  std::int64_t reaching_step = -1;
+  double band = 0.0;  // sampled laws only
+  // Implicit law: the first sample from which every prediction sigma_{k+1} of the nominal model was 0.0 by
+  // the solver's closed form, to the end.
+  std::optional<double> predicted_on_surface_time;
+  // After reaching (when reached): max_k ||e_k||_inf, sqrt(mean_k ||e_k||^2 / n), max_k ||sigma_k||_inf;
+  // the sign changes of u (per coordinate between consecutive nonzero values, summed over coordinates),
+  // their number per second, and the total variation sum_k ||u_{k+1} - u_k||_1.
+  std::int64_t after_samples = 0;
+  double error_max = 0.0, error_rms = 0.0, sigma_max = 0.0;
+  std::int64_t sign_changes = 0;
+  double sign_changes_per_second = 0.0, total_variation = 0.0;
+  // Over the run: max_k ||u_k||_inf, sum_k T_s ||u_k||^2 (the integral of ||u||^2 under the hold),
+  // ||e||_inf at the last sample, and the sign changes and total variation of u counted as above over
+  // every sample (what a run that never reached still shows of its chattering).
+  double u_max = 0.0, u_energy = 0.0, error_final = 0.0;
+  std::int64_t run_sign_changes = 0;
+  double run_total_variation = 0.0;
+  // max_k ||rho_k||_2 over the samples, rho = (M a_r + C v_r + g) - (M^ a_r + C^ v_r + g^): the
+  // perturbation of the sigma dynamics M sigma' + C sigma + xi = -rho (model error and F), on the states
+  // visited; reaching needs it below alpha = min_i a_i + a_norm.
+  double perturbation_max = 0.0, perturbation_max_time = 0.0;
+  double alpha = 0.0;  // min_i a_i + a_norm of Phi on sigma
+  // Implicit law, at every sample: whether the controller's one-step problem P y + x in -d phi(y),
+  // P = M^/T_s + C^ + W, is strongly monotone (P + P^T positive definite: then it has exactly one
+  // solution), and whether ABL's condition (4.2), 2 T_s ||C^||_2 <= lambda_min(M^), which implies it, held.
+  std::int64_t condition_checked = 0, monotone_violations = 0, condition42_violations = 0;
+  double first_monotone_violation_time = 0.0;
+};
+
 struct RunSummary {
   RunStatus status = RunStatus::kCompleted;
   std::string message;  // why a run failed or was cancelled; empty when completed
@@ -184,10 +226,11 @@ struct RunSummary {
   SolverEffort solver;
 
   // Checked at every step of the schemes with a mass matrix (step_conditions.h).
-  MassDefinitenessTrack mass;        // Assumption 3.1: lambda_min(M(Q^k)) > 0
-  StepConditionTrack theorem41;      // (4.2) of Theorem 4.1, for the scheme (0.2) only
-  ForceBoundTrack force_bounds;      // Assumption 4.1 2)-3), at the recorded states
-  MechanicalEnergyTrack mechanical;  // E = 1/2 <M v, v> + V(q) and its balance, at the recorded states
+  MassDefinitenessTrack mass;               // Assumption 3.1: lambda_min(M(Q^k)) > 0
+  StepConditionTrack theorem41;             // (4.2) of Theorem 4.1, for the scheme (0.2) only
+  ForceBoundTrack force_bounds;             // Assumption 4.1 2)-3), at the recorded states
+  MechanicalEnergyTrack mechanical;         // E = 1/2 <M v, v> + V(q) and its balance, at the recorded states
+  std::optional<TrackingSummary> tracking;  // a tracking run's (tracking_integrator.h)
 
   // Wall time by phase, in the order they ran ("parse", "compile", "integrate", "write", ...).
   std::vector<std::pair<std::string, double>> phase_seconds;

@@ -99,6 +99,11 @@ class RunRecorder {
         n_(n) {}
 
   RunSummary& summary() { return s_; }
+  // The scheme's signals (Sample::signals): m values at `values`, which the scheme keeps current.
+  void signals(int m, const double* values) {
+    m_ = m;
+    signals_ = values;
+  }
 
   // Step 0: E_0 and whether the initial state already rests.
   void start(double t, double energy, RestState rest) {
@@ -251,7 +256,7 @@ class RunRecorder {
     return a > std::numeric_limits<std::int64_t>::max() / b ? std::numeric_limits<std::int64_t>::max() : a * b;
   }
   void emit(std::int64_t k, std::int64_t index, double t, double h, const double* q, const double* v, double energy, double dissipated) {
-    if (observer_) observer_->on_sample(Sample{k, t, h, n_, q, v, energy, dissipated, index});
+    if (observer_) observer_->on_sample(Sample{k, t, h, n_, q, v, energy, dissipated, index, m_, signals_});
   }
   bool finite(const double* x) const {
     for (int i = 0; i < n_; ++i)
@@ -265,6 +270,8 @@ class RunRecorder {
   std::int64_t emit_every_;                  // output_every times the observer's sample_stride()
   std::int64_t until_sample_ = emit_every_;  // steps until the next multiple of emit_every_
   int n_;
+  int m_ = 0;
+  const double* signals_ = nullptr;
   RunSummary s_;
   std::int64_t rest_from_ = -1;
   double rest_time_ = 0.0;
@@ -341,6 +348,7 @@ struct SteppingDriver {
   template <class Scheme>
   static RunSummary run(Scheme& scheme, const SteppingPlan& plan, RunObserver* observer) {
     RunRecorder rec(observer, plan.grid.output_every, scheme.dof());
+    register_signals(scheme, rec, 0);
     StepFailure f;
     if (!scheme.begin(plan.grid.t0, f)) return failed(scheme, rec, f);
     // The grid as TimeGrid defines a valid one (the scene readers refuse a bad one first, by field).
@@ -408,6 +416,15 @@ struct SteppingDriver {
   }
 
  private:
+  // A scheme with signals (signal_count(), signals(): a tracking run's) hands them to the recorder; the
+  // others have none. (Overloads, not a requires-expression: some runners build as C++17.)
+  template <class Scheme>
+  static auto register_signals(Scheme& scheme, RunRecorder& rec, int) -> decltype(scheme.signal_count(), void()) {
+    rec.signals(scheme.signal_count(), scheme.signals());
+  }
+  template <class Scheme>
+  static void register_signals(Scheme&, RunRecorder&, long) {}
+
   template <class Scheme>
   static RunSummary failed(Scheme& scheme, RunRecorder& rec, const StepFailure& f) {
     scheme.on_failure();

@@ -72,9 +72,9 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
-#include <span>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include "moreau/core/controller.h"
 #include "moreau/core/one_step_solver.h"
@@ -385,7 +385,7 @@ struct ChatteringIndex {
 
 // The number of sign changes: pairs of nonzero values, consecutive once the zeros between them are skipped,
 // with opposite signs.
-inline int sign_changes(std::span<const double> u) {
+inline int sign_changes(const std::vector<double>& u) {
   int changes = 0, last = 0;
   for (const double x : u) {
     const int s = x > 0.0 ? 1 : (x < 0.0 ? -1 : 0);
@@ -396,13 +396,13 @@ inline int sign_changes(std::span<const double> u) {
   return changes;
 }
 
-inline double total_variation(std::span<const double> u) {
+inline double total_variation(const std::vector<double>& u) {
   double tv = 0.0;
   for (std::size_t k = 1; k < u.size(); ++k) tv += std::abs(u[k] - u[k - 1]);
   return tv;
 }
 
-inline ChatteringIndex chattering_index(std::span<const double> u, double period) {
+inline ChatteringIndex chattering_index(const std::vector<double>& u, double period) {
   ChatteringIndex c;
   if (u.empty()) return c;
   c.sign_changes = sign_changes(u);
