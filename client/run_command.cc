@@ -77,7 +77,7 @@ int run(const RunOptions& opt) {
   std::optional<scene::TrajectoryCsvWriter> csv;
   if (!opt.out_csv.empty()) {
     try {
-      csv.emplace(opt.out_csv, sim->position_names(), sim->velocity_names());
+      csv.emplace(opt.out_csv, sim->position_names(), sim->velocity_names(), sim->signal_names());
     } catch (const std::exception& e) {
       std::cerr << "moreau: " << e.what() << "\n";
       return 2;
@@ -97,7 +97,8 @@ int run(const RunOptions& opt) {
     figures.emplace_back(*kind, path);
   }
   if (!opt.figures.empty()) {
-    recorder.emplace(with_units(opt.scene_path, sim->position_names(), false), with_units(opt.scene_path, sim->velocity_names(), true));
+    recorder.emplace(with_units(opt.scene_path, sim->position_names(), false), with_units(opt.scene_path, sim->velocity_names(), true),
+                     sim->signal_names());
     fan.add(&*recorder);
   }
   const bool show_progress = opt.progress == "always" || (opt.progress == "auto" && isatty(STDERR_FILENO));
@@ -164,7 +165,7 @@ void register_run_command(CLI::App& app, Actions& actions) {
   cmd->add_option("--progress", opt->progress, "Progress bar on stderr: auto (when stderr is a terminal), always, never")
       ->check(CLI::IsMember({"auto", "always", "never"}));
   cmd->add_option("--figure", opt->figures,
-                  "Draw a figure: FILE (state figure) or KIND=FILE, KIND one of state, energy, step, phase; "
+                  "Draw a figure: FILE (state figure) or KIND=FILE, KIND one of state, energy, step, phase, tracking; "
                   ".png through OSMesa or .svg");
   cmd->add_flag("--strict", opt->strict,
                 "Exit with status 3 when a hypothesis of a theorem the run relies on fails (see the report's guarantees)");

@@ -346,13 +346,16 @@ class LagrangianCompiler : SceneReader {
   }
 
   void controller(const json& system, LagrangianScene& scene) {
-    auto& phi = scene.controller;
-    phi = Controller<Eigen::Dynamic>::zero(n_);
-    if (!system.contains("controller")) return;
-    const json& c = system["controller"];
-    if (!c.is_array()) throw SceneError("/system/controller", "expected an array of terms, got " + type_name(c));
+    scene.controller = Controller<Eigen::Dynamic>::zero(n_);
+    if (system.contains("controller")) read_controller(system["controller"], "/system/controller", scene.controller);
+  }
+
+  // A controller's terms (quadratic, abs, norm) at `where` (/system/controller, /system/tracking/controller),
+  // added into phi.
+  void read_controller(const json& c, const std::string& where, Controller<Eigen::Dynamic>& phi) {
+    if (!c.is_array()) throw SceneError(where, "expected an array of terms, got " + type_name(c));
     for (std::size_t k = 0; k < c.size(); ++k) {
-      const std::string ptr = "/system/controller/" + std::to_string(k);
+      const std::string ptr = where + "/" + std::to_string(k);
       require_object(c[k], ptr);
       if (!c[k].contains("type") || !c[k]["type"].is_string())
         throw SceneError(ptr + "/type", "missing term type (quadratic, abs or norm)");
@@ -379,6 +382,119 @@ class LagrangianCompiler : SceneReader {
       } else {
         throw SceneError(ptr + "/type", "unknown controller term '" + type + "' (expected quadratic, abs or norm)");
       }
+    }
+  }
+
+  // /system/tracking (docs/tracking.md): the reference q_d(t) with its exact derivatives, Lambda, Phi on
+  // sigma, the law (continuous, or a sampled law at a period T_s), the controller's nominal model and its
+  // measurement. Run by the tracking scheme, which it selects.
+  void tracking(const json& system, LagrangianScene& scene) {
+    if (!system.contains("tracking")) return;
+    const std::string at = "/system/tracking";
+    const json& tr = system["tracking"];
+    require_object(tr, at);
+    check_fields(tr, at, {"reference", "lambda", "controller", "law", "period", "boundary_layer", "band", "nominal", "measurement"});
+    if (!scene.constraint_names.empty())
+      throw SceneError(at, "tracking is for systems without unilateral constraints (/system/constraints)");
+    auto spec = std::make_shared<TrackingSpec>();
+    for (const char* field : {"reference", "lambda", "controller"})
+      if (!tr.contains(field)) throw SceneError(at, std::string("missing required field '") + field + "'");
+    const json& ref = array_of(tr["reference"], at + "/reference", static_cast<std::size_t>(n_), "an array of expressions in t (q_d)");
+    std::vector<Node> outs(static_cast<std::size_t>(3 * n_));
+    for (int i = 0; i < n_; ++i) {
+      const Node qd = expression(ref[i], at + "/reference/" + std::to_string(i), kTime, "a reference (a function of t)");
+      const Node vd = graph_.derivative(qd, 0);
+      outs[i] = qd;
+      outs[n_ + i] = vd;
+      outs[2 * n_ + i] = graph_.derivative(vd, 0);
+      spec->reference_text.push_back(ref[i].is_string() ? ref[i].get<std::string>() : ref[i].dump());
+    }
+    spec->reference = std::make_shared<expr::Tape>(expr::Tape::compile(graph_, outs, 1, num_params()));
+    spec->lambda = constant_vector(tr["lambda"], at + "/lambda");
+    if (spec->lambda.size() != static_cast<std::size_t>(n_))
+      throw SceneError(at + "/lambda", "expected " + std::to_string(n_) + " entries (one per coordinate)");
+    for (std::size_t i = 0; i < spec->lambda.size(); ++i)
+      if (!(spec->lambda[i] > 0.0)) throw SceneError(at + "/lambda/" + std::to_string(i), "must be > 0, got " + format(spec->lambda[i]));
+    spec->phi = Controller<Eigen::Dynamic>::zero(n_);
+    read_controller(tr["controller"], at + "/controller", spec->phi);
+    const std::string law = tr.contains("law") ? (tr["law"].is_string() ? tr["law"].get<std::string>() : "") : "continuous";
+    if (law == "implicit")
+      spec->sampled = SampledTrackingLaw::kImplicit;
+    else if (law == "explicit")
+      spec->sampled = SampledTrackingLaw::kExplicit;
+    else if (law == "saturated")
+      spec->sampled = SampledTrackingLaw::kSaturated;
+    else if (law != "continuous")
+      throw SceneError(at + "/law", "expected \"continuous\", \"implicit\", \"explicit\" or \"saturated\", got " + brief(tr["law"]));
+    if (spec->sampled) {
+      if (!tr.contains("period")) throw SceneError(at, "a sampled law (" + law + ") needs 'period', the sampling period T_s");
+      spec->period = positive(tr["period"], at + "/period");
+    } else {
+      for (const char* field : {"period", "band", "measurement"})
+        if (tr.contains(field))
+          throw SceneError(at + "/" + field, std::string(field) + " belongs to a sampled law (implicit, explicit or saturated)");
+    }
+    if (spec->sampled == SampledTrackingLaw::kSaturated) {
+      if (!tr.contains("boundary_layer")) throw SceneError(at, "the saturated law needs 'boundary_layer', the width phi > 0");
+      spec->boundary_layer = positive(tr["boundary_layer"], at + "/boundary_layer");
+    } else if (tr.contains("boundary_layer")) {
+      throw SceneError(at + "/boundary_layer", "boundary_layer belongs to the saturated law");
+    }
+    if (tr.contains("band")) spec->band = positive(tr["band"], at + "/band");
+    if (tr.contains("measurement")) {
+      const json& m = tr["measurement"];
+      require_object(m, at + "/measurement");
+      check_fields(m, at + "/measurement", {"quantum", "noise", "seed"});
+      if (m.contains("quantum")) spec->quantum = positive(m["quantum"], at + "/measurement/quantum");
+      if (m.contains("noise")) spec->noise = positive(m["noise"], at + "/measurement/noise");
+      if (m.contains("seed")) {
+        const json& sd = m["seed"];
+        if (!sd.is_number_unsigned() && !(sd.is_number_integer() && sd.get<std::int64_t>() >= 0))
+          throw SceneError(at + "/measurement/seed", "expected a non-negative integer, got " + brief(sd));
+        spec->seed = sd.get<std::uint64_t>();
+      }
+    }
+    spec->nominal = std::make_shared<const LagrangianScene>(nominal_scene(tr, *spec));
+    const Controller<Eigen::Dynamic>& plant = scene.controller;
+    if (!spec->sampled && ((plant.gains.array() != 0.0).any() || (plant.weights.array() != 0.0).any() || plant.norm_gain != 0.0))
+      throw SceneError(system.contains("controller") ? "/system/controller" : "/system/urdf/friction",
+                       "the continuous tracking loop is one inclusion in sigma; the plant's own set-valued terms on v "
+                       "(controller, friction) are supported with a sampled law only");
+    scene.tracking = std::move(spec);
+  }
+
+  // The controller's model (TrackingSpec::nominal): this document with /system/tracking/nominal's
+  // parameters written over its own, and without what the controller does not know (the force F) or
+  // does not use (the tracking block, the plant's controller, an exact solution).
+  LagrangianScene nominal_scene(const json& tr, TrackingSpec& spec) {
+    const std::string at = "/system/tracking/nominal";
+    json doc = doc_;
+    json& sys = doc["system"];
+    for (const char* field : {"tracking", "force", "controller"}) sys.erase(field);
+    doc.erase("exact");
+    if (doc.contains("integrator")) doc["integrator"].erase("scheme");
+    if (tr.contains("nominal")) {
+      const json& nm = tr["nominal"];
+      require_object(nm, at);
+      check_fields(nm, at, {"parameters", "scale"});
+      if (nm.contains("scale")) spec.nominal_scale = positive(nm["scale"], at + "/scale");
+      if (nm.contains("parameters")) {
+        const json& ps = nm["parameters"];
+        require_object(ps, at + "/parameters");
+        for (const auto& [name, value] : ps.items()) {
+          const std::string ptr = at + "/parameters/" + name;
+          if (!doc.contains("parameters") || !doc["parameters"].contains(name))
+            throw SceneError(ptr, "the nominal model can only change a parameter of /parameters; '" + name + "' is not one");
+          if (!value.is_number()) throw SceneError(ptr, "expected a number, got " + brief(value));
+          doc["parameters"][name] = value;
+          spec.nominal_parameters.emplace_back(name, value.get<double>());
+        }
+      }
+    }
+    try {
+      return load_scene(doc);
+    } catch (const SceneError& e) {
+      throw SceneError(at, std::string("the controller's nominal model does not compile: ") + e.what());
     }
   }
 
@@ -428,7 +544,7 @@ class LagrangianCompiler : SceneReader {
                  {"scheme", "h", "t_end", "t0", "step_rule", "k1", "k3", "max_steps", "position_correction", "position_update", "theta"});
     // Which scheme, and whether the scene's fields belong to it: the scheme table's row decides (scheme.h).
     const bool constrained = !scene.constraint_names.empty();
-    scene.scheme = constrained ? Scheme::kMoreauJean : Scheme::kAbl;
+    scene.scheme = constrained ? Scheme::kMoreauJean : (scene.tracking ? Scheme::kTracking : Scheme::kAbl);
     if (in.contains("scheme")) {
       if (!in["scheme"].is_string()) throw SceneError("/integrator/scheme", "expected a string");
       const std::string name = in["scheme"].get<std::string>();
@@ -439,6 +555,10 @@ class LagrangianCompiler : SceneReader {
       if (!named || !traits(*named).scene_can_name)
         throw SceneError("/integrator/scheme", "unknown scheme '" + name + "' (expected: " + expected + ")");
       scene.scheme = *named;
+      if (scene.tracking && scene.scheme != Scheme::kTracking)
+        throw SceneError("/integrator/scheme", "a scene with /system/tracking runs the tracking scheme, not " + name);
+      if (!scene.tracking && scene.scheme == Scheme::kTracking)
+        throw SceneError("/integrator/scheme", "the tracking scheme needs /system/tracking (a reference and a controller on sigma)");
       if (constrained && !traits(scene.scheme).contacts)
         throw SceneError("/integrator/scheme",
                          "the abl scheme (0.2) cannot integrate unilateral constraints (/system/constraints): its explicit "
@@ -808,9 +928,9 @@ LagrangianScene LagrangianCompiler::compile() {
     throw SceneError("/system/type",
                      "studies compare schemes for Lagrangian systems; a Lur'e system (\"lure\") has one scheme: run it instead");
   if (type != "lagrangian") throw SceneError("/system/type", "unknown system type '" + type + "' (expected: lagrangian, lure)");
-  check_fields(
-      system, "/system",
-      {"type", "coordinates", "mass", "coriolis", "potential", "potential_gradient", "force", "controller", "constraints", "urdf"});
+  check_fields(system, "/system",
+               {"type", "coordinates", "mass", "coriolis", "potential", "potential_gradient", "force", "controller", "constraints", "urdf",
+                "tracking"});
   if (system.contains("urdf")) urdf(system);
   coordinates(system);
   check_all_parameters();
@@ -836,8 +956,16 @@ LagrangianScene LagrangianCompiler::compile() {
   joint_friction(system, scene);
   constraints(system, scene);
   joint_limits(system, scene);
+  tracking(system, scene);
   initial(scene);
   integrator(scene);
+  if (scene.tracking && scene.tracking->sampled) {
+    // The plant steps h between samples: T_s a whole number of them.
+    const double ratio = scene.tracking->period / scene.settings.h;
+    if (!(std::round(ratio) >= 1.0) || std::abs(ratio - std::round(ratio)) > 1e-9 * ratio)
+      throw SceneError("/system/tracking/period", "T_s = " + format(scene.tracking->period) +
+                                                      " must be a whole number of plant steps h = " + format(scene.settings.h));
+  }
   if (const auto every = output_every()) scene.settings.output_every = *every;
   exact(scene);
   check_at_initial_state(scene, free_values_.empty() ? nullptr : free_values_.data());
@@ -951,6 +1079,15 @@ LagrangianScene ParametricLagrangianScene::bind(const std::vector<double>& value
     if (!impl_->spare_exact || impl_->spare_exact.use_count() > 1) impl_->spare_exact = std::make_shared<expr::Tape>(*base.exact_tape);
     generic = impl_->spare_exact->bind(values.data()) && generic;
     scene.exact_tape = impl_->spare_exact;
+  }
+  // The reference of a tracking scene may read the free parameters too. (Its nominal model was compiled
+  // at the document's values: a campaign varies the plant, not the controller's model.)
+  if (scene.tracking) {
+    auto spec = std::make_shared<TrackingSpec>(*scene.tracking);
+    auto tape = std::make_shared<expr::Tape>(*spec->reference);
+    generic = tape->bind(values.data()) && generic;
+    spec->reference = std::move(tape);
+    scene.tracking = std::move(spec);
   }
   if (!generic)
     throw std::invalid_argument(

@@ -421,9 +421,74 @@ Guarantee lemma3(const LagrangianScene& scene, const RunSummary& s) {
 
 }  // namespace
 
+// The tracking scheme's guarantees (docs/tracking.md, derived there: the TAC 2017 paper's own statements
+// were not available to check against). One-step well-posedness: (4.2) for P = M/h + C + W, on the plant
+// at every step (continuous), or on the nominal model at every sample (implicit law). Reaching: with
+// V = 1/2 sigma^T M sigma and M' = C + C^T, V' <= -(alpha - ||rho||) ||sigma|| while ||rho|| < alpha, rho the
+// perturbation of the sigma dynamics (model error and F), checked on the samples visited.
+namespace {
+
+std::vector<Guarantee> tracking_guarantees(const LagrangianScene& scene, const RunSummary& s, Detail detail) {
+  std::vector<Guarantee> out;
+  const TrackingSpec& spec = *scene.tracking;
+  const TrackingSummary* tr = s.tracking ? &*s.tracking : nullptr;
+  if (!spec.sampled) {
+    Guarantee g = theorem41(scene, s, detail);
+    g.claim = "each step of (0.2) in sigma has exactly one solution sigma_{k+1} (Theorem 4.1 with V^k replaced by sigma)";
+    out.push_back(g);
+  } else {
+    out.push_back(Guarantee{
+        "Assumption 3.1", "the kinetic energy 1/2 <M v, v> is a norm of v (a mass matrix)", true, {mass_check(scene, s, detail)}});
+    if (*spec.sampled == SampledTrackingLaw::kImplicit) {
+      HypothesisCheck h{"P = M^/T_s + C^ + W strongly monotone (P + P^T positive definite) at every sample, which (4.2) implies",
+                        Verdict::kNotChecked, ""};
+      if (tr && tr->condition_checked > 0) {
+        h.verdict = tr->monotone_violations == 0 ? Verdict::kHolds : Verdict::kFails;
+        if (h.verdict == Verdict::kHolds) h.scope = kOnVisitedStates;
+        h.detail = detail_text(detail, [&] {
+          const std::string c42 = "; (4.2), 2 T_s ||C^||_2 <= lambda_min(M^), held at " +
+                                  std::to_string(tr->condition_checked - tr->condition42_violations) + " of them";
+          return tr->monotone_violations == 0
+                     ? "a Cholesky factor of (P + P^T) / 2 at each of " + std::to_string(tr->condition_checked) + " samples" + c42
+                     : "not positive definite at " + std::to_string(tr->monotone_violations) + " of " +
+                           std::to_string(tr->condition_checked) + " samples, first at t = " + fmt(tr->first_monotone_violation_time) + c42;
+        });
+      }
+      out.push_back(
+          Guarantee{"Well-posedness of u_k (implicit controller)",
+                    "u_k is uniquely defined: the inclusion in sigma_{k+1} has one solution (as Theorem 4.1 concludes under (4.2))",
+                    true,
+                    {h}});
+    }
+  }
+  HypothesisCheck alpha{"alpha = min_i a_i + a_norm > 0 (Phi on sigma has a corner at 0)",
+                        spec.phi.alpha() > 0.0 ? Verdict::kHolds : Verdict::kFails,
+                        detail_text(detail, [&] { return "alpha = " + fmt(spec.phi.alpha()); })};
+  if (alpha.verdict == Verdict::kHolds) alpha.scope = kForAllStates;
+  HypothesisCheck rho{"||rho|| < alpha, rho = (M a_r + C v_r + g) - (M^ a_r + C^ v_r + g^) (model error and F)", Verdict::kNotChecked, ""};
+  if (tr && tr->samples > 0) {
+    rho.verdict = tr->perturbation_max < tr->alpha ? Verdict::kHolds : Verdict::kFails;
+    if (rho.verdict == Verdict::kHolds) rho.scope = kOnVisitedStates;
+    rho.detail = detail_text(detail, [&] {
+      return "largest ||rho|| " + fmt(tr->perturbation_max) + " at t = " + fmt(tr->perturbation_max_time) + " over " +
+             std::to_string(tr->samples) + " samples, against alpha = " + fmt(tr->alpha) +
+             (rho.verdict == Verdict::kFails ? " (a sup over all states is at least this: the bound fails)" : " (the states visited only)");
+    });
+  }
+  const std::string reaching = spec.sampled ? "sigma reaches a band of order T_s around 0 in finite time and stays there"
+                                            : "sigma reaches 0 in finite time t_r <= lambda_max(M) ||sigma(0)|| / (alpha - sup ||rho||), "
+                                              "then e decays as exp(-Lambda t)";
+  out.push_back(Guarantee{"Reaching (V = 1/2 sigma^T M sigma)", reaching, false, {alpha, rho}});
+  return out;
+}
+
+}  // namespace
+
 Guarantees lagrangian_guarantees(const LagrangianScene& scene, const RunSummary& s, Detail detail) {
   Guarantees g;
-  if (traits(scene.scheme).theorems_4_1_to_4_3) {
+  if (scene.tracking) {
+    g.items = tracking_guarantees(scene, s, detail);
+  } else if (traits(scene.scheme).theorems_4_1_to_4_3) {
     g.items.push_back(theorem41(scene, s, detail));
     g.items.push_back(theorem42(scene, s, g.items.back(), detail));
     g.items.push_back(theorem43(scene, s, g.items.back(), detail));

@@ -1,6 +1,7 @@
 #include "moreau/scene/report.h"
 
 #include "moreau/platform/number_text.h"
+#include "moreau/platform/text_columns.h"
 #include "moreau/scene/guarantees.h"
 #include "moreau/scene/json_number.h"
 #include "moreau/scene/scene_model.h"
@@ -68,6 +69,9 @@ std::string update_description(const LagrangianScene& scene) {
                "position Q^{k+1} = Q^k + h V^{k+1} (") +
            to_string(scene.contact_settings.position_update) +
            "): a symplectic Euler for the smooth part, not the theta-method with implicit smooth forces";
+  if (scene.tracking)
+    return scene.tracking->sampled ? "the digital controller held over the plant's steps of (0.2) (velocity implicit, position explicit)"
+                                   : "(0.2) in sigma: sigma_{k+1} implicit in the inclusion, position explicit Q^{k+1} = Q^k + h V^k";
   if (traits(scene.scheme).theorems_4_1_to_4_3)
     return "(0.2): velocity implicit (V^{k+1} in the inclusion), position explicit Q^{k+1} = Q^k + h V^k: a conservative part "
            "(a spring) gains energy at O(h)";
@@ -429,10 +433,7 @@ std::string contact_text(const LagrangianScene& scene, const RunSummary& s, cons
     for (std::size_t k = 0; k < shown; ++k) {
       const ImpactEvent& e = c->impacts[k];
       // A table for people: each column padded on the right, numbers to 5 or 6 significant digits.
-      const auto column = [](std::string text, std::size_t width) {
-        if (text.size() < width) text.append(width - text.size(), ' ');
-        return text;
-      };
+      const auto column = platform::pad_right;
       const auto g5 = [&](double v) { return column(platform::significant(v, 5), 11); };
       os << "                t = " << column(platform::significant(e.t, 6), 10) << " " << column(name_of(scene, e.constraint), 8)
          << " U- = " << g5(e.pre) << " U+ = " << g5(e.post) << " P = " << g5(e.impulse) << " dT = " << g5(e.kinetic_change) << " eq.9 "
@@ -488,6 +489,98 @@ std::string contact_text(const LagrangianScene& scene, const RunSummary& s, cons
 
 }  // namespace
 
+namespace {
+
+// A tracking run's results (TrackingSummary; docs/tracking.md).
+nlohmann::json tracking_json(const LagrangianScene& scene, const RunSummary& s) {
+  const TrackingSpec& spec = *scene.tracking;
+  nlohmann::json j;
+  j["law"] = spec.law_name();
+  j["reference"] = spec.reference_text;
+  j["lambda"] = spec.lambda;
+  j["nominal"] = {{"scale", spec.nominal_scale}, {"parameters", nlohmann::json::object()}};
+  for (const auto& [name, value] : spec.nominal_parameters) j["nominal"]["parameters"][name] = value;
+  if (!s.tracking) return j;
+  const TrackingSummary& t = *s.tracking;
+  j["period"] = num(t.period);
+  j["steps_per_sample"] = t.steps_per_sample;
+  j["samples"] = t.samples;
+  j["reached"] = t.reached;
+  j["reaching_time"] = t.reached ? num(t.reaching_time) : nlohmann::json(nullptr);
+  j["reaching"] = spec.sampled ? "||sigma_k||_inf <= band at every sample from reaching_time to the end"
+                               : "sigma == 0.0 exactly (the one-step solver's closed form) at every step from reaching_time to the end";
+  if (spec.sampled) j["band"] = num(t.band);
+  if (t.predicted_on_surface_time) j["predicted_on_surface_time"] = num(*t.predicted_on_surface_time);
+  if (t.reached) {
+    j["after_reaching"] = {{"samples", t.after_samples},
+                           {"error_max", num(t.error_max)},
+                           {"error_rms", num(t.error_rms)},
+                           {"sigma_max", num(t.sigma_max)},
+                           {"sign_changes", t.sign_changes},
+                           {"sign_changes_per_second", num(t.sign_changes_per_second)},
+                           {"total_variation", num(t.total_variation)}};
+  }
+  j["effort"] = {{"u_max", num(t.u_max)}, {"u_energy", num(t.u_energy)}};
+  j["run_chattering"] = {{"sign_changes", t.run_sign_changes}, {"total_variation", num(t.run_total_variation)}};
+  j["error_final"] = num(t.error_final);
+  j["perturbation"] = {{"max", num(t.perturbation_max)}, {"at", num(t.perturbation_max_time)}, {"alpha", num(t.alpha)}};
+  return j;
+}
+
+std::string tracking_report_text(const LagrangianScene& scene, const RunSummary& s) {
+  const TrackingSpec& spec = *scene.tracking;
+  std::ostringstream os;
+  std::string names;
+  for (std::size_t i = 0; i < scene.coordinates.size(); ++i) names += (i ? ", " : "") + scene.coordinates[i];
+  os << "Moreau: " << (scene.name.empty() ? "scene" : scene.name) << " (" << scene.n << " DOF: " << names << "), scheme tracking, law "
+     << spec.law_name();
+  if (spec.sampled) os << " at T_s = " << fmt(spec.period);
+  os << ", plant h = " << fmt(scene.settings.h) << ", t in [" << fmt(scene.settings.t0) << ", " << fmt(scene.settings.t_end) << "]\n";
+  warnings_text(os, scene.unread_parameters);
+  os << "  status        " << to_string(s.status) << ": " << s.steps << " steps to t = " << fmt(s.t_final) << "\n";
+  if (!s.message.empty()) os << "  message       " << s.message << "\n";
+  os << "  final state   q = " << vec(s.q_final) << "\n";
+  os << "                v = " << vec(s.v_final) << "\n";
+  os << "  reference     q_d = (";
+  for (std::size_t i = 0; i < spec.reference_text.size(); ++i) os << (i ? ", " : "") << spec.reference_text[i];
+  os << "), Lambda = diag" << vec(spec.lambda) << "\n";
+  os << "  model         the controller's: scale " << fmt(spec.nominal_scale);
+  for (const auto& [name, value] : spec.nominal_parameters) os << ", " << name << " = " << fmt(value);
+  os << "\n";
+  if (s.tracking) {
+    const TrackingSummary& t = *s.tracking;
+    os << "  reaching      ";
+    if (!t.reached)
+      os << "not reached";
+    else if (spec.sampled)
+      os << "||sigma_k||_inf <= " << fmt(t.band) << " from t = " << fmt(t.reaching_time) << " to the end";
+    else
+      os << "sigma == 0.0 exactly from t = " << fmt(t.reaching_time) << " to the end (the one-step solver's closed form)";
+    if (t.predicted_on_surface_time) os << "; the controller's prediction on the surface from t = " << fmt(*t.predicted_on_surface_time);
+    os << "\n";
+    if (t.reached) {
+      os << "  after it      max |e| " << fmt(t.error_max) << ", RMS e " << fmt(t.error_rms) << ", max |sigma| " << fmt(t.sigma_max)
+         << " over " << t.after_samples << " samples\n";
+      os << "  chattering    " << t.sign_changes << " sign changes of u (" << fmt(t.sign_changes_per_second)
+         << " per second), total variation " << fmt(t.total_variation) << "\n";
+    }
+    os << "  over the run  " << t.run_sign_changes << " sign changes of u, total variation " << fmt(t.run_total_variation) << "\n";
+    os << "  effort        max |u| " << fmt(t.u_max) << ", integral of ||u||^2 " << fmt(t.u_energy) << "; final max |e| "
+       << fmt(t.error_final) << "\n";
+    os << "  perturbation  max ||rho|| " << fmt(t.perturbation_max) << " at t = " << fmt(t.perturbation_max_time) << " against alpha "
+       << fmt(t.alpha) << "\n";
+  }
+  os << guarantees_text(lagrangian_guarantees(scene, s));
+  os << "  solver        max " << s.solver.max_iterations << " iterations per step, " << s.solver.total_iterations
+     << " in all, max residual " << fmt(s.solver.max_residual) << "\n";
+  os << "  wall time     ";
+  for (const auto& [name, seconds] : s.phase_seconds) os << name << " " << fmt(seconds * 1e3) << " ms, ";
+  os << "total " << fmt(s.wall_seconds() * 1e3) << " ms\n";
+  return os.str();
+}
+
+}  // namespace
+
 nlohmann::json report_json(const LagrangianScene& scene, const RunSummary& s) { return report_json(scene, s, nullptr); }
 std::string report_text(const LagrangianScene& scene, const RunSummary& s) { return report_text(scene, s, nullptr); }
 
@@ -521,6 +614,8 @@ nlohmann::json report_json(const LagrangianScene& scene, const RunSummary& s, co
     // E_k here is the kinetic energy, which falls and rises with the potential; Lemma 3's W is below.
     j["energy"]["kind"] = "kinetic 1/2 <M v, v>; the Lagrange-Dirichlet W is lagrange_dirichlet";
     add_contacts(j, scene, s, contacts);
+  } else if (scene.tracking) {
+    j["tracking"] = tracking_json(scene, s);
   } else {
     j["equilibrium"] = {{"residual", num(s.equilibrium.residual)}, {"interior", s.equilibrium.interior}};
   }
@@ -542,6 +637,7 @@ nlohmann::json report_json(const LagrangianScene& scene, const RunSummary& s, co
 
 std::string report_text(const LagrangianScene& scene, const RunSummary& s, const ContactDiagnostics* contacts) {
   if (traits(scene.scheme).contacts) return contact_text(scene, s, contacts);
+  if (scene.tracking) return tracking_report_text(scene, s);
   std::ostringstream os;
   std::string names;
   for (std::size_t i = 0; i < scene.coordinates.size(); ++i) names += (i ? ", " : "") + scene.coordinates[i];

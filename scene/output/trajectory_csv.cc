@@ -19,14 +19,16 @@ static_assert(kMaxRowBytes > platform::kShortestMaxChars);
 }  // namespace
 
 TrajectoryCsvWriter::TrajectoryCsvWriter(const std::string& path, const std::vector<std::string>& q_names,
-                                         const std::vector<std::string>& v_names)
+                                         const std::vector<std::string>& v_names, const std::vector<std::string>& signal_names)
     : path_(path), buffer_(kBufferBytes) {
   file_ = std::fopen(path.c_str(), "wb");
   if (!file_) throw std::runtime_error("cannot write '" + path + "': " + std::strerror(errno));
   std::string header = "t,h";
   for (const auto& q : q_names) header += "," + q;
   for (const auto& v : v_names) header += "," + v;
-  header += ",energy\n";
+  header += ",energy";
+  for (const auto& name : signal_names) header += "," + name;
+  header += "\n";
   if (std::fwrite(header.data(), 1, header.size(), file_) != header.size()) {
     failed_ = true;
     error_ = errno;
@@ -47,7 +49,7 @@ void TrajectoryCsvWriter::put(double value) {
 
 void TrajectoryCsvWriter::on_sample(const Sample& s) {
   const auto start = std::chrono::steady_clock::now();
-  if (buffer_.size() - used_ < kMaxRowBytes * static_cast<std::size_t>(2 * s.n + 3)) flush_buffer();
+  if (buffer_.size() - used_ < kMaxRowBytes * static_cast<std::size_t>(2 * s.n + s.m + 3)) flush_buffer();
   put(s.t);
   buffer_[used_++] = ',';
   put(s.h);
@@ -61,6 +63,10 @@ void TrajectoryCsvWriter::on_sample(const Sample& s) {
   }
   buffer_[used_++] = ',';
   put(s.kinetic_energy);
+  for (int i = 0; i < s.m; ++i) {
+    buffer_[used_++] = ',';
+    put(s.signals[i]);
+  }
   buffer_[used_++] = '\n';
   seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
@@ -121,6 +127,8 @@ TrajectoryColumns read_trajectory_csv(std::istream& in, const std::string& sourc
   }
   data.q.resize(n);
   data.v.resize(n);
+  for (std::size_t i = energy_col + 1; i < cols.size(); ++i) data.signal_names.push_back(cols[i]);
+  data.signals.resize(data.signal_names.size());
   std::vector<double> values;
   std::size_t row = 1;
   while (next_line(line, row + 1)) {
@@ -145,6 +153,7 @@ TrajectoryColumns read_trajectory_csv(std::istream& in, const std::string& sourc
       data.v[i].push_back(values[2 + n + i]);
     }
     data.energy.push_back(values[energy_col]);
+    for (std::size_t i = 0; i < data.signals.size(); ++i) data.signals[i].push_back(values[energy_col + 1 + i]);
   }
   if (data.t.empty()) throw std::runtime_error(source + " has no rows");
   return data;

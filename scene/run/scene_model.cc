@@ -114,6 +114,7 @@ RunSummary run_scene(const LagrangianScene& scene, RunObserver* observer, Contac
     switch (scene.scheme) {
       case Scheme::kMoreauJean: return run_moreau_jean<N>(scene, observer, contacts);
       case Scheme::kRegularized: return run_regularized<N>(scene, observer, contacts);
+      case Scheme::kTracking: return run_tracking<N>(scene, observer, contacts);
       default: return run_abl<N>(scene, observer, contacts);  // kAbl and kExplicit (the system type is checked above)
     }
   });

@@ -33,6 +33,9 @@ const std::vector<SchemeTraits>& all_schemes() {
     {Scheme::kImplicitEuler, "implicit-euler", SystemType::kLure,
                                  true,  false, false,  false, false, false,  true,  false, false,
      "the theta-method for Lur'e systems (eq. 4 of Brogliato 2003)"},
+    {Scheme::kTracking, "tracking", SystemType::kLagrangian,
+                                 true,  false, false,  false, true,  false,  false, false, false,
+     "tracking of /system/tracking's reference: the closed loop as (0.2) in sigma, or the digital controller with the plant by (0.2)"},
   };
   // clang-format on
   return table;

@@ -98,6 +98,15 @@ const std::vector<std::string>& Simulation::velocity_names() const {
                  [](const std::shared_ptr<const LureScene>& sc) -> const std::vector<std::string>& { return sc->state_rates; }},
       system_);
 }
+std::vector<std::string> Simulation::signal_names() const {
+  std::vector<std::string> names;
+  const LagrangianScene* sc = lagrangian();
+  if (!sc || !sc->tracking) return names;
+  for (const std::string& q : sc->coordinates)
+    for (const char* prefix : {"qd_", "e_", "sigma_", "u_"}) names.push_back(prefix + q);
+  return names;
+}
+
 double Simulation::t0() const {
   return on_scene(system_, [](const auto& sc) { return sc.settings.t0; });
 }

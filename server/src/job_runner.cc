@@ -313,7 +313,7 @@ void JobRunner::run(const std::shared_ptr<Job>& job) {
     // What the states hold, for viewers that know nothing of the scene.
     StreamDescription description{sim.name(),           sim.system_type(),    "E = 1/2 <M(q) v, v> (kinetic energy)",
                                   sim.position_names(), sim.velocity_names(), sim.t0(),
-                                  sim.t_end()};
+                                  sim.t_end(),          sim.signal_names()};
     if (const scene::LureScene* lure = sim.lure())
       description.energy = lure->storage ? "W = 1/2 x^T P x (storage)" : "1/2 |x|^2 (no storage matrix)";
     commit->stream = std::make_shared<JobStream>(job->id, job->stream, sim.dof(), std::move(description));
@@ -325,7 +325,7 @@ void JobRunner::run(const std::shared_ptr<Job>& job) {
   }
 
   const fs::path csv_tmp = job->dir / "trajectory.csv.tmp";
-  scene::TrajectoryCsvWriter csv(csv_tmp.string(), sim.position_names(), sim.velocity_names());
+  scene::TrajectoryCsvWriter csv(csv_tmp.string(), sim.position_names(), sim.velocity_names(), sim.signal_names());
   auto progress = [this, &job] {
     push_event(*job, "progress", {{"t", job->t_now.load()}, {"step", job->step_now.load()}, {"t0", job->t0}, {"t_end", job->t_end}});
   };

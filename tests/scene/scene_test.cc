@@ -43,7 +43,7 @@ struct Recorder : RunObserver {
 // The scheme table (scheme.h) against what docs/scene-format.md and docs/studies.md promise: the names a
 // scene may give per system type, the peers a study compares, and the rows in the enum's order.
 TEST(SchemeTable, NamesAndRolesAreTheDocumentedOnes) {
-  const std::vector<std::string> expected = {"abl", "explicit", "regularized", "moreau-jean", "implicit-euler"};
+  const std::vector<std::string> expected = {"abl", "explicit", "regularized", "moreau-jean", "implicit-euler", "tracking"};
   ASSERT_EQ(all_schemes().size(), expected.size());
   for (std::size_t i = 0; i < expected.size(); ++i) {
     const SchemeTraits& row = all_schemes()[i];
@@ -53,7 +53,7 @@ TEST(SchemeTable, NamesAndRolesAreTheDocumentedOnes) {
     EXPECT_EQ(&traits(row.scheme), &row);
   }
   EXPECT_EQ(scheme_from_name("Abl"), std::nullopt);
-  EXPECT_EQ(scheme_names_for_scenes(SystemType::kLagrangian), "abl or moreau-jean");
+  EXPECT_EQ(scheme_names_for_scenes(SystemType::kLagrangian), "abl, moreau-jean or tracking");
   EXPECT_EQ(scheme_names_for_scenes(SystemType::kLure), "implicit-euler");
   EXPECT_EQ(scheme_names_for_studies(), "abl, explicit or regularized");
   // Only the scheme (0.2) itself is covered by Theorems 4.1-4.3; only Moreau-Jean integrates contacts.

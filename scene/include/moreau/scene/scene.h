@@ -24,6 +24,7 @@
 #include "moreau/core/run_diagnostics.h"
 #include "moreau/core/rigid_body.h"
 #include "moreau/core/run_summary.h"
+#include "moreau/core/tracking.h"
 #include "moreau/expr/expression.h"
 #include "moreau/scene/scheme.h"
 
@@ -158,6 +159,29 @@ const char* position_correction_name(bool on);  // "projection", "none"
 const char* to_string(Regularization kind);     // "tanh", "saturation"
 std::optional<Regularization> regularization_from_name(std::string_view name);
 
+struct LagrangianScene;
+
+// /system/tracking: the reference, the controller on sigma and its model of the plant (docs/tracking.md).
+struct TrackingSpec {
+  // Inputs [t]; outputs q_d (n), q_d' (n), q_d'' (n): the reference and its exact symbolic derivatives.
+  std::shared_ptr<const expr::Tape> reference;
+  std::vector<std::string> reference_text;    // q_d as written, for reports
+  std::vector<double> lambda;                 // Lambda = diag(lambda)
+  Controller<Eigen::Dynamic> phi;             // Phi on sigma
+  std::optional<SampledTrackingLaw> sampled;  // empty: the continuous closed loop
+  double period = 0.0;                        // T_s (sampled laws)
+  double boundary_layer = 0.0;                // the saturated law's width
+  double band = 0.0;                          // reaching band of a sampled law (0: the default of TrackingSettings)
+  // The controller's model: the scene with /system/tracking/nominal/parameters written over its
+  // parameters, without the force F, all scaled by nominal_scale.
+  std::shared_ptr<const LagrangianScene> nominal;
+  double nominal_scale = 1.0;
+  std::vector<std::pair<std::string, double>> nominal_parameters;
+  double quantum = 0.0, noise = 0.0;
+  std::uint64_t seed = 1;
+  std::string law_name() const { return sampled ? sampled_tracking_law_name(*sampled) : "continuous"; }
+};
+
 struct LagrangianScene {
   std::string name;
   int n = 0;
@@ -191,6 +215,8 @@ struct LagrangianScene {
   MoreauJeanSettings contact_settings;
   // Parameters that no expression reads (the report warns of them: a misspelt name?).
   std::vector<std::string> unread_parameters;
+  // /system/tracking, run by the tracking scheme; null otherwise.
+  std::shared_ptr<const TrackingSpec> tracking;
   // The regularized scheme's sign (a study's peer): its kind and width.
   Regularization regularization = Regularization::kTanh;
   double regularization_epsilon = 1e-3;

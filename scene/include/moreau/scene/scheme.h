@@ -20,6 +20,7 @@ enum class Scheme {
   kRegularized,    // the sign smoothed or saturated, integrated by a stiff ODE solver: a study's comparison
   kMoreauJean,     // Moreau-Jean with Newton restitution (eq. 8 and 17 of Brogliato 2003): contacts
   kImplicitEuler,  // the theta-method for Lur'e systems (eq. 4 of Brogliato 2003)
+  kTracking,       // a reference tracked by the set-valued controller on sigma: continuous or sampled (tracking_integrator.h)
 };
 
 enum class SystemType { kLagrangian, kLure };

@@ -60,6 +60,9 @@ class Simulation {
   // Column names of a trajectory: positions then velocities.
   const std::vector<std::string>& position_names() const;
   const std::vector<std::string>& velocity_names() const;
+  // The names of a sample's signals (Sample::signals), in order: for a tracking scene qd_<q>, e_<q>,
+  // sigma_<q> and u_<q> for each coordinate q; empty for other scenes.
+  std::vector<std::string> signal_names() const;
   double t0() const;
   double t_end() const;
   double h() const;
