@@ -1,13 +1,18 @@
 // moreau study SCENE --h 1e-1:1e-5:9 --schemes abl,explicit,regularized : error against run time and the
 // order of convergence, as a table (text, JSON, CSV) and the `work` and `order` figures.
+// moreau study TRACKING-SCENE --periods 1e-2:1e-4:5 --laws implicit,explicit : the digital controller's
+// tracking error and chattering against its sampling period (sampling_study.h), and the `order` figure
+// of the error against T_s.
 #include <fstream>
 #include <iostream>
 #include <memory>
+#include <sstream>
 
 #include "commands.h"
 #include "figure_output.h"
 #include "moreau/render/render.h"
 #include "moreau/analysis/figures.h"
+#include "moreau/analysis/sampling_study.h"
 #include "moreau/analysis/study.h"
 
 namespace moreau::cli {
@@ -22,6 +27,7 @@ struct StudyOptions {
   int eval_points = 1000, repeats = 3;
   bool json = false;
   std::string csv, work_png, order_png;
+  std::string periods, laws = "implicit,explicit";  // a sampling study when periods is given
 };
 
 void write_text(const std::string& path, const std::string& text) {
@@ -30,7 +36,44 @@ void write_text(const std::string& path, const std::string& text) {
   if (!out) throw std::runtime_error("cannot write '" + path + "'");
 }
 
+int sampling_study(const StudyOptions& opt) {
+  scene::SamplingStudyResult result;
+  try {
+    nlohmann::json doc = scene::read_scene_file(opt.scene_path);
+    for (const auto& o : opt.overrides) scene::apply_override(doc, o);
+    std::vector<std::string> laws;
+    std::stringstream list(opt.laws);
+    for (std::string law; std::getline(list, law, ',');) laws.push_back(law);
+    result = scene::run_sampling_study(doc, scene::parse_ladder(opt.periods), laws);
+  } catch (const scene::SceneError& e) {
+    std::cerr << "moreau study: " << e.what() << "\n";
+    return 2;
+  }
+  try {
+    if (!opt.csv.empty()) write_text(opt.csv, result.to_csv());
+    if (!opt.order_png.empty()) {
+      std::vector<render::SchemeRuns> runs;
+      for (const auto& r : result.rows) {
+        if (runs.empty() || runs.back().scheme != r.law) runs.push_back({r.law, {}, {}, {}});
+        runs.back().h.push_back(r.period);
+        runs.back().error.push_back(r.error_max);
+      }
+      render::FigureOptions o;
+      o.title = result.scene + ": the tracking error after reaching against the sampling period";
+      o.x_label = "sampling period T_s";
+      o.y_label = "max |e| after reaching";
+      render::render_png(render::order_figure(runs, o), opt.order_png);
+    }
+  } catch (const std::exception& e) {
+    std::cerr << "moreau study: " << e.what() << "\n";
+    return 1;
+  }
+  std::cout << (opt.json ? result.to_json().dump(2) + "\n" : result.to_text());
+  return 0;
+}
+
 int study(const StudyOptions& opt) {
+  if (!opt.periods.empty()) return sampling_study(opt);
   scene::StudyResult result;
   try {
     nlohmann::json doc = scene::read_scene_file(opt.scene_path);
@@ -81,6 +124,9 @@ void register_study_command(CLI::App& app, Actions& actions) {
   cmd->add_option("--csv", opt->csv, "Write the table as CSV");
   cmd->add_option("--work", opt->work_png, "Write the work figure (error against run time) as PNG");
   cmd->add_option("--order", opt->order_png, "Write the order figure (error against h, fitted slope) as PNG");
+  cmd->add_option("--periods", opt->periods,
+                  "A tracking scene's digital controller over sampling periods T_s: FIRST:LAST:COUNT or a comma list");
+  cmd->add_option("--laws", opt->laws, "With --periods: comma list of implicit, explicit, saturated")->capture_default_str();
   actions[cmd] = [opt] { return study(*opt); };
 }
 

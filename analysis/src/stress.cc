@@ -6,6 +6,7 @@
 #include <string_view>
 
 #include "moreau/platform/number_text.h"
+#include "moreau/platform/text_columns.h"
 #include "moreau/scene/simulation.h"
 
 namespace moreau::scene {
@@ -163,13 +164,9 @@ StressOutcome run_stress_case(const StressCase& c) {
 std::string format_outcome(const StressOutcome& o) {
   using platform::significant;
   // Columns padded on the right to a width (a table for people; numbers to a few significant digits).
-  const auto column = [](std::string text, std::size_t width) {
-    if (text.size() < width) text.append(width - text.size(), ' ');
-    return text;
-  };
+  const auto column = platform::pad_right;
   const std::string conv = o.summary.converged_time ? "rest from t = " + significant(*o.summary.converged_time, 4) : "moving at t_end";
-  std::string seconds = platform::fixed(o.seconds, 2);
-  if (seconds.size() < 6) seconds.insert(0, 6 - seconds.size(), ' ');
+  const std::string seconds = platform::pad_left(platform::fixed(o.seconds, 2), 6);
   std::string s = column(o.c->name, 30) + " abl  " + column(to_string(o.summary.status), 9) + " " +
                   column(o.finite ? "finite" : "NON-FINITE", 14) + " energy " +
                   column(o.summary.energy_nonincreasing ? "non-increasing" : "not monotone", 14) + " " + column(conv, 22) + " solver max " +

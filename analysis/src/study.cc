@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "moreau/platform/number_text.h"
+#include "moreau/platform/text_columns.h"
 #include "moreau/scene/guarantees.h"
 #include "moreau/scene/json_number.h"
 #include "moreau/scene/scene_model.h"
@@ -700,14 +701,8 @@ std::string StudyResult::to_text() const {
   // A table for people: columns padded to a width, numbers to a few significant digits (platform's
   // formatter); a value that is not a number (the errors of a failed row, an order fitted from fewer than
   // two points) is shown as "-".
-  const auto left = [](std::string text, std::size_t width) {
-    if (text.size() < width) text.append(width - text.size(), ' ');
-    return text;
-  };
-  const auto right = [](std::string text, std::size_t width) {
-    if (text.size() < width) text.insert(0, width - text.size(), ' ');
-    return text;
-  };
+  const auto left = platform::pad_right;  // text, aligned on its first character
+  const auto right = platform::pad_left;  // numbers, aligned on their last digit
   const auto g4 = [](double v) { return std::isfinite(v) ? platform::significant(v, 4) : std::string("-"); };
   const auto fixed3 = [](double v) { return std::isfinite(v) ? platform::fixed(v, 3) : std::string("-"); };
   os << "Study of " << scene << " against the " << reference << "\n";
