@@ -33,19 +33,24 @@ std::int64_t utime_now() {
 // ---- JobStream ----
 
 JobStream::JobStream(std::string job_id, StreamSettings settings, int n, StreamDescription description)
-    : job_id_(std::move(job_id)), settings_(std::move(settings)), n_(n), description_(std::move(description)) {
+    : job_id_(std::move(job_id)),
+      settings_(std::move(settings)),
+      n_(n),
+      description_(std::move(description)),
+      m_(static_cast<int>(description_.signal_names.size())) {
   for (Batch* b : {&local_, &pending_}) {
     b->records.reserve(4 * kBatch);
-    b->qv.reserve(4 * kBatch * 2 * static_cast<std::size_t>(n));
+    b->qv.reserve(4 * kBatch * static_cast<std::size_t>(2 * n + m_));
   }
 }
 
 JobStream::~JobStream() = default;
 
-void JobStream::push_state(std::int64_t step, double t, double h, const double* q, const double* v, double energy) {
+void JobStream::push_state(std::int64_t step, double t, double h, const double* q, const double* v, double energy, const double* signals) {
   local_.records.push_back(Record{step, t, h, energy, -1});
   local_.qv.insert(local_.qv.end(), q, q + n_);
   local_.qv.insert(local_.qv.end(), v, v + n_);
+  if (m_ > 0) local_.qv.insert(local_.qv.end(), signals, signals + m_);
   if (local_.records.size() >= kBatch || settings_.realtime) flush();
 }
 
@@ -197,6 +202,8 @@ void LcmHub::describe(JobStream& s) {
   m.period = s.settings().period;
   m.state_channel = s.settings().state_channel;
   m.event_channel = s.settings().event_channel;
+  m.m = static_cast<std::int32_t>(d.signal_names.size());
+  m.signal_names = d.signal_names;
   const int size = m.getEncodedSize();
   buffer_.resize(static_cast<std::size_t>(size));
   m.encode(buffer_.data(), 0, size);
@@ -211,6 +218,7 @@ void LcmHub::drain(JobStream& s, JobStream::Batch& batch) {
   moreau::state_t state;
   state.job_id = s.job_id();
   state.n = s.n();
+  state.m = s.m_;
   moreau::job_event_t event;
   event.job_id = s.job_id();
   const std::size_t n = static_cast<std::size_t>(s.n());
@@ -229,7 +237,9 @@ void LcmHub::drain(JobStream& s, JobStream::Batch& batch) {
       state.q.assign(batch.qv.begin() + static_cast<std::ptrdiff_t>(qv_at), batch.qv.begin() + static_cast<std::ptrdiff_t>(qv_at + n));
       state.v.assign(batch.qv.begin() + static_cast<std::ptrdiff_t>(qv_at + n),
                      batch.qv.begin() + static_cast<std::ptrdiff_t>(qv_at + 2 * n));
-      qv_at += 2 * n;
+      state.signals.assign(batch.qv.begin() + static_cast<std::ptrdiff_t>(qv_at + 2 * n),
+                           batch.qv.begin() + static_cast<std::ptrdiff_t>(qv_at + 2 * n + static_cast<std::size_t>(s.m_)));
+      qv_at += 2 * n + static_cast<std::size_t>(s.m_);
       size = state.getEncodedSize();
       buffer_.resize(static_cast<std::size_t>(size));
       state.encode(buffer_.data(), 0, size);
@@ -295,7 +305,7 @@ void StreamObserver::publish_and_advance(const Sample& s) {
   any_ = true;
   // The next multiple of the period after t (robust to steps that do not divide the period).
   next_t_ = t0_ + period_ * (std::floor((s.t - t0_) / period_ + 1e-9) + 1.0);
-  stream_->push_state(s.step, s.t, s.h, s.q, s.v, s.kinetic_energy);
+  stream_->push_state(s.step, s.t, s.h, s.q, s.v, s.kinetic_energy, s.signals);
   last_published_step_ = s.step;
 }
 
@@ -328,7 +338,9 @@ void StreamObserver::flush_last(const RunSummary& summary) {
   // A failed run's summary has no energy for its last state: the last periodic state stands.
   if (summary.status == RunStatus::kFailed || summary.status == RunStatus::kCancelled) return;
   if (summary.steps == last_published_step_ || summary.q_final.size() != n || summary.v_final.size() != n) return;
-  stream_->push_state(summary.steps, summary.t_final, last_h_, summary.q_final.data(), summary.v_final.data(), summary.energy_final);
+  if (last_signals_.size() != stream_->description().signal_names.size()) return;  // no sample of the run seen
+  stream_->push_state(summary.steps, summary.t_final, last_h_, summary.q_final.data(), summary.v_final.data(), summary.energy_final,
+                      last_signals_.data());
   last_published_step_ = summary.steps;
 }
 

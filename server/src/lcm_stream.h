@@ -38,6 +38,7 @@ struct StreamDescription {
   std::string scene, system, energy;
   std::vector<std::string> q_names, v_names;
   double t0 = 0, t_end = 0;
+  std::vector<std::string> signal_names;  // Sample::signals, when the scheme has them
 };
 
 // "MOREAU_STATE_" + the job id in upper case, and the event and description channels likewise.
@@ -53,7 +54,8 @@ class JobStream {
  public:
   JobStream(std::string job_id, StreamSettings settings, int n, StreamDescription description = {});
   ~JobStream();
-  void push_state(std::int64_t step, double t, double h, const double* q, const double* v, double energy);
+  // signals: description().signal_names.size() values (none: nullptr).
+  void push_state(std::int64_t step, double t, double h, const double* q, const double* v, double energy, const double* signals);
   void push_event(const char* kind, std::int64_t step, double t, std::string text);
   // Hands the states gathered so far to the hub.
   void flush();
@@ -77,7 +79,7 @@ class JobStream {
   };
   struct Batch {
     std::vector<Record> records;
-    std::vector<double> qv;  // 2n per state record, in order
+    std::vector<double> qv;  // 2n + m per state record, in order (q, v, the signals)
     std::vector<Event> events;
     void clear() {
       records.clear();
@@ -95,6 +97,7 @@ class JobStream {
   StreamSettings settings_;
   int n_;
   StreamDescription description_;
+  int m_;  // signals per state
   // The hub's own: when it last published the description (never: the epoch).
   std::chrono::steady_clock::time_point described_at_{};
   // The producer's buffer and the shared one on separate cache lines.
@@ -154,6 +157,7 @@ class StreamObserver final : public RunObserver {
   // Inline: most samples fall between two publication times and cost one comparison.
   void on_sample(const Sample& s) override {
     last_h_ = s.h;
+    if (s.m > 0) last_signals_.assign(s.signals, s.signals + s.m);  // a tracking run's, for the last state
     if (any_ && s.t < next_t_ - 1e-9 * period_ && held_.empty()) return;
     publish_and_advance(s);
   }
@@ -184,7 +188,8 @@ class StreamObserver final : public RunObserver {
   bool any_ = false;
   std::int64_t last_published_step_ = -1;
   std::chrono::steady_clock::time_point wall_start_;
-  double last_h_ = 0;  // the step of the last sample seen (the summary does not carry it)
+  double last_h_ = 0;                 // the step of the last sample seen (the summary does not carry it)
+  std::vector<double> last_signals_;  // likewise its signals
   struct HeldEvent {
     enum class Kind { kImpact, kConverged, kConvergenceWithdrawn };
     Kind kind;

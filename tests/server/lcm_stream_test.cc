@@ -105,6 +105,7 @@ void check_stream(const Received& got, const std::string& id, const json& report
   EXPECT_DOUBLE_EQ(d.t_end, t_end);
   EXPECT_EQ(d.state_channel, "MOREAU_STATE_" + upper(id));
   EXPECT_EQ(d.event_channel, "MOREAU_EVENT_" + upper(id));
+  EXPECT_EQ(d.m, 0);  // a scene without signals
   // One state per period from t0, and the last state.
   const auto expected = static_cast<std::size_t>(std::llround(t_end / period)) + 1;
   EXPECT_EQ(got.states.size(), expected);
@@ -229,6 +230,35 @@ TEST(LcmStream, MemqStreamDecodesInOrderWithTheFinalEvent) {
   const std::string csv = c->Get("/v1/jobs/" + id + "/trajectory?format=csv")->body;
   EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 10002);
   EXPECT_THAT(c->Get("/metrics")->body, ::testing::HasSubstr("moreau_lcm_dropped_total 0\n"));
+}
+
+// A tracking scene's states carry its signals (q_d, e, sigma, u per coordinate) and the description
+// names them: q_d against the reference the scene gives, sin(t) and 0.5 sin(2 t), and e against q - q_d.
+TEST(LcmStream, ATrackingJobStreamsItsSignalsWithTheirNames) {
+  MemqServer m;
+  ASSERT_NE(m.lcm, nullptr);
+  auto c = m.ts.client();
+  json scene = moreau::server::testing::read_json_file("scenes/manipulator-tracking.json");
+  scene["integrator"]["t_end"] = 1.0;
+  auto r = submit(*c, {{"scene", scene}, {"stream", {{"period", 1.0 / 8}}}});
+  ASSERT_EQ(r->status, 202) << r->body;
+  const std::string id = json::parse(r->body)["id"];
+  ASSERT_EQ(wait_final(*c, id)["state"], "done");
+  m.drain();
+  const Received& got = m.col.got;
+  ASSERT_FALSE(got.descriptions.empty());
+  EXPECT_EQ(got.descriptions.front().m, 8);
+  EXPECT_EQ(got.descriptions.front().signal_names,
+            (std::vector<std::string>{"qd_x1", "e_x1", "sigma_x1", "u_x1", "qd_th2", "e_th2", "sigma_th2", "u_th2"}));
+  ASSERT_EQ(got.states.size(), 9u);
+  for (const auto& s : got.states) {
+    ASSERT_EQ(s.m, 8);
+    ASSERT_EQ(s.signals.size(), 8u);
+    EXPECT_NEAR(s.signals[0], std::sin(s.t), 1e-15) << s.t;
+    EXPECT_NEAR(s.signals[4], 0.5 * std::sin(2.0 * s.t), 1e-15) << s.t;
+    EXPECT_NEAR(s.signals[1], s.q[0] - std::sin(s.t), 1e-15) << s.t;
+    EXPECT_NEAR(s.signals[5], s.q[1] - 0.5 * std::sin(2.0 * s.t), 1e-15) << s.t;
+  }
 }
 
 TEST(LcmStream, CoarseTrajectoryDecimationStillStreamsEveryPeriod) {
