@@ -10,12 +10,15 @@
 
 namespace moreau::cli {
 
-TimeSeriesRecorder::TimeSeriesRecorder(std::vector<std::string> q_names, std::vector<std::string> v_names) {
+TimeSeriesRecorder::TimeSeriesRecorder(std::vector<std::string> q_names, std::vector<std::string> v_names,
+                                       std::vector<std::string> signal_names) {
   data_.q_names = std::move(q_names);
   data_.v_names = std::move(v_names);
   data_.q.resize(data_.q_names.size());
   data_.v.resize(data_.v_names.size());
   data_.energy_label = "E = 1/2 <M v, v>";
+  data_.signal_names = std::move(signal_names);
+  data_.signals.resize(data_.signal_names.size());
 }
 
 void TimeSeriesRecorder::on_sample(const Sample& s) {
@@ -26,6 +29,7 @@ void TimeSeriesRecorder::on_sample(const Sample& s) {
     data_.v[i].push_back(s.v[i]);
   }
   data_.energy.push_back(s.kinetic_energy);
+  for (int i = 0; i < s.m && i < static_cast<int>(data_.signals.size()); ++i) data_.signals[i].push_back(s.signals[i]);
 }
 
 void FigureFlags::add_to(CLI::App* cmd) {

@@ -18,7 +18,7 @@ namespace moreau::cli {
 // Collects the decimated samples of a run for figures.
 class TimeSeriesRecorder : public RunObserver {
  public:
-  TimeSeriesRecorder(std::vector<std::string> q_names, std::vector<std::string> v_names);
+  TimeSeriesRecorder(std::vector<std::string> q_names, std::vector<std::string> v_names, std::vector<std::string> signal_names = {});
   void on_sample(const Sample& s) override;
   render::TimeSeriesData& data() { return data_; }
 

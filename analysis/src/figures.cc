@@ -17,6 +17,8 @@ render::TimeSeriesData time_series(TrajectoryColumns columns) {
   data.v = std::move(columns.v);
   data.energy = std::move(columns.energy);
   data.energy_label = "E = 1/2 <M v, v>";
+  data.signal_names = std::move(columns.signal_names);
+  data.signals = std::move(columns.signals);
   return data;
 }
 
@@ -74,6 +76,7 @@ render::Figure trajectory_figure(TrajectoryFigure kind, const render::TimeSeries
     case TrajectoryFigure::kEnergy: return render::energy_figure(data, options);
     case TrajectoryFigure::kStep: return render::step_figure(data, options);
     case TrajectoryFigure::kPhase: return render::phase_figure(data, options);
+    case TrajectoryFigure::kTracking: return render::tracking_figure(data, options);
   }
   return render::state_figure(data, options);  // not reached: the switch covers every kind
 }

@@ -224,7 +224,7 @@ class Client:
                            {"format": "csv", "from": start, "to": stop, "every": every}).decode("utf-8")
 
     def figure(self, job_id, kind="state", format="png", width=None, height=None, path=None):
-        """A figure of the job (kind: state, energy, step, phase) as PNG or SVG bytes; with `path`, also
+        """A figure of the job (kind: state, energy, step, phase, tracking) as PNG or SVG bytes; with `path`, also
         written to that file."""
         return self._figure("/v1/jobs/%s/figure" % job_id, kind, format, width, height, path)
 

@@ -180,6 +180,79 @@ Figure state_figure(const TimeSeriesData& d, const FigureOptions& o) {
   return f;
 }
 
+Figure tracking_figure(const TimeSeriesData& d, const FigureOptions& o) {
+  const char* who = "tracking_figure";
+  const Window w = time_window(d.t, o, who);
+  const std::vector<std::size_t> coords = pick_coordinates(d, o, who);
+  // Coordinate i's signals are columns 4 i .. 4 i + 3, named qd_, e_, sigma_, u_ and its name (the
+  // position names here may carry units, "x1 [m]"; the signals' names do not).
+  auto column = [&](const std::string& prefix, std::size_t slot, std::size_t i) -> const std::vector<double>& {
+    const std::size_t j = 4 * i + slot;
+    if (j >= d.signal_names.size() || j >= d.signals.size() || d.signal_names[j].rfind(prefix, 0) != 0)
+      throw FigureError(std::string(who) + ": no column " + prefix + "<coordinate " + std::to_string(i) +
+                        "> (the trajectory of a scene with /system/tracking has one)");
+    check_length(d.signals[j], d.t.size(), d.signal_names[j], who);
+    return d.signals[j];
+  };
+  Figure f = base_figure(o);
+  const std::vector<double> t = slice(d.t, w);
+  auto panel = [&](const std::string& title, const std::string& y_label) {
+    Panel p;
+    p.title = title;
+    p.x_label = "t";
+    p.y_label = y_label;
+    p.x_axis = time_axis(w);
+    return p;
+  };
+  auto series = [&](const std::string& label, const std::vector<double>& y, int color, SeriesStyle style = SeriesStyle::line) {
+    Series s;
+    s.label = label;
+    s.x = t;
+    s.y = slice(y, w);
+    s.color = color;
+    s.style = style;
+    return s;
+  };
+  Panel q = panel("Positions q and reference q_d", "q");
+  Panel e = panel("Tracking error e = q - q_d", "e");
+  Panel sigma = panel("Sliding variable |sigma|", "|sigma|");
+  sigma.y_axis.scale = o.y_scale.value_or(Scale::log);
+  Panel u = panel("Control u", "u");
+  std::optional<double> on_surface_from;  // the start of the final run of exact zeros of every sigma_i
+  std::vector<bool> zero(t.size(), true);
+  for (std::size_t k = 0; k < coords.size(); ++k) {
+    const std::size_t i = coords[k];
+    const std::string name = coordinate_name(d.q_names, i, "q");
+    const int color = static_cast<int>(k);
+    check_length(d.q.at(i), d.t.size(), "q[" + std::to_string(i) + "]", who);
+    q.series.push_back(series(name, d.q[i], color));
+    q.series.push_back(series(name + " reference", column("qd_", 0, i), color, SeriesStyle::points));
+    e.series.push_back(series(name, column("e_", 1, i), color));  // the unit of q
+    // sigma and u have units of their own (q's per second, a force or torque): named by their columns.
+    Series s = series(d.signal_names[4 * i + 2], column("sigma_", 2, i), color);
+    const std::string sigma_name = s.label;
+    std::size_t zeros = 0;
+    for (std::size_t j = 0; j < s.y.size(); ++j) {
+      zeros += s.y[j] == 0.0;
+      zero[j] = zero[j] && s.y[j] == 0.0;
+      s.y[j] = std::abs(s.y[j]);
+    }
+    if (sigma.y_axis.scale == Scale::log) {
+      keep_positive_y(s);
+      if (zeros > 0) s.label = sigma_name + " (" + std::to_string(zeros) + " samples exactly 0, not drawn)";
+    }
+    sigma.series.push_back(std::move(s));
+    u.series.push_back(series(d.signal_names[4 * i + 3], column("u_", 3, i), color));
+  }
+  for (std::size_t j = zero.size(); j-- > 0 && zero[j];) on_surface_from = t[j];
+  if (on_surface_from && !zero.empty() && zero.back())
+    sigma.markers.push_back(Marker{*on_surface_from, "sigma = 0 exactly from t=" + fmt(*on_surface_from), Marker::Kind::line, {}});
+  drop_empty(sigma);
+  for (Panel* p : {&q, &e, &sigma, &u})
+    if (!p->series.empty()) f.panels.push_back(std::move(*p));
+  return f;
+}
+
 Figure energy_figure(const TimeSeriesData& d, const FigureOptions& o) {
   const char* who = "energy_figure";
   const Window w = time_window(d.t, o, who);
@@ -331,8 +404,8 @@ Figure study_figure(const std::vector<SchemeRuns>& runs, const FigureOptions& o,
   require(!runs.empty(), std::string(who) + ": no schemes");
   Figure f = base_figure(o);
   Panel p;
-  p.x_label = work ? "run time [s]" : "step size h";
-  p.y_label = "error";
+  p.x_label = !o.x_label.empty() ? o.x_label : work ? "run time [s]" : "step size h";
+  p.y_label = !o.y_label.empty() ? o.y_label : "error";
   p.x_axis.scale = Scale::log;
   p.y_axis.scale = o.y_scale.value_or(Scale::log);
   for (std::size_t k = 0; k < runs.size(); ++k) {

@@ -93,11 +93,11 @@ void expect_names_read_both_ways(const std::vector<std::string>& names) {
 // The names the API (server/openapi.json), the command line and the cached figures' files have always
 // used, and the lists the error messages give.
 TEST(FigureKinds, NamesReadBothWaysAndListAsTheMessagesDo) {
-  expect_names_read_both_ways<TrajectoryFigure>({"state", "energy", "step", "phase"});
+  expect_names_read_both_ways<TrajectoryFigure>({"state", "energy", "step", "phase", "tracking"});
   expect_names_read_both_ways<StudyFigure>({"work", "order"});
   expect_names_read_both_ways<CampaignFigure>({"convergence-cdf", "inputs", "success-map"});
   expect_names_read_both_ways<FigureFormat>({"png", "svg"});
-  EXPECT_EQ(figure_name_list<TrajectoryFigure>(), "state, energy, step or phase");
+  EXPECT_EQ(figure_name_list<TrajectoryFigure>(), "state, energy, step, phase or tracking");
   EXPECT_EQ(figure_name_list<StudyFigure>(), "work or order");
   EXPECT_EQ(figure_name_list<CampaignFigure>(), "convergence-cdf, inputs or success-map");
   EXPECT_EQ(figure_name_list<FigureFormat>(), "png or svg");

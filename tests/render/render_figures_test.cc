@@ -206,6 +206,34 @@ TEST(RenderFigures, StateSpaceSystemsAreLabelledAsSuchWithTheirStatePlane) {
   EXPECT_EQ(single.panels[0].series[0].label, "(x1, x1_dot)");
 }
 
+// A tracking run's figure: q with q_d, e, |sigma| on a log axis and u. sigma is 0.0 exactly from t = 3
+// (samples 3, 4, 5): the log panel drops those, says how many, and marks where the final run of zeros
+// starts; an exact zero before it (sample 1) is counted but starts no mark.
+TEST(RenderFigures, TrackingFigureShowsTheExactZerosOfSigma) {
+  TimeSeriesData d;
+  d.t = {0, 1, 2, 3, 4, 5};
+  d.q_names = {"x"};
+  d.q = {{1.0, 0.5, 0.3, 0.2, 0.1, 0.05}};
+  d.v = {{0, 0, 0, 0, 0, 0}};
+  d.signal_names = {"qd_x", "e_x", "sigma_x", "u_x"};
+  d.signals = {{0, 0, 0, 0, 0, 0}, {1.0, 0.5, 0.3, 0.2, 0.1, 0.05}, {2.0, 0.0, -0.5, 0.0, 0.0, 0.0}, {-1, -1, 1, 0.5, 0.5, 0.5}};
+  const Figure f = tracking_figure(d);
+  ASSERT_EQ(f.panels.size(), 4u);
+  EXPECT_EQ(f.panels[0].series.size(), 2u);  // q and its reference
+  const Panel& sigma = f.panels[2];
+  EXPECT_EQ(sigma.y_axis.scale, Scale::log);
+  ASSERT_EQ(sigma.series.size(), 1u);
+  EXPECT_EQ(sigma.series[0].y, (std::vector<double>{2.0, 0.5}));  // |sigma| where it is not 0
+  EXPECT_THAT(sigma.series[0].label, HasSubstr("4 samples exactly 0"));
+  ASSERT_EQ(sigma.markers.size(), 1u);
+  EXPECT_DOUBLE_EQ(sigma.markers[0].x, 3.0);
+  EXPECT_EQ(f.panels[3].series[0].y, d.signals[3]);
+  // A trajectory without the signals is refused by name.
+  d.signal_names.clear();
+  d.signals.clear();
+  EXPECT_THROW(tracking_figure(d), FigureError);
+}
+
 TEST(RenderFigures, FitOrderRecoversThePowerLaw) {
   const auto runs = power_law_study();
   const OrderFit a = fit_order(runs[0].h, runs[0].error);

@@ -551,7 +551,7 @@ std::vector<Case> cases() {
   t.push_back(get("WaitEmpty", "/v1/jobs/{id}?wait=", 400, "'wait' must be a number in [0, 60]"));
   t.push_back(get("LimitNegative", "/v1/jobs?limit=-1", 400, "'limit' must be a number in [1, 1000000000]"));
   t.push_back(get("StateUnknown", "/v1/jobs?state=bogus", 400, "state must be queued, running, cancelling, done, failed or cancelled"));
-  t.push_back(get("FigureKindUnknown", "/v1/jobs/{id}/figure?kind=pie", 400, "kind must be state, energy, step or phase"));
+  t.push_back(get("FigureKindUnknown", "/v1/jobs/{id}/figure?kind=pie", 400, "kind must be state, energy, step, phase or tracking"));
   t.push_back(get("FigureWidthOneBillion", "/v1/jobs/{id}/figure?width=1e9", 400, "'width' must be a number in [64, 4096]"));
   t.push_back(get("FigureHeightTiny", "/v1/jobs/{id}/figure?height=10", 400, "'height' must be a number in [64, 4096]"));
   t.push_back(get("TrajectoryFormatXml", "/v1/jobs/{id}/trajectory?format=xml", 400, "format must be json or csv"));

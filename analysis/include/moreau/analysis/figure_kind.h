@@ -19,10 +19,11 @@ namespace moreau::scene {
 
 // The figures of one run, drawn from its trajectory by render/'s figure builders (render/figures.h).
 enum class TrajectoryFigure {
-  kState,   // positions and velocities against time (state_figure)
-  kEnergy,  // the energy against time, log y axis (energy_figure)
-  kStep,    // the step size h_k against t_k, log y axis (step_figure)
-  kPhase,   // the phase portrait (phase_figure)
+  kState,     // positions and velocities against time (state_figure)
+  kEnergy,    // the energy against time, log y axis (energy_figure)
+  kStep,      // the step size h_k against t_k, log y axis (step_figure)
+  kPhase,     // the phase portrait (phase_figure)
+  kTracking,  // q with q_d, e, |sigma| (log) and u of a tracking run (tracking_figure)
 };
 
 // The figures of a study, drawn from its table (study_figure, figures.h).
@@ -48,10 +49,8 @@ struct FigureNames;
 template <>
 struct FigureNames<TrajectoryFigure> {
   static constexpr std::pair<TrajectoryFigure, const char*> kTable[] = {
-      {TrajectoryFigure::kState, "state"},
-      {TrajectoryFigure::kEnergy, "energy"},
-      {TrajectoryFigure::kStep, "step"},
-      {TrajectoryFigure::kPhase, "phase"},
+      {TrajectoryFigure::kState, "state"}, {TrajectoryFigure::kEnergy, "energy"},     {TrajectoryFigure::kStep, "step"},
+      {TrajectoryFigure::kPhase, "phase"}, {TrajectoryFigure::kTracking, "tracking"},
   };
 };
 template <>

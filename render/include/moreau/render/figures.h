@@ -32,6 +32,9 @@ struct TimeSeriesData {
   // The phase portrait of a state-space system is its state plane, (x_i, x_{i+1}); with one state,
   // (x, dx/dt). Otherwise (the default) the mechanical phase plane (q_i, v_i).
   bool state_space = false;
+  // Named columns beside the state (a tracking run's qd_<q>, e_<q>, sigma_<q>, u_<q>: tracking_figure).
+  std::vector<std::string> signal_names;
+  std::vector<std::vector<double>> signals;
 };
 
 struct FigureOptions {
@@ -41,6 +44,7 @@ struct FigureOptions {
   std::vector<std::size_t> coordinates;  // indices into q/v; empty = all
   std::optional<double> t0, t1;          // time window; unset = the data's extent
   std::optional<Scale> y_scale;          // unset = the figure kind's default
+  std::string x_label, y_label;          // empty = the figure kind's (work and order figures)
 };
 
 // Positions (top panel) and velocities (bottom panel) against time, one line per coordinate.
@@ -52,6 +56,10 @@ Figure energy_figure(const TimeSeriesData& data, const FigureOptions& options = 
 Figure step_figure(const TimeSeriesData& data, const FigureOptions& options = {});
 // Phase portrait: v against q, one curve per coordinate.
 Figure phase_figure(const TimeSeriesData& data, const FigureOptions& options = {});
+// A tracking run (signals qd_<q>, e_<q>, sigma_<q>, u_<q> for each position name q): q with q_d, the
+// error e, |sigma| on a log axis (log y by default; its exact zeros, which a log axis cannot show, are
+// counted in the legend and the start of the final run of them is marked), and the control u.
+Figure tracking_figure(const TimeSeriesData& data, const FigureOptions& options = {});
 
 // One scheme of a convergence or work-precision study: a run per step size.
 struct SchemeRuns {
