@@ -203,8 +203,9 @@ std::string campaign_spec_hash(const json& document) {
 
 CampaignSpec CampaignSpec::from_json(const json& spec, const std::string& base_dir) {
   if (!spec.is_object()) throw SceneError("/", "a campaign spec is a JSON object");
-  check_fields(spec, "",
-               {"name", "description", "scene", "inputs", "sampler", "seed", "samples", "target", "full_report", "map", "sensitivity"});
+  check_fields(
+      spec, "",
+      {"name", "description", "scene", "inputs", "sampler", "seed", "samples", "target", "tracking", "full_report", "map", "sensitivity"});
   CampaignSpec s;
   s.document = spec;
   if (spec.contains("name") && !spec["name"].is_string()) throw SceneError("/name", "expected a string");
@@ -376,6 +377,17 @@ CampaignSpec CampaignSpec::from_json(const json& spec, const std::string& base_d
     for (std::size_t i = 0; i < q.size(); ++i) s.target_q.push_back(finite_number(q[i], "/target/q/" + std::to_string(i)));
     s.target_tolerance = finite_number(required_field(t, "/target", "tolerance"), "/target/tolerance");
     if (s.target_tolerance < 0.0) throw SceneError("/target/tolerance", "expected a number >= 0");
+  }
+  if (spec.contains("tracking")) {
+    const json& t = spec["tracking"];
+    if (!t.is_object()) throw SceneError("/tracking", "expected {\"error\": ..., \"after\": ...}");
+    check_fields(t, "/tracking", {"error", "after"});
+    if (!s.scene.contains("system") || !s.scene["system"].is_object() || !s.scene["system"].contains("tracking"))
+      throw SceneError("/tracking", "a tracking target needs a tracking scene (/scene/system/tracking)");
+    if (!s.target_q.empty()) throw SceneError("/tracking", "give a tracking target or a target set (/target), not both");
+    s.tracking_error = finite_number(required_field(t, "/tracking", "error"), "/tracking/error");
+    if (*s.tracking_error < 0.0) throw SceneError("/tracking/error", "expected a number >= 0");
+    s.tracking_after = t.contains("after") ? finite_number(t["after"], "/tracking/after") : 0.0;
   }
   s.hash = campaign_spec_hash(s.document);
   return s;
@@ -589,6 +601,42 @@ class ExtremaTracker final : public RunObserver {
   double max_abs_q = 0.0, max_energy = 0.0;
 };
 
+// The largest ||e||_inf of a tracking run (its signals e_<q>, the second of each coordinate's four:
+// TrackingIntegrator) over the recorded states at t >= after; NaN when no state was seen there.
+class TrackingErrorTracker final : public ForwardingObserver {
+ public:
+  TrackingErrorTracker(double after, RunObserver* next) : ForwardingObserver(next), after_(after) {}
+  void on_sample(const Sample& s) override {
+    if (s.t >= after_ && s.signals)
+      for (int i = 1; i < s.m; i += 4)
+        max_error = std::isnan(max_error) ? std::abs(s.signals[i]) : std::max(max_error, std::abs(s.signals[i]));
+    ForwardingObserver::on_sample(s);
+  }
+  double max_error = std::nan("");
+
+ private:
+  double after_;
+};
+
+// A tracking scene whose controller's model (/system/tracking/nominal/parameters) does not name every
+// parameter gets the document's values written there: a campaign varies the plant, and the controller
+// keeps the model it was given, whether a sample is compiled in full (its parameters written into the
+// document) or bound to a scene compiled once (whose nominal model is the document's).
+json with_nominal_model_pinned(json scene) {
+  if (!scene.contains("system") || !scene["system"].is_object() || !scene["system"].contains("tracking") ||
+      !scene["system"]["tracking"].is_object() || !scene.contains("parameters") || !scene["parameters"].is_object())
+    return scene;
+  json& nominal = scene["system"]["tracking"]["nominal"];
+  if (nominal.is_null()) nominal = json::object();
+  if (!nominal.is_object()) return scene;  // the scene compiler says what is wrong
+  json& params = nominal["parameters"];
+  if (params.is_null()) params = json::object();
+  if (!params.is_object()) return scene;
+  for (const auto& [name, value] : scene["parameters"].items())
+    if (value.is_number() && !params.contains(name)) params[name] = value;
+  return scene;
+}
+
 json numbers(const std::vector<double>& v) {
   json a = json::array();
   for (double x : v) a.push_back(finite_or_null(x));
@@ -599,7 +647,7 @@ json numbers(const std::vector<double>& v) {
 
 CampaignSampleRunner::CampaignSampleRunner(const CampaignSpec& spec, const CampaignDesign& design, std::optional<std::int64_t> max_steps,
                                            Compile compile)
-    : spec_(spec), design_(design), max_steps_(max_steps), doc_(spec.scene) {
+    : spec_(spec), design_(design), max_steps_(max_steps), doc_(with_nominal_model_pinned(spec.scene)) {
   for (const CampaignInput& in : spec.inputs) paths_.emplace_back(in.path);
   if (compile != Compile::kOnceWhenPossible || system_type(spec.scene) != "lagrangian") return;
   // Where each input goes, if every one is a parameter or a coordinate of the initial state.
@@ -619,7 +667,7 @@ CampaignSampleRunner::CampaignSampleRunner(const CampaignSpec& spec, const Campa
     }
   }
   try {
-    auto parametric = std::make_unique<ParametricLagrangianScene>(spec.scene, free);
+    auto parametric = std::make_unique<ParametricLagrangianScene>(doc_, free);
     const int n = parametric->nominal().n;
     for (const Target& t : targets_)
       if (t.kind != Target::kParameter && t.index >= n) return;
@@ -642,8 +690,9 @@ json CampaignSampleRunner::record_of(std::int64_t i, const std::vector<json>& va
   const CampaignSpec& spec = spec_;
   json record = record_head(i, values);
   ExtremaTracker extrema;
+  TrackingErrorTracker tracking(spec.tracking_after.value_or(0.0), &extrema);
   RunDiagnostics diagnostics;
-  const RunSummary summary = sim.run(&extrema, &diagnostics);
+  const RunSummary summary = sim.run(spec.tracking_error ? static_cast<RunObserver*>(&tracking) : &extrema, &diagnostics);
   const bool completed = summary.status == RunStatus::kCompleted;
   record["status"] = to_string(summary.status);
   record["converged"] = summary.converged_step.has_value();
@@ -666,8 +715,13 @@ json CampaignSampleRunner::record_of(std::int64_t i, const std::vector<json>& va
   record["steps"] = summary.steps;
   const std::string failure = completed ? sim.hypothesis_failure(summary) : std::string();
   record["hypothesis_failed"] = failure.empty() ? json(nullptr) : json(failure);
-  record["success"] = completed && summary.converged_step.has_value() &&
-                      (spec.target_q.empty() || (std::isfinite(distance) && distance <= spec.target_tolerance));
+  if (spec.tracking_error) {
+    record["tracking_error"] = finite_or_null(tracking.max_error);
+    record["success"] = completed && std::isfinite(tracking.max_error) && tracking.max_error <= *spec.tracking_error;
+  } else {
+    record["success"] = completed && summary.converged_step.has_value() &&
+                        (spec.target_q.empty() || (std::isfinite(distance) && distance <= spec.target_tolerance));
+  }
   record["message"] = summary.message;
   record["error"] = nullptr;
   if (spec.full_report) record["report"] = sim.report_json(summary, diagnostics);
@@ -848,19 +902,22 @@ json summarize_rows(const CampaignSpec& spec, const std::vector<CampaignOutcome>
     if (std::isfinite(r.target_distance)) errors.push_back(r.target_distance);
   }
   const WilsonInterval w = wilson_interval(successes, n);
-  json s = {{"name", spec.name},
-            {"samples", n},
-            {"successes", successes},
-            {"success_rate", n ? static_cast<double>(successes) / static_cast<double>(n) : 0.0},
-            {"success_rate_95", {{"method", "Wilson score interval"}, {"low", w.low}, {"high", w.high}}},
-            {"converged", converged},
-            {"failed_runs", failed},
-            {"invalid_samples", invalid},
-            {"hypothesis_failed", hypothesis},
-            {"success_means", spec.target_q.empty() ? "converged (v == 0.0 exactly for the report's window, to the end, at an equilibrium)"
-                                                    : "converged, with the final q within the target's tolerance"},
-            {"convergence_time", quantiles_of(conv_times)},
-            {"target_distance", quantiles_of(errors)}};
+  json s = {
+      {"name", spec.name},
+      {"samples", n},
+      {"successes", successes},
+      {"success_rate", n ? static_cast<double>(successes) / static_cast<double>(n) : 0.0},
+      {"success_rate_95", {{"method", "Wilson score interval"}, {"low", w.low}, {"high", w.high}}},
+      {"converged", converged},
+      {"failed_runs", failed},
+      {"invalid_samples", invalid},
+      {"hypothesis_failed", hypothesis},
+      {"success_means", spec.tracking_error ? "completed, with max |e| <= " + platform::significant(*spec.tracking_error, 6) +
+                                                  " at every recorded state from t = " + platform::significant(*spec.tracking_after, 6)
+                        : spec.target_q.empty() ? "converged (v == 0.0 exactly for the report's window, to the end, at an equilibrium)"
+                                                : "converged, with the final q within the target's tolerance"},
+      {"convergence_time", quantiles_of(conv_times)},
+      {"target_distance", quantiles_of(errors)}};
   s["success_rate_95"].update(campaign_detail::success_interval_assumptions(spec));
 
   // The worst samples: failures first (invalid, failed run, did not succeed), then the largest distance
@@ -1206,7 +1263,10 @@ std::int64_t check_record(const CampaignSpec& spec, const CampaignDesign& design
   const auto distance = r.find("target_distance");
   const bool within =
       spec.target_q.empty() || (distance != r.end() && distance->is_number() && distance->get<double>() <= spec.target_tolerance);
-  const bool expected = *status == "completed" && converged != r.end() && converged->get<bool>() && within;
+  const auto tracking_error = r.find("tracking_error");
+  const bool expected = spec.tracking_error ? *status == "completed" && tracking_error != r.end() && tracking_error->is_number() &&
+                                                  tracking_error->get<double>() <= *spec.tracking_error
+                                            : *status == "completed" && converged != r.end() && converged->get<bool>() && within;
   if (success->get<bool>() != expected)
     throw bad(std::string("its success is ") + (success->get<bool>() ? "true" : "false") +
               ", but its status, convergence and target distance make it " + (expected ? "true" : "false"));

@@ -104,6 +104,9 @@ struct CampaignSpec {
   // set values): what `moreau campaign` warns of.
   std::vector<std::string> unread_parameters;
   double target_tolerance = 0.0;
+  // A tracking scene's success (the spec's "tracking": {"error", "after"}): completed, with
+  // ||e||_inf <= error at every recorded state from t = after on (docs/tracking.md); no convergence asked.
+  std::optional<double> tracking_error, tracking_after;
   // The two inputs (indices into `inputs`) whose plane the success map shows: the spec's "map", else the
   // first two numeric inputs; -1 when there are not two.
   std::array<int, 2> map_inputs{-1, -1};
