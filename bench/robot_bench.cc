@@ -39,6 +39,16 @@ void BM_Iiwa14JointLimit_impacts(benchmark::State& state) {
   RunScene(state, scene::load_scene(doc));
 }
 
+// scenes/iiwa14-tracking.json: the arm tracking its joint-space reference with the implicit digital
+// controller at 1 kHz, the plant by (0.2) at h = 1e-4 (10 plant steps per controller sample), 10% model
+// error, over its first second (10^4 plant steps, 10^3 samples): ns_per_step is per plant step, and a
+// controller sample costs its step plus the nominal model and the one-step inclusion in sigma.
+void BM_Iiwa14Tracking_1kHz(benchmark::State& state) {
+  nlohmann::json doc = scene::read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/iiwa14-tracking.json");
+  doc["integrator"]["t_end"] = 1.0;
+  RunScene(state, scene::load_scene(doc));
+}
+
 void BM_ChainStep(benchmark::State& state) {
   const int n = static_cast<int>(state.range(0));
   RunScene(state, scene::load_scene(chain_scene(n, 0.1)));
@@ -76,6 +86,7 @@ void BM_LoadChain64Scene(benchmark::State& state) {
 
 BENCHMARK(BM_Iiwa14Controller_moving)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_Iiwa14JointLimit_impacts)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_Iiwa14Tracking_1kHz)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_ChainStep)->Arg(2)->Arg(7)->Arg(16)->Arg(32)->Arg(64)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_RigidBodyTerms)->Arg(2)->Arg(7)->Arg(16)->Arg(32)->Arg(64)->Unit(benchmark::kNanosecond);
 BENCHMARK(BM_LoadChain64Scene)->Unit(benchmark::kMillisecond);
