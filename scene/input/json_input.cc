@@ -1,6 +1,8 @@
 // Reading scene JSON: text (with the JSON pointer and byte of a number out of range), files (bounded in
 // size), and `--set PATH=VALUE` overrides.
 #include <algorithm>
+#include <charconv>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -282,6 +284,48 @@ std::string read_bounded_file(const std::string& path, std::size_t limit, const 
   return text;
 }
 
+// Way points from CSV text, one row [t, q_1, ..., q_n] per line; a first line that is not all numbers
+// is a header and skipped, blank lines are skipped. Every cell a finite number, every row as long as the
+// first; errors name the file and the line.
+nlohmann::json way_points_from_csv(const std::string& text, const std::string& file) {
+  const std::string where = "/system/tracking/reference/csv";
+  nlohmann::json rows = nlohmann::json::array();
+  std::istringstream in(text);
+  std::string line;
+  std::size_t number = 0, width = 0;
+  while (std::getline(in, line)) {
+    ++number;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (line.find_first_not_of(" \t") == std::string::npos) continue;
+    nlohmann::json row = nlohmann::json::array();
+    bool numbers = true;
+    std::string bad;
+    std::stringstream cells(line);
+    for (std::string cell; std::getline(cells, cell, ',');) {
+      const std::size_t first = cell.find_first_not_of(" \t"), last = cell.find_last_not_of(" \t");
+      const std::string c = first == std::string::npos ? "" : cell.substr(first, last - first + 1);
+      double v = 0.0;
+      const auto [end, ec] = std::from_chars(c.data(), c.data() + c.size(), v);
+      if (ec != std::errc() || end != c.data() + c.size() || !std::isfinite(v)) {
+        numbers = false;
+        bad = c.substr(0, 40);
+        break;
+      }
+      row.push_back(v);
+    }
+    if (!numbers) {
+      if (rows.empty() && number == 1) continue;  // a header
+      throw SceneError(where, "'" + file + "' line " + std::to_string(number) + ": '" + bad + "' is not a finite number");
+    }
+    if (width == 0) width = row.size();
+    if (row.size() != width)
+      throw SceneError(where, "'" + file + "' line " + std::to_string(number) + ": " + std::to_string(row.size()) +
+                                  " values, the first row has " + std::to_string(width));
+    rows.push_back(std::move(row));
+  }
+  return rows;
+}
+
 }  // namespace
 
 nlohmann::json read_scene_file(const std::string& path) {
@@ -298,6 +342,20 @@ nlohmann::json read_scene_file(const std::string& path) {
     const std::filesystem::path file = std::filesystem::path(path).parent_path() / urdf["file"].get<std::string>();
     urdf["text"] = read_bounded_file(file.string(), kMaxUrdfBytes, "URDF file '" + file.string() + "'", "/system/urdf/file");
     urdf.erase("file");
+  }
+  // /system/tracking/reference/csv: way points read here, relative to the scene file, into "points".
+  if (doc.is_object() && doc.contains("system") && doc["system"].is_object() && doc["system"].contains("tracking") &&
+      doc["system"]["tracking"].is_object() && doc["system"]["tracking"].contains("reference") &&
+      doc["system"]["tracking"]["reference"].is_object() && doc["system"]["tracking"]["reference"].contains("csv")) {
+    nlohmann::json& ref = doc["system"]["tracking"]["reference"];
+    if (!ref["csv"].is_string() || ref["csv"].get<std::string>().empty())
+      throw SceneError("/system/tracking/reference/csv", "expected the path of a CSV file, relative to the scene file");
+    if (ref.contains("points")) throw SceneError("/system/tracking/reference", "give 'csv' or 'points', not both");
+    const std::filesystem::path file = std::filesystem::path(path).parent_path() / ref["csv"].get<std::string>();
+    ref["points"] = way_points_from_csv(
+        read_bounded_file(file.string(), kMaxSceneFileBytes, "way point file '" + file.string() + "'", "/system/tracking/reference/csv"),
+        file.string());
+    ref.erase("csv");
   }
   return doc;
 }

@@ -399,17 +399,22 @@ class LagrangianCompiler : SceneReader {
     auto spec = std::make_shared<TrackingSpec>();
     for (const char* field : {"reference", "lambda", "controller"})
       if (!tr.contains(field)) throw SceneError(at, std::string("missing required field '") + field + "'");
-    const json& ref = array_of(tr["reference"], at + "/reference", static_cast<std::size_t>(n_), "an array of expressions in t (q_d)");
-    std::vector<Node> outs(static_cast<std::size_t>(3 * n_));
-    for (int i = 0; i < n_; ++i) {
-      const Node qd = expression(ref[i], at + "/reference/" + std::to_string(i), kTime, "a reference (a function of t)");
-      const Node vd = graph_.derivative(qd, 0);
-      outs[i] = qd;
-      outs[n_ + i] = vd;
-      outs[2 * n_ + i] = graph_.derivative(vd, 0);
-      spec->reference_text.push_back(ref[i].is_string() ? ref[i].get<std::string>() : ref[i].dump());
+    if (tr["reference"].is_object()) {
+      way_points(tr["reference"], *spec);
+    } else {
+      const json& ref = array_of(tr["reference"], at + "/reference", static_cast<std::size_t>(n_),
+                                 "an array of expressions in t (q_d), or way points {\"points\": [[t, q...], ...]}");
+      std::vector<Node> outs(static_cast<std::size_t>(3 * n_));
+      for (int i = 0; i < n_; ++i) {
+        const Node qd = expression(ref[i], at + "/reference/" + std::to_string(i), kTime, "a reference (a function of t)");
+        const Node vd = graph_.derivative(qd, 0);
+        outs[i] = qd;
+        outs[n_ + i] = vd;
+        outs[2 * n_ + i] = graph_.derivative(vd, 0);
+        spec->reference_text.push_back(ref[i].is_string() ? ref[i].get<std::string>() : ref[i].dump());
+      }
+      spec->reference = std::make_shared<expr::Tape>(expr::Tape::compile(graph_, outs, 1, num_params()));
     }
-    spec->reference = std::make_shared<expr::Tape>(expr::Tape::compile(graph_, outs, 1, num_params()));
     spec->lambda = constant_vector(tr["lambda"], at + "/lambda");
     if (spec->lambda.size() != static_cast<std::size_t>(n_))
       throw SceneError(at + "/lambda", "expected " + std::to_string(n_) + " entries (one per coordinate)");
@@ -461,6 +466,33 @@ class LagrangianCompiler : SceneReader {
                        "the continuous tracking loop is one inclusion in sigma; the plant's own set-valued terms on v "
                        "(controller, friction) are supported with a sampled law only");
     scene.tracking = std::move(spec);
+  }
+
+  // /system/tracking/reference as way points: {"points": [[t, q_1, ..., q_n], ...], "interpolation":
+  // "natural-cubic"} (a "csv" file is read into "points" with the scene, read_scene_file). The run's
+  // interval must lie within the way points' (the spline is not extrapolated).
+  void way_points(const json& ref, TrackingSpec& spec) {
+    const std::string at = "/system/tracking/reference";
+    check_fields(ref, at, {"points", "interpolation"});
+    if (ref.contains("interpolation") && ref["interpolation"] != "natural-cubic")
+      throw SceneError(at + "/interpolation",
+                       "expected \"natural-cubic\" (C2, q_d'' = 0 at both ends), got " + brief(ref["interpolation"]));
+    if (!ref.contains("points")) throw SceneError(at, "missing 'points' (or 'csv' in a scene file): way points [[t, q...], ...]");
+    const json& pts = ref["points"];
+    if (!pts.is_array()) throw SceneError(at + "/points", "expected an array of [t, q_1, ..., q_n] rows");
+    std::vector<double> t;
+    Eigen::MatrixXd q(static_cast<Eigen::Index>(pts.size()), n_);
+    for (std::size_t j = 0; j < pts.size(); ++j) {
+      const std::string ptr = at + "/points/" + std::to_string(j);
+      const json& row = array_of(pts[j], ptr, static_cast<std::size_t>(n_ + 1), "a row [t, q_1, ..., q_n]");
+      t.push_back(constant(row[0], ptr + "/0"));
+      for (int i = 0; i < n_; ++i) q(static_cast<Eigen::Index>(j), i) = constant(row[i + 1], ptr + "/" + std::to_string(i + 1));
+    }
+    if (const std::string why = CubicSplineReference::problem(t, q); !why.empty()) throw SceneError(at + "/points", why);
+    spec.spline = std::make_shared<const CubicSplineReference>(std::move(t), std::move(q));
+    const std::string text = "natural cubic spline through " + std::to_string(spec.spline->points()) + " way points, t from " +
+                             format(spec.spline->t_first()) + " to " + format(spec.spline->t_last());
+    spec.reference_text.assign(static_cast<std::size_t>(n_), text);
   }
 
   // The controller's model (TrackingSpec::nominal): this document with /system/tracking/nominal's
@@ -959,6 +991,13 @@ LagrangianScene LagrangianCompiler::compile() {
   tracking(system, scene);
   initial(scene);
   integrator(scene);
+  if (scene.tracking && scene.tracking->spline) {
+    const CubicSplineReference& sp = *scene.tracking->spline;
+    if (scene.settings.t0 < sp.t_first() || scene.settings.t_end > sp.t_last())
+      throw SceneError("/system/tracking/reference/points", "the way points cover t from " + format(sp.t_first()) + " to " +
+                                                                format(sp.t_last()) + ", not the run's [" + format(scene.settings.t0) +
+                                                                ", " + format(scene.settings.t_end) + "]");
+  }
   if (scene.tracking && scene.tracking->sampled) {
     // The plant steps h between samples: T_s a whole number of them.
     const double ratio = scene.tracking->period / scene.settings.h;
@@ -1082,7 +1121,7 @@ LagrangianScene ParametricLagrangianScene::bind(const std::vector<double>& value
   }
   // The reference of a tracking scene may read the free parameters too. (Its nominal model was compiled
   // at the document's values: a campaign varies the plant, not the controller's model.)
-  if (scene.tracking) {
+  if (scene.tracking && scene.tracking->reference) {
     auto spec = std::make_shared<TrackingSpec>(*scene.tracking);
     auto tape = std::make_shared<expr::Tape>(*spec->reference);
     generic = tape->bind(values.data()) && generic;

@@ -6,13 +6,16 @@
 //     e = D0 T_s / (m Lambda), with u of one sign once e's transient has passed;
 //   - explicit digital controller: u switches sign at a rate of order 1 / T_s after reaching.
 #include <cmath>
+#include <fstream>
 #include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "moreau/platform/number_text.h"
 #include "moreau/scene/simulation.h"
+#include "support/scratch_dir.h"
 
 namespace {
 
@@ -179,6 +182,57 @@ TEST(TrackingScene, MeasurementNoiseIsSeededAndQuantisationIsApplied) {
   EXPECT_NE(seven, exact);
   EXPECT_NE(final_q({{"quantum", 1e-3}}), exact);
   EXPECT_EQ(final_q({{"quantum", 1e-3}}), final_q({{"quantum", 1e-3}}));
+}
+
+// Way points: the natural cubic spline of a line is the line, so a run tracking way points of
+// q_d = 0.5 t is the run tracking the expression 0.5*t, to round-off; from a CSV file (with a header)
+// read with the scene, the same. Bad files and intervals the points do not cover are named.
+TEST(TrackingScene, WayPointsFromTheSceneOrACsvFile) {
+  auto scene = [](const nlohmann::json& reference) {
+    nlohmann::json doc = one_dof("-1", "0.5*t", {{"law", "implicit"}, {"period", 1e-3}}, 1e-4, 2.0, 0.2, 0.0);
+    doc["system"]["tracking"]["reference"] = reference;
+    return doc;
+  };
+  nlohmann::json points = nlohmann::json::array();
+  std::string csv = "t,x\n";
+  for (int j = 0; j <= 4; ++j) {
+    points.push_back({0.5 * j, 0.25 * j});
+    csv += moreau::platform::shortest(0.5 * j) + "," + moreau::platform::shortest(0.25 * j) + "\n";
+  }
+  const double expression = Simulation::from_json(scene({"0.5*t"})).run(nullptr).q_final.at(0);
+  const nlohmann::json inline_points = {{"points", points}, {"interpolation", "natural-cubic"}};
+  EXPECT_NEAR(Simulation::from_json(scene(inline_points)).run(nullptr).q_final.at(0), expression, 1e-12);
+
+  const std::string dir = moreau::test_support::scratch_dir();
+  const auto write = [&](const std::string& name, const std::string& text) {
+    std::ofstream(dir + "/" + name) << text;
+    return dir + "/" + name;
+  };
+  write("way.csv", csv);
+  const std::string path = write("way-scene.json", scene({{"csv", "way.csv"}}).dump());
+  EXPECT_NEAR(Simulation::from_file(path).run(nullptr).q_final.at(0), expression, 1e-12);
+
+  auto error_of = [](auto&& load) -> std::string {
+    try {
+      load();
+    } catch (const moreau::scene::SceneError& e) {
+      return e.what();
+    }
+    return "no error";
+  };
+  write("bad.csv", "t,x\n0,0\n1,zero\n");
+  const std::string bad = write("bad-scene.json", scene({{"csv", "bad.csv"}}).dump());
+  EXPECT_NE(error_of([&] { Simulation::from_file(bad); }).find("/system/tracking/reference/csv: '"), std::string::npos)
+      << error_of([&] { Simulation::from_file(bad); });
+  EXPECT_NE(error_of([&] { Simulation::from_file(bad); }).find("line 3"), std::string::npos);
+  nlohmann::json short_points = {{"points", {{0.0, 0.0}, {1.0, 0.5}}}};
+  EXPECT_NE(error_of([&] { Simulation::from_json(scene(short_points)); }).find("/system/tracking/reference/points"), std::string::npos);
+  nlohmann::json unordered = {{"points", {{0.0, 0.0}, {3.0, 0.5}, {2.0, 1.0}}}};
+  EXPECT_NE(error_of([&] { Simulation::from_json(scene(unordered)); }).find("increase strictly"), std::string::npos);
+  EXPECT_NE(error_of([&] {
+              Simulation::from_json(scene({{"points", points}, {"interpolation", "linear"}}));
+            }).find("/system/tracking/reference/interpolation"),
+            std::string::npos);
 }
 
 TEST(TrackingScene, SignalsAreNamedPerCoordinate) {

@@ -24,6 +24,7 @@
 #include "moreau/core/run_diagnostics.h"
 #include "moreau/core/rigid_body.h"
 #include "moreau/core/run_summary.h"
+#include "moreau/core/spline_reference.h"
 #include "moreau/core/tracking.h"
 #include "moreau/expr/expression.h"
 #include "moreau/scene/scheme.h"
@@ -163,9 +164,11 @@ struct LagrangianScene;
 
 // /system/tracking: the reference, the controller on sigma and its model of the plant (docs/tracking.md).
 struct TrackingSpec {
-  // Inputs [t]; outputs q_d (n), q_d' (n), q_d'' (n): the reference and its exact symbolic derivatives.
+  // The reference, one of two: expressions of t (inputs [t]; outputs q_d (n), q_d' (n), q_d'' (n), its
+  // exact symbolic derivatives), or way points through which a natural cubic spline passes.
   std::shared_ptr<const expr::Tape> reference;
-  std::vector<std::string> reference_text;    // q_d as written, for reports
+  std::shared_ptr<const CubicSplineReference> spline;
+  std::vector<std::string> reference_text;    // q_d as written (or the way points described), for reports
   std::vector<double> lambda;                 // Lambda = diag(lambda)
   Controller<Eigen::Dynamic> phi;             // Phi on sigma
   std::optional<SampledTrackingLaw> sampled;  // empty: the continuous closed loop
