@@ -53,6 +53,9 @@ SamplingStudyResult run_sampling_study(const nlohmann::json& doc, const std::vec
         const TrackingSummary& t = *s.tracking;
         row.reached = t.reached;
         row.u_max = t.u_max;
+        row.error_final = t.error_final;
+        row.run_total_variation = t.run_total_variation;
+        row.run_sign_changes_per_second = static_cast<double>(t.run_sign_changes) / (sc.settings.t_end - sc.settings.t0);
         if (t.reached) {
           row.reaching_time = t.reaching_time;
           row.error_max = t.error_max;
@@ -81,6 +84,9 @@ nlohmann::json SamplingStudyResult::to_json() const {
                          {"error_rms", finite_or_null(r.error_rms)},
                          {"sign_changes_per_second", finite_or_null(r.sign_changes_per_second)},
                          {"total_variation", finite_or_null(r.total_variation)},
+                         {"error_final", finite_or_null(r.error_final)},
+                         {"run_sign_changes_per_second", finite_or_null(r.run_sign_changes_per_second)},
+                         {"run_total_variation", finite_or_null(r.run_total_variation)},
                          {"u_max", finite_or_null(r.u_max)},
                          {"wall_seconds", finite_or_null(r.wall_seconds)}});
   }
@@ -89,12 +95,16 @@ nlohmann::json SamplingStudyResult::to_json() const {
 
 std::string SamplingStudyResult::to_csv() const {
   std::ostringstream os;
-  os << "law,period,h,status,reached,reaching_time,error_max,error_rms,sign_changes_per_second,total_variation,u_max,wall_seconds\n";
-  for (const auto& r : rows)
+  os << "law,period,h,status,reached,reaching_time,error_max,error_rms,sign_changes_per_second,total_variation,error_final,"
+        "run_sign_changes_per_second,run_total_variation,u_max,wall_seconds\n";
+  for (const auto& r : rows) {
     os << r.law << "," << platform::shortest(r.period) << "," << platform::shortest(r.h) << "," << r.status << "," << (r.reached ? 1 : 0)
-       << "," << (r.reaching_time ? platform::shortest(*r.reaching_time) : "nan") << "," << platform::shortest(r.error_max) << ","
-       << platform::shortest(r.error_rms) << "," << platform::shortest(r.sign_changes_per_second) << ","
-       << platform::shortest(r.total_variation) << "," << platform::shortest(r.u_max) << "," << platform::shortest(r.wall_seconds) << "\n";
+       << "," << (r.reaching_time ? platform::shortest(*r.reaching_time) : "nan");
+    for (double v : {r.error_max, r.error_rms, r.sign_changes_per_second, r.total_variation, r.error_final, r.run_sign_changes_per_second,
+                     r.run_total_variation, r.u_max, r.wall_seconds})
+      os << "," << platform::shortest(v);
+    os << "\n";
+  }
   return os.str();
 }
 
@@ -103,17 +113,18 @@ std::string SamplingStudyResult::to_text() const {
   using platform::pad_right;
   const auto g4 = [](double v) { return std::isfinite(v) ? platform::significant(v, 4) : std::string("-"); };
   std::ostringstream os;
-  os << "Sampling study of " << scene << ": the digital controller against its period T_s (after reaching)\n";
+  os << "Sampling study of " << scene << ": the digital controller against its period T_s\n";
   os << "  " << pad_right("law", 10) << " " << pad_right("T_s", 9) << " " << pad_right("status", 10) << " " << pad_left("t_reach", 10)
-     << " " << pad_left("max |e|", 11) << " " << pad_left("RMS e", 11) << " " << pad_left("sign ch./s", 11) << " " << pad_left("TV(u)", 11)
-     << " " << pad_left("max |u|", 11) << "\n";
+     << " " << pad_left("RMS e*", 11) << " " << pad_left("final |e|", 11) << " " << pad_left("sign ch./s", 11) << " "
+     << pad_left("TV(u)", 11) << " " << pad_left("max |u|", 11) << "\n";
   for (const auto& r : rows) {
     os << "  " << pad_right(r.law, 10) << " " << pad_right(platform::significant(r.period, 3), 9) << " " << pad_right(r.status, 10) << " "
-       << pad_left(r.reaching_time ? g4(*r.reaching_time) : "-", 10) << " " << pad_left(g4(r.error_max), 11) << " "
-       << pad_left(g4(r.error_rms), 11) << " " << pad_left(g4(r.sign_changes_per_second), 11) << " " << pad_left(g4(r.total_variation), 11)
-       << " " << pad_left(g4(r.u_max), 11) << "\n";
+       << pad_left(r.reaching_time ? g4(*r.reaching_time) : "-", 10) << " " << pad_left(g4(r.error_rms), 11) << " "
+       << pad_left(g4(r.error_final), 11) << " " << pad_left(g4(r.run_sign_changes_per_second), 11) << " "
+       << pad_left(g4(r.run_total_variation), 11) << " " << pad_left(g4(r.u_max), 11) << "\n";
     if (!r.message.empty()) os << "    " << r.message << "\n";
   }
+  os << "  (* after reaching; the other columns over the whole run: sign changes of u per second and its total variation)\n";
   return os.str();
 }
 

@@ -23,8 +23,11 @@ struct SamplingStudyRow {
   bool reached = false;
   std::optional<double> reaching_time;
   // After reaching (NaN when not reached): max ||e||_inf, RMS e, sign changes of u per second, total
-  // variation of u; over the run: max |u|.
-  double error_max = 0.0, error_rms = 0.0, sign_changes_per_second = 0.0, total_variation = 0.0, u_max = 0.0;
+  // variation of u.
+  double error_max = 0.0, error_rms = 0.0, sign_changes_per_second = 0.0, total_variation = 0.0;
+  // Over the run, whether it reached or not: ||e||_inf at the end, the sign changes of u per second and
+  // its total variation, max |u|.
+  double error_final = 0.0, run_sign_changes_per_second = 0.0, run_total_variation = 0.0, u_max = 0.0;
   double wall_seconds = 0.0;
 };
 
