@@ -243,7 +243,14 @@ TEST(LcmStream, ATrackingJobStreamsItsSignalsWithTheirNames) {
   auto r = submit(*c, {{"scene", scene}, {"stream", {{"period", 1.0 / 8}}}});
   ASSERT_EQ(r->status, 202) << r->body;
   const std::string id = json::parse(r->body)["id"];
-  ASSERT_EQ(wait_final(*c, id)["state"], "done");
+  const json job = wait_final(*c, id);
+  ASSERT_EQ(job["state"], "done");
+  // Over HTTP the same job's report has its tracking results and its figure is drawn from its trajectory.
+  EXPECT_EQ(job["report"]["tracking"]["law"], "continuous");
+  EXPECT_EQ(job["report"]["tracking"]["reached"], true);
+  const auto figure = c->Get("/v1/jobs/" + id + "/figure?kind=tracking&format=svg");
+  ASSERT_EQ(figure->status, 200) << figure->body;
+  EXPECT_THAT(figure->body, ::testing::HasSubstr("Sliding variable"));
   m.drain();
   const Received& got = m.col.got;
   ASSERT_FALSE(got.descriptions.empty());
