@@ -23,6 +23,7 @@
 #include <sstream>
 
 #include "moreau/scene/scene.h"
+#include "support/one_dof_tracking.h"
 #include "support/scratch_dir.h"
 
 namespace moreau::scene {
@@ -543,21 +544,8 @@ TEST(CampaignRun, TheSummaryIsWhatTheClosedFormsGive) {
 // accelerate there): u = -D0, sigma = D0 T_s / m^ and e = D0 T_s / (m^ Lambda), with m^ = 2 the model's
 // mass. So a sample succeeds exactly when D0 T_s / (2 Lambda) <= E.
 TEST(CampaignRun, ATrackingCampaignSucceedsWhereTheFixedPointErrorIsWithinTheTarget) {
-  json scene = {{"name", "tracking-1dof"},
-                {"parameters", {{"m", 2.0}, {"D0", 1.0}}},
-                {"system",
-                 {{"type", "lagrangian"},
-                  {"coordinates", {"x"}},
-                  {"mass", {{"m"}}},
-                  {"force", {"-D0"}},
-                  {"tracking",
-                   {{"reference", {"0.5*t"}},
-                    {"lambda", {3.0}},
-                    {"controller", {{{"type", "abs"}, {"gains", {8.0}}}}},
-                    {"law", "implicit"},
-                    {"period", 1e-3}}}}},
-                {"initial", {{"q", {0.2}}, {"v", {0.0}}}},
-                {"integrator", {{"h", 1e-4}, {"t_end", 9.0}}}};
+  json scene = moreau::test_support::one_dof_tracking("-D0", "0.5*t", {{"law", "implicit"}, {"period", 1e-3}}, 1e-4, 9.0, 0.2, 0.0, 8.0);
+  scene["parameters"]["D0"] = 1.0;
   const double E = 5e-4, Ts = 1e-3, lambda = 3.0, model_mass = 2.0;
   const json spec = {{"name", "tracking"},
                      {"scene", scene},

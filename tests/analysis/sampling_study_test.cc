@@ -9,26 +9,13 @@
 #include <cmath>
 
 #include "moreau/scene/scene.h"
+#include "support/one_dof_tracking.h"
 
 namespace moreau::scene {
 namespace {
 
 nlohmann::json one_dof() {
-  return {{"name", "tracking-1dof"},
-          {"parameters", {{"m", 2.0}}},
-          {"system",
-           {{"type", "lagrangian"},
-            {"coordinates", {"x"}},
-            {"mass", {{"m"}}},
-            {"force", {"-1"}},
-            {"tracking",
-             {{"reference", {"0.5*t"}},
-              {"lambda", {3.0}},
-              {"controller", {{{"type", "abs"}, {"gains", {4.0}}}}},
-              {"law", "implicit"},
-              {"period", 1e-3}}}}},
-          {"initial", {{"q", {0.2}}, {"v", {0.0}}}},
-          {"integrator", {{"h", 1e-4}, {"t_end", 6.0}}}};
+  return test_support::one_dof_tracking("-1", "0.5*t", {{"law", "implicit"}, {"period", 1e-3}}, 1e-4, 6.0, 0.2, 0.0);
 }
 
 TEST(SamplingStudy, ImplicitAndExplicitAgainstTheClosedForms) {

@@ -15,6 +15,7 @@
 
 #include "moreau/platform/number_text.h"
 #include "moreau/scene/simulation.h"
+#include "support/one_dof_tracking.h"
 #include "support/scratch_dir.h"
 
 namespace {
@@ -41,19 +42,7 @@ struct Recorder : RunObserver {
 
 nlohmann::json one_dof(const std::string& force, const std::string& reference, const nlohmann::json& tracking_extra, double h, double t_end,
                        double q0, double v0) {
-  nlohmann::json doc = {
-      {"name", "tracking-1dof"},
-      {"parameters", {{"m", 2.0}}},
-      {"system",
-       {{"type", "lagrangian"},
-        {"coordinates", {"x"}},
-        {"mass", {{"m"}}},
-        {"force", {force}},
-        {"tracking", {{"reference", {reference}}, {"lambda", {3.0}}, {"controller", {{{"type", "abs"}, {"gains", {4.0}}}}}}}}},
-      {"initial", {{"q", {q0}}, {"v", {v0}}}},
-      {"integrator", {{"h", h}, {"t_end", t_end}}}};
-  for (const auto& [k, val] : tracking_extra.items()) doc["system"]["tracking"][k] = val;
-  return doc;
+  return moreau::test_support::one_dof_tracking(force, reference, tracking_extra, h, t_end, q0, v0);
 }
 
 // The digital controller `law` at T_s on m = 2 under the constant d = D0 = 1 (F = -1), tracking
