@@ -76,6 +76,53 @@ TEST(Allocation, DynamicSizeRunDoesNotAllocatePerStep) {
   }
 }
 
+// Tracking runs (tracking_integrator.h): the 7-joint arm's 1 kHz implicit controller (fixed size), and a
+// five-coordinate scene (dynamic size) under every law, with measurement noise on the sampled ones.
+TEST(Allocation, TrackingRunsDoNotAllocatePerStep) {
+  {
+    const auto doc = read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/iiwa14-tracking.json");
+    Decimated obs;
+    const long short_run = AllocationsOfRun(doc, 0.01, &obs);
+    const long long_run = AllocationsOfRun(doc, 0.1, &obs);
+    EXPECT_GT(short_run, 0);
+    EXPECT_EQ(short_run, long_run);
+  }
+  nlohmann::json doc = read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/manipulator.json");
+  doc["system"]["coordinates"] = {"y1", "y2", "y3", "y4", "y5"};
+  nlohmann::json mass = nlohmann::json::array();
+  for (int i = 0; i < 5; ++i) {
+    nlohmann::json row = nlohmann::json::array();
+    for (int j = 0; j < 5; ++j) row.push_back(i == j ? "3 + cos(y1)" : (std::abs(i - j) == 1 ? "0.5*cos(y2 - y3)" : "0"));
+    mass.push_back(row);
+  }
+  doc["system"]["mass"] = mass;
+  doc["system"]["potential"] = "sin(y1) + 0.1*y5^2";
+  doc["system"].erase("controller");
+  doc["system"]["force"] = {"0.3*sin(t)", "0", "0", "0.2*cos(2*t)", "0"};
+  doc["system"]["tracking"] = {{"reference", {"sin(t)", "0.5*t", "0", "cos(t)", "0.1*t^2"}},
+                               {"lambda", {2, 2, 2, 2, 2}},
+                               {"controller",
+                                {{{"type", "quadratic"}, {"weights", {1, 1, 1, 1, 1}}},
+                                 {{"type", "abs"}, {"gains", {2, 2, 2, 2, 2}}},
+                                 {{"type", "norm"}, {"gain", 1}}}}};
+  doc["initial"] = {{"q", {0.1, 0.2, 0.3, 0.4, 0.5}}, {"v", {1, -2, 3, -1, 2}}};
+  doc["integrator"] = {{"h", 1e-3}, {"t_end", 1.0}};
+  for (const char* law : {"continuous", "implicit", "explicit", "saturated"}) {
+    SCOPED_TRACE(law);
+    doc["system"]["tracking"]["law"] = law;
+    if (std::string(law) != "continuous") {
+      doc["system"]["tracking"]["period"] = 1e-2;
+      doc["system"]["tracking"]["measurement"] = {{"noise", 1e-5}, {"quantum", 1e-6}};
+    }
+    if (std::string(law) == "saturated") doc["system"]["tracking"]["boundary_layer"] = 0.05;
+    Decimated obs;
+    const long short_run = AllocationsOfRun(doc, 0.2, &obs);
+    const long long_run = AllocationsOfRun(doc, 2.0, &obs);
+    EXPECT_GT(short_run, 0);
+    EXPECT_EQ(short_run, long_run);
+  }
+}
+
 TEST(Allocation, LongChainRunDoesNotAllocatePerStep) {
   // 32 links from URDF (scripts/make-chain-urdf.py), bent and moving under gravity with the controller on
   // every joint: dense P of dynamic size, whose patterns share one LU per step (one_step_solver.h).

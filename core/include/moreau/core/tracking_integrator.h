@@ -290,8 +290,11 @@ class TrackingIntegrator {
   // controller's model where it evaluated it): the closed loop is M sigma' + C sigma + xi = -rho, xi in
   // dPhi(sigma), and reaching needs ||rho|| < alpha (docs/tracking.md). Its largest norm over the samples.
   void perturbation(double t) {
-    x_.noalias() = (terms_.M - model_.M) * err_.a_r;
-    x_.noalias() += (terms_.C - model_.C) * err_.v_r;
+    // Product by product: a difference of matrices would be a temporary (an allocation at dynamic size).
+    x_.noalias() = terms_.M * err_.a_r;
+    x_.noalias() -= model_.M * err_.a_r;
+    x_.noalias() += terms_.C * err_.v_r;
+    x_.noalias() -= model_.C * err_.v_r;
     x_ += terms_.g - model_.g;
     const double r = x_.norm();
     if (r > summary_.perturbation_max) {
