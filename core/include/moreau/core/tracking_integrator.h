@@ -86,11 +86,11 @@ class TrackingIntegrator {
     const Controller<N>& plant_phi = plant_.controller();
     if (settings_.sampled) {
       solver_.configure(plant_phi.gains, plant_phi.norm_gain);
-      plant_weights_ = plant_phi.weights;
+      step_weights_ = plant_phi.weights;
       steps_per_sample_ = std::max<std::int64_t>(1, std::llround(settings_.gains.period / settings_.h));
     } else {
       solver_.configure(settings_.gains.phi.gains, settings_.gains.phi.norm_gain);
-      plant_weights_ = settings_.gains.phi.weights;
+      step_weights_ = settings_.gains.phi.weights;
     }
     for (LagrangianTerms<N>* t : {&terms_, &model_}) t->resize(n);
     for (ReferencePoint<N>* r : {&now_, &next_}) r->resize(n);
@@ -171,7 +171,7 @@ class TrackingIntegrator {
     } else {
       const double inv_h = 1.0 / h_k;
       P_.noalias() = inv_h * terms_.M + terms_.C;
-      P_.diagonal() += plant_weights_;
+      P_.diagonal() += step_weights_;
       x_.noalias() = terms_.M * v_;
       x_ = terms_.g - u_ - inv_h * x_;
       OneStepStats st;
@@ -247,7 +247,7 @@ class TrackingIntegrator {
     x_.noalias() += terms_.C * v_r_next_;
     x_ += terms_.g - model_part_;
     P_ = mass_h_;
-    P_.diagonal() += plant_weights_;
+    P_.diagonal() += step_weights_;
     if (!solver_.solve(P_, x_, y_, stats_))
       return f.at(k, t, q_.data(), v_.data(), "the closed loop's one-step inclusion (6.5) in sigma was not solved");
     // u_k = model part - xi_k, xi_k = -(M/h + C) y - x (its quadratic part W y included).
@@ -423,7 +423,7 @@ class TrackingIntegrator {
   std::mt19937_64 noise_;
   std::int64_t steps_per_sample_ = 1;
   double band_ = 0.0;
-  Vec<N> plant_weights_;
+  Vec<N> step_weights_;  // W of the one-step inclusion: the plant's Phi (sampled), or the controller's on sigma (continuous)
   LagrangianTerms<N> terms_, model_;
   ReferencePoint<N> now_, next_;
   TrackingErrors<N> err_;
