@@ -62,9 +62,10 @@ std::pair<std::string, std::string> parse_figure_spec(const std::string& spec) {
   return {spec.substr(0, eq), spec.substr(eq + 1)};
 }
 
-void write_figure(scene::TrajectoryFigure kind, const render::TimeSeriesData& input, const FigureFlags& flags, const std::string& path) {
-  render::TimeSeriesData data = input;
-  if (!data.converged_time) data.converged_time = exact_rest_time(data);
+namespace {
+
+// The options the flags give a figure of n coordinates (--coords checked against n).
+render::FigureOptions figure_options(const FigureFlags& flags, std::size_t n) {
   render::FigureOptions opt;
   int w = 0, h = 0;
   char x = 0;
@@ -75,15 +76,17 @@ void write_figure(scene::TrajectoryFigure kind, const render::TimeSeriesData& in
   opt.title = flags.title;
   opt.coordinates = flags.coordinates;
   for (std::size_t c : opt.coordinates)
-    if (c >= data.q.size())
-      throw std::runtime_error("--coords: coordinate " + std::to_string(c) + " does not exist (there are " + std::to_string(data.q.size()) +
-                               ")");
+    if (c >= n)
+      throw std::runtime_error("--coords: coordinate " + std::to_string(c) + " does not exist (there are " + std::to_string(n) + ")");
   opt.t0 = flags.t0;
   opt.t1 = flags.t1;
   if (flags.y_scale == "log") opt.y_scale = render::Scale::log;
   if (flags.y_scale == "linear") opt.y_scale = render::Scale::linear;
+  return opt;
+}
 
-  const render::Figure fig = scene::trajectory_figure(kind, data, opt);
+// Writes `fig` as --format says, else as the file name's extension says (.svg), else PNG.
+void write_figure_file(const render::Figure& fig, const FigureFlags& flags, const std::string& path) {
   std::optional<scene::FigureFormat> format = scene::figure_from_name<scene::FigureFormat>(flags.format);  // "" when not given
   if (!format) format = path.size() > 4 && path.substr(path.size() - 4) == ".svg" ? scene::FigureFormat::kSvg : scene::FigureFormat::kPng;
   if (*format == scene::FigureFormat::kSvg) {
@@ -93,6 +96,20 @@ void write_figure(scene::TrajectoryFigure kind, const render::TimeSeriesData& in
   } else {
     render::render_png(fig, path);
   }
+}
+
+}  // namespace
+
+void write_figure(scene::TrajectoryFigure kind, const render::TimeSeriesData& input, const FigureFlags& flags, const std::string& path) {
+  render::TimeSeriesData data = input;
+  if (!data.converged_time) data.converged_time = exact_rest_time(data);
+  write_figure_file(scene::trajectory_figure(kind, data, figure_options(flags, data.q.size())), flags, path);
+}
+
+void write_tracking_comparison(const std::vector<std::pair<std::string, render::TimeSeriesData>>& runs, const FigureFlags& flags,
+                               const std::string& path) {
+  write_figure_file(render::tracking_comparison_figure(runs, figure_options(flags, runs.empty() ? 0 : runs.front().second.q.size())), flags,
+                    path);
 }
 
 render::TimeSeriesData read_trajectory_csv(const std::string& path) {

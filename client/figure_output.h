@@ -46,6 +46,10 @@ std::optional<double> exact_rest_time(const render::TimeSeriesData& data);
 // std::invalid_argument from render's validation) with a clear message.
 void write_figure(scene::TrajectoryFigure kind, const render::TimeSeriesData& data, const FigureFlags& flags, const std::string& path);
 
+// Draws several tracking runs side by side (render::tracking_comparison_figure), labelled, into `path`.
+void write_tracking_comparison(const std::vector<std::pair<std::string, render::TimeSeriesData>>& runs, const FigureFlags& flags,
+                               const std::string& path);
+
 // Reads a trajectory CSV as written by `moreau run --out`: t, h, q..., v..., energy.
 render::TimeSeriesData read_trajectory_csv(const std::string& path);
 

@@ -253,6 +253,46 @@ Figure tracking_figure(const TimeSeriesData& d, const FigureOptions& o) {
   return f;
 }
 
+Figure tracking_comparison_figure(const std::vector<std::pair<std::string, TimeSeriesData>>& runs, const FigureOptions& o) {
+  const char* who = "tracking_comparison_figure";
+  require(!runs.empty(), std::string(who) + ": no runs");
+  Figure f = base_figure(o);
+  Panel e, sigma, u;
+  e.title = "Tracking error e = q - q_d";
+  sigma.title = "Sliding variable |sigma| (exact zeros not drawn)";
+  u.title = "Control u";
+  e.y_label = "e";
+  sigma.y_label = "|sigma|";
+  u.y_label = "u";
+  sigma.y_axis.scale = o.y_scale.value_or(Scale::log);
+  for (std::size_t r = 0; r < runs.size(); ++r) {
+    const auto& [label, d] = runs[r];
+    // Each run's own figure checks its columns; its panels hold one series per coordinate.
+    FigureOptions each = o;
+    each.title.clear();
+    each.y_scale = sigma.y_axis.scale;
+    // Panels q with q_d, e, |sigma|, u; |sigma| is left out when it is 0.0 throughout on a log axis.
+    const Figure one = tracking_figure(d, each);
+    require(one.panels.size() == 4 || one.panels.size() == 3, std::string(who) + ": run '" + label + "' has no tracking signals");
+    const auto take = [&](const Panel& from, Panel& to) {
+      for (Series s : from.series) {
+        s.label = label + " " + s.label;
+        s.color = static_cast<int>(r);
+        to.series.push_back(std::move(s));
+      }
+      if (to.x_axis.min == std::nullopt && to.x_axis.max == std::nullopt) to.x_axis = from.x_axis;
+      to.x_label = from.x_label;
+    };
+    take(one.panels[1], e);
+    if (one.panels.size() == 4) take(one.panels[2], sigma);
+    take(one.panels.back(), u);
+  }
+  drop_empty(sigma);
+  for (Panel* p : {&e, &sigma, &u})
+    if (!p->series.empty()) f.panels.push_back(std::move(*p));
+  return f;
+}
+
 Figure energy_figure(const TimeSeriesData& d, const FigureOptions& o) {
   const char* who = "energy_figure";
   const Window w = time_window(d.t, o, who);

@@ -234,6 +234,33 @@ TEST(RenderFigures, TrackingFigureShowsTheExactZerosOfSigma) {
   EXPECT_THROW(tracking_figure(d), FigureError);
 }
 
+// Two tracking runs side by side: e, |sigma| and u, one colour per run, each series named by its run.
+TEST(RenderFigures, TrackingComparisonDrawsEachRunInItsColour) {
+  TimeSeriesData a;
+  a.t = {0, 1, 2};
+  a.q_names = {"x"};
+  a.q = {{1.0, 0.5, 0.2}};
+  a.v = {{0, 0, 0}};
+  a.signal_names = {"qd_x", "e_x", "sigma_x", "u_x"};
+  a.signals = {{0, 0, 0}, {1.0, 0.5, 0.2}, {0.5, 0.0, 0.0}, {-1, 0.5, 0.5}};
+  TimeSeriesData b = a;
+  b.signals[2] = {0.5, -0.1, 0.1};
+  b.signals[3] = {-1, 4, -4};
+  const Figure f = tracking_comparison_figure({{"implicit", a}, {"explicit", b}});
+  ASSERT_EQ(f.panels.size(), 3u);
+  for (const Panel& p : f.panels) {
+    ASSERT_EQ(p.series.size(), 2u) << p.title;
+    EXPECT_EQ(p.series[0].color, 0);
+    EXPECT_EQ(p.series[1].color, 1);
+    EXPECT_THAT(p.series[0].label, HasSubstr("implicit"));
+    EXPECT_THAT(p.series[1].label, HasSubstr("explicit"));
+  }
+  EXPECT_EQ(f.panels[2].series[1].y, b.signals[3]);
+  EXPECT_EQ(f.panels[1].series[0].y, (std::vector<double>{0.5}));  // |sigma|, its exact zeros dropped
+  a.signals.clear();
+  EXPECT_THROW(tracking_comparison_figure({{"implicit", a}, {"explicit", b}}), FigureError);
+}
+
 TEST(RenderFigures, FitOrderRecoversThePowerLaw) {
   const auto runs = power_law_study();
   const OrderFit a = fit_order(runs[0].h, runs[0].error);

@@ -60,6 +60,10 @@ Figure phase_figure(const TimeSeriesData& data, const FigureOptions& options = {
 // error e, |sigma| on a log axis (log y by default; its exact zeros, which a log axis cannot show, are
 // counted in the legend and the start of the final run of them is marked), and the control u.
 Figure tracking_figure(const TimeSeriesData& data, const FigureOptions& options = {});
+// Several tracking runs of one scene side by side (the implicit and the explicit controller, two periods):
+// e, |sigma| (log y by default, exact zeros dropped) and u, one colour per run, each series named
+// "<run label> <coordinate>". Every run must have the tracking signals and the same coordinates.
+Figure tracking_comparison_figure(const std::vector<std::pair<std::string, TimeSeriesData>>& runs, const FigureOptions& options = {});
 
 // One scheme of a convergence or work-precision study: a run per step size.
 struct SchemeRuns {
