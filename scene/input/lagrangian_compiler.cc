@@ -999,7 +999,11 @@ LagrangianScene LagrangianCompiler::compile() {
                                                                 ", " + format(scene.settings.t_end) + "]");
   }
   if (scene.tracking && scene.tracking->sampled) {
-    // The plant steps h between samples: T_s a whole number of them.
+    // The plant steps h between samples: T_s a whole number of them, and no longer than the run (so the
+    // number of steps per sample is bounded by the run's step count).
+    if (scene.tracking->period > scene.settings.t_end - scene.settings.t0)
+      throw SceneError("/system/tracking/period", "T_s = " + format(scene.tracking->period) + " is longer than the run's interval [" +
+                                                      format(scene.settings.t0) + ", " + format(scene.settings.t_end) + "]");
     const double ratio = scene.tracking->period / scene.settings.h;
     if (!(std::round(ratio) >= 1.0) || std::abs(ratio - std::round(ratio)) > 1e-9 * ratio)
       throw SceneError("/system/tracking/period", "T_s = " + format(scene.tracking->period) +

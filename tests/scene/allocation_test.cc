@@ -31,6 +31,22 @@ long AllocationsOfRun(const nlohmann::json& doc, double t_end, RunObserver* obse
   return moreau::testing::allocations() - before;
 }
 
+// Five coupled coordinates with a configuration-dependent M and a potential: beyond the fixed-size
+// dispatch, so Eigen::Dynamic code runs. (The manipulator's file for the rest: controller, integrator.)
+nlohmann::json five_coordinates() {
+  nlohmann::json doc = read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/manipulator.json");
+  doc["system"]["coordinates"] = {"y1", "y2", "y3", "y4", "y5"};
+  nlohmann::json mass = nlohmann::json::array();
+  for (int i = 0; i < 5; ++i) {
+    nlohmann::json row = nlohmann::json::array();
+    for (int j = 0; j < 5; ++j) row.push_back(i == j ? "3 + cos(y1)" : (std::abs(i - j) == 1 ? "0.5*cos(y2 - y3)" : "0"));
+    mass.push_back(row);
+  }
+  doc["system"]["mass"] = mass;
+  doc["system"]["potential"] = "sin(y1) + 0.1*y5^2";
+  return doc;
+}
+
 TEST(Allocation, FixedSizeRunDoesNotAllocatePerStep) {
   const auto doc = read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/manipulator.json");
   Decimated obs;
@@ -51,17 +67,7 @@ TEST(Allocation, UrdfRobotRunDoesNotAllocatePerStep) {
 }
 
 TEST(Allocation, DynamicSizeRunDoesNotAllocatePerStep) {
-  // Five coupled coordinates: beyond the fixed-size dispatch, so Eigen::Dynamic code runs.
-  nlohmann::json doc = read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/manipulator.json");
-  doc["system"]["coordinates"] = {"y1", "y2", "y3", "y4", "y5"};
-  nlohmann::json mass = nlohmann::json::array();
-  for (int i = 0; i < 5; ++i) {
-    nlohmann::json row = nlohmann::json::array();
-    for (int j = 0; j < 5; ++j) row.push_back(i == j ? "3 + cos(y1)" : (std::abs(i - j) == 1 ? "0.5*cos(y2 - y3)" : "0"));
-    mass.push_back(row);
-  }
-  doc["system"]["mass"] = mass;
-  doc["system"]["potential"] = "sin(y1) + 0.1*y5^2";
+  nlohmann::json doc = five_coordinates();
   doc["system"]["controller"] = {{{"type", "quadratic"}, {"weights", {1, 1, 1, 1, 1}}}, {{"type", "abs"}, {"gains", {1, 1, 1, 1, 1}}}};
   doc["initial"] = {{"q", {0.1, 0.2, 0.3, 0.4, 0.5}}, {"v", {1, -2, 3, -1, 2}}};
   // Every step rule: the adaptive ones compute lambda_min(M), ||C||_2 and (Theorem 4.2) eps_k each step.
@@ -87,16 +93,7 @@ TEST(Allocation, TrackingRunsDoNotAllocatePerStep) {
     EXPECT_GT(short_run, 0);
     EXPECT_EQ(short_run, long_run);
   }
-  nlohmann::json doc = read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/manipulator.json");
-  doc["system"]["coordinates"] = {"y1", "y2", "y3", "y4", "y5"};
-  nlohmann::json mass = nlohmann::json::array();
-  for (int i = 0; i < 5; ++i) {
-    nlohmann::json row = nlohmann::json::array();
-    for (int j = 0; j < 5; ++j) row.push_back(i == j ? "3 + cos(y1)" : (std::abs(i - j) == 1 ? "0.5*cos(y2 - y3)" : "0"));
-    mass.push_back(row);
-  }
-  doc["system"]["mass"] = mass;
-  doc["system"]["potential"] = "sin(y1) + 0.1*y5^2";
+  nlohmann::json doc = five_coordinates();
   doc["system"].erase("controller");
   doc["system"]["force"] = {"0.3*sin(t)", "0", "0", "0.2*cos(2*t)", "0"};
   doc["system"]["tracking"] = {{"reference", {"sin(t)", "0.5*t", "0", "cos(t)", "0.1*t^2"}},

@@ -252,6 +252,11 @@ TEST(TrackingScene, BadFieldsAreNamedByPointer) {
   doc = one_dof("0", "sin(t)", nlohmann::json::object(), 1e-3, 1.0, 0.0, 0.0);
   doc["integrator"]["scheme"] = "abl";
   EXPECT_NE(error_at(doc).find("/integrator/scheme"), std::string::npos) << error_at(doc);
+  // A period longer than the run (its steps per sample would be unbounded), or not a whole number of h.
+  doc = one_dof("0", "sin(t)", {{"law", "implicit"}, {"period", 1e300}}, 1e-3, 1.0, 0.0, 0.0);
+  EXPECT_NE(error_at(doc).find("/system/tracking/period"), std::string::npos) << error_at(doc);
+  doc = one_dof("0", "sin(t)", {{"law", "implicit"}, {"period", 2.5e-3}}, 1e-3, 1.0, 0.0, 0.0);
+  EXPECT_NE(error_at(doc).find("/system/tracking/period"), std::string::npos) << error_at(doc);
 }
 
 }  // namespace
