@@ -315,7 +315,9 @@ nlohmann::json way_points_from_csv(const std::string& text, const std::string& f
     }
     if (!numbers) {
       if (rows.empty() && number == 1) continue;  // a header
-      throw SceneError(where, "'" + file + "' line " + std::to_string(number) + ": '" + bad + "' is not a finite number");
+      // The cell as a JSON string: a control character in the file reaches no terminal unescaped.
+      throw SceneError(where,
+                       "'" + file + "' line " + std::to_string(number) + ": " + brief(nlohmann::json(bad)) + " is not a finite number");
     }
     if (width == 0) width = row.size();
     if (row.size() != width)
