@@ -8,24 +8,15 @@
 #include <vector>
 
 #include "moreau/scene/scene.h"
+#include "support/scene_run.h"
 
 namespace moreau::scene {
 namespace {
 
 using nlohmann::json;
 
-inline json Scene(const std::string& name) { return read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/" + name); }
-
-struct Recorder : RunObserver {
-  std::vector<double> t, q, v;
-  int n = 0;
-  void on_sample(const Sample& s) override {
-    n = s.n;
-    t.push_back(s.t);
-    q.insert(q.end(), s.q, s.q + s.n);
-    v.insert(v.end(), s.v, s.v + s.n);
-  }
-};
+inline json Scene(const std::string& name) { return test_support::shipped_scene(name); }
+using Recorder = test_support::SampleRecorder;
 
 struct ContactRun {
   LagrangianScene scene;

@@ -16,6 +16,7 @@
 #include "moreau/scene/scene_model.h"
 #include "moreau/scene/simulation.h"
 
+#include "support/scene_run.h"
 #include "support/scratch_dir.h"
 
 namespace moreau::scene {
@@ -23,18 +24,8 @@ namespace {
 
 using nlohmann::json;
 
-json Scene(const std::string& name) { return read_scene_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/" + name); }
-
-struct Recorder : RunObserver {
-  std::vector<double> t, q, v;
-  int n = 0;
-  void on_sample(const Sample& s) override {
-    n = s.n;
-    t.push_back(s.t);
-    q.insert(q.end(), s.q, s.q + s.n);
-    v.insert(v.end(), s.v, s.v + s.n);
-  }
-};
+json Scene(const std::string& name) { return test_support::shipped_scene(name); }
+using Recorder = test_support::SampleRecorder;
 
 // The checks at recorded states (RecordedStateChecks: Assumption 4.1 at every 16th, E at every 64th) find
 // the same maxima, times and sample counts whether the run hands them every recorded state (an observer
