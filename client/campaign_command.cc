@@ -268,19 +268,9 @@ int submit_to_slurm(const CampaignOptions& opt) {
   return 0;
 }
 
-// DIR/figures/<name>.png for a campaign whose every sample is present (campaign_figures.h); the paths
-// written, one per line, on stderr.
-void write_figures(const std::string& dir_name) {
-  const fs::path dir = dir_name;
-  const scene::CampaignSpec spec = scene::CampaignSpec::from_json(scene::read_scene_file((dir / "campaign.json").string()), dir.string());
-  const auto outcomes = scene::read_campaign_outcomes(spec, dir.string());
-  const double t_end = scene::Simulation::from_json(spec.scene).t_end();
-  fs::create_directories(dir / "figures");
-  for (const auto& [kind, figure] : scene::campaign_figures(spec, outcomes, t_end)) {
-    const fs::path path = dir / "figures" / (std::string(scene::figure_name(kind)) + ".png");
-    render::render_png(figure, path.string());
-    std::fprintf(stderr, "moreau campaign: figure %s\n", path.string().c_str());
-  }
+// The campaign's figures (write_campaign_figures), their paths on stderr.
+void write_figures(const std::string& dir) {
+  for (const std::string& path : scene::write_campaign_figures(dir)) std::fprintf(stderr, "moreau campaign: figure %s\n", path.c_str());
 }
 
 // One --vary list as a grid input's distribution: FIRST:LAST:COUNT (COUNT evenly spaced numbers, the

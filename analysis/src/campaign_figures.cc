@@ -2,6 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
+
+#include "moreau/render/render.h"
+#include "moreau/scene/simulation.h"
 
 namespace moreau::scene {
 namespace {
@@ -119,6 +123,22 @@ std::vector<std::pair<CampaignFigure, render::Figure>> campaign_figures(const Ca
     }
   }
   return figures;
+}
+
+std::vector<std::string> write_campaign_figures(const std::string& dir_name) {
+  namespace fs = std::filesystem;
+  const fs::path dir = dir_name;
+  const CampaignSpec spec = CampaignSpec::from_json(read_scene_file((dir / "campaign.json").string()), dir.string());
+  const auto outcomes = read_campaign_outcomes(spec, dir.string());
+  const double t_end = Simulation::from_json(spec.scene).t_end();
+  fs::create_directories(dir / "figures");
+  std::vector<std::string> paths;
+  for (const auto& [kind, figure] : campaign_figures(spec, outcomes, t_end)) {
+    const fs::path path = dir / "figures" / (std::string(figure_name(kind)) + ".png");
+    render::render_png(figure, path.string());
+    paths.push_back(path.string());
+  }
+  return paths;
 }
 
 }  // namespace moreau::scene

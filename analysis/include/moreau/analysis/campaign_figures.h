@@ -1,5 +1,6 @@
 // The figures of a robustness campaign (campaign.h) as render/ figures: the one bridge between campaigns
-// and render/, used by `moreau campaign` (after the summary, and by --collect).
+// and render/, used by `moreau campaign` (after the summary, and by --collect) and by moreau.campaign in
+// Python.
 #pragma once
 
 #include <string>
@@ -22,5 +23,9 @@ namespace moreau::scene {
 // `t_end` is the scene's end time.
 std::vector<std::pair<CampaignFigure, render::Figure>> campaign_figures(const CampaignSpec& spec,
                                                                         const std::vector<CampaignOutcome>& outcomes, double t_end);
+
+// DIR/figures/<name>.png for the campaign in DIR, every sample of which is present: the figures above,
+// from DIR/campaign.json and its records. Returns the paths written, in that order.
+std::vector<std::string> write_campaign_figures(const std::string& dir);
 
 }  // namespace moreau::scene
