@@ -11,6 +11,19 @@ unilateral contacts with impacts), in process or on a server. docs/python.md wal
     r = remote.run(pathlib.Path("scenes/manipulator.json"), integrator={"h": 1e-4})   # the same Result
 """
 
+import os as _os
+import pathlib as _pathlib
+
+# Installed (cmake --install), the package sits in <prefix>/lib/python3.X/dist-packages/moreau and the
+# modules the scene library and the renderer open at their first use in <prefix>/lib/moreau: the same
+# environment variables that point the command line at them point the compiled part there
+# (platform/include/moreau/platform/install_paths.h). From the build tree, the paths it was built with
+# serve.
+for _variable, _file in (("MOREAU_URDF_MODULE", "libmoreau_urdf.so"), ("MOREAU_RENDER_GL", "libmoreau_render_gl.so")):
+    _installed = _pathlib.Path(__file__).resolve().parents[3] / "moreau" / _file
+    if _variable not in _os.environ and _installed.is_file():
+        _os.environ[_variable] = str(_installed)
+
 from .errors import HypothesisFailed, MoreauError, RunFailed, SceneError, ServerError, ServerUnreachable
 from .local import Campaign, Scene, Study, campaign, load, run, study
 from .result import Result

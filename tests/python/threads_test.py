@@ -2,6 +2,7 @@
 process cleanly. Both are checked on state, not on time: what another thread did while a run went on,
 and what a child process printed once its run had started."""
 
+import json
 import os
 import signal
 import subprocess
@@ -89,3 +90,52 @@ def test_ctrl_c_stops_a_run_with_keyboard_interrupt(source_dir):
             child.wait()
     assert child.returncode == 0, err
     assert out.split() == ["interrupted", "then", "completed"], (out, err)
+
+
+CAMPAIGN_CHILD = r"""
+import sys, moreau
+printed = False
+def progress(done, total):
+    global printed
+    if not printed:
+        printed = True
+        print("started", flush=True)
+try:
+    moreau.campaign(sys.argv[1], out=sys.argv[2], jobs=1, progress=progress)
+except KeyboardInterrupt:
+    print("interrupted", flush=True)
+"""
+
+
+def test_ctrl_c_stops_a_campaign_with_every_finished_sample_kept_and_the_same_call_goes_on(source_dir, tmp_path):
+    spec = source_dir / "campaigns" / "manipulator-robust.json"
+    doc = json.loads(spec.read_text())
+    # 128 samples of 100,000 steps each: a few seconds, stopped after the first has been recorded.
+    doc["samples"] = 128
+    scene = json.loads((spec.parent / doc["scene"]).read_text())
+    scene["integrator"]["t_end"] = 100.0
+    doc["scene"] = scene
+    spec_file = tmp_path / "spec.json"
+    spec_file.write_text(json.dumps(doc))
+    child = subprocess.Popen([sys.executable, "-c", CAMPAIGN_CHILD, str(spec_file), str(tmp_path / "stopped")],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert child.stdout.readline().strip() == "started"
+        child.send_signal(signal.SIGINT)
+        out, err = child.communicate(timeout=120)
+    finally:
+        if child.poll() is None:
+            child.kill()
+            child.wait()
+    assert child.returncode == 0 and out.split() == ["interrupted"], (out, err)
+    # Whole records only, each a line of JSON; no summary yet.
+    records = (tmp_path / "stopped" / "samples.jsonl").read_text().splitlines()
+    assert all(json.loads(line)["index"] >= 0 for line in records)
+    assert not (tmp_path / "stopped" / "summary.json").exists()
+    # The same call goes on, and ends where a campaign never stopped ends.
+    resumed = moreau.campaign(spec_file, out=tmp_path / "stopped", jobs=1)
+    assert resumed.skipped == len(records) and resumed.ran == 128 - len(records) and len(records) < 128
+    whole = moreau.campaign(spec_file, out=tmp_path / "whole", jobs=2)
+    for key in whole.summary:
+        if "time" not in key and "seconds" not in key:
+            assert resumed.summary[key] == whole.summary[key], key
