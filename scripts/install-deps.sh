@@ -48,6 +48,7 @@ packages=(
   python3                            # scripts/check-scene-results.py (shipped scenes against references)
   python3-jsonschema                 # tests/server/check_openapi.py (server/openapi.json against the OpenAPI 3.1 schema)
   python3-numpy                      # tests/client/python_client_test.py (the Python client returns numpy arrays when it can)
+  python3-pytest                     # tests/client/python_client_test.py (the Python client's tests are pytest's)
   python3-yaml                       # tests/client/k8s_indexed_job_test.py (reads the Kubernetes manifest)
 )
 if $browser_test; then packages+=(chromium); fi

@@ -25,6 +25,10 @@ class Result:
     """One run: its trajectory as numpy arrays, its report (a dict, as `moreau run --json` prints it, and
     the text `moreau run` prints) and its figures."""
 
+    # For a run on a server (Client.run, Client.result): the server's moreau.client.Job (its id, state,
+    # reason); None for a run in process.
+    job: Optional[Any] = None
+
     def __init__(self, table: np.ndarray, position_names: Sequence[str], velocity_names: Sequence[str],
                  signal_names: Sequence[str], report: Dict[str, Any], report_text: Optional[str] = None,
                  figure_source: Optional[FigureSource] = None) -> None:
