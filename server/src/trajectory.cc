@@ -192,6 +192,46 @@ bool TrajectoryReader::next(std::string& out, std::size_t budget) {
   return true;
 }
 
+TrajectoryPrefetcher::TrajectoryPrefetcher(std::shared_ptr<TrajectoryReader> reader, std::size_t depth)
+    : reader_(std::move(reader)), depth_(std::max<std::size_t>(1, depth)), thread_([this] { run(); }) {}
+
+TrajectoryPrefetcher::~TrajectoryPrefetcher() {
+  {
+    std::lock_guard lock(mu_);
+    stop_ = true;
+  }
+  cv_.notify_all();
+  thread_.join();
+}
+
+void TrajectoryPrefetcher::run() {
+  for (;;) {
+    std::string part;
+    const bool more = reader_->next(part);
+    std::unique_lock lock(mu_);
+    cv_.wait(lock, [&] { return stop_ || parts_.size() < depth_; });
+    if (stop_) return;
+    parts_.push_back(std::move(part));
+    done_ = !more;
+    lock.unlock();
+    cv_.notify_all();
+    if (!more) return;
+  }
+}
+
+bool TrajectoryPrefetcher::next(std::string& out) {
+  std::unique_lock lock(mu_);
+  cv_.wait(lock, [&] { return !parts_.empty() || done_; });
+  if (!parts_.empty()) {
+    out += parts_.front();
+    parts_.pop_front();
+  }
+  const bool more = !(done_ && parts_.empty());
+  lock.unlock();
+  cv_.notify_all();
+  return more;
+}
+
 std::string columns_header_value(const std::vector<std::string>& names) {
   static constexpr char kHex[] = "0123456789ABCDEF";
   std::string out;
@@ -244,9 +284,14 @@ bool TrajectoryReader::next_npy(std::string& out, std::size_t limit) {
       const char* p = row_.data();
       const char* const end = p + row_.size();
       for (std::size_t c = 0; c < columns; ++c) {
-        const char* comma = static_cast<const char*>(std::memchr(p, ',', static_cast<std::size_t>(end - p)));
-        if (!comma) comma = end;
-        values[c] = cell_value(p, comma);
+        // from_chars finds the cell's end itself; a cell it does not read whole is looked at apart.
+        const auto [stop, ec] = std::from_chars(p, end, values[c]);
+        const char* comma = stop;
+        if (ec != std::errc() || (stop != end && *stop != ',')) {
+          comma = static_cast<const char*>(std::memchr(p, ',', static_cast<std::size_t>(end - p)));
+          if (!comma) comma = end;
+          values[c] = cell_value(p, comma);
+        }
         if (comma == end) break;
         p = comma + 1;
       }

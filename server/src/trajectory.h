@@ -4,11 +4,16 @@
 #pragma once
 
 #include <cmath>
+#include <condition_variable>
 #include <cstdint>
+#include <deque>
 #include <fstream>
+#include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <string_view>
+#include <thread>
 #include <vector>
 
 namespace moreau::server {
@@ -62,6 +67,31 @@ class TrajectoryReader {
   std::size_t column_ = 0;
   bool started_ = false, column_open_ = false, first_in_column_ = true, finished_ = false;
   std::string header_;
+};
+
+// A TrajectoryReader's parts made ahead on a thread of its own, at most `depth` of them waiting: for the
+// .npy form, whose parts cost more to make (text to doubles) than to send, making the next part overlaps
+// sending the last. Destroying it (the response done, or its connection gone) stops the thread after the
+// part it is making and joins it.
+class TrajectoryPrefetcher {
+ public:
+  TrajectoryPrefetcher(std::shared_ptr<TrajectoryReader> reader, std::size_t depth = 4);
+  ~TrajectoryPrefetcher();
+  TrajectoryPrefetcher(const TrajectoryPrefetcher&) = delete;
+  TrajectoryPrefetcher& operator=(const TrajectoryPrefetcher&) = delete;
+  // As TrajectoryReader::next: appends the next part to `out`; false once the response is complete.
+  bool next(std::string& out);
+
+ private:
+  void run();
+
+  std::shared_ptr<TrajectoryReader> reader_;
+  std::size_t depth_;
+  std::mutex mu_;
+  std::condition_variable cv_;
+  std::deque<std::string> parts_;
+  bool done_ = false, stop_ = false;
+  std::thread thread_;  // last: started once the rest is made
 };
 
 // The column names as the Moreau-Columns header of an .npy answer carries them: comma-separated, each

@@ -323,8 +323,8 @@ TEST(ServerApi, TrajectoryAsNpyIsTheCsvsDoublesBitForBit) {
 }
 
 // The .npy writer on a stored file with what a run rarely writes: non-finite values, -0, a subnormal, the
-// largest double, a short row and an unreadable cell (NaN, as JSON's null); and names that need encoding in
-// the header.
+// largest double, a short row and an unreadable cell (NaN, as JSON's null); the same bytes made ahead on
+// a thread; and names that need encoding in the header.
 TEST(ServerApi, TrajectoryNpyReadsEveryCellAsItsDoubleAndEncodesNames) {
   const TempDir dir("npy");
   const fs::path path = dir / "trajectory.csv";
@@ -359,6 +359,45 @@ TEST(ServerApi, TrajectoryNpyReadsEveryCellAsItsDoubleAndEncodesNames) {
   EXPECT_TRUE(std::isnan(x(6)));
   EXPECT_TRUE(std::isnan(x(7)));
   EXPECT_EQ(std::bit_cast<double>(array.bits[3 * 7]), 0.007);
+
+  // Made ahead on a thread: the same bytes; and a response given up half way stops its thread (the
+  // destructor returns while the thread waits for room to put its next part).
+  auto npy_reader = [](const fs::path& p) {
+    auto r = std::make_shared<moreau::server::TrajectoryReader>();
+    EXPECT_TRUE(r->open(p.string(), {}, moreau::server::TrajectoryReader::Format::kNpy, nullptr));
+    return r;
+  };
+  {
+    moreau::server::TrajectoryPrefetcher ahead(npy_reader(path), 1);
+    std::string prefetched;
+    while (ahead.next(prefetched)) {
+    }
+    EXPECT_EQ(prefetched, body);
+  }
+  const fs::path long_path = dir / "long.csv";
+  {
+    std::ofstream out(long_path, std::ios::binary);
+    out << "t,h,x\n";
+    for (int i = 0; i < 50000; ++i) out << i * 0.001 << ",0.001," << i << "\n";
+  }
+  std::string whole;
+  for (auto r = npy_reader(long_path); r->next(whole);) {
+  }
+  {
+    moreau::server::TrajectoryPrefetcher ahead(npy_reader(long_path), 2);
+    std::string some;
+    ASSERT_TRUE(ahead.next(some));
+    EXPECT_EQ(some, whole.substr(0, some.size()));
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));  // the thread fills its two places and waits
+  }
+  {
+    moreau::server::TrajectoryPrefetcher ahead(npy_reader(long_path));
+    std::string all;
+    while (ahead.next(all)) {
+    }
+    EXPECT_EQ(all, whole);
+    EXPECT_EQ(parse_npy(all).rows, 50000);
+  }
 
   EXPECT_EQ(moreau::server::columns_header_value({"t", "h", "x1_dot", "a.b-c"}), "t,h,x1_dot,a.b-c");
   EXPECT_EQ(moreau::server::columns_header_value({"a,b", "c\r\nSet-Cookie: x", "%", "\xc3\xa9"}),
