@@ -29,7 +29,7 @@ import sys
 # renamed must still be caught. Every top-level folder present is added at run time.
 KNOWN_TOP = {
     ".ci", "analysis", "bench", "campaigns", "client", "clients", "cmake", "core", "docker", "docs", "expr",
-    "fuzz", "messages", "platform", "render", "scene", "scenes", "scripts", "server", "tests",
+    "fuzz", "messages", "platform", "python", "render", "scene", "scenes", "scripts", "server", "tests",
 }
 # Extensions of files a bare backticked name is checked for (longest first: .cc.in before .in).
 FILE_EXTENSIONS = (".cc.in", ".h", ".hpp", ".cc", ".cpp", ".py", ".sh", ".mjs", ".js", ".md", ".cmake", ".lcm", ".supp", ".in")

@@ -50,7 +50,8 @@ packages=(
   python3-numpy                      # tests/client/python_client_test.py (the Python client returns numpy arrays when it can)
   python3-yaml                       # tests/client/k8s_indexed_job_test.py (reads the Kubernetes manifest)
   python3-dev pybind11-dev           # the Python module `moreau` (python/, docs/python.md)
-  python3-pytest python3-pandas      # its tests (tests/python/); pandas for Result.to_pandas()
+  python3-pytest python3-pandas      # the package's tests (tests/python/, tests/client/python_client_test.py);
+                                     # pandas for Result.to_pandas()
 )
 if $browser_test; then packages+=(chromium); fi
 if $slurm_test; then packages+=(slurmctld slurmd slurm-client munge); fi

@@ -24,14 +24,14 @@ for _variable, _file in (("MOREAU_URDF_MODULE", "libmoreau_urdf.so"), ("MOREAU_R
     if _variable not in _os.environ and _installed.is_file():
         _os.environ[_variable] = str(_installed)
 
-from .errors import HypothesisFailed, MoreauError, RunFailed, SceneError, ServerError, ServerUnreachable
+from .errors import HypothesisFailed, MoreauError, RunFailed, SceneError, ServerError, ServerSceneError, ServerUnreachable
 from .local import Campaign, Scene, Study, campaign, load, run, study
 from .result import Result
 
 __version__ = "0.1.0"
 
 __all__ = ["load", "run", "study", "campaign", "Scene", "Result", "Study", "Campaign", "Client", "MoreauError",
-           "SceneError", "RunFailed", "HypothesisFailed", "ServerError", "ServerUnreachable"]
+           "SceneError", "RunFailed", "HypothesisFailed", "ServerError", "ServerSceneError", "ServerUnreachable"]
 
 
 def __getattr__(name: str):

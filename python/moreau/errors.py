@@ -5,7 +5,8 @@ The command line's exit codes have one exception type each:
   1  RunFailed           the run did not complete (the step failed, max_steps, a non-finite state)
   3  HypothesisFailed    with strict=True: a hypothesis the run relies on fails (the report says which)
 and, talking to a server,
-  ServerError            an error answer of the server (its HTTP status, error, reason and pointer)
+  ServerError            an error answer of the server (its HTTP status, error, reason and pointer);
+                         about the scene, a ServerSceneError: a SceneError too
   ServerUnreachable      no answer at all (also a ConnectionError)
 A run stopped by Ctrl-C raises KeyboardInterrupt, as any Python code does.
 """
@@ -14,7 +15,8 @@ from __future__ import annotations
 
 from typing import Optional
 
-__all__ = ["MoreauError", "SceneError", "RunFailed", "HypothesisFailed", "ServerError", "ServerUnreachable"]
+__all__ = ["MoreauError", "SceneError", "RunFailed", "HypothesisFailed", "ServerError", "ServerSceneError",
+           "ServerUnreachable"]
 
 
 class MoreauError(Exception):
@@ -61,17 +63,23 @@ class ServerError(MoreauError):
     `pointer` (a JSON pointer into the scene or the request, or None), `where` ("scene", "request" or None)."""
 
     def __init__(self, status: int, error: str, reason: str = "", pointer: Optional[str] = None, where: Optional[str] = None) -> None:
-        self.status = status
-        self.error = error
-        self.reason = reason
-        self.pointer = pointer
-        self.where = where
         text = "%d %s" % (status, error)
         if pointer is not None:
             text += " at %s%s" % (where + " " if where else "", pointer)
         if reason:
             text += ": " + reason
         super().__init__(text)
+        # Set after the bases' __init__ (SceneError's sets pointer and reason too, for ServerSceneError).
+        self.status = status
+        self.error = error
+        self.reason = reason
+        self.pointer = pointer
+        self.where = where
+
+
+class ServerSceneError(ServerError, SceneError):
+    """An error answer about the scene (`where` "scene", with its `pointer`): a ServerError and a
+    SceneError both, so that `except SceneError` catches an invalid scene whether it ran here or there."""
 
 
 class ServerUnreachable(MoreauError, ConnectionError):

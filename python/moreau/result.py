@@ -28,6 +28,10 @@ class Result:
     `report` and `report_text` may be given as functions of no argument: they are then called at the first
     use only, so that a loop of many runs that reads only the arrays does not build reports it never reads."""
 
+    # For a run on a server (Client.run, Client.result): the server's moreau.client.Job (its id, state,
+    # reason); None for a run in process.
+    job: Optional[Any] = None
+
     def __init__(self, table: np.ndarray, position_names: Sequence[str], velocity_names: Sequence[str],
                  signal_names: Sequence[str], report: Union[Dict[str, Any], Callable[[], Dict[str, Any]]],
                  report_text: Union[None, str, Callable[[], str]] = None,

@@ -9,6 +9,7 @@
 #include <numeric>
 #include <optional>
 #include <shared_mutex>
+#include <system_error>
 #include <vector>
 
 #include "conditional.h"
@@ -270,7 +271,8 @@ void job_trajectory(ApiContext& api, const Request& req, Response& res) {
   auto job = job_for(api, req, res);
   if (!job) return;
   const std::string format = req.has_param("format") ? req.get_param_value("format") : "json";
-  if (format != "json" && format != "csv") return send_error(res, 400, "bad query", "", "format must be json or csv");
+  if (format != "json" && format != "csv" && format != "npy")
+    return send_error(res, 400, "bad query", "", "format must be json, csv or npy");
   RowWindow window;
   try {
     if (auto from = number_param(req, "from", -1e300, 1e300)) window.from = *from;
@@ -295,8 +297,10 @@ void job_trajectory(ApiContext& api, const Request& req, Response& res) {
       return send_error(res, 409, "no trajectory yet", "",
                         std::string("the job is ") + to_string(state_of(*job)) + "; the trajectory is served once it has finished");
     }
-    if (!reader->open((job->dir / "trajectory.csv").string(), window,
-                      format == "csv" ? TrajectoryReader::Format::kCsv : TrajectoryReader::Format::kJson, &error))
+    const auto as = format == "csv"   ? TrajectoryReader::Format::kCsv
+                    : format == "npy" ? TrajectoryReader::Format::kNpy
+                                      : TrajectoryReader::Format::kJson;
+    if (!reader->open((job->dir / "trajectory.csv").string(), window, as, &error))
       return send_error(res, 500, "stored trajectory unreadable", "", error);
     std::error_code ec;
     const auto size = fs::file_size(job->dir / "trajectory.csv", ec);
@@ -309,8 +313,29 @@ void job_trajectory(ApiContext& api, const Request& req, Response& res) {
   }
   if (not_modified(req, res, weak_etag(identity))) return;
   res.status = 200;
-  if (format == "csv") res.set_header("Content-Disposition", "attachment; filename=\"" + job->id + ".csv\"");
-  res.set_chunked_content_provider(format == "csv" ? "text/csv" : "application/json", [reader](std::size_t, httplib::DataSink& sink) {
+  if (format != "json") res.set_header("Content-Disposition", "attachment; filename=\"" + job->id + "." + format + "\"");
+  // An .npy body is the array alone: its columns' names come in a header.
+  if (format == "npy") res.set_header("Moreau-Columns", columns_header_value(reader->names()));
+  const char* type = format == "csv" ? "text/csv" : format == "npy" ? "application/octet-stream" : "application/json";
+  if (format == "npy") {
+    // Converting text to doubles costs more than sending them: made ahead on a thread of its own.
+    std::shared_ptr<TrajectoryPrefetcher> parts;
+    try {
+      parts = std::make_shared<TrajectoryPrefetcher>(reader);
+    } catch (const std::system_error&) {  // no thread to be had: made as sent, like the other forms
+    }
+    if (parts) {
+      res.set_chunked_content_provider(type, [parts](std::size_t, httplib::DataSink& sink) {
+        std::string part;
+        const bool more = parts->next(part);
+        if (!part.empty() && !sink.write(part.data(), part.size())) return false;
+        if (!more) sink.done();
+        return true;
+      });
+      return;
+    }
+  }
+  res.set_chunked_content_provider(type, [reader](std::size_t, httplib::DataSink& sink) {
     std::string part;
     const bool more = reader->next(part);
     if (!part.empty() && !sink.write(part.data(), part.size())) return false;

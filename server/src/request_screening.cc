@@ -59,7 +59,7 @@ bool screen(const ApiContext& api, const Request& req, Response& res) {
   if (!cfg.cors_origin.empty() && cfg.cors_origin != "*") res.set_header("Vary", "Origin");
   if (cors) {
     res.set_header("Access-Control-Allow-Origin", cfg.cors_origin == "*" ? std::string("*") : origin);
-    res.set_header("Access-Control-Expose-Headers", "Location, Retry-After, ETag, WWW-Authenticate");
+    res.set_header("Access-Control-Expose-Headers", "Location, Retry-After, ETag, WWW-Authenticate, Moreau-Columns");
     if (req.method == "OPTIONS" && req.has_header("Access-Control-Request-Method")) {
       const std::string allow = allowed_methods(req.path);
       if (allow.empty()) return refuse(404, "not found", no_endpoint(req));

@@ -554,7 +554,7 @@ std::vector<Case> cases() {
   t.push_back(get("FigureKindUnknown", "/v1/jobs/{id}/figure?kind=pie", 400, "kind must be state, energy, step, phase or tracking"));
   t.push_back(get("FigureWidthOneBillion", "/v1/jobs/{id}/figure?width=1e9", 400, "'width' must be a number in [64, 4096]"));
   t.push_back(get("FigureHeightTiny", "/v1/jobs/{id}/figure?height=10", 400, "'height' must be a number in [64, 4096]"));
-  t.push_back(get("TrajectoryFormatXml", "/v1/jobs/{id}/trajectory?format=xml", 400, "format must be json or csv"));
+  t.push_back(get("TrajectoryFormatXml", "/v1/jobs/{id}/trajectory?format=xml", 400, "format must be json, csv or npy"));
 
   // Job ids: unknown, malformed, path traversal (plain and percent-encoded), and scene names.
   t.push_back(

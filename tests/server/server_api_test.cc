@@ -1,9 +1,15 @@
 // moreau-server over HTTP, in-process on an ephemeral port: the life of a job, bad requests, limits,
 // cancellation, a full queue and authentication.
 #include <algorithm>
+#include <bit>
 #include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -15,6 +21,7 @@
 #include "conditional.h"
 #include "moreau/scene/trajectory_csv.h"
 #include "server_fixture.h"
+#include "trajectory.h"
 
 namespace {
 
@@ -42,6 +49,73 @@ std::string slurp(const fs::path& p) {
 std::size_t count_lines(const std::string& s) { return static_cast<std::size_t>(std::count(s.begin(), s.end(), '\n')); }
 
 json error_of(const httplib::Result& r) { return json::parse(r->body); }
+
+// A .npy body read by the format's description (numpy/lib/format.py), not by the server's writer: the
+// magic, version 1.0, the header's length, the header dict, then rows * columns little-endian doubles.
+struct NpyArray {
+  std::string header;
+  std::int64_t rows = -1, columns = -1;
+  std::vector<std::uint64_t> bits;  // the values' bit patterns, row after row
+};
+NpyArray parse_npy(const std::string& body) {
+  NpyArray a;
+  if (body.size() < 10 || body.compare(0, 8, std::string("\x93NUMPY\x01\x00", 8)) != 0) {
+    ADD_FAILURE() << "not an .npy 1.0 file";
+    return a;
+  }
+  const std::size_t header_len = static_cast<unsigned char>(body[8]) | (static_cast<std::size_t>(static_cast<unsigned char>(body[9])) << 8);
+  if (10 + header_len > body.size()) {
+    ADD_FAILURE() << "header longer than the body";
+    return a;
+  }
+  a.header = body.substr(10, header_len);
+  EXPECT_EQ((10 + header_len) % 64, 0u) << "the data is aligned";
+  EXPECT_EQ(a.header.back(), '\n');
+  EXPECT_THAT(a.header, ::testing::HasSubstr("'descr': '<f8'"));
+  EXPECT_THAT(a.header, ::testing::HasSubstr("'fortran_order': False"));
+  const std::size_t shape = a.header.find("'shape': (");
+  if (shape == std::string::npos) {
+    ADD_FAILURE() << a.header;
+    return a;
+  }
+  char* end = nullptr;
+  a.rows = std::strtoll(a.header.c_str() + shape + 10, &end, 10);
+  EXPECT_EQ(std::string(end, 2), ", ");
+  a.columns = std::strtoll(end + 2, &end, 10);
+  EXPECT_EQ(*end, ')');
+  const std::size_t data = 10 + header_len;
+  EXPECT_EQ(body.size() - data, static_cast<std::size_t>(a.rows * a.columns * 8)) << "the body is the array its header describes";
+  for (std::size_t at = data; at + 8 <= body.size(); at += 8) {
+    std::uint64_t v = 0;
+    for (int i = 0; i < 8; ++i) v |= static_cast<std::uint64_t>(static_cast<unsigned char>(body[at + i])) << (8 * i);
+    a.bits.push_back(v);
+  }
+  return a;
+}
+
+// A CSV body's header names and its cells read by strtod, as bit patterns (the CSV's shortest round-trip
+// text reads back as the very double written).
+struct CsvTable {
+  std::vector<std::string> names;
+  std::vector<std::uint64_t> bits;
+  std::size_t rows = 0;
+};
+CsvTable parse_csv(const std::string& body) {
+  CsvTable t;
+  std::istringstream in(body);
+  std::string line;
+  std::getline(in, line);
+  std::istringstream header(line);
+  for (std::string name; std::getline(header, name, ',');) t.names.push_back(name);
+  while (std::getline(in, line)) {
+    if (line.empty()) continue;
+    ++t.rows;
+    std::istringstream cells(line);
+    for (std::string cell; std::getline(cells, cell, ',');)
+      t.bits.push_back(std::bit_cast<std::uint64_t>(std::strtod(cell.c_str(), nullptr)));
+  }
+  return t;
+}
 
 // What `moreau run scenes/manipulator.json --out FILE` gives: the report and the trajectory CSV.
 struct LocalRun {
@@ -203,6 +277,131 @@ TEST(ServerApi, JobLifeFromSubmissionToResults) {
   EXPECT_EQ(report_param->status, 400);
   EXPECT_THAT(report_param->body, ::testing::HasSubstr("unknown query parameter 'format'"));
   EXPECT_THAT(report_param->body, ::testing::HasSubstr("(it takes none)"));
+}
+
+// format=npy: the rows of format=csv, window and all, as one float64 array whose every value is the
+// double its CSV cell reads as, bit for bit; the column names in the Moreau-Columns header.
+TEST(ServerApi, TrajectoryAsNpyIsTheCsvsDoublesBitForBit) {
+  TestServer ts;
+  auto c = ts.client();
+  auto r = submit(*c, {{"scene", "manipulator-tracking"}, {"overrides", {"integrator.t_end=0.5", "output.every=1"}}});
+  ASSERT_EQ(r->status, 202) << r->body;
+  const std::string id = json::parse(r->body)["id"];
+  ASSERT_EQ(wait_final(*c, id)["state"], "done");
+  for (const std::string window : {"", "&from=0.1&to=0.3", "&every=7", "&from=0.05&every=3", "&from=0.4&to=0.1", "&from=100"}) {
+    SCOPED_TRACE(window);
+    auto csv = c->Get("/v1/jobs/" + id + "/trajectory?format=csv" + window);
+    auto npy = c->Get("/v1/jobs/" + id + "/trajectory?format=npy" + window);
+    ASSERT_TRUE(csv && npy);
+    if (window == "&from=0.4&to=0.1") {  // the window's bounds are checked as for csv
+      EXPECT_EQ(npy->status, 400);
+      EXPECT_EQ(npy->body, csv->body);
+      continue;
+    }
+    ASSERT_EQ(csv->status, 200);
+    ASSERT_EQ(npy->status, 200) << npy->body;
+    EXPECT_EQ(npy->get_header_value("Content-Type"), "application/octet-stream");
+    EXPECT_EQ(npy->get_header_value("Content-Disposition"), "attachment; filename=\"" + id + ".npy\"");
+    const CsvTable table = parse_csv(csv->body);
+    ASSERT_GE(table.names.size(), 7u);
+    std::string joined;
+    for (const auto& name : table.names) joined += (joined.empty() ? "" : ",") + name;
+    EXPECT_EQ(npy->get_header_value("Moreau-Columns"), joined);
+    const NpyArray array = parse_npy(npy->body);
+    EXPECT_EQ(array.rows, static_cast<std::int64_t>(table.rows));
+    EXPECT_EQ(array.columns, static_cast<std::int64_t>(table.names.size()));
+    EXPECT_EQ(array.bits, table.bits);
+    if (window == "&from=100") {
+      EXPECT_EQ(array.rows, 0);
+    }
+    if (window.empty()) {
+      EXPECT_EQ(array.rows, 501);
+    }
+  }
+  EXPECT_NE(c->Get("/v1/jobs/" + id + "/trajectory?format=npy")->get_header_value("ETag"),
+            c->Get("/v1/jobs/" + id + "/trajectory?format=csv")->get_header_value("ETag"));
+}
+
+// The .npy writer on a stored file with what a run rarely writes: non-finite values, -0, a subnormal, the
+// largest double, a short row and an unreadable cell (NaN, as JSON's null); the same bytes made ahead on
+// a thread; and names that need encoding in the header.
+TEST(ServerApi, TrajectoryNpyReadsEveryCellAsItsDoubleAndEncodesNames) {
+  const TempDir dir("npy");
+  const fs::path path = dir / "trajectory.csv";
+  {
+    std::ofstream out(path, std::ios::binary);
+    out << "t,h,x\n"
+        << "0,0.001,nan\n"
+        << "0.001,0.001,-inf\n"
+        << "0.002,0.001,inf\n"
+        << "0.003,0.001,-0\n"
+        << "0.004,0.001,5e-324\n"
+        << "0.005,0.001,1.7976931348623157e+308\n"
+        << "0.006,0.001\n"
+        << "0.007,0.001,x\n";
+  }
+  moreau::server::TrajectoryReader reader;
+  std::string error;
+  ASSERT_TRUE(reader.open(path.string(), {}, moreau::server::TrajectoryReader::Format::kNpy, &error)) << error;
+  std::string body;
+  while (reader.next(body, 16)) {
+  }
+  const NpyArray array = parse_npy(body);
+  ASSERT_EQ(array.rows, 8);
+  ASSERT_EQ(array.columns, 3);
+  auto x = [&](int row) { return std::bit_cast<double>(array.bits[static_cast<std::size_t>(3 * row + 2)]); };
+  EXPECT_TRUE(std::isnan(x(0)));
+  EXPECT_EQ(x(1), -HUGE_VAL);
+  EXPECT_EQ(x(2), HUGE_VAL);
+  EXPECT_EQ(array.bits[3 * 3 + 2], std::bit_cast<std::uint64_t>(-0.0));
+  EXPECT_EQ(x(4), std::numeric_limits<double>::denorm_min());
+  EXPECT_EQ(x(5), std::numeric_limits<double>::max());
+  EXPECT_TRUE(std::isnan(x(6)));
+  EXPECT_TRUE(std::isnan(x(7)));
+  EXPECT_EQ(std::bit_cast<double>(array.bits[3 * 7]), 0.007);
+
+  // Made ahead on a thread: the same bytes; and a response given up half way stops its thread (the
+  // destructor returns while the thread waits for room to put its next part).
+  auto npy_reader = [](const fs::path& p) {
+    auto r = std::make_shared<moreau::server::TrajectoryReader>();
+    EXPECT_TRUE(r->open(p.string(), {}, moreau::server::TrajectoryReader::Format::kNpy, nullptr));
+    return r;
+  };
+  {
+    moreau::server::TrajectoryPrefetcher ahead(npy_reader(path), 1);
+    std::string prefetched;
+    while (ahead.next(prefetched)) {
+    }
+    EXPECT_EQ(prefetched, body);
+  }
+  const fs::path long_path = dir / "long.csv";
+  {
+    std::ofstream out(long_path, std::ios::binary);
+    out << "t,h,x\n";
+    for (int i = 0; i < 50000; ++i) out << i * 0.001 << ",0.001," << i << "\n";
+  }
+  std::string whole;
+  for (auto r = npy_reader(long_path); r->next(whole);) {
+  }
+  {
+    moreau::server::TrajectoryPrefetcher ahead(npy_reader(long_path), 2);
+    std::string some;
+    ASSERT_TRUE(ahead.next(some));
+    EXPECT_EQ(some, whole.substr(0, some.size()));
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));  // the thread fills its two places and waits
+  }
+  {
+    moreau::server::TrajectoryPrefetcher ahead(npy_reader(long_path));
+    std::string all;
+    while (ahead.next(all)) {
+    }
+    EXPECT_EQ(all, whole);
+    EXPECT_EQ(parse_npy(all).rows, 50000);
+  }
+
+  EXPECT_EQ(moreau::server::columns_header_value({"t", "h", "x1_dot", "a.b-c"}), "t,h,x1_dot,a.b-c");
+  EXPECT_EQ(moreau::server::columns_header_value({"a,b", "c\r\nSet-Cookie: x", "%", "\xc3\xa9"}),
+            "a%2Cb,c%0D%0ASet-Cookie%3A%20x,%25,%C3%A9");
 }
 
 TEST(ServerApi, ShippedScenesByNameWithOverrides) {
@@ -539,8 +738,9 @@ TEST(ServerApi, FinishedResultsFiguresAndStaticFilesAnswerIfNoneMatchWith304) {
   std::map<std::string, std::string> tags;
   for (const std::string& path :
        {job + "/report", job + "/trajectory", job + "/trajectory?format=csv", job + "/trajectory?from=0.1&every=2",
-        job + "/figure?kind=phase", job + "/figure?kind=phase&format=svg", job + "/figure?kind=energy&width=300&height=200",
-        std::string("/v1/openapi.json"), std::string("/"), std::string("/ui/app.js")}) {
+        job + "/trajectory?format=npy", job + "/trajectory?format=npy&from=0.1&every=2", job + "/figure?kind=phase",
+        job + "/figure?kind=phase&format=svg", job + "/figure?kind=energy&width=300&height=200", std::string("/v1/openapi.json"),
+        std::string("/"), std::string("/ui/app.js")}) {
     SCOPED_TRACE(path);
     auto first = c->Get(path);
     ASSERT_TRUE(first);
