@@ -3,13 +3,16 @@
 
   run        moreau.run of the paper's manipulator (10,000 steps): the best of N runs of a loaded scene, and
              of load + run, against the integrate phase `moreau run --json` reports (its best of N)
+  remote     the same run end to end through the HTTP client (moreau.Client(url).run: submit, wait, the
+             report and the .npy trajectory) on a moreau-server on 127.0.0.1, against moreau.run
   table      a 1,000,000-row trajectory in process: the whole call against the run's own integrate phase
              (what is left is the cost of handing the table to numpy)
   threads    two runs on two threads against one run alone (wall time)
   sweep      1,000 values of a parameter in a Python loop against `moreau campaign --scene --vary -j 1`
 
 Run it from the source tree after building:
-    PYTHONPATH=build/python python3 bench/python_bench.py --moreau build/client/moreau
+    PYTHONPATH=build/python python3 bench/python_bench.py --moreau build/client/moreau \
+        --server build/server/moreau-server
 It prints one line per figure. Timing uses time.perf_counter and the best of several repeats.
 """
 
@@ -20,10 +23,14 @@ import pathlib
 import shutil
 import subprocess
 import tempfile
+import sys
 import threading
 import time
 
 import moreau
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "tests" / "support"))
+from server_process import ServerProcess  # noqa: E402  (a server on 127.0.0.1, stopped at the end)
 
 
 def best(fn, repeats):
@@ -40,7 +47,8 @@ def main():
     p.add_argument("--moreau", default="build/client/moreau")
     p.add_argument("--source-dir", default=".")
     p.add_argument("--repeats", type=int, default=20)
-    p.add_argument("--only", default="run,table,threads,sweep")
+    p.add_argument("--server", default="build/server/moreau-server")
+    p.add_argument("--only", default="run,remote,table,threads,sweep")
     a = p.parse_args()
     src = pathlib.Path(a.source_dir)
     manipulator = src / "scenes" / "manipulator.json"
@@ -56,6 +64,20 @@ def main():
         whole = best(lambda: moreau.run(manipulator), a.repeats)
         print("run      manipulator, 10,000 steps: moreau.run %.3f ms (loaded scene: %.3f ms); the CLI's integrate phase %.3f ms; ratio %.2f"
               % (whole * 1e3, loaded * 1e3, min(cli) * 1e3, loaded / min(cli)))
+
+    if "remote" in only:
+        local = best(lambda: moreau.run(manipulator), a.repeats)
+        with ServerProcess(a.server, str(src / "scenes")) as server:
+            client = moreau.Client(server.url)
+            client.run(manipulator)  # the first: connections, the server's scene cache
+            remote = best(lambda: client.run(manipulator), a.repeats)
+            long = {"integrator": {"t_end": 1000.0, "max_steps": 2000000}}
+            local_long = best(lambda: moreau.run(manipulator, **long), 3)
+            remote_long = best(lambda: client.run(manipulator, **long), 3)
+        print("remote   manipulator end to end: moreau.run %.3f ms; moreau.Client(url).run %.1f ms; %.0fx"
+              % (local * 1e3, remote * 1e3, remote / local))
+        print("remote   the same over 1,000,000 steps (1,000,001 rows): moreau.run %.1f ms; moreau.Client(url).run %.1f ms; %.0fx"
+              % (local_long * 1e3, remote_long * 1e3, remote_long / local_long))
 
     if "table" in only:
         scene = moreau.load(manipulator, integrator={"t_end": 1000.0, "max_steps": 2000000})

@@ -13,9 +13,10 @@ import os
 import pathlib
 import sys
 import warnings
-from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple, Union
+from typing import TYPE_CHECKING, Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 
-import numpy as np
+if TYPE_CHECKING:
+    import numpy as np
 
 from .errors import HypothesisFailed, RunFailed
 from .result import Result
@@ -235,13 +236,14 @@ class Study:
         self.rows: List[Dict[str, Any]] = list(raw.get("rows", []))
 
     @property
-    def table(self) -> Dict[str, np.ndarray]:
+    def table(self) -> Dict[str, "np.ndarray"]:
+        import numpy as np
         names: List[str] = []
         for row in self.rows:
             for key, value in row.items():
                 if key not in names and not isinstance(value, (dict, list)):
                     names.append(key)
-        out: Dict[str, np.ndarray] = {}
+        out: Dict[str, "np.ndarray"] = {}
         for key in names:
             values = [row.get(key) for row in self.rows]
             if all(v is None or (isinstance(v, (int, float)) and not isinstance(v, bool)) for v in values):
@@ -310,6 +312,7 @@ class Campaign:
         try:
             import pandas
         except ImportError:
+            import numpy as np
             data = np.genfromtxt(path, delimiter=",", names=True, dtype=None, encoding="utf-8")
             return {name: data[name] for name in data.dtype.names}
         return pandas.read_csv(path)

@@ -11,9 +11,10 @@ numpy through the buffer protocol.
 from __future__ import annotations
 
 import html
-from typing import Any, Callable, Dict, List, Optional, Sequence, Union
+from typing import TYPE_CHECKING, Any, Callable, Dict, List, Optional, Sequence, Union
 
-import numpy as np
+if TYPE_CHECKING:  # numpy is needed to make a table, not to import the package (the client works without it)
+    import numpy as np
 
 __all__ = ["Result"]
 
