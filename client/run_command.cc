@@ -34,29 +34,14 @@ struct RunOptions {
   bool strict = false;
 };
 
-// Series labels with the units the scene gives in /units ({"x1": "m", "t": "s"}): "x1 [m]" for a
-// position, "x1_dot [m/s]" for its velocity. Names without a unit stay as they are.
+// The series labels with the scene's /units (scene::labels_with_units); the names as they are when the
+// file cannot be read again.
 std::vector<std::string> with_units(const std::string& scene_path, const std::vector<std::string>& names, bool velocities) {
-  nlohmann::json units;
   try {
-    units = scene::read_scene_file(scene_path).value("units", nlohmann::json::object());
+    return scene::labels_with_units(scene::read_scene_file(scene_path), names, velocities);
   } catch (const std::exception&) {
     return names;
   }
-  if (!units.is_object()) return names;
-  const std::string time_unit = units.contains("t") && units["t"].is_string() ? units["t"].get<std::string>() : "s";
-  std::vector<std::string> out;
-  for (const auto& name : names) {
-    std::string base = name;
-    if (velocities && base.size() > 4 && base.substr(base.size() - 4) == "_dot") base.resize(base.size() - 4);
-    if (units.contains(base) && units[base].is_string()) {
-      const std::string u = units[base].get<std::string>();
-      out.push_back(name + " [" + (velocities ? u + "/" + time_unit : u) + "]");
-    } else {
-      out.push_back(name);
-    }
-  }
-  return out;
 }
 
 int run(const RunOptions& opt) {

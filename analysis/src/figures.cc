@@ -22,6 +22,24 @@ render::TimeSeriesData time_series(TrajectoryColumns columns) {
   return data;
 }
 
+std::vector<std::string> labels_with_units(const nlohmann::json& scene_doc, const std::vector<std::string>& names, bool velocities) {
+  if (!scene_doc.is_object() || !scene_doc.contains("units") || !scene_doc["units"].is_object()) return names;
+  const nlohmann::json& units = scene_doc["units"];
+  const std::string time_unit = units.contains("t") && units["t"].is_string() ? units["t"].get<std::string>() : "s";
+  std::vector<std::string> out;
+  for (const auto& name : names) {
+    std::string base = name;
+    if (velocities && base.size() > 4 && base.substr(base.size() - 4) == "_dot") base.resize(base.size() - 4);
+    if (units.contains(base) && units[base].is_string()) {
+      const std::string u = units[base].get<std::string>();
+      out.push_back(name + " [" + (velocities ? u + "/" + time_unit : u) + "]");
+    } else {
+      out.push_back(name);
+    }
+  }
+  return out;
+}
+
 void label_for_system(render::TimeSeriesData& data, const Simulation& sim) {
   const LureScene* lure = sim.lure();
   if (!lure) return;

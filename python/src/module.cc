@@ -135,6 +135,7 @@ void run_beside_python(Work work, std::atomic<bool>& stop, const std::function<v
 // ran (shared), for the report and the figures.
 struct RunOutput {
   scene::Simulation sim;
+  std::shared_ptr<const nlohmann::json> doc;  // the scene's document, for the units of the figures' labels
   std::shared_ptr<TrajectoryTable> table;
   RunSummary summary;
   scene::RunDiagnostics diagnostics;
@@ -156,7 +157,8 @@ struct RunOutput {
     std::string bytes;
     {
       py::gil_scoped_release release;
-      render::TimeSeriesData data = table->time_series(sim.position_names(), sim.velocity_names(), sim.signal_names());
+      render::TimeSeriesData data = table->time_series(scene::labels_with_units(*doc, sim.position_names(), false),
+                                                       scene::labels_with_units(*doc, sim.velocity_names(), true), sim.signal_names());
       if (summary.converged_time) data.converged_time = *summary.converged_time;
       scene::label_for_system(data, sim);
       if (const ContactDiagnostics* contacts = diagnostics.contacts())
@@ -172,7 +174,8 @@ struct RunOutput {
 // compiled once for those names, as a campaign's samples do, instead of compiling the scene again.
 class CompiledScene {
  public:
-  CompiledScene(nlohmann::json doc, scene::Simulation sim) : doc_(std::move(doc)), sim_(std::move(sim)) {}
+  CompiledScene(nlohmann::json doc, scene::Simulation sim)
+      : doc_(std::make_shared<const nlohmann::json>(std::move(doc))), sim_(std::move(sim)) {}
 
   static std::shared_ptr<CompiledScene> from_file(const std::string& path, const std::vector<std::string>& sets) {
     nlohmann::json doc = scene::read_scene_file(path);
@@ -184,11 +187,11 @@ class CompiledScene {
   // This scene's document with the `--set` assignments applied in order, then the JSON merge patch (RFC
   // 7386: objects merge, a null removes the member), compiled.
   std::shared_ptr<CompiledScene> with(const std::vector<std::string>& sets, const std::string& patch) const {
-    return compile(doc_, sets, patch);
+    return compile(*doc_, sets, patch);
   }
 
   const scene::Simulation& simulation() const { return sim_; }
-  std::string document() const { return doc_.dump(); }
+  std::string document() const { return doc_->dump(); }
 
   std::shared_ptr<RunOutput> run(const std::function<void(double)>& progress) const { return run_simulation(sim_, progress); }
 
@@ -206,7 +209,7 @@ class CompiledScene {
         parametric_.reset();
         parametric_names_ = names;
         try {
-          parametric_ = std::make_unique<scene::ParametricLagrangianScene>(doc_, names);
+          parametric_ = std::make_unique<scene::ParametricLagrangianScene>(*doc_, names);
         } catch (const std::exception&) {
           // Not compilable with these parameters free: every such run compiles its document (and reports
           // what is wrong with it, if anything is).
@@ -222,7 +225,7 @@ class CompiledScene {
       }
     }
     if (bound) return run_simulation(*bound, progress);
-    nlohmann::json doc = doc_;
+    nlohmann::json doc = *doc_;
     for (std::size_t i = 0; i < names.size(); ++i) doc["parameters"][names[i]] = values[i];
     return run_simulation(scene::Simulation::from_json(doc), progress);
   }
@@ -239,8 +242,8 @@ class CompiledScene {
     return std::make_shared<CompiledScene>(std::move(doc), std::move(*sim));
   }
 
-  static std::shared_ptr<RunOutput> run_simulation(const scene::Simulation& sim, const std::function<void(double)>& progress) {
-    auto out = std::make_shared<RunOutput>(RunOutput{sim, nullptr, {}, {}});
+  std::shared_ptr<RunOutput> run_simulation(const scene::Simulation& sim, const std::function<void(double)>& progress) const {
+    auto out = std::make_shared<RunOutput>(RunOutput{sim, doc_, nullptr, {}, {}});
     const std::int64_t every = std::max<std::int64_t>(1, sim.output_every());
     out->table = std::make_shared<TrajectoryTable>(sim.dof(), static_cast<int>(sim.signal_names().size()), sim.planned_steps() / every + 2);
     PythonControl control(out->table.get(), progress);
@@ -252,7 +255,7 @@ class CompiledScene {
     return out;
   }
 
-  nlohmann::json doc_;
+  std::shared_ptr<const nlohmann::json> doc_;
   scene::Simulation sim_;
   std::mutex parametric_mu_;
   std::vector<std::string> parametric_names_;

@@ -11,7 +11,7 @@ import pytest
 
 @pytest.fixture(scope="session")
 def source_dir() -> pathlib.Path:
-    return pathlib.Path(os.environ.get("MOREAU_SOURCE_DIR", pathlib.Path(__file__).resolve().parents[2]))
+    return pathlib.Path(os.environ.get("MOREAU_SOURCE_DIR", pathlib.Path(__file__).resolve().parents[2])).resolve()
 
 
 @pytest.fixture(scope="session")

@@ -176,3 +176,14 @@ def test_to_pandas(source_dir):
     assert isinstance(frame, pandas.DataFrame)
     assert list(frame.columns) == r.columns[1:] and np.array_equal(frame.index.to_numpy(), r.t)
     assert np.array_equal(frame["th2"].to_numpy(), r.q[:, 1])
+
+
+@pytest.mark.parametrize("name,kind", [("bouncing-ball-e0.5.json", "state"), ("manipulator-tracking-digital.json", "tracking"),
+                                       ("lure-relay.json", "phase")])
+def test_a_figure_is_the_command_lines_figure_byte_for_byte(cli, source_dir, tmp_path, name, kind):
+    # SVG is text: the same drawing (labels with the scene's /units, impacts, the rest time) gives the same bytes.
+    path = source_dir / "scenes" / name
+    svg = tmp_path / "figure.svg"
+    subprocess.run([str(cli), "run", str(path), "--figure", "%s=%s" % (kind, svg), "--progress", "never"], capture_output=True)
+    assert svg.exists()
+    assert moreau.run(path).figure(kind, format="svg") == svg.read_bytes()

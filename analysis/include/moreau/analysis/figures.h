@@ -26,6 +26,11 @@ render::TimeSeriesData time_series(TrajectoryColumns columns);
 // phase portrait is the state plane.
 void label_for_system(render::TimeSeriesData& data, const Simulation& sim);
 
+// Series labels with the units the scene document gives in /units ({"x1": "m", "t": "s"}): "x1 [m]" for a
+// position, "x1_dot [m/s]" for its velocity (the time unit "s" unless /units/t says otherwise). Names
+// without a unit, and every name of a document without /units, stay as they are.
+std::vector<std::string> labels_with_units(const nlohmann::json& scene_doc, const std::vector<std::string>& names, bool velocities);
+
 // One line per scheme of the study, in the order of `result.orders`, through its completed rows whose
 // max error of q is positive (a log axis cannot show 0): h, that error, and the timed run's wall time.
 std::vector<render::SchemeRuns> study_scheme_runs(const StudyResult& result);
