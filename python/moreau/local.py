@@ -9,6 +9,8 @@ is the command line's own code. No server, no files but those asked for.
 from __future__ import annotations
 
 import json
+import math
+import numbers
 import os
 import pathlib
 import sys
@@ -18,7 +20,7 @@ from typing import TYPE_CHECKING, Any, Callable, Dict, List, Mapping, Optional, 
 if TYPE_CHECKING:
     import numpy as np
 
-from .errors import HypothesisFailed, RunFailed
+from .errors import HypothesisFailed, RunFailed, SceneError
 from .result import Result
 
 try:
@@ -44,13 +46,55 @@ def _compiled() -> Any:
     return _moreau
 
 
+def _json_default(value: Any) -> Any:
+    # numpy's scalars and arrays (a sweep over np.linspace or np.arange) as the JSON numbers and lists they are.
+    if hasattr(value, "tolist"):
+        return value.tolist()
+    raise TypeError("%s is not a JSON value" % type(value).__name__)
+
+
+def _non_finite(value: Any, pointer: str) -> Optional[str]:
+    """The JSON pointer of the first number in `value` that is not finite, or None."""
+    if isinstance(value, numbers.Real) and not isinstance(value, bool) and not math.isfinite(value):
+        return pointer or "/"
+    if isinstance(value, Mapping):
+        items = ((str(k).replace("~", "~0").replace("/", "~1"), v) for k, v in value.items())
+    elif isinstance(value, (list, tuple)) or hasattr(value, "tolist"):
+        items = ((str(i), v) for i, v in enumerate(value.tolist() if hasattr(value, "tolist") else value))
+    else:
+        return None
+    for key, v in items:
+        found = _non_finite(v, pointer + "/" + key)
+        if found:
+            return found
+    return None
+
+
+def _json_text(value: Any, pointer: str = "") -> str:
+    """`value` as JSON text; a NaN or an infinity, which JSON has not, is a SceneError naming where it is."""
+    try:
+        return json.dumps(value, allow_nan=False, default=_json_default)
+    except ValueError:
+        where = _non_finite(value, pointer) or pointer or "/"
+        raise SceneError("%s: not a finite number (JSON has no NaN or infinity)" % where, where,
+                         "not a finite number (JSON has no NaN or infinity)") from None
+    except RecursionError:
+        where = pointer or "/"
+        raise SceneError("%s: nested too deeply to be a scene" % where, where, "nested too deeply to be a scene") from None
+
+
+def _pointer_of(path: str) -> str:
+    """A `set` path as the JSON pointer it names: "/integrator/h" as it is, "integrator.h" as /integrator/h."""
+    return path if path.startswith("/") else "/" + "/".join(part.replace("~", "~0").replace("/", "~1") for part in path.split("."))
+
+
 def _set_list(sets: Sets) -> List[str]:
     """`set` as the command line's PATH=VALUE assignments: a mapping's values are written as JSON, so
     1e-4 stays the number it is (repr round-trips) and "sin(q1)" a string."""
     if sets is None:
         return []
     if isinstance(sets, Mapping):
-        return ["%s=%s" % (path, json.dumps(value, allow_nan=False)) for path, value in sets.items()]
+        return ["%s=%s" % (path, _json_text(value, _pointer_of(path))) for path, value in sets.items()]
     if isinstance(sets, str):
         raise TypeError("set: a mapping {'integrator.h': 1e-4} or a list of 'PATH=VALUE' strings, not one string")
     return [str(s) for s in sets]
@@ -64,7 +108,7 @@ def _parameter_values(sets: Sets, overrides: Mapping[str, Any]) -> Optional[Tupl
         if key != "parameters" or not isinstance(value, Mapping):
             return None
         for name, number in value.items():
-            if not isinstance(number, (int, float)) or isinstance(number, bool):
+            if not isinstance(number, numbers.Real) or isinstance(number, bool) or not math.isfinite(number):
                 return None
             names.append(str(name))
             values.append(float(number))
@@ -77,7 +121,7 @@ def _parameter_values(sets: Sets, overrides: Mapping[str, Any]) -> Optional[Tupl
                     break
             else:
                 return None
-            if not isinstance(number, (int, float)) or isinstance(number, bool):
+            if not isinstance(number, numbers.Real) or isinstance(number, bool) or not math.isfinite(number):
                 return None
             names.append(path[len(prefix):])
             values.append(float(number))
@@ -145,7 +189,7 @@ class Scene:
         sets = _set_list(set)
         if not sets and not overrides:
             return self
-        patch = json.dumps(overrides, allow_nan=False) if overrides else "null"
+        patch = _json_text(overrides) if overrides else "null"
         return Scene(self._compiled.with_overrides(sets, patch), self.source)
 
     # -- running --------------------------------------------------------------------------------
@@ -195,7 +239,7 @@ def _result(out: Any, compiled: Any) -> Result:
 def _document_source(scene: SceneSource) -> Tuple[str, Optional[str]]:
     """("file", path) or ("text", JSON text) for a scene given as a path or a dict."""
     if isinstance(scene, Mapping):
-        return "text", json.dumps(scene, allow_nan=False)
+        return "text", _json_text(scene)
     if isinstance(scene, (str, os.PathLike)):
         return "file", os.fspath(scene)
     raise TypeError("a scene is a path (str or pathlib.Path) to a scene file, or a dict, not %s" % type(scene).__name__)
@@ -212,7 +256,7 @@ def load(scene: SceneSource, set: Sets = None, **overrides: Any) -> Scene:
     else:
         c = compiled.CompiledScene.from_text(value, _set_list(set))
     if overrides:
-        c = c.with_overrides([], json.dumps(overrides, allow_nan=False))
+        c = c.with_overrides([], _json_text(overrides))
     return Scene(c, value if kind == "file" else None)
 
 
@@ -284,7 +328,7 @@ def study(scene: Union[SceneSource, Scene], set: Sets = None, *, h: Optional[Seq
             settings["h"] = list(h)
         if schemes is not None:
             settings["schemes"] = list(schemes)
-    return Study(json.loads(_compiled().study(document, json.dumps(settings, allow_nan=False))))
+    return Study(json.loads(_compiled().study(document, _json_text(settings))))
 
 
 # -- campaigns --------------------------------------------------------------------------------------
@@ -330,7 +374,7 @@ def campaign(spec: Union[str, "os.PathLike[str]", Mapping[str, Any]], out: Union
     when tqdm is installed. Ctrl-C stops after the samples running then and raises KeyboardInterrupt;
     every finished sample is kept."""
     if isinstance(spec, Mapping):
-        text, base = json.dumps(spec, allow_nan=False), os.getcwd()
+        text, base = _json_text(spec), os.getcwd()
     elif isinstance(spec, (str, os.PathLike)):
         path = pathlib.Path(spec)
         text, base = _compiled().read_scene_file(os.fspath(path)), os.fspath(path.parent)

@@ -92,6 +92,14 @@ def test_a_parameter_sweep_binds_values_into_the_scene_compiled_once_bit_for_bit
         assert np.array_equal(scene.run(set={"parameters.m1": m1}).table, table)
 
 
+def test_numpy_numbers_are_taken_as_the_numbers_they_are(source_dir):
+    path = source_dir / "scenes" / "manipulator.json"
+    scene = moreau.load(path)
+    assert np.array_equal(scene.run(parameters={"m1": np.float64(2.0)}).table, scene.run(parameters={"m1": 2.0}).table)
+    assert np.array_equal(scene.run(parameters={"m1": np.int64(2)}).table, scene.run(parameters={"m1": 2.0}).table)
+    assert np.array_equal(scene.run(initial={"q": np.array([1.0, 0.5])}).table, scene.run(set={"initial.q": [1.0, 0.5]}).table)
+
+
 def test_a_scene_as_a_dict_and_its_document(source_dir):
     path = source_dir / "scenes" / "manipulator.json"
     doc = json.loads(path.read_text())
@@ -115,8 +123,24 @@ def test_an_invalid_scene_raises_scene_error_naming_the_field(source_dir):
     assert "no-such-scene.json" in str(e.value)
     with pytest.raises(TypeError):
         moreau.load(42)
-    with pytest.raises(ValueError):  # a NaN is not JSON: refused before it reaches the scene
+    # A NaN or an infinity is not JSON: refused before it reaches the scene, naming where it is.
+    with pytest.raises(moreau.SceneError) as e:
         moreau.load(path, integrator={"h": float("nan")})
+    assert e.value.pointer == "/integrator/h"
+    with pytest.raises(moreau.SceneError) as e:
+        moreau.load(path).run(set={"initial.q.1": float("inf")})
+    assert e.value.pointer == "/initial/q/1"
+    with pytest.raises(moreau.SceneError) as e:
+        moreau.load(path).run(parameters={"m1": float("-inf")})
+    assert e.value.pointer == "/parameters/m1"
+    # Nested beyond any scene, in Python or in the JSON the module parses: an error, not a crash.
+    deep = {}
+    for _ in range(100000):
+        deep = {"a": deep}
+    with pytest.raises(moreau.SceneError):
+        moreau.load(path, system=deep)
+    with pytest.raises(moreau.SceneError):
+        moreau.load(path, set=["system.x=" + "[" * 100000 + "]" * 100000])
 
 
 def test_a_failed_run_raises_run_failed_with_its_result(cli, tmp_path):
