@@ -3,7 +3,6 @@ process cleanly. Both are checked on state, not on time: what another thread did
 and what a child process printed once its run had started."""
 
 import json
-import os
 import signal
 import subprocess
 import sys
@@ -76,19 +75,24 @@ except KeyboardInterrupt:
 """
 
 
-def test_ctrl_c_stops_a_run_with_keyboard_interrupt(source_dir):
-    env = dict(os.environ)
-    child = subprocess.Popen([sys.executable, "-c", CHILD, str(source_dir / "scenes" / "manipulator.json")],
-                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+def interrupted_child(code, *args):
+    """Runs `code` in a child Python, sends it SIGINT once it has printed "started" (its work has begun),
+    and returns (exit code, the rest of its output, its error output). The child is killed if it hangs."""
+    child = subprocess.Popen([sys.executable, "-c", code, *map(str, args)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         assert child.stdout.readline().strip() == "started"
         child.send_signal(signal.SIGINT)
-        out, err = child.communicate(timeout=60)
+        out, err = child.communicate(timeout=120)
     finally:
         if child.poll() is None:
             child.kill()
             child.wait()
-    assert child.returncode == 0, err
+    return child.returncode, out, err
+
+
+def test_ctrl_c_stops_a_run_with_keyboard_interrupt(source_dir):
+    code, out, err = interrupted_child(CHILD, source_dir / "scenes" / "manipulator.json")
+    assert code == 0, err
     assert out.split() == ["interrupted", "then", "completed"], (out, err)
 
 
@@ -117,17 +121,8 @@ def test_ctrl_c_stops_a_campaign_with_every_finished_sample_kept_and_the_same_ca
     doc["scene"] = scene
     spec_file = tmp_path / "spec.json"
     spec_file.write_text(json.dumps(doc))
-    child = subprocess.Popen([sys.executable, "-c", CAMPAIGN_CHILD, str(spec_file), str(tmp_path / "stopped")],
-                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        assert child.stdout.readline().strip() == "started"
-        child.send_signal(signal.SIGINT)
-        out, err = child.communicate(timeout=120)
-    finally:
-        if child.poll() is None:
-            child.kill()
-            child.wait()
-    assert child.returncode == 0 and out.split() == ["interrupted"], (out, err)
+    code, out, err = interrupted_child(CAMPAIGN_CHILD, spec_file, tmp_path / "stopped")
+    assert code == 0 and out.split() == ["interrupted"], (out, err)
     # Whole records only, each a line of JSON; no summary yet.
     records = (tmp_path / "stopped" / "samples.jsonl").read_text().splitlines()
     assert all(json.loads(line)["index"] >= 0 for line in records)
