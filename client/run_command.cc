@@ -34,16 +34,6 @@ struct RunOptions {
   bool strict = false;
 };
 
-// The series labels with the scene's /units (scene::labels_with_units); the names as they are when the
-// file cannot be read again.
-std::vector<std::string> with_units(const std::string& scene_path, const std::vector<std::string>& names, bool velocities) {
-  try {
-    return scene::labels_with_units(scene::read_scene_file(scene_path), names, velocities);
-  } catch (const std::exception&) {
-    return names;
-  }
-}
-
 int run(const RunOptions& opt) {
   const auto t_load = Clock::now();
   std::optional<scene::Simulation> sim;
@@ -82,8 +72,7 @@ int run(const RunOptions& opt) {
     figures.emplace_back(*kind, path);
   }
   if (!opt.figures.empty()) {
-    recorder.emplace(with_units(opt.scene_path, sim->position_names(), false), with_units(opt.scene_path, sim->velocity_names(), true),
-                     sim->signal_names());
+    recorder.emplace(sim->position_names(), sim->velocity_names(), sim->signal_names());
     fan.add(&*recorder);
   }
   const bool show_progress = opt.progress == "always" || (opt.progress == "auto" && isatty(STDERR_FILENO));

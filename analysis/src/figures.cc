@@ -22,25 +22,21 @@ render::TimeSeriesData time_series(TrajectoryColumns columns) {
   return data;
 }
 
-std::vector<std::string> labels_with_units(const nlohmann::json& scene_doc, const std::vector<std::string>& names, bool velocities) {
-  if (!scene_doc.is_object() || !scene_doc.contains("units") || !scene_doc["units"].is_object()) return names;
-  const nlohmann::json& units = scene_doc["units"];
-  const std::string time_unit = units.contains("t") && units["t"].is_string() ? units["t"].get<std::string>() : "s";
-  std::vector<std::string> out;
-  for (const auto& name : names) {
-    std::string base = name;
-    if (velocities && base.size() > 4 && base.substr(base.size() - 4) == "_dot") base.resize(base.size() - 4);
-    if (units.contains(base) && units[base].is_string()) {
-      const std::string u = units[base].get<std::string>();
-      out.push_back(name + " [" + (velocities ? u + "/" + time_unit : u) + "]");
-    } else {
-      out.push_back(name);
+void label_for_system(render::TimeSeriesData& data, const Simulation& sim) {
+  // Units: time's ("s" unless /units/t says otherwise, once the scene gives any), each position's by its
+  // name, and its rate's as that unit per time unit.
+  const auto& units = sim.units();
+  if (!units.empty()) {
+    const auto t = units.find("t");
+    data.t_unit = t != units.end() ? t->second : "s";
+    data.q_units.clear();
+    data.v_units.clear();
+    for (const std::string& name : sim.position_names()) {
+      const auto u = units.find(name);
+      data.q_units.push_back(u != units.end() ? u->second : "");
+      data.v_units.push_back(u != units.end() && !u->second.empty() ? u->second + "/" + data.t_unit : "");
     }
   }
-  return out;
-}
-
-void label_for_system(render::TimeSeriesData& data, const Simulation& sim) {
   const LureScene* lure = sim.lure();
   if (!lure) return;
   data.q_title = "State x";

@@ -135,7 +135,9 @@ void run_beside_python(Work work, std::atomic<bool>& stop, const std::function<v
 // ran (shared), for the report and the figures.
 struct RunOutput {
   scene::Simulation sim;
-  std::shared_ptr<const nlohmann::json> doc;  // the scene's document, for the units of the figures' labels
+  // The compiled scene the run came from, for the figures' labels and units (a run bound from a scene
+  // compiled with free parameters has no document of its own).
+  scene::Simulation labels;
   std::shared_ptr<TrajectoryTable> table;
   RunSummary summary;
   scene::RunDiagnostics diagnostics;
@@ -157,10 +159,9 @@ struct RunOutput {
     std::string bytes;
     {
       py::gil_scoped_release release;
-      render::TimeSeriesData data = table->time_series(scene::labels_with_units(*doc, sim.position_names(), false),
-                                                       scene::labels_with_units(*doc, sim.velocity_names(), true), sim.signal_names());
+      render::TimeSeriesData data = table->time_series(sim.position_names(), sim.velocity_names(), sim.signal_names());
       if (summary.converged_time) data.converged_time = *summary.converged_time;
-      scene::label_for_system(data, sim);
+      scene::label_for_system(data, labels);
       if (const ContactDiagnostics* contacts = diagnostics.contacts())
         for (const auto& impact : contacts->impacts) data.impact_times.push_back(impact.t);
       bytes = scene::encode_figure(scene::trajectory_figure(*kind, data, options), *format);
@@ -243,7 +244,7 @@ class CompiledScene {
   }
 
   std::shared_ptr<RunOutput> run_simulation(const scene::Simulation& sim, const std::function<void(double)>& progress) const {
-    auto out = std::make_shared<RunOutput>(RunOutput{sim, doc_, nullptr, {}, {}});
+    auto out = std::make_shared<RunOutput>(RunOutput{sim, sim_, nullptr, {}, {}});
     const std::int64_t every = std::max<std::int64_t>(1, sim.output_every());
     out->table = std::make_shared<TrajectoryTable>(sim.dof(), static_cast<int>(sim.signal_names().size()), sim.planned_steps() / every + 2);
     PythonControl control(out->table.get(), progress);

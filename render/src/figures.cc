@@ -19,6 +19,34 @@ std::string coordinate_name(const std::vector<std::string>& names, std::size_t i
   return prefix + std::to_string(i + 1);
 }
 
+// "q [m]", or "q" without a unit.
+std::string with_unit(const std::string& quantity, const std::string& unit) {
+  return unit.empty() ? quantity : quantity + " [" + unit + "]";
+}
+
+std::string unit_of(const std::vector<std::string>& units, std::size_t i) { return i < units.size() ? units[i] : std::string(); }
+
+// The coordinates of `coords` grouped by their unit, in the order each unit first appears.
+std::vector<std::pair<std::string, std::vector<std::size_t>>> by_unit(const std::vector<std::size_t>& coords,
+                                                                      const std::vector<std::string>& units) {
+  std::vector<std::pair<std::string, std::vector<std::size_t>>> groups;
+  for (const std::size_t i : coords) {
+    const std::string u = unit_of(units, i);
+    auto g = std::find_if(groups.begin(), groups.end(), [&](const auto& x) { return x.first == u; });
+    if (g == groups.end())
+      groups.push_back({u, {i}});
+    else
+      g->second.push_back(i);
+  }
+  return groups;
+}
+
+// The one unit of the coordinates `coords`, or "" when they have none or several.
+std::string common_unit(const std::vector<std::size_t>& coords, const std::vector<std::string>& units) {
+  const auto groups = by_unit(coords, units);
+  return groups.size() == 1 ? groups[0].first : std::string();
+}
+
 void require(bool ok, const std::string& what) {
   if (!ok) throw FigureError(what);
 }
@@ -147,24 +175,25 @@ Figure state_figure(const TimeSeriesData& d, const FigureOptions& o) {
   Figure f = base_figure(o);
   const std::vector<double> t = slice(d.t, w);
 
+  // One panel of `data` over the coordinates `shown` (their colours are their places in `coords`, the same
+  // in every panel).
   auto make_panel = [&](const std::vector<std::vector<double>>& data, const std::vector<std::string>& names, const std::string& prefix,
-                        const std::string& title, const std::string& y_label, bool first, bool all = false) {
+                        const std::string& title, const std::string& y_label, bool first, const std::vector<std::size_t>& shown) {
     Panel p;
     p.title = title;
-    p.x_label = "t";
+    p.x_label = with_unit("t", d.t_unit);
     p.y_label = y_label;
     p.x_axis = time_axis(w);
     p.y_axis.scale = scale;
-    const std::size_t count = all ? data.size() : coords.size();
-    for (std::size_t k = 0; k < count; ++k) {
-      const std::size_t i = all ? k : coords[k];
+    for (const std::size_t i : shown) {
       if (i >= data.size()) continue;
       check_length(data[i], d.t.size(), prefix + "[" + std::to_string(i) + "]", who);
       Series s;
       s.label = coordinate_name(names, i, prefix.c_str());
       s.x = t;
       s.y = slice(data[i], w);
-      s.color = static_cast<int>(k);
+      const auto at = std::find(coords.begin(), coords.end(), i);
+      s.color = static_cast<int>(at != coords.end() ? at - coords.begin() : static_cast<std::ptrdiff_t>(i));
       if (scale == Scale::log) keep_positive_y(s);
       p.series.push_back(std::move(s));
     }
@@ -172,10 +201,23 @@ Figure state_figure(const TimeSeriesData& d, const FigureOptions& o) {
     add_events(p, d, w, first);
     return p;
   };
-  if (!d.q.empty()) f.panels.push_back(make_panel(d.q, d.q_names, d.q_axis, d.q_title, d.q_axis, true));
-  if (!d.v.empty()) f.panels.push_back(make_panel(d.v, d.v_names, d.v_axis, d.v_title, d.v_axis, d.q.empty()));
+  // Positions, then velocities: a panel per unit among the coordinates shown (metres and radians never
+  // share an axis), titled with the unit when there are several.
+  auto add_group = [&](const std::vector<std::vector<double>>& data, const std::vector<std::string>& names,
+                       const std::vector<std::string>& units, const std::string& axis, const std::string& title) {
+    const auto groups = by_unit(coords, units);
+    for (const auto& [unit, shown] : groups)
+      f.panels.push_back(make_panel(data, names, axis, groups.size() > 1 ? with_unit(title, unit) : title, with_unit(axis, unit),
+                                    f.panels.empty(), shown));
+  };
+  if (!d.q.empty()) add_group(d.q, d.q_names, d.q_units, d.q_axis, d.q_title);
+  if (!d.v.empty()) add_group(d.v, d.v_names, d.v_units, d.v_axis, d.v_title);
   // Outputs: every one of them (the coordinate choice indexes q and v).
-  if (!d.y.empty()) f.panels.push_back(make_panel(d.y, d.y_names, d.y_axis, d.y_title, d.y_axis, false, true));
+  if (!d.y.empty()) {
+    std::vector<std::size_t> all(d.y.size());
+    std::iota(all.begin(), all.end(), std::size_t{0});
+    f.panels.push_back(make_panel(d.y, d.y_names, d.y_axis, d.y_title, d.y_axis, false, all));
+  }
   require(!f.panels.empty(), std::string(who) + ": neither positions nor velocities given");
   return f;
 }
@@ -199,7 +241,7 @@ Figure tracking_figure(const TimeSeriesData& d, const FigureOptions& o) {
   auto panel = [&](const std::string& title, const std::string& y_label) {
     Panel p;
     p.title = title;
-    p.x_label = "t";
+    p.x_label = with_unit("t", d.t_unit);
     p.y_label = y_label;
     p.x_axis = time_axis(w);
     return p;
@@ -213,8 +255,9 @@ Figure tracking_figure(const TimeSeriesData& d, const FigureOptions& o) {
     s.style = style;
     return s;
   };
-  Panel q = panel("Positions q and reference q_d", "q");
-  Panel e = panel("Tracking error e = q - q_d", "e");
+  const std::string q_unit = common_unit(coords, d.q_units);
+  Panel q = panel("Positions q and reference q_d", with_unit("q", q_unit));
+  Panel e = panel("Tracking error e = q - q_d", with_unit("e", q_unit));
   Panel sigma = panel("Sliding variable |sigma|", "|sigma|");
   sigma.y_axis.scale = o.y_scale.value_or(Scale::log);
   Panel u = panel("Control u", "u");
@@ -300,7 +343,7 @@ Figure energy_figure(const TimeSeriesData& d, const FigureOptions& o) {
   Figure f = base_figure(o);
   Panel p;
   const std::string label = d.energy_label.empty() ? "energy" : d.energy_label;
-  p.x_label = "t";
+  p.x_label = with_unit("t", d.t_unit);
   p.y_label = label;
   p.x_axis = time_axis(w);
   p.y_axis.scale = o.y_scale.value_or(Scale::log);
@@ -336,8 +379,8 @@ Figure step_figure(const TimeSeriesData& d, const FigureOptions& o) {
   const Window w = time_window(t, oo, who);
   Figure f = base_figure(o);
   Panel p;
-  p.x_label = "t";
-  p.y_label = "h";
+  p.x_label = with_unit("t", d.t_unit);
+  p.y_label = with_unit("h", d.t_unit);
   p.x_axis = time_axis(w);
   p.y_axis.scale = o.y_scale.value_or(Scale::log);
   Series s;
@@ -365,7 +408,7 @@ Figure phase_figure(const TimeSeriesData& d, const FigureOptions& o) {
   // The curves: (x, y) series of one or two coordinate groups, named (x name, y name).
   struct Curve {
     const std::vector<double>*x, *y;
-    std::string x_name, y_name, x_what, y_what;
+    std::string x_name, y_name, x_what, y_what, x_unit, y_unit;
   };
   std::vector<Curve> curves;
   if (d.state_space && d.q.size() >= 2) {
@@ -376,7 +419,9 @@ Figure phase_figure(const TimeSeriesData& d, const FigureOptions& o) {
                    coordinate_name(d.q_names, i, d.q_axis.c_str()),
                    coordinate_name(d.q_names, i + 1, d.q_axis.c_str()),
                    d.q_axis + "[" + std::to_string(i) + "]",
-                   d.q_axis + "[" + std::to_string(i + 1) + "]"};
+                   d.q_axis + "[" + std::to_string(i + 1) + "]",
+                   unit_of(d.q_units, i),
+                   unit_of(d.q_units, i + 1)};
     };
     for (const std::size_t i : coords)
       if (i + 1 < d.q.size()) curves.push_back(state_pair(i));
@@ -386,15 +431,24 @@ Figure phase_figure(const TimeSeriesData& d, const FigureOptions& o) {
     for (const std::size_t i : coords) {
       require(i < d.q.size() && i < d.v.size(), std::string(who) + ": coordinate " + std::to_string(i) + " needs both q and v");
       curves.push_back({&d.q[i], &d.v[i], coordinate_name(d.q_names, i, d.q_axis.c_str()), coordinate_name(d.v_names, i, d.v_axis.c_str()),
-                        "q[" + std::to_string(i) + "]", "v[" + std::to_string(i) + "]"});
+                        "q[" + std::to_string(i) + "]", "v[" + std::to_string(i) + "]", unit_of(d.q_units, i), unit_of(d.v_units, i)});
     }
   }
+  // Axis labels with the curves' unit where they share one on that axis.
+  auto shared = [&](auto unit) {
+    for (const Curve& c : curves)
+      if (unit(c) != unit(curves[0])) return std::string();
+    return unit(curves[0]);
+  };
+  const std::string x_unit = shared([](const Curve& c) { return c.x_unit; });
+  const std::string y_unit = shared([](const Curve& c) { return c.y_unit; });
   for (std::size_t k = 0; k < curves.size(); ++k) {
     const Curve& c = curves[k];
     check_length(*c.x, d.t.size(), c.x_what, who);
     check_length(*c.y, d.t.size(), c.y_what, who);
     Series s;
-    s.label = "(" + c.x_name + ", " + c.y_name + ")";
+    // A unit the axis does not carry (the curves' units differ) is said in the curve's label.
+    s.label = "(" + with_unit(c.x_name, x_unit.empty() ? c.x_unit : "") + ", " + with_unit(c.y_name, y_unit.empty() ? c.y_unit : "") + ")";
     s.x = slice(*c.x, w);
     s.y = slice(*c.y, w);
     s.color = static_cast<int>(k);
@@ -402,11 +456,14 @@ Figure phase_figure(const TimeSeriesData& d, const FigureOptions& o) {
     p.series.push_back(std::move(s));
   }
   if (curves.size() == 1) {
-    p.x_label = curves[0].x_name;
-    p.y_label = curves[0].y_name;
+    p.x_label = with_unit(curves[0].x_name, x_unit);
+    p.y_label = with_unit(curves[0].y_name, y_unit);
   } else if (d.state_space && d.q.size() >= 2) {
-    p.x_label = d.q_axis + "_i";
-    p.y_label = d.q_axis + "_i+1";
+    p.x_label = with_unit(d.q_axis + "_i", x_unit);
+    p.y_label = with_unit(d.q_axis + "_i+1", y_unit);
+  } else {
+    p.x_label = with_unit(d.q_axis, x_unit);
+    p.y_label = with_unit(d.v_axis, y_unit);
   }
   drop_empty(p);
   f.panels.push_back(std::move(p));

@@ -26,12 +26,10 @@ std::string trim_zeros(std::string s) {
   return s;
 }
 
-// Labels of 1-2-5 ticks on a short log axis: plain in [1e-3, 1e4), else "5×10⁻⁵".
-std::string log_label(double m, int k) {
-  const double v = m * std::pow(10.0, k);
-  if (v >= 1e-3 && v < 1e4) {
-    return platform::significant(v, 6);
-  }
+// Labels of 1-2-5 ticks on a short log axis: plain ("0.002"), or as powers of ten ("5×10⁻⁵"), one
+// notation for every tick of an axis (log_ticks chooses).
+std::string log_label(double m, int k, bool plain) {
+  if (plain) return platform::significant(m * std::pow(10.0, k), 6);
   if (m == 1) return decade_label(k);
   return std::to_string(static_cast<int>(m)) + "\u00D7" + decade_label(k);
 }
@@ -125,13 +123,21 @@ std::vector<Tick> log_ticks(double lo, double hi, int max_major) {
     std::sort(ticks.begin(), ticks.end(), [](const Tick& x, const Tick& y) { return x.value < y.value; });
     return ticks;
   }
-  // Less than two decades: 1-2-5 values with plain labels, else linear ticks.
+  // Less than two decades: 1-2-5 values, labelled plainly when every one of them reads well so (in
+  // [1e-3, 1e4)), else every one as a power of ten: never "0.001" beside "5×10⁻⁴" on one axis. Else
+  // linear ticks.
+  std::vector<std::pair<double, int>> marks;  // (m, k) of m 10^k
   for (int k = static_cast<int>(std::floor(a)); k <= static_cast<int>(std::ceil(b)); ++k) {
     for (double m : {1.0, 2.0, 5.0}) {
       const double v = m * std::pow(10.0, k);
-      if (v >= lo * (1 - 1e-12) && v <= hi * (1 + 1e-12)) ticks.push_back({v, log_label(m, k), true});
+      if (v >= lo * (1 - 1e-12) && v <= hi * (1 + 1e-12)) marks.emplace_back(m, k);
     }
   }
+  const bool plain = std::all_of(marks.begin(), marks.end(), [](const auto& mk) {
+    const double v = mk.first * std::pow(10.0, mk.second);
+    return v >= 1e-3 && v < 1e4;
+  });
+  for (const auto& [m, k] : marks) ticks.push_back({m * std::pow(10.0, k), log_label(m, k, plain), true});
   if (ticks.size() >= 2 && static_cast<int>(ticks.size()) <= max_major + 1) return ticks;
   return linear_ticks(lo, hi, max_major);
 }

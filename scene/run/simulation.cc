@@ -40,7 +40,18 @@ Simulation Simulation::from_json(const nlohmann::json& doc) {
     sim.system_ = std::make_shared<const LagrangianScene>(load_scene(doc));
   }
   sim.latest_ = std::make_shared<Latest>();
+  // /units is free-form (scene-format.md): its string members are the units; other members are ignored.
+  auto units = std::make_shared<std::map<std::string, std::string>>();
+  if (doc.contains("units") && doc["units"].is_object())
+    for (const auto& [name, unit] : doc["units"].items())
+      if (unit.is_string()) (*units)[name] = unit.get<std::string>();
+  sim.units_ = std::move(units);
   return sim;
+}
+
+const std::map<std::string, std::string>& Simulation::units() const {
+  static const std::map<std::string, std::string> kNone;
+  return units_ ? *units_ : kNone;
 }
 
 namespace {

@@ -64,6 +64,53 @@ TEST(RenderFigures, StateFigureHasPositionAndVelocityPanels) {
   validate(f);
 }
 
+// A scene's units reach the axes: time as "t [s]", and metres and radians never share an axis (the
+// manipulator's x1 and th2): one panel per unit, each coordinate keeping its colour in every panel.
+TEST(RenderFigures, UnitsAreOnTheAxesAndNoAxisMixesThem) {
+  TimeSeriesData d = small_trajectory();
+  const Figure plain = state_figure(d);
+  EXPECT_EQ(plain.panels[0].x_label, "t");
+  EXPECT_EQ(plain.panels[0].y_label, "q");
+  d.t_unit = "s";
+  d.q_units = {"m", "rad"};
+  d.v_units = {"m/s", "rad/s"};
+  const Figure f = state_figure(d);
+  ASSERT_EQ(f.panels.size(), 4u);
+  const std::vector<std::string> y_labels = {f.panels[0].y_label, f.panels[1].y_label, f.panels[2].y_label, f.panels[3].y_label};
+  EXPECT_EQ(y_labels, (std::vector<std::string>{"q [m]", "q [rad]", "v [m/s]", "v [rad/s]"}));
+  for (const Panel& p : f.panels) {
+    EXPECT_EQ(p.x_label, "t [s]");
+    ASSERT_EQ(p.series.size(), 1u);
+  }
+  EXPECT_EQ(f.panels[0].title, "Positions [m]");
+  EXPECT_EQ(f.panels[1].series[0].label, "oscillator x");
+  EXPECT_EQ(f.panels[1].series[0].color, 1);  // coordinate 1's colour, in its own panel too
+  EXPECT_EQ(f.panels[3].series[0].color, 1);
+  // The convergence line is labelled once, in the first panel.
+  EXPECT_THAT(f.panels[0].markers.back().label, HasSubstr("converged"));
+  EXPECT_EQ(f.panels[1].markers.back().label, "");
+  // One unit for both: one panel, the unit on its axis.
+  d.q_units = {"rad", "rad"};
+  d.v_units = {"rad/s", "rad/s"};
+  const Figure same = state_figure(d);
+  ASSERT_EQ(same.panels.size(), 2u);
+  EXPECT_EQ(same.panels[0].y_label, "q [rad]");
+  EXPECT_EQ(same.panels[0].title, "Positions");
+  // The other time figures and the phase plane.
+  EXPECT_EQ(energy_figure(d).panels[0].x_label, "t [s]");
+  EXPECT_EQ(step_figure(d).panels[0].y_label, "h [s]");
+  const Figure phase = phase_figure(d);
+  EXPECT_EQ(phase.panels[0].x_label, "q [rad]");
+  EXPECT_EQ(phase.panels[0].y_label, "v [rad/s]");
+  d.q_units = {"m", "rad"};
+  d.v_units = {"m/s", "rad/s"};
+  const Figure mixed = phase_figure(d);
+  EXPECT_EQ(mixed.panels[0].x_label, "q");  // no one unit: each curve says its own
+  EXPECT_EQ(mixed.panels[0].series[0].label, "(ball height [m], ball velocity [m/s])");
+  validate(f);
+  validate(mixed);
+}
+
 TEST(RenderFigures, StateFigureSelectsCoordinatesAndTimeWindow) {
   const TimeSeriesData d = small_trajectory();
   FigureOptions o;

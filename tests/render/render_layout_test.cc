@@ -139,6 +139,14 @@ TEST(RenderTicks, LogAxisNarrowRangeFallsBackToOneTwoFive) {
   EXPECT_THAT(labels(ticks), ::testing::ElementsAre("2", "5", "10", "20", "50"));
 }
 
+// A short log axis that reaches below 1e-3: every label a power of ten, none plain beside them.
+TEST(RenderTicks, LogAxisLabelsUseOneNotation) {
+  const auto ticks = log_ticks(4e-4, 6e-3, 8);
+  EXPECT_THAT(values(ticks), ::testing::Pointwise(::testing::DoubleNear(1e-15), {5e-4, 1e-3, 2e-3, 5e-3}));
+  EXPECT_THAT(labels(ticks),
+              ::testing::ElementsAre("5\u00D710\u207B\u2074", "10\u207B\u00B3", "2\u00D710\u207B\u00B3", "5\u00D710\u207B\u00B3"));
+}
+
 TEST(RenderLimits, AutoLimitsPadAndWidenDegenerateRanges) {
   const Limits a = auto_limits(0, 10, Scale::linear, 0.05);
   EXPECT_DOUBLE_EQ(a.lo, -0.5);

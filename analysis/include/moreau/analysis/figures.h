@@ -18,18 +18,15 @@ namespace moreau::scene {
 // The columns of a trajectory as the time series of the state figures.
 render::TimeSeriesData time_series(TrajectoryColumns columns);
 
-// Titles, axes and derived series for the kind of system `sim` is. A Lagrangian system keeps the
+// Titles, axes, units and derived series for the kind of system `sim` is. The units are the scene's
+// /units (Simulation::units): time's, and each coordinate's by its name, its velocity's per time unit;
+// render/ puts them on the axes. A Lagrangian system keeps the
 // defaults (positions q, velocities v, E = 1/2 <M v, v>). A Lur'e system (x' = A x - B y_L, y = C x,
 // eq. 4 of Brogliato 2003) is drawn as its state x, the state's discrete rate dx/dt (the CSV's _dot
 // columns), its output y = C x (computed here from the x columns) and the storage W = 1/2 x^T P x (the
 // energy column: the scene's P or the certificate of positive realness; 1/2 |x|^2 without one), and its
 // phase portrait is the state plane.
 void label_for_system(render::TimeSeriesData& data, const Simulation& sim);
-
-// Series labels with the units the scene document gives in /units ({"x1": "m", "t": "s"}): "x1 [m]" for a
-// position, "x1_dot [m/s]" for its velocity (the time unit "s" unless /units/t says otherwise). Names
-// without a unit, and every name of a document without /units, stay as they are.
-std::vector<std::string> labels_with_units(const nlohmann::json& scene_doc, const std::vector<std::string>& names, bool velocities);
 
 // One line per scheme of the study, in the order of `result.orders`, through its completed rows whose
 // max error of q is positive (a log axis cannot show 0): h, that error, and the timed run's wall time.

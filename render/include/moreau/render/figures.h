@@ -32,6 +32,11 @@ struct TimeSeriesData {
   // The phase portrait of a state-space system is its state plane, (x_i, x_{i+1}); with one state,
   // (x, dx/dt). Otherwise (the default) the mechanical phase plane (q_i, v_i).
   bool state_space = false;
+  // Units (a scene's /units): of time ("s"; empty: none given, the axis is "t") and of each coordinate's
+  // position and velocity ("m", "m/s"; "" where none is given). Every time axis reads "t [s]", and a panel
+  // never mixes units on one axis: the state figure draws one panel per unit among the coordinates shown.
+  std::string t_unit;
+  std::vector<std::string> q_units, v_units;
   // Named columns beside the state (a tracking run's qd_<q>, e_<q>, sigma_<q>, u_<q>: tracking_figure).
   std::vector<std::string> signal_names;
   std::vector<std::vector<double>> signals;

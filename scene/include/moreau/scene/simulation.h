@@ -8,6 +8,7 @@
 // derivative (x_{k+1} - x_k)/h (names x1..xn and x1_dot..xn_dot, or the scene's /system/states).
 #pragma once
 
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -63,6 +64,10 @@ class Simulation {
   // The names of a sample's signals (Sample::signals), in order: for a tracking scene qd_<q>, e_<q>,
   // sigma_<q> and u_<q> for each coordinate q; empty for other scenes.
   std::vector<std::string> signal_names() const;
+  // The scene's /units, its string members (a coordinate's or a state's name, or "t", to the unit's text:
+  // {"x1": "m", "th2": "rad", "t": "s"}), for the labels of figures; empty for a scene without them and
+  // for one made from_scene.
+  const std::map<std::string, std::string>& units() const;
   double t0() const;
   double t_end() const;
   double h() const;
@@ -109,6 +114,7 @@ class Simulation {
   using System = std::variant<std::shared_ptr<const LagrangianScene>, std::shared_ptr<const LureScene>>;
   System system_;
   std::shared_ptr<Latest> latest_;
+  std::shared_ptr<const std::map<std::string, std::string>> units_;
 };
 
 }  // namespace moreau::scene
