@@ -59,6 +59,30 @@ TEST(SceneFigures, LagrangianSystemsKeepTheMechanicalLabels) {
   EXPECT_EQ(d.v_title, "Velocities");
   EXPECT_FALSE(d.state_space);
   EXPECT_EQ(d.energy_label, "E = 1/2 <M v, v>");
+  // A scene without /units: no unit anywhere.
+  TimeSeriesData plain = states(1, 3);
+  label_for_system(plain, Simulation::from_file("scenes/coulomb-oscillator.json"));
+  EXPECT_EQ(plain.t_unit, "");
+  EXPECT_TRUE(plain.q_units.empty());
+}
+
+// The scene's /units reach the figure's data by coordinate name, velocities per time unit; a unit the
+// scene gives for time is kept, and a member that is not a string is ignored.
+TEST(SceneFigures, TheScenesUnitsGoToTheAxes) {
+  TimeSeriesData d = states(2, 3);
+  label_for_system(d, Simulation::from_file("scenes/manipulator-fig6.4.json"));
+  EXPECT_EQ(d.t_unit, "s");
+  EXPECT_EQ(d.q_units, (std::vector<std::string>{"m", "rad"}));
+  EXPECT_EQ(d.v_units, (std::vector<std::string>{"m/s", "rad/s"}));
+  const moreau::render::Figure f = moreau::render::state_figure(d);
+  ASSERT_EQ(f.panels.size(), 4u);
+  EXPECT_EQ(f.panels[1].y_label, "q [rad]");
+  EXPECT_EQ(f.panels[3].x_label, "t [s]");
+  TimeSeriesData e = states(2, 3);
+  label_for_system(e, Simulation::from_file("scenes/manipulator.json", {"units={\"th2\": \"deg\", \"t\": \"ms\", \"x1\": 3}"}));
+  EXPECT_EQ(e.t_unit, "ms");
+  EXPECT_EQ(e.q_units, (std::vector<std::string>{"", "deg"}));
+  EXPECT_EQ(e.v_units, (std::vector<std::string>{"", "deg/ms"}));
 }
 
 namespace {
