@@ -37,6 +37,20 @@ void label_for_system(render::TimeSeriesData& data, const Simulation& sim) {
       data.v_units.push_back(u != units.end() && !u->second.empty() ? u->second + "/" + data.t_unit : "");
     }
   }
+  // The mechanical energy at each sample, 1/2 <M v, v> (the energy column) + V(q), where the scene has a
+  // potential: the energy balance's quantity (and Lemma 3's W for an impacting system).
+  const LagrangianScene* lagrangian = sim.lagrangian();
+  if (lagrangian && lagrangian->compiled && lagrangian->compiled->has_potential && static_cast<int>(data.q.size()) == lagrangian->n &&
+      data.energy.size() == data.t.size()) {
+    ForceTerms terms(*lagrangian->compiled);
+    std::vector<double> q(static_cast<std::size_t>(lagrangian->n));
+    data.mechanical_energy.resize(data.t.size());
+    for (std::size_t k = 0; k < data.t.size(); ++k) {
+      for (std::size_t i = 0; i < q.size(); ++i) q[i] = k < data.q[i].size() ? data.q[i][k] : 0.0;
+      data.mechanical_energy[k] = data.energy[k] + terms.potential(q.data());
+    }
+    data.energy_label = "T = 1/2 <M v, v>";  // beside E, the kinetic part by its own name
+  }
   const LureScene* lure = sim.lure();
   if (!lure) return;
   data.q_title = "State x";

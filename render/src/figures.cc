@@ -341,6 +341,21 @@ Figure energy_figure(const TimeSeriesData& d, const FigureOptions& o) {
   const Window w = time_window(d.t, o, who);
   check_length(d.energy, d.t.size(), "energy", who);
   Figure f = base_figure(o);
+  if (!d.mechanical_energy.empty()) {
+    check_length(d.mechanical_energy, d.t.size(), "mechanical energy", who);
+    Panel m;
+    m.title = "Mechanical energy";
+    m.x_label = with_unit("t", d.t_unit);
+    m.y_label = "E";
+    m.x_axis = time_axis(w);
+    Series s;
+    s.label = d.mechanical_energy_label;
+    s.x = slice(d.t, w);
+    s.y = slice(d.mechanical_energy, w);
+    m.series.push_back(std::move(s));
+    add_events(m, d, w, true);
+    f.panels.push_back(std::move(m));
+  }
   Panel p;
   const std::string label = d.energy_label.empty() ? "energy" : d.energy_label;
   p.x_label = with_unit("t", d.t_unit);
@@ -362,7 +377,8 @@ Figure energy_figure(const TimeSeriesData& d, const FigureOptions& o) {
     }
   }
   p.series.push_back(std::move(s));
-  add_events(p, d, w, true);
+  add_events(p, d, w, f.panels.empty());
+  if (!f.panels.empty()) p.title = "Kinetic energy";
   f.panels.push_back(std::move(p));
   return f;
 }

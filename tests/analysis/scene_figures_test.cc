@@ -66,6 +66,35 @@ TEST(SceneFigures, LagrangianSystemsKeepTheMechanicalLabels) {
   EXPECT_TRUE(plain.q_units.empty());
 }
 
+// The energy figure of an impacting system shows what Lemma 3 speaks of: the mechanical energy
+// 1/2 m v^2 + m g y of the bouncing ball (here from its closed form, m = 1 and g = 9.81 as in the scene),
+// on a linear axis above the kinetic energy.
+TEST(SceneFigures, TheMechanicalEnergyOfABallIsHalfMVSquaredPlusMGY) {
+  const Simulation sim = Simulation::from_file("scenes/bouncing-ball-e0.5.json");
+  TimeSeriesData d = states(1, 5);
+  d.energy.assign(d.t.size(), 0.0);
+  for (std::size_t k = 0; k < d.t.size(); ++k) {
+    d.q[0][k] = 0.25 * static_cast<double>(k);
+    d.v[0][k] = 1.5 - static_cast<double>(k);
+    d.energy[k] = 0.5 * d.v[0][k] * d.v[0][k];
+  }
+  label_for_system(d, sim);
+  ASSERT_EQ(d.mechanical_energy.size(), d.t.size());
+  for (std::size_t k = 0; k < d.t.size(); ++k)
+    EXPECT_NEAR(d.mechanical_energy[k], 0.5 * d.v[0][k] * d.v[0][k] + 9.81 * d.q[0][k], 1e-12) << k;
+  const moreau::render::Figure f = moreau::render::energy_figure(d);
+  ASSERT_EQ(f.panels.size(), 2u);
+  EXPECT_EQ(f.panels[0].y_axis.scale, moreau::render::Scale::linear);
+  EXPECT_EQ(f.panels[0].series[0].label, "E = 1/2 <M v, v> + V(q)");
+  EXPECT_EQ(f.panels[1].title, "Kinetic energy");
+  EXPECT_EQ(f.panels[1].y_axis.scale, moreau::render::Scale::log);
+  // A system without a potential keeps the one kinetic panel.
+  TimeSeriesData plain = states(1, 5);
+  plain.energy.assign(plain.t.size(), 1.0);
+  label_for_system(plain, Simulation::from_file("scenes/damped-relay.json"));
+  EXPECT_TRUE(plain.mechanical_energy.empty());
+}
+
 // The scene's /units reach the figure's data by coordinate name, velocities per time unit; a unit the
 // scene gives for time is kept, and a member that is not a string is ignored.
 TEST(SceneFigures, TheScenesUnitsGoToTheAxes) {

@@ -181,6 +181,26 @@ TEST(RenderFigures, EnergyOnALogAxisDropsZerosAndSaysSo) {
   validate(g);
 }
 
+// With the mechanical energy given, it is drawn first on a linear axis (it may be negative: the
+// manipulator's starts at -1.75), the convergence labelled there, and the kinetic energy below on its log axis.
+TEST(RenderFigures, EnergyFigureDrawsTheMechanicalEnergyAboveTheKinetic) {
+  TimeSeriesData d = small_trajectory();
+  d.mechanical_energy.resize(d.t.size());
+  for (std::size_t k = 0; k < d.t.size(); ++k) d.mechanical_energy[k] = d.energy[k] - 2.0;
+  const Figure f = energy_figure(d);
+  ASSERT_EQ(f.panels.size(), 2u);
+  EXPECT_EQ(f.panels[0].title, "Mechanical energy");
+  EXPECT_EQ(f.panels[0].y_axis.scale, Scale::linear);
+  EXPECT_EQ(f.panels[0].series[0].y.front(), d.energy.front() - 2.0);
+  EXPECT_THAT(f.panels[0].markers.back().label, HasSubstr("converged"));
+  EXPECT_EQ(f.panels[1].title, "Kinetic energy");
+  EXPECT_EQ(f.panels[1].y_axis.scale, Scale::log);
+  EXPECT_EQ(f.panels[1].markers.back().label, "");
+  validate(f);
+  d.mechanical_energy.pop_back();
+  EXPECT_THROW(energy_figure(d), FigureError);
+}
+
 TEST(RenderFigures, StepAndPhaseFigures) {
   const TimeSeriesData d = small_trajectory();
   const Figure s = step_figure(d);

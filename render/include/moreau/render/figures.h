@@ -18,6 +18,11 @@ struct TimeSeriesData {
   std::vector<std::string> q_names, v_names;  // optional; default q1, q2, ... and v1, v2, ...
   std::vector<std::vector<double>> q, v;
   std::vector<double> energy;
+  // The mechanical energy E = 1/2 <M v, v> + V(q) at each sample, when the system has a potential (empty
+  // otherwise): what the energy balance and Lemma 3 speak of; a staircase for Newton impacts, where the
+  // kinetic energy alone falls to 0 at every apex. The energy figure draws it above `energy`.
+  std::vector<double> mechanical_energy;
+  std::string mechanical_energy_label = "E = 1/2 <M v, v> + V(q)";
   std::optional<double> converged_time;  // finite-time convergence, marked by a dashed line
   std::vector<double> impact_times;      // marked by ticks along the time axis
   std::string energy_label;              // default "energy"
@@ -55,7 +60,8 @@ struct FigureOptions {
 // Positions (top panel) and velocities (bottom panel) against time, one line per coordinate.
 Figure state_figure(const TimeSeriesData& data, const FigureOptions& options = {});
 // Energy against time, log y axis by default. A log axis cannot show values <= 0: they are dropped,
-// and the legend label says how many.
+// and the legend label says how many. With a mechanical energy (TimeSeriesData::mechanical_energy), it
+// comes first, in a panel of its own on a linear axis (it may be negative), and `energy` below it.
 Figure energy_figure(const TimeSeriesData& data, const FigureOptions& options = {});
 // Step size h_k against t_k, log y axis by default.
 Figure step_figure(const TimeSeriesData& data, const FigureOptions& options = {});
