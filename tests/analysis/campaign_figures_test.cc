@@ -63,8 +63,12 @@ TEST(CampaignFigures, CdfInputsAndSuccessMapFromKnownOutcomes) {
   // One panel per input: the three successes at their convergence times, the failure at t_end.
   const render::Figure& in = figures[1].second;
   ASSERT_EQ(in.panels.size(), 2u);
-  EXPECT_EQ(in.panels[0].x_label, "/parameters/m");
-  EXPECT_EQ(in.panels[1].x_label, "/initial/v/0");
+  // Inputs named in words: the parameter by its name, the initial velocity by its coordinate (q1: the
+  // scene names none) and its unit (none given).
+  EXPECT_EQ(in.panels[0].x_label, "m");
+  EXPECT_EQ(in.panels[1].x_label, "initial q1_dot");
+  EXPECT_EQ(in.panels[0].y_label, "t [s]");
+  EXPECT_EQ(in.panels[0].series.at(0).color, figures[2].second.panels.at(0).series.at(0).color);  // success: one colour
   EXPECT_EQ(in.panels[0].series.at(0).x, (std::vector<double>{1.0, 1.5, 1.2}));
   EXPECT_EQ(in.panels[0].series.at(0).y, (std::vector<double>{3.0, 1.0, 2.0}));
   EXPECT_EQ(in.panels[0].series.at(1).x, (std::vector<double>{2.0}));
@@ -72,8 +76,9 @@ TEST(CampaignFigures, CdfInputsAndSuccessMapFromKnownOutcomes) {
 
   // The success map in the (m, v0) plane.
   const render::Panel& map = figures[2].second.panels.at(0);
-  EXPECT_EQ(map.x_label, "/parameters/m");
-  EXPECT_EQ(map.y_label, "/initial/v/0");
+  EXPECT_EQ(map.x_label, "m");
+  EXPECT_EQ(map.y_label, "initial q1_dot");
+  EXPECT_EQ(map.title, "");
   EXPECT_EQ(map.series.at(0).label, "succeeded (3)");
   EXPECT_EQ(map.series.at(1).label, "did not succeed (1)");
   EXPECT_EQ(map.series.at(1).x, (std::vector<double>{2.0}));
@@ -81,6 +86,29 @@ TEST(CampaignFigures, CdfInputsAndSuccessMapFromKnownOutcomes) {
 
   // Each is a figure the renderer accepts (SVG: no OpenGL needed here).
   for (const auto& [kind, f] : figures) EXPECT_THAT(render::render_svg(f), ::testing::HasSubstr("<svg")) << figure_name(kind);
+}
+
+// A sample that converged but missed the target is drawn at its convergence time, apart from both the
+// successes and the samples that never converged; a map where every sample succeeded says so; the
+// scene's coordinate names and units name the axes.
+TEST(CampaignFigures, ConvergedOffTheTargetAtItsTimeAndUnitsOnTheAxes) {
+  CampaignSpec spec = two_input_spec();
+  spec.scene["system"]["coordinates"] = {"x"};
+  spec.scene["units"] = {{"x", "m"}, {"t", "ms"}};
+  CampaignOutcome missed = outcome(2, true, 2.5, 1.2, 2.0);
+  missed.success = false;
+  missed.failure_class = 1;
+  const auto figures = campaign_figures(spec, {outcome(0, true, 3.0, 1.0, 3.0), outcome(1, false, 0, 1.5, 1.0), missed}, 4.0);
+  const render::Figure& in = figures.at(1).second;
+  ASSERT_EQ(in.panels.at(0).series.size(), 3u);
+  EXPECT_EQ(in.panels[0].series[1].label, "converged off the target: convergence time");
+  EXPECT_EQ(in.panels[0].series[1].y, (std::vector<double>{2.5}));
+  EXPECT_EQ(in.panels[0].series[2].y, (std::vector<double>{4.0}));  // never converged: at t_end
+  EXPECT_EQ(in.panels[1].x_label, "initial x_dot [m/ms]");
+  EXPECT_EQ(in.panels[0].y_label, "t [ms]");
+  EXPECT_EQ(figures.at(0).second.panels.at(0).x_label, "convergence time t [ms]");
+  const auto all = campaign_figures(spec, {outcome(0, true, 3.0, 1.0, 3.0), outcome(1, true, 1.0, 1.5, 1.0)}, 4.0);
+  EXPECT_THAT(all.back().second.panels.at(0).title, ::testing::HasSubstr("every sample succeeded"));
 }
 
 TEST(CampaignFigures, NothingConvergedLeavesTheCdfOut) {
