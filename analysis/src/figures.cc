@@ -79,6 +79,8 @@ void label_for_system(render::TimeSeriesData& data, const Simulation& sim) {
   data.y_names.clear();
   for (Eigen::Index i = 0; i < m; ++i) data.y_names.push_back(m == 1 ? "y" : "y" + std::to_string(i + 1));
   data.y_title = "Output y = C x";
+  // Two states, one output: the state plane is split by the line C x = 0, where the feedback switches.
+  if (n == 2 && m == 1) data.switching_line = {lure->C(0, 0), lure->C(0, 1)};
   data.y_axis = "y";
 }
 

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <limits>
 #include <numeric>
 
@@ -45,6 +46,44 @@ std::vector<std::pair<std::string, std::vector<std::size_t>>> by_unit(const std:
 std::string common_unit(const std::vector<std::size_t>& coords, const std::vector<std::string>& units) {
   const auto groups = by_unit(coords, units);
   return groups.size() == 1 ? groups[0].first : std::string();
+}
+
+// A phase curve's start and end markers: black and reddish purple, apart from the curves' colours (blue,
+// vermillion, green, ... for up to three curves before purple comes round).
+constexpr int kStartColour = 6, kEndColour = 3;
+// The curves' colours: the palette without the markers' two.
+int phase_curve_colour(std::size_t k) {
+  static constexpr int kCurves[] = {0, 1, 2, 4, 5, 7};
+  return kCurves[k % std::size(kCurves)];
+}
+
+// The segment of the line c . (x, y) = 0 (TimeSeriesData::switching_line) inside the box the curve `s`
+// spans, as a series; empty when there is no line or it misses the box.
+Series switching_line(const TimeSeriesData& d, const Series& s) {
+  Series line;
+  if (d.switching_line.size() != 2 || s.x.empty()) return line;
+  const double c1 = d.switching_line[0], c2 = d.switching_line[1];
+  if (!(std::isfinite(c1) && std::isfinite(c2)) || (c1 == 0 && c2 == 0)) return line;
+  const auto [x_lo, x_hi] = std::minmax_element(s.x.begin(), s.x.end());
+  const auto [y_lo, y_hi] = std::minmax_element(s.y.begin(), s.y.end());
+  // Points r (c2, -c1) of the line, r in [r_lo, r_hi]: the interval where both coordinates are in the box.
+  double r_lo = -std::numeric_limits<double>::infinity(), r_hi = std::numeric_limits<double>::infinity();
+  const double dir[2] = {c2, -c1}, lo[2] = {*x_lo, *y_lo}, hi[2] = {*x_hi, *y_hi};
+  for (int i = 0; i < 2; ++i) {
+    if (dir[i] == 0) {
+      if (lo[i] > 0 || hi[i] < 0) return line;
+      continue;
+    }
+    const double a = lo[i] / dir[i], b = hi[i] / dir[i];
+    r_lo = std::max(r_lo, std::min(a, b));
+    r_hi = std::min(r_hi, std::max(a, b));
+  }
+  if (!(r_lo < r_hi)) return line;
+  line.label = "switching line C x = 0";
+  line.color = kStartColour;
+  line.x = {r_lo * dir[0], r_hi * dir[0]};
+  line.y = {r_lo * dir[1], r_hi * dir[1]};
+  return line;
 }
 
 void require(bool ok, const std::string& what) {
@@ -417,10 +456,6 @@ Figure phase_figure(const TimeSeriesData& d, const FigureOptions& o) {
   const Window w = time_window(d.t, o, who);
   const std::vector<std::size_t> coords = pick_coordinates(d, o, who);
   Figure f = base_figure(o);
-  Panel p;
-  p.x_label = d.q_axis;
-  p.y_label = d.v_axis;
-  p.y_axis.scale = o.y_scale.value_or(Scale::linear);
   // The curves: (x, y) series of one or two coordinate groups, named (x name, y name).
   struct Curve {
     const std::vector<double>*x, *y;
@@ -450,39 +485,47 @@ Figure phase_figure(const TimeSeriesData& d, const FigureOptions& o) {
                         "q[" + std::to_string(i) + "]", "v[" + std::to_string(i) + "]", unit_of(d.q_units, i), unit_of(d.v_units, i)});
     }
   }
-  // Axis labels with the curves' unit where they share one on that axis.
-  auto shared = [&](auto unit) {
-    for (const Curve& c : curves)
-      if (unit(c) != unit(curves[0])) return std::string();
-    return unit(curves[0]);
-  };
-  const std::string x_unit = shared([](const Curve& c) { return c.x_unit; });
-  const std::string y_unit = shared([](const Curve& c) { return c.y_unit; });
+  // One panel per curve (small multiples: seven overlaid pairs are unreadable, and two coordinates may
+  // have different units), each curve in its colour, its start and end marked.
   for (std::size_t k = 0; k < curves.size(); ++k) {
     const Curve& c = curves[k];
     check_length(*c.x, d.t.size(), c.x_what, who);
     check_length(*c.y, d.t.size(), c.y_what, who);
+    Panel p;
+    p.x_label = with_unit(c.x_name, c.x_unit);
+    p.y_label = with_unit(c.y_name, c.y_unit);
+    p.y_axis.scale = o.y_scale.value_or(Scale::linear);
     Series s;
-    // A unit the axis does not carry (the curves' units differ) is said in the curve's label.
-    s.label = "(" + with_unit(c.x_name, x_unit.empty() ? c.x_unit : "") + ", " + with_unit(c.y_name, y_unit.empty() ? c.y_unit : "") + ")";
+    s.label = "(" + c.x_name + ", " + c.y_name + ")";
     s.x = slice(*c.x, w);
     s.y = slice(*c.y, w);
-    s.color = static_cast<int>(k);
+    s.color = phase_curve_colour(k);
     if (p.y_axis.scale == Scale::log) keep_positive_y(s);
-    p.series.push_back(std::move(s));
+    if (!s.x.empty()) {
+      const std::size_t first = 0, last = s.x.size() - 1;
+      Series start, end;
+      start.label = "start";
+      start.style = end.style = SeriesStyle::points;
+      start.color = kStartColour;
+      start.x = {s.x[first]};
+      start.y = {s.y[first]};
+      end.label = "end";
+      end.color = kEndColour;
+      end.x = {s.x[last]};
+      end.y = {s.y[last]};
+      // The switching line of a two-state Lur'e system, c1 x1 + c2 x2 = 0, across the states visited,
+      // drawn first: a curve sliding along it stays visible on top.
+      Series line = switching_line(d, s);
+      if (!line.x.empty()) p.series.push_back(std::move(line));
+      p.series.push_back(std::move(s));
+      p.series.push_back(std::move(start));
+      p.series.push_back(std::move(end));
+    }
+    drop_empty(p);
+    f.panels.push_back(std::move(p));
   }
-  if (curves.size() == 1) {
-    p.x_label = with_unit(curves[0].x_name, x_unit);
-    p.y_label = with_unit(curves[0].y_name, y_unit);
-  } else if (d.state_space && d.q.size() >= 2) {
-    p.x_label = with_unit(d.q_axis + "_i", x_unit);
-    p.y_label = with_unit(d.q_axis + "_i+1", y_unit);
-  } else {
-    p.x_label = with_unit(d.q_axis, x_unit);
-    p.y_label = with_unit(d.v_axis, y_unit);
-  }
-  drop_empty(p);
-  f.panels.push_back(std::move(p));
+  // Each panel keeps a readable height: the figure grows beyond three of them.
+  if (f.panels.size() > 3) f.height_px = std::max(o.height_px, std::min(220 * static_cast<int>(f.panels.size()) + 80, max_figure_px));
   return f;
 }
 

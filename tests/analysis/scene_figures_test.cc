@@ -47,6 +47,8 @@ TEST(SceneFigures, LureOutputIsCTimesTheStateAndTheLabelsSaySo) {
   EXPECT_EQ(d.y_title, "Output y = C x");
   EXPECT_TRUE(d.state_space);
   EXPECT_EQ(d.energy_label, "W = 1/2 x^T P x (storage, P from the positive realness test)");
+  // Two states, one output: the switching line C x = x1 + 2 x2 = 0 of its state plane.
+  EXPECT_EQ(d.switching_line, (std::vector<double>{1.0, 2.0}));
 }
 
 TEST(SceneFigures, LagrangianSystemsKeepTheMechanicalLabels) {

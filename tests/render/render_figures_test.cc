@@ -99,14 +99,15 @@ TEST(RenderFigures, UnitsAreOnTheAxesAndNoAxisMixesThem) {
   // The other time figures and the phase plane.
   EXPECT_EQ(energy_figure(d).panels[0].x_label, "t [s]");
   EXPECT_EQ(step_figure(d).panels[0].y_label, "h [s]");
-  const Figure phase = phase_figure(d);
-  EXPECT_EQ(phase.panels[0].x_label, "q [rad]");
-  EXPECT_EQ(phase.panels[0].y_label, "v [rad/s]");
+  // The phase portrait: a panel per coordinate, each with its own units.
   d.q_units = {"m", "rad"};
   d.v_units = {"m/s", "rad/s"};
   const Figure mixed = phase_figure(d);
-  EXPECT_EQ(mixed.panels[0].x_label, "q");  // no one unit: each curve says its own
-  EXPECT_EQ(mixed.panels[0].series[0].label, "(ball height [m], ball velocity [m/s])");
+  ASSERT_EQ(mixed.panels.size(), 2u);
+  EXPECT_EQ(mixed.panels[0].x_label, "ball height [m]");
+  EXPECT_EQ(mixed.panels[0].y_label, "ball velocity [m/s]");
+  EXPECT_EQ(mixed.panels[1].x_label, "oscillator x [rad]");
+  EXPECT_EQ(mixed.panels[0].series[0].label, "(ball height, ball velocity)");
   validate(f);
   validate(mixed);
 }
@@ -201,6 +202,53 @@ TEST(RenderFigures, EnergyFigureDrawsTheMechanicalEnergyAboveTheKinetic) {
   EXPECT_THROW(energy_figure(d), FigureError);
 }
 
+// Each phase curve's first and last states are marked (start and end, in colours of their own), and a
+// two-state system's switching line c . x = 0 is drawn across the box its state plane spans.
+TEST(RenderFigures, PhaseCurvesMarkStartAndEndAndTheSwitchingLine) {
+  TimeSeriesData d;
+  d.t = {0, 1, 2, 3};
+  d.q = {{-1.0, 2.0, 1.0, 0.5}, {2.0, -2.0, 1.0, 0.0}};
+  d.v = {{0, 0, 0, 0}, {0, 0, 0, 0}};
+  d.q_names = {"x1", "x2"};
+  d.state_space = true;
+  d.switching_line = {1.0, 2.0};  // x1 + 2 x2 = 0: points r (2, -1)
+  const Figure f = phase_figure(d);
+  ASSERT_EQ(f.panels.size(), 1u);
+  const Panel& p = f.panels[0];
+  ASSERT_EQ(p.series.size(), 4u);
+  EXPECT_EQ(p.series[0].label, "switching line C x = 0");  // under the curve
+  EXPECT_EQ(p.series[1].label, "(x1, x2)");
+  // Inside the box [-1, 2] x [-2, 2]: r in [-1/2, 1], from (-1, 1/2) to (2, -1).
+  EXPECT_EQ(p.series[0].x, (std::vector<double>{-1.0, 2.0}));
+  EXPECT_EQ(p.series[0].y, (std::vector<double>{0.5, -1.0}));
+  for (std::size_t k = 0; k < 2; ++k) EXPECT_EQ(p.series[0].x[k] + 2.0 * p.series[0].y[k], 0.0);
+  EXPECT_EQ(p.series[2].label, "start");
+  EXPECT_EQ(p.series[2].x, (std::vector<double>{-1.0}));
+  EXPECT_EQ(p.series[2].y, (std::vector<double>{2.0}));
+  EXPECT_EQ(p.series[3].label, "end");
+  EXPECT_EQ(p.series[3].x, (std::vector<double>{0.5}));
+  EXPECT_EQ(p.series[3].y, (std::vector<double>{0.0}));
+  EXPECT_NE(p.series[2].color, p.series[1].color);
+  EXPECT_NE(p.series[3].color, p.series[1].color);
+  validate(f);
+  // A line that misses the box is left out.
+  d.q[0] = {1.0, 2.0, 3.0, 4.0};
+  d.q[1] = {1.0, 2.0, 3.0, 4.0};
+  EXPECT_EQ(phase_figure(d).panels[0].series.size(), 3u);
+  // Seven coordinates: seven panels, the figure taller than the 800 px asked.
+  TimeSeriesData seven = small_trajectory();
+  seven.q.resize(7, seven.q[0]);
+  seven.v.resize(7, seven.v[0]);
+  const Figure tall = phase_figure(seven);
+  EXPECT_EQ(tall.panels.size(), 7u);
+  for (const Panel& panel : tall.panels) {  // no curve in a marker's colour
+    EXPECT_NE(panel.series[0].color, panel.series[1].color);
+    EXPECT_NE(panel.series[0].color, panel.series[2].color);
+  }
+  EXPECT_EQ(tall.height_px, 220 * 7 + 80);
+  validate(tall);
+}
+
 TEST(RenderFigures, StepAndPhaseFigures) {
   const TimeSeriesData d = small_trajectory();
   const Figure s = step_figure(d);
@@ -212,7 +260,8 @@ TEST(RenderFigures, StepAndPhaseFigures) {
   FigureOptions o;
   o.coordinates = {0};
   const Figure p = phase_figure(d, o);
-  ASSERT_EQ(p.panels[0].series.size(), 1u);
+  ASSERT_EQ(p.panels.size(), 1u);
+  ASSERT_EQ(p.panels[0].series.size(), 3u);  // the curve, its start and its end
   EXPECT_EQ(p.panels[0].series[0].x, d.q[0]);
   EXPECT_EQ(p.panels[0].series[0].y, d.v[0]);
   EXPECT_EQ(p.panels[0].x_label, "ball height");
@@ -250,16 +299,19 @@ TEST(RenderFigures, StateSpaceSystemsAreLabelledAsSuchWithTheirStatePlane) {
   EXPECT_EQ(f.panels[2].series[0].y, d.y[0]);
   validate(f);
   const Figure p = phase_figure(d);
-  ASSERT_EQ(p.panels[0].series.size(), 2u);
+  ASSERT_EQ(p.panels.size(), 2u);  // (x1, x2) and (x2, x3), a panel each
   EXPECT_EQ(p.panels[0].series[0].label, "(x1, x2)");
   EXPECT_EQ(p.panels[0].series[0].x, d.q[0]);
   EXPECT_EQ(p.panels[0].series[0].y, d.q[1]);
-  EXPECT_EQ(p.panels[0].series[1].label, "(x2, x3)");
+  EXPECT_EQ(p.panels[1].series[0].label, "(x2, x3)");
+  EXPECT_EQ(p.panels[0].x_label, "x1");
+  EXPECT_EQ(p.panels[0].y_label, "x2");
   validate(p);
   FigureOptions one;
   one.coordinates = {1};
   const Figure p1 = phase_figure(d, one);
-  ASSERT_EQ(p1.panels[0].series.size(), 1u);
+  ASSERT_EQ(p1.panels.size(), 1u);
+  EXPECT_EQ(p1.panels[0].series[0].label, "(x2, x3)");
   EXPECT_EQ(p1.panels[0].x_label, "x2");
   EXPECT_EQ(p1.panels[0].y_label, "x3");
   // One state: its plane is (x, dx/dt), named by the axes given.
@@ -269,7 +321,7 @@ TEST(RenderFigures, StateSpaceSystemsAreLabelledAsSuchWithTheirStatePlane) {
   d1.q_names.resize(1);
   d1.v_names.resize(1);
   const Figure single = phase_figure(d1);
-  ASSERT_EQ(single.panels[0].series.size(), 1u);
+  ASSERT_EQ(single.panels.size(), 1u);
   EXPECT_EQ(single.panels[0].series[0].label, "(x1, x1_dot)");
 }
 

@@ -37,6 +37,9 @@ struct TimeSeriesData {
   // The phase portrait of a state-space system is its state plane, (x_i, x_{i+1}); with one state,
   // (x, dx/dt). Otherwise (the default) the mechanical phase plane (q_i, v_i).
   bool state_space = false;
+  // A two-state system's switching line c1 x1 + c2 x2 = 0 (a Lur'e system's C x = 0 with one output),
+  // drawn across its state plane; empty for other systems.
+  std::vector<double> switching_line;
   // Units (a scene's /units): of time ("s"; empty: none given, the axis is "t") and of each coordinate's
   // position and velocity ("m", "m/s"; "" where none is given). Every time axis reads "t [s]", and a panel
   // never mixes units on one axis: the state figure draws one panel per unit among the coordinates shown.
@@ -65,7 +68,9 @@ Figure state_figure(const TimeSeriesData& data, const FigureOptions& options = {
 Figure energy_figure(const TimeSeriesData& data, const FigureOptions& options = {});
 // Step size h_k against t_k, log y axis by default.
 Figure step_figure(const TimeSeriesData& data, const FigureOptions& options = {});
-// Phase portrait: v against q, one curve per coordinate.
+// Phase portrait: v against q, one panel per coordinate (the figure taller than asked beyond three), each
+// with its own units, its start and end marked; a state-space system's state plane (x_i, x_i+1), with its
+// switching line where TimeSeriesData::switching_line gives one.
 Figure phase_figure(const TimeSeriesData& data, const FigureOptions& options = {});
 // A tracking run (signals qd_<q>, e_<q>, sigma_<q>, u_<q> for each position name q): q with q_d, the
 // error e, |sigma| on a log axis (log y by default; its exact zeros, which a log axis cannot show, are
