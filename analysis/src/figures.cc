@@ -113,6 +113,8 @@ render::Figure trajectory_figure(TrajectoryFigure kind, const render::TimeSeries
 
 render::Figure study_figure(StudyFigure kind, const StudyResult& result, render::FigureOptions options) {
   if (options.title.empty()) options.title = result.scene + ": max error of q against " + result.reference;
+  // The quantity on the y axis, as the study computes it (the largest Euclidean error at the common times).
+  if (options.y_label.empty()) options.y_label = "max over t of ||q(t) - q_ref(t)||";
   const auto runs = study_scheme_runs(result);
   return kind == StudyFigure::kWork ? render::work_figure(runs, options) : render::order_figure(runs, options);
 }

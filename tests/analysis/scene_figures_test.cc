@@ -179,3 +179,28 @@ TEST(SceneFigures, EachTrajectoryKindIsDrawnByItsBuilder) {
     EXPECT_EQ(svg, moreau::render::render_svg(figure));
   }
 }
+
+// A study's figures say on their y axis which error they plot: the largest Euclidean error of q over the
+// common times (study.cc), against h or against run time.
+TEST(SceneFigures, StudyFiguresNameTheirErrorOnTheAxis) {
+  moreau::scene::StudyResult r;
+  r.scene = "toy";
+  r.reference = "exact solution";
+  r.orders.push_back({});
+  for (const double h : {0.1, 0.05, 0.025}) {
+    moreau::scene::StudyRow row;
+    row.h = h;
+    row.status = "completed";
+    row.q_max_error = 2.0 * h;
+    row.wall_seconds = 1e-4 / h;
+    r.rows.push_back(row);
+  }
+  for (const auto kind : {moreau::scene::StudyFigure::kOrder, moreau::scene::StudyFigure::kWork}) {
+    const moreau::render::Figure f = moreau::scene::study_figure(kind, r);
+    EXPECT_EQ(f.panels.at(0).y_label, "max over t of ||q(t) - q_ref(t)||");
+    // Joined along x: h increasing (errors 0.05 to 0.2), or run time increasing (the largest h first).
+    const std::vector<double> along_x =
+        kind == moreau::scene::StudyFigure::kOrder ? std::vector<double>{0.05, 0.1, 0.2} : std::vector<double>{0.2, 0.1, 0.05};
+    EXPECT_EQ(f.panels.at(0).series.at(0).y, along_x);
+  }
+}
