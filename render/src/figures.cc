@@ -555,6 +555,9 @@ OrderFit fit_order(const std::vector<double>& h, const std::vector<double>& erro
 
 namespace {
 
+// The order figure's guides: black and reddish purple, after the schemes' blue, vermillion and green.
+constexpr int kGuideOne = 6, kGuideTwo = 3;
+
 Figure study_figure(const std::vector<SchemeRuns>& runs, const FigureOptions& o, bool work) {
   const char* who = work ? "work_figure" : "order_figure";
   require(!runs.empty(), std::string(who) + ": no schemes");
@@ -589,6 +592,28 @@ Figure study_figure(const std::vector<SchemeRuns>& runs, const FigureOptions& o,
   }
   drop_empty(p);
   require(!p.series.empty(), std::string(who) + ": no run has a positive error");
+  // Reference slopes 1 and 2 on the order figure, through the first scheme's run at the smallest h and
+  // across the h drawn, so that a measured order reads against them.
+  if (!work && p.y_axis.scale == Scale::log) {
+    double h_lo = std::numeric_limits<double>::infinity(), h_hi = 0.0;
+    for (const Series& s : p.series)
+      for (const double h : s.x) {
+        h_lo = std::min(h_lo, h);
+        h_hi = std::max(h_hi, h);
+      }
+    const Series& first = p.series.front();
+    const double h0 = first.x.front(), e0 = first.y.front();  // sorted by h: its smallest
+    if (h_hi > h_lo) {
+      for (const int order : {1, 2}) {
+        Series guide;
+        guide.label = "slope " + std::to_string(order) + " (guide)";
+        guide.color = order == 1 ? kGuideOne : kGuideTwo;
+        guide.x = {h_lo, h_hi};
+        guide.y = {e0 * std::pow(h_lo / h0, order), e0 * std::pow(h_hi / h0, order)};
+        p.series.push_back(std::move(guide));
+      }
+    }
+  }
   f.panels.push_back(std::move(p));
   return f;
 }

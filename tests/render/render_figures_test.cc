@@ -394,13 +394,34 @@ TEST(RenderFigures, FitOrderRecoversThePowerLaw) {
   EXPECT_TRUE(std::isnan(fit_order({0.1, 0.1}, {1e-2, 2e-2}).slope));
 }
 
+// The order figure's guides: slopes 1 and 2 through the first scheme's smallest-h run (h = 0.1 / 32,
+// error 3 h), across the h drawn; none on the work figure, whose x is run time.
+TEST(RenderFigures, OrderFigureHasGuidesOfSlopeOneAndTwo) {
+  const auto runs = power_law_study();
+  const Figure f = order_figure(runs);
+  const Panel& p = f.panels.at(0);
+  ASSERT_EQ(p.series.size(), 4u);
+  const double h0 = 0.1 / 32, e0 = 3.0 * h0;
+  for (int order : {1, 2}) {
+    const Series& g = p.series[static_cast<std::size_t>(order) + 1];
+    EXPECT_EQ(g.label, "slope " + std::to_string(order) + " (guide)");
+    ASSERT_EQ(g.x.size(), 2u);
+    EXPECT_DOUBLE_EQ(g.x[0], h0);
+    EXPECT_DOUBLE_EQ(g.x[1], 0.1);
+    EXPECT_DOUBLE_EQ(g.y[0], e0);
+    EXPECT_NEAR(std::log10(g.y[1] / g.y[0]) / std::log10(g.x[1] / g.x[0]), order, 1e-12);
+  }
+  EXPECT_EQ(work_figure(runs).panels.at(0).series.size(), 2u);
+  validate(f);
+}
+
 TEST(RenderFigures, OrderAndWorkFiguresAreLogLog) {
   const auto runs = power_law_study();
   const Figure o = order_figure(runs);
   const Panel& p = o.panels[0];
   EXPECT_EQ(p.x_axis.scale, Scale::log);
   EXPECT_EQ(p.y_axis.scale, Scale::log);
-  ASSERT_EQ(p.series.size(), 2u);
+  ASSERT_EQ(p.series.size(), 4u);  // the two schemes, then the two guides
   EXPECT_EQ(p.series[0].label, "first (slope 1.00)");
   EXPECT_EQ(p.series[1].label, "second (slope 2.00)");
   EXPECT_TRUE(std::is_sorted(p.series[0].x.begin(), p.series[0].x.end()));

@@ -89,7 +89,8 @@ struct SchemeRuns {
 
 // Error against run time, log-log, one line per scheme.
 Figure work_figure(const std::vector<SchemeRuns>& runs, const FigureOptions& options = {});
-// Error against h, log-log, one line per scheme; the legend gives the fitted order.
+// Error against h, log-log, one line per scheme; the legend gives the fitted order. Guides of slope 1 and
+// 2 pass through the first scheme's run at the smallest h, across the h drawn.
 Figure order_figure(const std::vector<SchemeRuns>& runs, const FigureOptions& options = {});
 
 // Least-squares fit of log10(error) = slope * log10(h) + intercept over the pairs where both are
