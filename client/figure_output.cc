@@ -39,6 +39,8 @@ void FigureFlags::add_to(CLI::App* cmd) {
   cmd->add_option("--t0", t0, "Start of the time window");
   cmd->add_option("--t1", t1, "End of the time window");
   cmd->add_option("--y-scale", y_scale, "linear or log (default: the figure kind's)")->check(CLI::IsMember({"linear", "log"}));
+  cmd->add_flag("--robust-y", robust_y,
+                "State figure: each y axis over the 1st to 99th percentile of its values, a spike clipped and counted in the legend");
   cmd->add_option("--format", format, "png or svg (default: from the file name)")
       ->check(CLI::IsMember(scene::figure_names<scene::FigureFormat>()));
 }
@@ -82,6 +84,7 @@ render::FigureOptions figure_options(const FigureFlags& flags, std::size_t n) {
   opt.t1 = flags.t1;
   if (flags.y_scale == "log") opt.y_scale = render::Scale::log;
   if (flags.y_scale == "linear") opt.y_scale = render::Scale::linear;
+  opt.robust_y = flags.robust_y;
   return opt;
 }
 

@@ -32,8 +32,9 @@ struct FigureFlags {
   std::string title;
   std::vector<std::size_t> coordinates;
   std::optional<double> t0, t1;
-  std::string y_scale;  // "", "linear" or "log"
-  std::string format;   // "", "png" or "svg" (default: from the file name, else png)
+  std::string y_scale;    // "", "linear" or "log"
+  std::string format;     // "", "png" or "svg" (default: from the file name, else png)
+  bool robust_y = false;  // --robust-y (render::FigureOptions::robust_y)
 
   void add_to(CLI::App* cmd);
 };

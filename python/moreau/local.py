@@ -233,7 +233,7 @@ def _result(out: Any, compiled: Any) -> Result:
     table.flags.writeable = False
     return Result(table, compiled.position_names, compiled.velocity_names, compiled.signal_names,
                   report=lambda: json.loads(out.report_json()), report_text=out.report_text,
-                  figure_source=lambda kind, format, width, height: out.figure(kind, format, width, height, ""))
+                  figure_source=lambda kind, format, width, height, robust_y=False: out.figure(kind, format, width, height, "", robust_y))
 
 
 def _document_source(scene: SceneSource) -> Tuple[str, Optional[str]]:

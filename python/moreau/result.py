@@ -146,11 +146,15 @@ class Result:
 
     # -- figures --------------------------------------------------------------------------------
 
-    def figure(self, kind: str = "state", format: str = "png", width: Optional[int] = None, height: Optional[int] = None) -> bytes:
+    def figure(self, kind: str = "state", format: str = "png", width: Optional[int] = None, height: Optional[int] = None,
+               robust_y: bool = False) -> bytes:
         """Figure `kind` (state, energy, step, phase, tracking) as PNG or SVG bytes, drawn by the same
-        renderer as `moreau run --figure`."""
+        renderer as `moreau run --figure`. `robust_y` (a run in process, as --robust-y): the state figure's
+        y axes over the 1st to 99th percentile of their values, a spike clipped and counted in the legend."""
         if self._figure_source is None:
             raise RuntimeError("this result has no figures")
+        if robust_y:
+            return self._figure_source(kind, format, width, height, robust_y=True)  # type: ignore[call-arg]
         return self._figure_source(kind, format, width, height)
 
     # -- notebooks ------------------------------------------------------------------------------

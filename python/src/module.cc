@@ -146,7 +146,7 @@ struct RunOutput {
   std::string report_text() const { return sim.report_text(summary, diagnostics); }
 
   py::bytes figure(const std::string& kind_name, const std::string& format_name, std::optional<int> width, std::optional<int> height,
-                   const std::string& title) const {
+                   const std::string& title, bool robust_y) const {
     const auto kind = scene::figure_from_name<scene::TrajectoryFigure>(kind_name);
     if (!kind)
       throw std::invalid_argument("figure kind '" + kind_name + "': expected " + scene::figure_name_list<scene::TrajectoryFigure>());
@@ -156,6 +156,7 @@ struct RunOutput {
     if (width) options.width_px = *width;
     if (height) options.height_px = *height;
     options.title = title;
+    options.robust_y = robust_y;
     std::string bytes;
     {
       py::gil_scoped_release release;
@@ -385,7 +386,8 @@ PYBIND11_MODULE(_moreau, m) {
       .def("report_json", &RunOutput::report_json)
       .def("report_text", &RunOutput::report_text)
       .def("hypothesis_failure", [](const RunOutput& r) { return r.sim.hypothesis_failure(r.summary); })
-      .def("figure", &RunOutput::figure, py::arg("kind"), py::arg("format"), py::arg("width"), py::arg("height"), py::arg("title"));
+      .def("figure", &RunOutput::figure, py::arg("kind"), py::arg("format"), py::arg("width"), py::arg("height"), py::arg("title"),
+           py::arg("robust_y") = false);
 
   py::class_<CompiledScene, std::shared_ptr<CompiledScene>>(m, "CompiledScene")
       .def_static("from_file", &CompiledScene::from_file, py::arg("path"), py::arg("sets"))

@@ -86,6 +86,33 @@ Series switching_line(const TimeSeriesData& d, const Series& s) {
   return line;
 }
 
+// FigureOptions::robust_y on one panel: its y axis from the 1st to the 99th percentile of all its finite
+// values, widened by a tenth of that span on each side (and to the extremes when they are within it);
+// each series' label counts its values beyond the axis (drawn clipped at its edge).
+void clip_to_bulk(Panel& p) {
+  std::vector<double> all;
+  for (const Series& s : p.series)
+    for (const double y : s.y)
+      if (std::isfinite(y)) all.push_back(y);
+  if (all.size() < 100) return;  // too few values for percentiles to mean anything
+  auto at = [&](double fraction) {
+    const auto k = static_cast<std::ptrdiff_t>(fraction * static_cast<double>(all.size() - 1));
+    std::nth_element(all.begin(), all.begin() + k, all.end());
+    return all[static_cast<std::size_t>(k)];
+  };
+  const double lo = at(0.01), hi = at(0.99);
+  const double margin = 0.1 * std::max(hi - lo, 1e-12 * std::max(std::abs(lo), std::abs(hi)));
+  const double a = lo - margin, b = hi + margin;
+  const auto [min_it, max_it] = std::minmax_element(all.begin(), all.end());
+  if (*min_it >= a && *max_it <= b) return;  // nothing far out: the usual axis
+  p.y_axis.min = std::max(a, *min_it);
+  p.y_axis.max = std::min(b, *max_it);
+  for (Series& s : p.series) {
+    const auto beyond = std::count_if(s.y.begin(), s.y.end(), [&](double y) { return y < *p.y_axis.min || y > *p.y_axis.max; });
+    if (beyond) s.label += " (" + std::to_string(beyond) + (beyond == 1 ? " value" : " values") + " beyond the axis)";
+  }
+}
+
 void require(bool ok, const std::string& what) {
   if (!ok) throw FigureError(what);
 }
@@ -237,6 +264,7 @@ Figure state_figure(const TimeSeriesData& d, const FigureOptions& o) {
       p.series.push_back(std::move(s));
     }
     drop_empty(p);
+    if (o.robust_y && scale == Scale::linear) clip_to_bulk(p);
     add_events(p, d, w, first);
     return p;
   };

@@ -211,3 +211,12 @@ def test_a_figure_is_the_command_lines_figure_byte_for_byte(cli, source_dir, tmp
     subprocess.run([str(cli), "run", str(path), "--figure", "%s=%s" % (kind, svg), "--progress", "never"], capture_output=True)
     assert svg.exists()
     assert moreau.run(path).figure(kind, format="svg") == svg.read_bytes()
+
+
+def test_a_robust_y_figure_is_the_command_lines_robust_y_figure(cli, source_dir, tmp_path):
+    path = source_dir / "scenes" / "iiwa14-joint-limit.json"
+    svg = tmp_path / "state.svg"
+    subprocess.run([str(cli), "run", str(path), "--figure", "state=%s" % svg, "--robust-y", "--progress", "never"], capture_output=True)
+    robust = moreau.run(path).figure("state", format="svg", robust_y=True)
+    assert robust == svg.read_bytes()
+    assert b"beyond the axis" in robust  # the joint-limit impacts' spikes, clipped and counted

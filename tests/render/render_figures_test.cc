@@ -112,6 +112,34 @@ TEST(RenderFigures, UnitsAreOnTheAxesAndNoAxisMixesThem) {
   validate(mixed);
 }
 
+// robust_y: one spike (a joint-limit impact) would set the axis; the axis spans the bulk instead, the
+// spike is clipped and counted in its series' label, and a panel without outliers keeps its usual axis.
+TEST(RenderFigures, RobustYRangeClipsASpikeAndSaysSo) {
+  TimeSeriesData d;
+  for (int k = 0; k < 1000; ++k) d.t.push_back(0.001 * k);
+  d.q = {std::vector<double>(1000), std::vector<double>(1000)};
+  d.v = d.q;
+  for (int k = 0; k < 1000; ++k) {
+    d.q[0][static_cast<std::size_t>(k)] = std::sin(0.01 * k);
+    d.q[1][static_cast<std::size_t>(k)] = 0.5 * std::cos(0.01 * k);
+    d.v[0][static_cast<std::size_t>(k)] = 0.01 * std::cos(0.01 * k);
+    d.v[1][static_cast<std::size_t>(k)] = -0.005 * std::sin(0.01 * k);
+  }
+  d.v[1][500] = 48.0;  // the spike
+  FigureOptions o;
+  o.robust_y = true;
+  const Figure f = state_figure(d, o);
+  const Panel& v = f.panels.at(1);
+  ASSERT_TRUE(v.y_axis.max.has_value());
+  EXPECT_LT(*v.y_axis.max, 0.05);
+  EXPECT_GT(*v.y_axis.max, 0.0095);  // the bulk: |v| up to 0.01
+  EXPECT_EQ(v.series[1].label, "v2 (1 value beyond the axis)");
+  EXPECT_EQ(v.series[0].label, "v1");
+  EXPECT_FALSE(f.panels.at(0).y_axis.max.has_value());  // positions: no outlier, the usual axis
+  validate(f);
+  EXPECT_FALSE(state_figure(d).panels.at(1).y_axis.max.has_value());  // not asked: the whole range
+}
+
 TEST(RenderFigures, StateFigureSelectsCoordinatesAndTimeWindow) {
   const TimeSeriesData d = small_trajectory();
   FigureOptions o;

@@ -58,6 +58,11 @@ struct FigureOptions {
   std::optional<double> t0, t1;          // time window; unset = the data's extent
   std::optional<Scale> y_scale;          // unset = the figure kind's default
   std::string x_label, y_label;          // empty = the figure kind's (work and order figures)
+  // The state figure's y axes over the bulk of the values, not their extremes: each panel's axis spans the
+  // 1st to the 99th percentile of its values (widened by a tenth on each side), so that one spike (a
+  // 48 rad/s joint-limit impact) does not flatten every other line; the values beyond are clipped at the
+  // axis and each series' label says how many.
+  bool robust_y = false;
 };
 
 // Positions (top panel) and velocities (bottom panel) against time, one line per coordinate.
