@@ -369,7 +369,8 @@ def campaign(spec: Union[str, "os.PathLike[str]", Mapping[str, Any]], out: Union
              jobs: Optional[int] = None, progress: Progress = None) -> Campaign:
     """Runs a robustness campaign (docs/campaigns.md) as `moreau campaign SPEC --out OUT -j JOBS` does:
     the same files in `out` (resumable: run it again after a Ctrl-C to go on), the figures once every
-    sample is present. `spec`: a spec file's path (its scene path read relative to it) or a dict. `jobs`:
+    sample is present. `spec`: a spec file's path (its scene path read relative to it) or a dict (a scene
+    path in it read relative to the current directory). `jobs`:
     worker threads (default: every core). `progress`: a function of (done, total), or True for a tqdm bar
     when tqdm is installed. Ctrl-C stops after the samples running then and raises KeyboardInterrupt;
     every finished sample is kept."""
