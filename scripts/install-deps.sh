@@ -50,6 +50,7 @@ packages=(
   python3-numpy                      # tests/client/python_client_test.py (the Python client returns numpy arrays when it can)
   python3-yaml                       # tests/client/k8s_indexed_job_test.py (reads the Kubernetes manifest)
   python3-dev pybind11-dev           # the Python module `moreau` (python/, docs/python.md)
+  python3-pil                        # tests/render/reference_figures_test.py (figures against their reference images)
   python3-pytest python3-pandas      # the package's tests (tests/python/, tests/client/python_client_test.py);
                                      # pandas for Result.to_pandas()
 )
