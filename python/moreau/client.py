@@ -38,6 +38,7 @@ import urllib.parse
 import urllib.request
 from typing import TYPE_CHECKING, Any, Callable, Dict, Iterator, List, Mapping, Optional, Sequence, Tuple, Union
 
+from .overrides import set_list
 from .errors import (HypothesisFailed, MoreauError, RunFailed, SceneError, ServerError, ServerSceneError,
                      ServerUnreachable)
 
@@ -627,14 +628,12 @@ def _assignments(patch: Mapping[str, Any], set: Optional[Mapping[str, Any]],
         if not isinstance(set, Mapping):
             raise TypeError("set must be a dict {path: value}, e.g. set={\"integrator.h\": 1e-4}")
         pairs += list(set.items())
-    out = ["%s=%s" % (path, json.dumps(value, allow_nan=False)) for path, value in pairs]
+    # The values as JSON, as a run in process writes them (moreau.overrides: NaN refused by its pointer).
+    out = [assignment for path, value in pairs for assignment in set_list({path: value})]
     if overrides is not None:
-        if isinstance(overrides, Mapping):
-            out += ["%s=%s" % (path, json.dumps(value, allow_nan=False)) for path, value in overrides.items()]
-        elif isinstance(overrides, (list, tuple)):
-            out += [str(o) for o in overrides]
-        else:
+        if not isinstance(overrides, (Mapping, list, tuple)):
             raise TypeError("overrides must be a dict {path: value} or a list of \"PATH=VALUE\" strings")
+        out += set_list(overrides)
     return out
 
 
