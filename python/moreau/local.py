@@ -13,7 +13,6 @@ import math
 import numbers
 import os
 import pathlib
-import sys
 import warnings
 from typing import TYPE_CHECKING, Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 
