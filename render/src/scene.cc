@@ -167,10 +167,32 @@ class Builder {
 
   Scene build() {
     validate(f_);
-    scene_.width = f_.width_px;
-    scene_.height = f_.height_px;
-    place_panels();
-    for (std::size_t p = 0; p < f_.panels.size(); ++p) draw_panel(p);
+    lay_out_and_draw();
+    // A legend with data under it at every place inside its plot moves out, to the right of the plots
+    // (all panels alike, so their plot areas stay aligned), or, when that would take more than a third of
+    // the width, above the plots it belongs to, in rows as wide as the plot: the figure is drawn again.
+    if (legend_right_width_ > 0) {
+      legend_right_width_ = legend_beside_width_;
+      if (legend_right_width_ < 0.35 * f_.width_px) {
+        legend_outside_ = Outside::right;
+      } else {
+        legend_outside_ = Outside::above;
+        legend_band_height_ = legend_band_wanted_;
+        // A band taller than half its plot would leave too little plot: that legend stays inside.
+        for (std::size_t p = 0; p < legend_band_height_.size(); ++p)
+          if (legend_band_height_[p] > scene_.layout.panels[p].plot.h / 2) legend_band_height_[p] = 0;
+      }
+      if (legend_outside_ == Outside::right ||
+          std::any_of(legend_band_height_.begin(), legend_band_height_.end(), [](double h) { return h > 0; })) {
+        Scene inside = std::move(scene_);
+        scene_ = Scene{};
+        try {
+          lay_out_and_draw();
+        } catch (const FigureError&) {  // too small for the legends outside: keep the first drawing
+          scene_ = std::move(inside);
+        }
+      }
+    }
     if (!f_.title.empty()) {
       const FontMetrics m = font_metrics(st_.figure_title_px, true);
       const auto& first = scene_.layout.panels.front().plot;
@@ -183,6 +205,13 @@ class Builder {
   }
 
  private:
+  void lay_out_and_draw() {
+    scene_.width = f_.width_px;
+    scene_.height = f_.height_px;
+    place_panels();
+    for (std::size_t p = 0; p < f_.panels.size(); ++p) draw_panel(p);
+  }
+
   template <class T>
   void add(T item) {
     scene_.items.emplace_back(std::move(item));
@@ -217,6 +246,7 @@ class Builder {
       g.slot_top = top + slot * static_cast<double>(i);
       g.slot_height = slot;
       g.title_height = panel.title.empty() ? st_.pad * 0.7 : title_m.line_height() + st_.pad * 0.5;
+      if (legend_outside_ == Outside::above) g.title_height += band_height(i);
       g.bottom_height = st_.frame_width + st_.tick_length + st_.tick_px * 0.3 + tick_m.line_height();
       if (!panel.x_label.empty()) g.bottom_height += st_.tick_px * 0.3 + label_m.line_height();
       if (i + 1 < n) g.bottom_height += st_.pad * 0.9;
@@ -253,6 +283,7 @@ class Builder {
     left = std::round(left);
 
     double right = std::round(st_.pad * 1.3);
+    if (legend_outside_ == Outside::right) right += legend_right_width_ + std::round(st_.legend_px * 0.8);
     for (int pass = 0; pass < 2; ++pass) {
       double overflow = 0;
       for (std::size_t i = 0; i < n; ++i) {
@@ -451,7 +482,8 @@ class Builder {
     if (!panel.title.empty()) {
       const FontMetrics tm = font_metrics(st_.title_px, true);
       // Just above the axes box: the descenders clear it by a third of the padding.
-      const double base = std::round(plot.y - fw - st_.pad * 0.3 - tm.descender);
+      const double band = legend_outside_ == Outside::above ? band_height(index) : 0.0;
+      const double base = std::round(plot.y - band - fw - st_.pad * 0.3 - tm.descender);
       add(Text{panel.title, {}, std::round(plot.x + plot.w / 2), base, st_.title_px, true, false, Text::Align::center, kText});
     }
 
@@ -462,7 +494,7 @@ class Builder {
     }
     pending_texts_.clear();
 
-    if (panel.legend && !legend.empty()) draw_legend(panel, plot, legend, obstacles, label_boxes);
+    if (panel.legend && !legend.empty()) draw_legend(index, plot, legend, obstacles, label_boxes);
   }
 
   // Every vertex of a line counts against a legend position; dense sets are subsampled.
@@ -477,8 +509,11 @@ class Builder {
     }
   }
 
-  void draw_legend(const Panel& panel, const Rect& plot, const std::vector<LegendEntry>& entries, const std::vector<Point>& obstacles,
+  double band_height(std::size_t panel) const { return panel < legend_band_height_.size() ? legend_band_height_[panel] : 0.0; }
+
+  void draw_legend(std::size_t index, const Rect& plot, const std::vector<LegendEntry>& entries, const std::vector<Point>& obstacles,
                    const std::vector<Rect>& label_boxes) {
+    const Panel& panel = f_.panels[index];
     const int fpx = st_.legend_px;
     const FontMetrics m = font_metrics(fpx, false);
     const double row = std::round(m.line_height() * 1.2);
@@ -503,7 +538,26 @@ class Builder {
     std::size_t cols = 1, rows = n;
     std::vector<double> col_w;
     double w = width_for(cols, rows, col_w);
-    while (cols < n && height_for(rows) > plot.h * 0.45) {
+    // Beside the plot: as many columns as its height needs. Above it: as many as its width holds.
+    auto columns_beside = [&] {
+      std::size_t c = 1;
+      while (c < n && height_for((n + c - 1) / c) > plot.h) ++c;
+      return c;
+    };
+    auto columns_above = [&] {
+      std::size_t c = 1;
+      std::vector<double> cw;
+      while (c < n && width_for(c + 1, (n + c) / (c + 1), cw) <= plot.w * 0.95) ++c;
+      return c;
+    };
+    const bool above = legend_outside_ == Outside::above && band_height(index) > 0;
+    const bool outside = legend_outside_ == Outside::right || above;
+    if (outside) {
+      cols = above ? columns_above() : columns_beside();
+      rows = (n + cols - 1) / cols;
+      w = width_for(cols, rows, col_w);
+    }
+    while (!outside && cols < n && height_for(rows) > plot.h * 0.45) {
       const std::size_t c2 = cols + 1, r2 = (n + c2 - 1) / c2;
       std::vector<double> cw2;
       const double w2 = width_for(c2, r2, cw2);
@@ -527,7 +581,8 @@ class Builder {
       case LegendPlace::lower_right: box = lower_right; break;
       default: break;
     }
-    if (panel.legend_place == LegendPlace::best) {
+    double best_score = 0;
+    if (panel.legend_place == LegendPlace::best && !outside) {
       // Corners first (preferred on a tie), then the middles of the edges.
       const Rect candidates[] = {upper_right,
                                  upper_left,
@@ -548,6 +603,23 @@ class Builder {
           best = score;
           box = r;
         }
+      }
+      best_score = best;
+    }
+    if (legend_outside_ == Outside::right) {
+      box = Rect{plot.right() + st_.frame_width + std::round(fpx * 0.8), plot.y, w, h};
+    } else if (above) {
+      box = Rect{plot.x, plot.y - st_.frame_width - std::round(fpx * 0.4) - h, w, h};
+    } else if (legend_outside_ == Outside::none) {
+      // Measured for a place beside the plot (where every legend goes if one has no free place inside)
+      // and above it (where only those without a free place go).
+      std::vector<double> cw;
+      const std::size_t beside = columns_beside(), over = columns_above();
+      legend_beside_width_ = std::max(legend_beside_width_, width_for(beside, (n + beside - 1) / beside, cw));
+      if (panel.legend_place == LegendPlace::best && best_score > 0) {
+        legend_right_width_ = legend_beside_width_;
+        legend_band_wanted_.resize(f_.panels.size(), 0.0);
+        legend_band_wanted_[index] = std::round(height_for((n + over - 1) / over) - (row - m.line_height()) + fpx * 0.4);
       }
     }
     box.x = std::round(box.x);
@@ -603,6 +675,13 @@ class Builder {
   const Figure& f_;
   Style st_;
   Scene scene_;
+  // Set by a first drawing whose legends found no free place inside their plots: the width the widest
+  // of them needs beside its plot, and the height of each one's band above its plot; the second
+  // drawing puts every legend beside its plot, or those legends above theirs.
+  enum class Outside { none, right, above };
+  Outside legend_outside_ = Outside::none;
+  double legend_right_width_ = 0, legend_beside_width_ = 0;
+  std::vector<double> legend_band_wanted_, legend_band_height_;  // per panel: the band above it
   std::vector<std::pair<Rect, Text>> pending_texts_;
 };
 
