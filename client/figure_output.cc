@@ -118,7 +118,19 @@ void write_tracking_comparison(const std::vector<std::pair<std::string, render::
 render::TimeSeriesData read_trajectory_csv(const std::string& path) {
   std::ifstream in(path);
   if (!in) throw std::runtime_error("cannot open '" + path + "'");
-  return scene::time_series(scene::read_trajectory_csv(in, "'" + path + "'"));
+  render::TimeSeriesData data = scene::time_series(scene::read_trajectory_csv(in, "'" + path + "'"));
+  // What the columns are (a Lur'e state, units, impacts), when `moreau run --out` wrote it beside them.
+  const std::string meta_path = scene::trajectory_metadata_path(path);
+  std::ifstream meta(meta_path, std::ios::binary);
+  if (meta) {
+    constexpr std::size_t kMaxMetadataBytes = std::size_t{16} << 20;
+    std::string text(kMaxMetadataBytes + 1, '\0');
+    meta.read(text.data(), static_cast<std::streamsize>(text.size()));
+    text.resize(static_cast<std::size_t>(meta.gcount()));
+    if (text.size() > kMaxMetadataBytes) throw std::runtime_error("'" + meta_path + "' is larger than 16 MiB");
+    scene::label_from_metadata(data, text, "'" + meta_path + "'");
+  }
+  return data;
 }
 
 }  // namespace moreau::cli

@@ -3,6 +3,8 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <memory>
 #include <optional>
@@ -94,6 +96,18 @@ int run(const RunOptions& opt) {
     // Rows were written inside the integrate phase: move that time to its own phase.
     for (auto& [name, s] : summary.phase_seconds)
       if (name == "integrate") s = std::max(0.0, s - csv->seconds());
+    // Beside the CSV, what its columns are, so that `moreau plot` labels a bare CSV as this run's figures.
+    std::vector<double> impacts;
+    if (const ContactDiagnostics* contacts = diagnostics.contacts())
+      for (const auto& impact : contacts->impacts) impacts.push_back(impact.t);
+    const std::string meta_path = scene::trajectory_metadata_path(opt.out_csv);
+    std::ofstream meta(meta_path, std::ios::binary | std::ios::trunc);
+    meta << scene::trajectory_metadata(*sim, std::filesystem::path(opt.out_csv).filename().string(), summary.converged_time, impacts);
+    meta.close();
+    if (!meta) {
+      std::cerr << "moreau: cannot write '" << meta_path << "'\n";
+      return 1;
+    }
     summary.add_phase("write", csv->seconds() + since(t_close));
   }
   if (recorder) {

@@ -3,6 +3,8 @@
 #include "moreau/render/render.h"
 #include "moreau/scene/scene.h"
 
+#include <cmath>
+#include <stdexcept>
 #include <utility>
 
 namespace moreau::scene {
@@ -21,6 +23,32 @@ render::TimeSeriesData time_series(TrajectoryColumns columns) {
   data.signals = std::move(columns.signals);
   return data;
 }
+
+namespace {
+
+// A Lur'e system's output y = C x, row by row from the state columns, and the line C x = 0 across a
+// two-state plane with one output, where the feedback switches. A trajectory of another scene (other
+// than n state columns) gets no outputs.
+void add_outputs(render::TimeSeriesData& data, const std::vector<std::vector<double>>& C) {
+  const std::size_t m = C.size(), n = m ? C[0].size() : 0;
+  if (data.q.size() != n) return;
+  data.y.assign(m, std::vector<double>(data.t.size(), 0.0));
+  for (std::size_t i = 0; i < m; ++i)
+    for (std::size_t j = 0; j < n; ++j) {
+      const double c = C[i][j];
+      if (c == 0.0) continue;
+      const auto& x = data.q[j];
+      auto& y = data.y[i];
+      for (std::size_t k = 0; k < y.size() && k < x.size(); ++k) y[k] += c * x[k];
+    }
+  data.y_names.clear();
+  for (std::size_t i = 0; i < m; ++i) data.y_names.push_back(m == 1 ? "y" : "y" + std::to_string(i + 1));
+  data.y_title = "Output y = C x";
+  data.y_axis = "y";
+  if (n == 2 && m == 1) data.switching_line = {C[0][0], C[0][1]};
+}
+
+}  // namespace
 
 void label_for_system(render::TimeSeriesData& data, const Simulation& sim) {
   // Units: time's ("s" unless /units/t says otherwise, once the scene gives any), each position's by its
@@ -64,24 +92,131 @@ void label_for_system(render::TimeSeriesData& data, const Simulation& sim) {
     energy += lure->storage_source == "scene" ? "scene)" : "positive realness test)";
   }
   data.energy_label = energy;
-  // y = C x, row by row, from the state columns.
-  const Eigen::Index m = lure->C.rows(), n = lure->C.cols();
-  if (static_cast<Eigen::Index>(data.q.size()) != n) return;  // a trajectory of another scene: no outputs
-  data.y.assign(static_cast<std::size_t>(m), std::vector<double>(data.t.size(), 0.0));
-  for (Eigen::Index i = 0; i < m; ++i)
-    for (Eigen::Index j = 0; j < n; ++j) {
-      const double c = lure->C(i, j);
-      if (c == 0.0) continue;
-      const auto& x = data.q[static_cast<std::size_t>(j)];
-      auto& y = data.y[static_cast<std::size_t>(i)];
-      for (std::size_t k = 0; k < y.size() && k < x.size(); ++k) y[k] += c * x[k];
+  std::vector<std::vector<double>> C(static_cast<std::size_t>(lure->C.rows()));
+  for (Eigen::Index i = 0; i < lure->C.rows(); ++i)
+    for (Eigen::Index j = 0; j < lure->C.cols(); ++j) C[static_cast<std::size_t>(i)].push_back(lure->C(i, j));
+  add_outputs(data, C);
+}
+
+std::string trajectory_metadata_path(const std::string& csv_path) { return csv_path + "-metadata.json"; }
+
+std::string trajectory_metadata(const Simulation& sim, const std::string& csv_file_name, std::optional<double> converged_time,
+                                const std::vector<double>& impact_times) {
+  using nlohmann::json;
+  // The labels of an empty trajectory with the scene's columns: what label_for_system gives any run of it.
+  render::TimeSeriesData labels;
+  labels.q.assign(sim.position_names().size(), {});
+  labels.v.assign(sim.velocity_names().size(), {});
+  labels.energy_label = "E = 1/2 <M v, v>";
+  label_for_system(labels, sim);
+  const bool lure = sim.lure() != nullptr;
+  auto unit_of = [](const std::vector<std::string>& units, std::size_t i) { return i < units.size() ? units[i] : std::string(); };
+  json columns = json::array();
+  auto column = [&](const std::string& name, const std::string& what, const std::string& unit) {
+    json c = {{"name", name}, {"titles", name}, {"datatype", "double"}, {"dc:description", what}};
+    if (!unit.empty()) c["moreau:unit"] = unit;
+    columns.push_back(std::move(c));
+  };
+  column("t", "time", labels.t_unit);
+  column("h", "the step that led to this sample, t_k - t_(k-1) (the first row: the nominal step)", labels.t_unit);
+  const auto& q = sim.position_names();
+  const auto& v = sim.velocity_names();
+  for (std::size_t i = 0; i < q.size(); ++i) column(q[i], (lure ? "state " : "position ") + q[i], unit_of(labels.q_units, i));
+  for (std::size_t i = 0; i < v.size(); ++i) column(v[i], (lure ? "rate of the state " : "velocity ") + q[i], unit_of(labels.v_units, i));
+  column("energy", labels.energy_label.empty() ? "E = 1/2 <M v, v>" : labels.energy_label, "");
+  for (const std::string& name : sim.signal_names()) column(name, "signal " + name, "");
+
+  json C = json::array();
+  if (const LureScene* l = sim.lure()) {
+    for (Eigen::Index i = 0; i < l->C.rows(); ++i) {
+      json row = json::array();
+      for (Eigen::Index j = 0; j < l->C.cols(); ++j) row.push_back(l->C(i, j));
+      C.push_back(std::move(row));
     }
-  data.y_names.clear();
-  for (Eigen::Index i = 0; i < m; ++i) data.y_names.push_back(m == 1 ? "y" : "y" + std::to_string(i + 1));
-  data.y_title = "Output y = C x";
-  // Two states, one output: the state plane is split by the line C x = 0, where the feedback switches.
-  if (n == 2 && m == 1) data.switching_line = {lure->C(0, 0), lure->C(0, 1)};
-  data.y_axis = "y";
+  }
+  json figures = {{"system", lure ? "lure" : "lagrangian"},
+                  {"q_title", labels.q_title},
+                  {"q_axis", labels.q_axis},
+                  {"v_title", labels.v_title},
+                  {"v_axis", labels.v_axis},
+                  {"state_space", labels.state_space},
+                  {"energy_label", labels.energy_label},
+                  {"t_unit", labels.t_unit},
+                  {"q_units", labels.q_units},
+                  {"v_units", labels.v_units},
+                  {"output_matrix", C},
+                  {"impact_times", impact_times}};
+  figures["converged_time"] = converged_time ? json(*converged_time) : json(nullptr);
+  json doc = {{"@context", "http://www.w3.org/ns/csvw"},
+              {"url", csv_file_name},
+              {"dc:title", "trajectory of the scene '" + sim.name() + "'"},
+              {"dc:creator", "moreau"},
+              {"tableSchema", {{"columns", columns}}},
+              {"moreau:figures", figures}};
+  return doc.dump(2) + "\n";
+}
+
+void label_from_metadata(render::TimeSeriesData& data, std::string_view metadata_text, const std::string& source) {
+  using nlohmann::json;
+  json doc;
+  try {
+    doc = parse_json_text(metadata_text, source);
+  } catch (const SceneError& e) {
+    throw std::runtime_error(e.what());
+  }
+  auto fail = [&](const std::string& pointer, const std::string& why) { throw std::runtime_error(source + " at " + pointer + ": " + why); };
+  if (!doc.is_object() || !doc.contains("moreau:figures") || !doc["moreau:figures"].is_object())
+    fail("/moreau:figures", "missing (not a trajectory's metadata from moreau)");
+  const json& f = doc["moreau:figures"];
+  const std::string at = "/moreau:figures/";
+  auto text = [&](const char* key, std::string& out) {
+    if (!f.contains(key)) return;
+    if (!f[key].is_string()) fail(at + key, "expected a string");
+    out = f[key].get<std::string>();
+  };
+  auto texts = [&](const char* key, std::vector<std::string>& out, std::size_t size) {
+    if (!f.contains(key)) return;
+    const json& a = f[key];
+    if (!a.is_array() || !std::all_of(a.begin(), a.end(), [](const json& e) { return e.is_string(); }))
+      fail(at + key, "expected an array of strings");
+    if (!a.empty() && a.size() != size)
+      fail(at + key, std::to_string(a.size()) + " units for the CSV's " + std::to_string(size) + " columns");
+    out = a.get<std::vector<std::string>>();
+  };
+  auto numbers = [&](const json& a, const std::string& pointer) {
+    if (!a.is_array() || !std::all_of(a.begin(), a.end(), [](const json& e) { return e.is_number(); }))
+      fail(pointer, "expected an array of numbers");
+    return a.get<std::vector<double>>();
+  };
+  text("q_title", data.q_title);
+  text("q_axis", data.q_axis);
+  text("v_title", data.v_title);
+  text("v_axis", data.v_axis);
+  text("energy_label", data.energy_label);
+  text("t_unit", data.t_unit);
+  texts("q_units", data.q_units, data.q.size());
+  texts("v_units", data.v_units, data.v.size());
+  if (f.contains("state_space")) {
+    if (!f["state_space"].is_boolean()) fail(at + "state_space", "expected true or false");
+    data.state_space = f["state_space"].get<bool>();
+  }
+  if (f.contains("impact_times")) data.impact_times = numbers(f["impact_times"], at + "impact_times");
+  if (f.contains("converged_time") && !f["converged_time"].is_null()) {
+    if (!f["converged_time"].is_number()) fail(at + "converged_time", "expected a number or null");
+    data.converged_time = f["converged_time"].get<double>();
+  }
+  if (f.contains("output_matrix")) {
+    const json& C = f["output_matrix"];
+    if (!C.is_array()) fail(at + "output_matrix", "expected an array of rows");
+    std::vector<std::vector<double>> rows;
+    for (std::size_t i = 0; i < C.size(); ++i) {
+      rows.push_back(numbers(C[i], at + "output_matrix/" + std::to_string(i)));
+      if (rows.back().size() != data.q.size())
+        fail(at + "output_matrix/" + std::to_string(i),
+             std::to_string(rows.back().size()) + " entries for the CSV's " + std::to_string(data.q.size()) + " state columns");
+    }
+    if (!rows.empty()) add_outputs(data, rows);
+  }
 }
 
 std::vector<render::SchemeRuns> study_scheme_runs(const StudyResult& result) {

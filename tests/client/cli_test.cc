@@ -237,6 +237,53 @@ TEST(Cli, PlotReadsTheCsvBack) {
   EXPECT_NE(bad.out.find("not a Moreau trajectory"), std::string::npos) << bad.out;
 }
 
+// `moreau run --out` writes what the CSV's columns are beside it (<csv>-metadata.json), so a plot of the
+// bare CSV is the run's own figure: a Lur'e state x, its output y = C x, the switching line, the storage
+// W, units, impacts and the converged time, byte for byte what `moreau run --figure` draws from the scene.
+TEST(Cli, PlotOfABareCsvIsTheRunsOwnFigure) {
+  const std::string dir = moreau::test_support::scratch_dir() + "/bare-csv";
+  std::filesystem::create_directories(dir);
+  auto read = [](const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  const std::pair<std::string, std::vector<std::string>> runs[] = {
+      {"lure-relay-2state", {"state", "phase", "energy"}}, {"bouncing-ball-e0.5", {"state", "phase"}}, {"manipulator", {"state"}}};
+  for (const auto& [scene, kinds] : runs) {
+    const std::string csv = dir + "/" + scene + ".csv";
+    std::string figures;
+    for (const std::string& kind : kinds) figures += " --figure " + kind + "=" + dir + "/" + scene + "-run-" + kind + ".svg";
+    const Result run = Moreau("run " + std::string(MOREAU_SOURCE_DIR) + "/scenes/" + scene + ".json --out " + csv + figures);
+    ASSERT_EQ(run.status, 0) << run.out;
+    ASSERT_TRUE(std::filesystem::exists(csv + "-metadata.json"));
+    for (const std::string& kind : kinds) {
+      const std::string plotted = dir + "/" + scene + "-plot-" + kind + ".svg";
+      const Result plot = Moreau("plot " + csv + " --kind " + kind + " -o " + plotted);
+      ASSERT_EQ(plot.status, 0) << plot.out;
+      const std::string drawn = read(plotted);
+      EXPECT_FALSE(drawn.empty());
+      EXPECT_EQ(drawn, read(dir + "/" + scene + "-run-" + kind + ".svg")) << scene << " " << kind;
+    }
+  }
+  EXPECT_NE(read(dir + "/lure-relay-2state-plot-state.svg").find("Output y = C x"), std::string::npos);
+  // A metadata file that does not fit its CSV is refused, naming the field.
+  {
+    std::ofstream bad(dir + "/lure-relay-2state.csv-metadata.json", std::ios::trunc);
+    bad << R"({"moreau:figures": {"q_units": ["m", "m", "m"]}})";
+  }
+  const Result bad = Moreau("plot " + dir + "/lure-relay-2state.csv -o " + dir + "/bad.svg");
+  EXPECT_EQ(bad.status, 2) << bad.out;
+  EXPECT_NE(bad.out.find("at /moreau:figures/q_units: 3 units for the CSV's 2 columns"), std::string::npos) << bad.out;
+  {
+    std::ofstream deep(dir + "/lure-relay-2state.csv-metadata.json", std::ios::trunc);
+    deep << std::string(100000, '[');
+  }
+  const Result nested = Moreau("plot " + dir + "/lure-relay-2state.csv -o " + dir + "/bad.svg");
+  EXPECT_EQ(nested.status, 2) << nested.out;
+  EXPECT_NE(nested.out.find("nest"), std::string::npos) << nested.out;
+  std::filesystem::remove_all(dir);
+}
+
 }  // namespace
 
 namespace {

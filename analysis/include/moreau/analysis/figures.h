@@ -4,7 +4,9 @@
 // server alike; render/ itself knows nothing of scenes, integrators or studies.
 #pragma once
 
+#include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "moreau/render/figures.h"
@@ -27,6 +29,24 @@ render::TimeSeriesData time_series(TrajectoryColumns columns);
 // energy column: the scene's P or the certificate of positive realness; 1/2 |x|^2 without one), and its
 // phase portrait is the state plane.
 void label_for_system(render::TimeSeriesData& data, const Simulation& sim);
+
+// What a trajectory CSV holds, for figures drawn from the file alone (`moreau plot traj.csv`, no --scene):
+// written beside it as `<csv>-metadata.json`, the file name the W3C's "CSV on the Web" convention looks
+// for. Its tableSchema names and describes each column (time, a position, a Lur'e state, the storage W,
+// ...) with its unit; "moreau:figures" holds what label_for_system derives from the scene (titles, axes,
+// units, the output matrix C of a Lur'e system, its switching line, the energy column's name), and the
+// run's converged time and impact times. The mechanical energy E = T + V(q) needs V, so only a plot with
+// --scene draws it.
+std::string trajectory_metadata(const Simulation& sim, const std::string& csv_file_name, std::optional<double> converged_time,
+                                const std::vector<double>& impact_times);
+
+// The file beside `csv_path` that trajectory_metadata's text is written to.
+std::string trajectory_metadata_path(const std::string& csv_path);
+
+// Labels `data` (read from the CSV) as its metadata document says. Throws std::runtime_error naming
+// `source` and the JSON pointer of a field that is missing, of the wrong type, or does not fit the CSV's
+// columns.
+void label_from_metadata(render::TimeSeriesData& data, std::string_view metadata_text, const std::string& source);
 
 // One line per scheme of the study, in the order of `result.orders`, through its completed rows whose
 // max error of q is positive (a log axis cannot show 0): h, that error, and the timed run's wall time.
