@@ -10,6 +10,7 @@
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <map>
 #include <memory>
@@ -65,6 +66,8 @@ struct JobView {
 };
 
 constexpr std::size_t kMaxPoints = 20000;
+// Impacts marked on the live figure; the server publishes at most kMaxImpactEvents of them anyway.
+constexpr std::size_t kMaxImpactMarks = 10000;
 
 // Numbers on the live lines: 6 significant digits unless said otherwise.
 std::string fmt(double v, int digits = 6) { return platform::significant(v, digits); }
@@ -251,6 +254,9 @@ class Watcher {
       finished_ = true;
     }
     // "converged" comes when the rest is detected; "convergence_withdrawn" takes it back (docs/streaming.md).
+    // Impacts from their events, at the step's own time: the states arrive every 1/64 s of simulated time,
+    // so between two of them an impact would show only as a rounded corner.
+    if (e.kind == "impact" && j.series.impact_times.size() < kMaxImpactMarks) j.series.impact_times.push_back(e.t);
     if (e.kind == "converged") j.converged_time = e.t;
     if (e.kind == "convergence_withdrawn") j.converged_time.reset();
     clear_table();
@@ -312,7 +318,14 @@ class Watcher {
         render::FigureOptions opt;
         opt.title = "job " + j.id.substr(0, 8) + " (live, " + j.status + ")";
         const std::string tmp = o_.figure + ".tmp";
-        render::render_png(render::state_figure(d, opt), tmp);
+        const render::Figure figure = render::state_figure(d, opt);
+        if (o_.figure.size() > 4 && o_.figure.compare(o_.figure.size() - 4, 4, ".svg") == 0) {
+          std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+          out << render::render_svg(figure);
+          if (!out.flush()) throw std::runtime_error("cannot write '" + tmp + "'");
+        } else {
+          render::render_png(figure, tmp);
+        }
         std::filesystem::rename(tmp, o_.figure);
       } catch (const std::exception& e) {
         clear_table();
@@ -344,7 +357,9 @@ void register_watch_command(CLI::App& app, Actions& actions) {
   cmd->add_option("--channel", o->channel, "Channel regex (default MOREAU_(STATE|EVENT|DESC)_.*)");
   cmd->add_option("--job", o->job, "Only this job's channels");
   cmd->add_option("--log", o->log, "Record every message received as an LCM log (lcm-logplayer can replay it)");
-  cmd->add_option("--figure", o->figure, "Keep a PNG of the latest job's state up to date (once a second)");
+  cmd->add_option(
+      "--figure", o->figure,
+      "Keep a figure of the latest job's state up to date (once a second; PNG, or SVG for a .svg name), impacts marked from their events");
   cmd->add_flag("--until-finished", o->until_finished, "Exit when a job has finished, failed or been cancelled");
   cmd->add_option("--timeout", o->timeout, "Stop after this many seconds (exit 1 with --until-finished if none finished)");
   cmd->add_flag("--plain", o->plain, "Lines instead of a table redrawn in place (the default when not on a terminal)");

@@ -326,6 +326,47 @@ TEST(LcmStream, FileLogIsWrittenAndReadBack) {
   check_stream(got, id, report, 1.0 / 64, 4.0);
 }
 
+// `moreau watch --figure` marks impacts from the impact events (at their own step's time), not from the
+// states, which come every 1/64 s: replayed from a log of a bouncing ball, the live figure lists them.
+TEST(LcmStream, WatchFigureMarksImpactsFromTheirEvents) {
+#ifndef MOREAU_CLIENT_BINARY
+  GTEST_SKIP() << "the moreau client is not part of this build";
+#else
+  const TempDir dir("watch-impacts");
+  const fs::path log = dir / "stream.log";
+  std::vector<double> impacts;
+  {
+    ServerConfig cfg;
+    cfg.lcm_url = "file://" + log.string() + "?mode=w";
+    TestServer ts(cfg);
+    auto c = ts.client();
+    auto r = submit(*c, {{"scene", read_json_file("scenes/bouncing-ball-e0.5.json")}, {"stream", true}});
+    ASSERT_EQ(r->status, 202) << r->body;
+    ASSERT_EQ(wait_final(*c, json::parse(r->body)["id"])["state"], "done");
+    c.reset();
+  }
+  {
+    lcm::LogFile file(log.string(), "r");
+    Received got;
+    while (const lcm::LogEvent* e = file.readNextEvent()) got.add(e->channel, e->data, e->datalen);
+    for (const auto& e : got.events)
+      if (e.kind == "impact") impacts.push_back(e.t);
+  }
+  ASSERT_GE(impacts.size(), 3u);
+  const fs::path figure = dir / "live.svg";
+  const std::string out_file = (dir / "out").string();
+  const int rc = std::system((std::string(MOREAU_CLIENT_BINARY) + " watch --plain --until-finished --timeout 60 --lcm-url 'file://" +
+                              log.string() + "?speed=0' --figure " + figure.string() + " > " + out_file + " 2>&1")
+                                 .c_str());
+  std::ifstream f(out_file);
+  const std::string out((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  ASSERT_EQ(WEXITSTATUS(rc), 0) << out;
+  std::ifstream svg_file(figure);
+  const std::string svg((std::istreambuf_iterator<char>(svg_file)), std::istreambuf_iterator<char>());
+  EXPECT_THAT(svg, ::testing::HasSubstr(">impacts<")) << "the live figure has no impact marks";
+#endif
+}
+
 // A stream whose run a clean stop interrupts ends with a "stopped" event saying so; the restarted server
 // runs the job again, from the start, on the same channels: "started", then its states from t = 0, then
 // "finished". Each server writes its own file:// log, so that nothing published is missed.
