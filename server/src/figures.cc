@@ -25,7 +25,7 @@ using scene::TrajectoryFigure;
 
 bool figures_available() { return true; }
 
-std::string figure_image(TrajectoryFigure kind, std::string_view csv, std::optional<double> converged_time, int width, int height,
+std::string figure_image(TrajectoryFigure kind, std::string_view csv, const TrajectoryMarks& marks, int width, int height,
                          const std::string& title, FigureFormat format, const scene::Simulation* system) {
   // The stored CSV, read in place (no copy of what may be hundreds of megabytes).
   struct ViewBuffer : std::streambuf {
@@ -36,9 +36,11 @@ std::string figure_image(TrajectoryFigure kind, std::string_view csv, std::optio
   } buffer(csv);
   std::istream in(&buffer);
   render::TimeSeriesData data = scene::time_series(scene::read_trajectory_csv(in, "the stored trajectory"));
-  data.converged_time = converged_time;
+  data.converged_time = marks.converged_time;
+  data.impact_times = marks.impact_times;
   if (system) scene::label_for_system(data, *system);
   render::FigureOptions opt;
+  opt.robust_y = marks.robust_y;
   opt.width_px = width;
   opt.height_px = height;
   opt.title = title;
@@ -80,7 +82,7 @@ std::string study_figure_image(StudyFigure, const std::string&, int, int, Figure
   throw std::runtime_error("this server was built without render/: figures are not available");
 }
 
-std::string figure_image(TrajectoryFigure, std::string_view, std::optional<double>, int, int, const std::string&, FigureFormat,
+std::string figure_image(TrajectoryFigure, std::string_view, const TrajectoryMarks&, int, int, const std::string&, FigureFormat,
                          const scene::Simulation*) {
   throw std::runtime_error("this server was built without render/: figures are not available");
 }

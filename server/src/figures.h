@@ -7,6 +7,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "moreau/analysis/figure_kind.h"
 
@@ -20,10 +21,17 @@ namespace moreau::server {
 // Whether this build can draw figures (render/ was available).
 bool figures_available();
 
+// What a run's figure marks beyond its trajectory, from its report, and how its axes are drawn.
+struct TrajectoryMarks {
+  std::optional<double> converged_time;
+  std::vector<double> impact_times;
+  bool robust_y = false;  // render::FigureOptions::robust_y
+};
+
 // The image of trajectory figure `kind` for the trajectory CSV, as bytes, labelled for the kind of system
 // `system` is (scene::label_for_system; null: a mechanical system's labels). Throws std::runtime_error
 // (or render's std::invalid_argument) with a clear message.
-std::string figure_image(scene::TrajectoryFigure kind, std::string_view csv, std::optional<double> converged_time, int width, int height,
+std::string figure_image(scene::TrajectoryFigure kind, std::string_view csv, const TrajectoryMarks& marks, int width, int height,
                          const std::string& title, scene::FigureFormat format, const scene::Simulation* system = nullptr);
 
 // The image of a study's figure, from its stored result.json. Throws std::runtime_error or

@@ -53,6 +53,9 @@ std::optional<Kind> figure_kind(const Request& req, Response& res) {
 struct FigureRequest {
   std::pair<int, int> size{kDefaultFigureWidth, kDefaultFigureHeight};
   FigureFormat format = scene::default_figure<FigureFormat>();
+  bool robust_y = false;  // a run's figures only
+  // The figure every request without size or options gets: the one kept in the job's directory.
+  bool is_default() const { return size == std::pair<int, int>{kDefaultFigureWidth, kDefaultFigureHeight} && !robust_y; }
 };
 
 // The requested figure: size (width, height: 64 to 4096, default 1200x800, at most --max-figure-pixels in
@@ -77,6 +80,14 @@ std::optional<FigureRequest> figure_request(const ApiContext& api, const Request
                    std::to_string(static_cast<std::int64_t>(f.size.first) * f.size.second));
     return std::nullopt;
   }
+  if (req.has_param("robust_y")) {
+    const std::string value = req.get_param_value("robust_y");
+    if (value != "true" && value != "false") {
+      send_error(res, 400, "bad query", "", "query parameter 'robust_y' must be true or false");
+      return std::nullopt;
+    }
+    f.robust_y = value == "true";
+  }
   if (req.has_param("format")) {
     const auto format = scene::figure_from_name<FigureFormat>(req.get_param_value("format"));
     if (!format) {
@@ -96,7 +107,7 @@ void send_figure(ApiContext& api, const Request& req, Response& res, const Job& 
   const bool svg = f.format == FigureFormat::kSvg;
   const char* content_type = svg ? "image/svg+xml" : "image/png";
   const fs::path cache = job.dir / (std::string("figure-") + scene::figure_name(kind) + "." + scene::figure_name(f.format));
-  const bool default_size = f.size == std::pair<int, int>{kDefaultFigureWidth, kDefaultFigureHeight};
+  const bool default_size = f.is_default();
   if (default_size) {
     std::shared_lock files(job.files_mu);  // the cache is the job's file: never read one being deleted
     if (job.deleted) return send_deleted(res);
@@ -166,16 +177,24 @@ void job_figure(ApiContext& api, const Request& req, Response& res) {
     auto csv = job_file(*job, &Job::has_trajectory, "trajectory.csv", &deleted);
     if (deleted) throw JobDeleted{};
     if (!csv) throw StoredFileUnreadable{"stored trajectory unreadable"};
-    std::optional<double> converged;
+    // Marked as `moreau run --figure` marks them: the converged time and the impacts, from the report.
+    TrajectoryMarks marks;
+    marks.robust_y = figure->robust_y;
     if (auto report = read_report(*job)) {
       if (report->contains("converged_time") && (*report)["converged_time"].is_number())
-        converged = (*report)["converged_time"].get<double>();
+        marks.converged_time = (*report)["converged_time"].get<double>();
+      const json impacts = report->value("/contacts/impacts"_json_pointer, json::array());
+      if (impacts.is_array())
+        for (const json& impact : impacts)
+          if (impact.is_object() && impact.contains("t") && impact["t"].is_number())
+            marks.impact_times.push_back(impact["t"].get<double>());
     }
-    // A Lur'e job's figures are labelled as such (state x, output y, storage W): its stored scene says so.
+    // Labelled for the kind of system the stored scene is, as the command line labels them: units, the
+    // mechanical energy beside the kinetic, a Lur'e system's state x, output y and storage W.
     std::optional<scene::Simulation> system;
     if (auto text = job_file(*job, &Job::has_trajectory, "scene.json")) {
       const json doc = json::parse(*text, nullptr, false);
-      if (!doc.is_discarded() && scene::system_type(doc) == "lure") {
+      if (!doc.is_discarded()) {
         try {
           system.emplace(scene::Simulation::from_json(doc));
         } catch (const std::exception&) {
@@ -183,8 +202,8 @@ void job_figure(ApiContext& api, const Request& req, Response& res) {
         }
       }
     }
-    return figure_image(*kind, *csv, converged, figure->size.first, figure->size.second,
-                        job->scene_name + " (" + job->id.substr(0, 8) + ")", figure->format, system ? &*system : nullptr);
+    return figure_image(*kind, *csv, marks, figure->size.first, figure->size.second, job->scene_name + " (" + job->id.substr(0, 8) + ")",
+                        figure->format, system ? &*system : nullptr);
   });
 }
 

@@ -43,7 +43,8 @@ const char* method_name(Method method) {
 const std::vector<Route>& api_routes() {
   using M = Method;
   static const std::vector<std::string_view> kList = {"state", "scene", "limit", "before"}, kWait = {"wait"}, kPurge = {"purge"},
-                                             kFigure = {"kind", "width", "height", "format"}, kFormat = {"format"};
+                                             kFigure = {"kind", "width", "height", "format"}, kFormat = {"format"},
+                                             kJobFigure = {"kind", "width", "height", "format", "robust_y"};
   static const std::vector<Route> routes = {
       // The web page (server/web/), the health check, the metrics, the API's description, the shipped scenes.
       {M::kGet, "/", "webPage", {}, kOpen, web_page},
@@ -62,7 +63,7 @@ const std::vector<Route>& api_routes() {
       {M::kGet, "/v1/jobs/{id}/events", "jobEvents", {}, kToken, of_kind<job_events, kRun>},
       {M::kGet, "/v1/jobs/{id}/report", "getReport", {}, kToken, job_report},
       {M::kGet, "/v1/jobs/{id}/trajectory", "getTrajectory", {"format", "from", "to", "every"}, kToken, job_trajectory},
-      {M::kGet, "/v1/jobs/{id}/figure", "getJobFigure", kFigure, kToken, job_figure},
+      {M::kGet, "/v1/jobs/{id}/figure", "getJobFigure", kJobFigure, kToken, job_figure},
       // Studies.
       {M::kGet, "/v1/studies", "listStudies", kList, kToken, of_kind<list_jobs, kStudy>},
       {M::kPost, "/v1/studies", "submitStudy", {}, kToken, nullptr, post_study},

@@ -102,7 +102,8 @@ def example_value(doc, param):
         s = doc["components"]["schemas"][s["$ref"].split("/")[-1]]
     for key in ("default", "minimum"):
         if key in s:
-            return s[key]
+            # A query string spells a boolean as JSON does (true/false), not as Python's str() would.
+            return json.dumps(s[key]) if isinstance(s[key], bool) else s[key]
     if "enum" in s:
         return s["enum"][0]
     if "example" in param:

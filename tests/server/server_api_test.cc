@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <map>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -272,7 +273,7 @@ TEST(ServerApi, JobLifeFromSubmissionToResults) {
   auto typo = c->Get("/v1/jobs/" + id + "/figure?knd=energy");
   EXPECT_EQ(typo->status, 400);
   EXPECT_THAT(typo->body, ::testing::HasSubstr("unknown query parameter 'knd'"));
-  EXPECT_THAT(typo->body, ::testing::HasSubstr("(it takes kind, width, height, format)"));
+  EXPECT_THAT(typo->body, ::testing::HasSubstr("(it takes kind, width, height, format, robust_y)"));
   auto report_param = c->Get("/v1/jobs/" + id + "/report?format=csv");
   EXPECT_EQ(report_param->status, 400);
   EXPECT_THAT(report_param->body, ::testing::HasSubstr("unknown query parameter 'format'"));
@@ -739,7 +740,7 @@ TEST(ServerApi, FinishedResultsFiguresAndStaticFilesAnswerIfNoneMatchWith304) {
   for (const std::string& path :
        {job + "/report", job + "/trajectory", job + "/trajectory?format=csv", job + "/trajectory?from=0.1&every=2",
         job + "/trajectory?format=npy", job + "/trajectory?format=npy&from=0.1&every=2", job + "/figure?kind=phase",
-        job + "/figure?kind=phase&format=svg", job + "/figure?kind=energy&width=300&height=200", std::string("/v1/openapi.json"),
+        job + "/figure?kind=phase&format=svg", job + "/figure?kind=energy&width=300&height=260", std::string("/v1/openapi.json"),
         std::string("/"), std::string("/ui/app.js")}) {
     SCOPED_TRACE(path);
     auto first = c->Get(path);
@@ -902,6 +903,54 @@ TEST(ServerApi, LureFiguresShowStateOutputAndStorageNotMechanicalLabels) {
   EXPECT_THAT(mstate, ::testing::HasSubstr("Positions"));
   EXPECT_THAT(mstate, ::testing::Not(::testing::HasSubstr("Output y")));
   EXPECT_THAT(menergy, ::testing::HasSubstr("M v, v"));
+}
+
+// A job's figures are `moreau run --figure`'s, byte for byte at the same size and title: units, the
+// mechanical energy, impacts marked from the report, and ?robust_y=true as --robust-y.
+TEST(ServerApi, JobFiguresAreTheCommandLinesFigures) {
+#ifndef MOREAU_CLIENT_BINARY
+  GTEST_SKIP() << "the moreau client is not part of this build";
+#else
+  TestServer ts;
+  auto c = ts.client();
+  const TempDir dir("cli-figures");
+  struct Case {
+    std::string scene, kind;
+    bool robust;
+  };
+  const Case cases[] = {{"bouncing-ball-e0.5", "state", false},
+                        {"bouncing-ball-e0.5", "energy", false},
+                        {"manipulator-fig6.4", "state", false},
+                        {"iiwa14-joint-limit", "state", true}};
+  std::map<std::string, std::string> ids;
+  for (const Case& k : cases) {
+    if (ids.count(k.scene)) continue;
+    auto r = submit(*c, {{"scene", k.scene}});
+    ASSERT_EQ(r->status, 202) << r->body;
+    ids[k.scene] = json::parse(r->body)["id"];
+    ASSERT_EQ(wait_final(*c, ids[k.scene])["state"], "done");
+  }
+  for (const Case& k : cases) {
+    const std::string& id = ids[k.scene];
+    auto served = c->Get("/v1/jobs/" + id + "/figure?format=svg&width=640&height=480&kind=" + k.kind + (k.robust ? "&robust_y=true" : ""));
+    ASSERT_EQ(served->status, 200) << served->body;
+    const fs::path drawn = dir / (k.scene + "-" + k.kind + ".svg");
+    const std::string cmd = std::string(MOREAU_CLIENT_BINARY) + " run " + MOREAU_SOURCE_DIR + "/scenes/" + k.scene +
+                            ".json --progress never --size 640x480 --title '" + k.scene + " (" + id.substr(0, 8) + ")' --figure " + k.kind +
+                            "=" + drawn.string() + (k.robust ? " --robust-y" : "") + " > /dev/null 2>&1";
+    ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+    std::ifstream in(drawn, std::ios::binary);
+    EXPECT_EQ(served->body, std::string(std::istreambuf_iterator<char>(in), {})) << k.scene << " " << k.kind;
+  }
+  // robust_y draws another figure than the full range (the iiwa's 48 rad/s spike is clipped), and is
+  // either true or false.
+  const std::string iiwa = ids["iiwa14-joint-limit"];
+  EXPECT_NE(c->Get("/v1/jobs/" + iiwa + "/figure?format=svg&kind=state&robust_y=false")->body,
+            c->Get("/v1/jobs/" + iiwa + "/figure?format=svg&kind=state&robust_y=true")->body);
+  auto bad = c->Get("/v1/jobs/" + iiwa + "/figure?robust_y=yes");
+  EXPECT_EQ(bad->status, 400);
+  EXPECT_THAT(bad->body, ::testing::HasSubstr("'robust_y' must be true or false"));
+#endif
 }
 
 TEST(ServerApi, CorsIsOffByDefaultAndAnswersOnlyTheConfiguredOrigin) {
