@@ -760,7 +760,7 @@ std::optional<json> CampaignSampleRunner::run_bound(std::int64_t i, const std::v
     }
   }
   try {
-    return record_of(i, values, Simulation::from_scene(parametric_->bind(params, q0, v0), RunLimits{max_steps_, 1}));
+    return record_of(i, values, Simulation::from_scene(parametric_->bind(params, q0, v0), RunLimits{max_steps_, 1}, doc_));
   } catch (const std::exception&) {
     return std::nullopt;  // the full compile says what is wrong with this sample
   }

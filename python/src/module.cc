@@ -220,7 +220,7 @@ class CompiledScene {
       if (parametric_) {
         try {
           const scene::LagrangianScene& nominal = parametric_->nominal();
-          bound = scene::Simulation::from_scene(parametric_->bind(values, nominal.q0, nominal.v0));
+          bound = scene::Simulation::from_scene(parametric_->bind(values, nominal.q0, nominal.v0), {}, *doc_);
         } catch (const std::invalid_argument&) {
           // A value (or a quantity of values alone) of 0: compiled from the document below.
         }

@@ -250,6 +250,7 @@ const char* describe(ConvergenceFinding f) {
     case ConvergenceFinding::kAtRestAtEnd: return "at rest at the end only";
     case ConvergenceFinding::kConvergedTheorem: return "converged (Theorem 4.3, hypotheses hold)";
     case ConvergenceFinding::kConvergedNotGuaranteed: return "converged (Theorem 4.3's hypotheses fail or are not checked)";
+    case ConvergenceFinding::kConvergedNoTheorem: return "converged (no result among the guarantees promises convergence for this scheme)";
   }
   return "?";
 }
@@ -258,7 +259,8 @@ ConvergenceFinding convergence_finding(const RunSummary& s, const Guarantees& g,
   if (!s.rest_step) return ConvergenceFinding::kNotAtRest;
   if (!s.converged_step) return ConvergenceFinding::kAtRestAtEnd;
   const Guarantee* t = g.find(theorem);
-  return t && t->verdict() == Verdict::kHolds ? ConvergenceFinding::kConvergedTheorem : ConvergenceFinding::kConvergedNotGuaranteed;
+  if (!t) return ConvergenceFinding::kConvergedNoTheorem;  // a Moreau-Jean or tracking run: Theorem 4.3 is about (0.2)
+  return t->verdict() == Verdict::kHolds ? ConvergenceFinding::kConvergedTheorem : ConvergenceFinding::kConvergedNotGuaranteed;
 }
 
 namespace {

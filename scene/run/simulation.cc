@@ -40,13 +40,17 @@ Simulation Simulation::from_json(const nlohmann::json& doc) {
     sim.system_ = std::make_shared<const LagrangianScene>(load_scene(doc));
   }
   sim.latest_ = std::make_shared<Latest>();
-  // /units is free-form (scene-format.md): its string members are the units; other members are ignored.
+  sim.units_ = units_of(doc);
+  return sim;
+}
+
+// /units is free-form (scene-format.md): its string members are the units; other members are ignored.
+std::shared_ptr<const std::map<std::string, std::string>> Simulation::units_of(const nlohmann::json& doc) {
   auto units = std::make_shared<std::map<std::string, std::string>>();
-  if (doc.contains("units") && doc["units"].is_object())
+  if (doc.is_object() && doc.contains("units") && doc["units"].is_object())
     for (const auto& [name, unit] : doc["units"].items())
       if (unit.is_string()) (*units)[name] = unit.get<std::string>();
-  sim.units_ = std::move(units);
-  return sim;
+  return units;
 }
 
 const std::map<std::string, std::string>& Simulation::units() const {
@@ -64,11 +68,12 @@ void apply_limits(TimeGrid& grid, const RunLimits& limits) {
 
 }  // namespace
 
-Simulation Simulation::from_scene(LagrangianScene scene, const RunLimits& limits) {
+Simulation Simulation::from_scene(LagrangianScene scene, const RunLimits& limits, const nlohmann::json& doc) {
   Simulation sim;
   apply_limits(scene.settings.grid(), limits);
   sim.system_ = std::make_shared<const LagrangianScene>(std::move(scene));
   sim.latest_ = std::make_shared<Latest>();
+  sim.units_ = units_of(doc);
   return sim;
 }
 
@@ -179,10 +184,15 @@ RunSummary Simulation::run(RunObserver* observer) const {
 }
 
 nlohmann::json Simulation::report_json(const RunSummary& summary, const RunDiagnostics& d) const {
-  return std::visit(
+  nlohmann::json j = std::visit(
       Overloaded{[&](const std::shared_ptr<const LagrangianScene>& sc) { return scene::report_json(*sc, summary, d.contacts()); },
                  [&](const std::shared_ptr<const LureScene>& sc) { return scene::report_json(*sc, summary, d.lure()); }},
       system_);
+  // Time in the scene's unit: /units/t, or seconds once the scene gives any units (as its figures say).
+  const auto& u = units();
+  const auto t = u.find("t");
+  j["summary"] = plain_summary(j, t != u.end() ? t->second : u.empty() ? "" : "s");
+  return j;
 }
 std::string Simulation::report_text(const RunSummary& summary, const RunDiagnostics& d) const {
   return std::visit(

@@ -13,6 +13,7 @@
 
 #include "moreau/core/models/manipulator.h"
 #include "moreau/scene/guarantees.h"
+#include "moreau/scene/report.h"
 #include "moreau/scene/scene.h"
 #include "moreau/scene/simulation.h"
 
@@ -636,3 +637,78 @@ TEST(Guarantees, SmoothManipulatorUnderTheTheorem42RuleConvergesByTheorem43) {
 
 }  // namespace
 }  // namespace moreau::scene
+
+// ---- the report's one-sentence summary (report.h: plain_summary) ----
+
+namespace summary_test {
+
+using nlohmann::json;
+
+json hypothesis(const std::string& name, const std::string& verdict) { return {{"hypothesis", name}, {"verdict", verdict}}; }
+
+json guarantee(const std::string& result, bool relied_on, std::vector<json> hypotheses) {
+  bool holds = true;
+  for (const json& h : hypotheses) holds = holds && h["verdict"] == "holds";
+  return {{"result", result}, {"relied_on", relied_on}, {"verdict", holds ? "holds" : "fails"}, {"hypotheses", hypotheses}};
+}
+
+// The issue's own example: rest reached exactly, Theorem 4.3 not covering the run because of gravity,
+// found through "the hypotheses of Theorem 4.2", and a failing hypothesis named before one left unchecked.
+TEST(PlainSummary, SaysWhatHappenedAndWhyTheTheoremDoesNotCoverIt) {
+  json r = {{"status", "completed"}, {"t_final", 10.0}, {"converged_time", 1.135}};
+  r["guarantees"] = {
+      guarantee("Theorem 4.1", true, {hypothesis("Assumption 3.1: M(q) positive definite", "holds")}),
+      guarantee("Theorem 4.2", false,
+                {hypothesis("the step rule of Theorem 4.2 (h_k <= h_{k-1})", "not checked"),
+                 hypothesis("Assumption 4.1 2)-3): sup ||F|| <= beta < alpha and ||grad V(q)|| <= (alpha - beta) / 2", "fails")}),
+      guarantee("Theorem 4.3", false, {hypothesis("the hypotheses of Theorem 4.2", "fails")})};
+  EXPECT_EQ(moreau::scene::plain_summary(r, "s"),
+            "Came to rest exactly (velocity 0.0) at t = 1.135 s; the finite-step convergence theorem (Theorem 4.3) does not cover this "
+            "run because the potential's force (gravity) is too strong for the controller's gain (||grad V|| > (alpha - beta) / 2).");
+  // Every hypothesis holding: it covers the run; one seen only on the visited states says so.
+  r["guarantees"][1] = guarantee("Theorem 4.2", false, {hypothesis("Assumption 4.1 1)", "holds")});
+  r["guarantees"][2] = guarantee("Theorem 4.3", false, {hypothesis("the hypotheses of Theorem 4.2", "holds")});
+  EXPECT_EQ(moreau::scene::plain_summary(r, ""),
+            "Came to rest exactly (velocity 0.0) at t = 1.135; the finite-step convergence theorem (Theorem 4.3) covers this run.");
+  r["guarantees"][2]["hypotheses"][0]["scope"] = "on the states visited";
+  EXPECT_NE(moreau::scene::plain_summary(r, "").find("covers this run (some hypotheses checked on the states visited only)"),
+            std::string::npos);
+  // A result the steps rely on that fails comes first, whatever else holds.
+  r["guarantees"][0] = guarantee("Theorem 4.1", true, {hypothesis("(4.2): h_k k3 ||V^k|| <= k1 / 2", "fails")});
+  EXPECT_EQ(moreau::scene::plain_summary(r, "s"),
+            "Came to rest exactly (velocity 0.0) at t = 1.135 s; but the run's steps are not guaranteed: Theorem 4.1 does not hold here "
+            "because the step is too large for the speeds reached (condition (4.2)).");
+  // Left unchecked, not failed: "not established", never "does not cover".
+  r["guarantees"][0] = guarantee("Theorem 4.1", true, {});
+  r["guarantees"][2] = {{"result", "Theorem 4.3"},
+                        {"relied_on", false},
+                        {"verdict", "undetermined"},
+                        {"hypotheses", {hypothesis("(4.16): F independent of t", "undetermined")}}};
+  EXPECT_EQ(moreau::scene::plain_summary(r, "s"),
+            "Came to rest exactly (velocity 0.0) at t = 1.135 s; the finite-step convergence theorem (Theorem 4.3) is not established "
+            "for this run because the applied force depends on time, and the theorem needs it constant in time (undetermined).");
+}
+
+TEST(PlainSummary, FailedCancelledAndNotAtRestRunsSaySoOnce) {
+  EXPECT_EQ(moreau::scene::plain_summary({{"status", "failed"}, {"t_final", 0.25}, {"message", "non-finite state at step 250"}}, "s"),
+            "The run failed at t = 0.25 s: non-finite state at step 250.");
+  EXPECT_EQ(moreau::scene::plain_summary({{"status", "cancelled"}, {"t_final", 1.5}}, "s"), "The run was cancelled at t = 1.5 s.");
+  EXPECT_EQ(moreau::scene::plain_summary({{"status", "completed"}, {"t_final", 10.0}, {"converged_time", nullptr}}, "s"),
+            "Ran to t = 10 s without coming to rest.");
+  // Not a report: nothing, not a crash.
+  EXPECT_EQ(moreau::scene::plain_summary(json::array(), "s"), "");
+  EXPECT_EQ(moreau::scene::plain_summary({{"status", "completed"}, {"guarantees", {1, "x", nullptr}}}, "s"),
+            "Ran to t = ? s without coming to rest.");
+}
+
+// A real run's report carries the sentence, and it agrees with the report's own guarantees.
+TEST(PlainSummary, TheManipulatorsReportCarriesIt) {
+  const auto sim = moreau::scene::Simulation::from_file(std::string(MOREAU_SOURCE_DIR) + "/scenes/manipulator.json");
+  const json r = sim.report_json(sim.run(nullptr));
+  ASSERT_TRUE(r.contains("summary"));
+  EXPECT_EQ(r["summary"], moreau::scene::plain_summary(r, "s"));
+  EXPECT_NE(r["summary"].get<std::string>().find("Came to rest exactly (velocity 0.0) at t = 1.135 s"), std::string::npos) << r["summary"];
+  EXPECT_NE(r["summary"].get<std::string>().find("gravity"), std::string::npos) << r["summary"];
+}
+
+}  // namespace summary_test

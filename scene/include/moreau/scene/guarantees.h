@@ -57,10 +57,11 @@ struct Guarantees {
 // What the report says about rest and convergence: never "converged" on a velocity that is 0 only at
 // the last step, and "Theorem 4.3" only when its hypotheses hold.
 enum class ConvergenceFinding {
-  kNotAtRest,              // V^N != 0
-  kAtRestAtEnd,            // V == 0.0 at the end, but too briefly or not at an equilibrium
-  kConvergedTheorem,       // converged, and the theorem that promises it has its hypotheses hold
-  kConvergedNotGuaranteed  // converged, but the theorem's hypotheses fail or were not checked
+  kNotAtRest,               // V^N != 0
+  kAtRestAtEnd,             // V == 0.0 at the end, but too briefly or not at an equilibrium
+  kConvergedTheorem,        // converged, and the theorem that promises it has its hypotheses hold
+  kConvergedNotGuaranteed,  // converged, but the theorem's hypotheses fail or were not checked
+  kConvergedNoTheorem       // converged, and no result of the run's guarantees promises it (another scheme)
 };
 const char* describe(ConvergenceFinding f);
 

@@ -22,4 +22,12 @@ std::string report_text(const LagrangianScene& scene, const RunSummary& summary,
 nlohmann::json report_json(const LureScene& scene, const RunSummary& summary, const LureDiagnostics* diagnostics);
 std::string report_text(const LureScene& scene, const RunSummary& summary, const LureDiagnostics* diagnostics);
 
+// One sentence a student reads, for the top of a report (its "summary"): what happened (came to rest
+// exactly at t = ..., reached the sliding band at ..., failed at ..., cancelled at ...), then whether the
+// paper's result about the run's long-time behaviour (Theorem 4.3, Lemma 3, Lemma 2) covers it, and if
+// not, the first hypothesis that fails in plain words ("the potential's force (gravity) is too strong for
+// the controller's gain"); a result the steps rely on that fails comes first. Read off `report` (the
+// report's JSON), so it says nothing its sections do not; `t_unit` is the scene's time unit ("" for none).
+std::string plain_summary(const nlohmann::json& report, const std::string& t_unit);
+
 }  // namespace moreau::scene

@@ -51,8 +51,9 @@ class Simulation {
   // Reads a file, applies `--set PATH=VALUE` overrides in order, then validates. Throws SceneError.
   static Simulation from_file(const std::string& path, const std::vector<std::string>& overrides = {});
   // A Lagrangian scene compiled already (ParametricLagrangianScene::bind), under `limits` as with_limits
-  // applies them (without copying the scene a second time).
-  static Simulation from_scene(LagrangianScene scene, const RunLimits& limits = {});
+  // applies them (without copying the scene a second time). `doc`: the scene document it was compiled
+  // from, whose /units label its figures and report (units()), as from_json takes them.
+  static Simulation from_scene(LagrangianScene scene, const RunLimits& limits = {}, const nlohmann::json& doc = {});
 
   const std::string& name() const;
   const std::string& system_type() const;  // "lagrangian" or "lure"
@@ -65,8 +66,8 @@ class Simulation {
   // sigma_<q> and u_<q> for each coordinate q; empty for other scenes.
   std::vector<std::string> signal_names() const;
   // The scene's /units, its string members (a coordinate's or a state's name, or "t", to the unit's text:
-  // {"x1": "m", "th2": "rad", "t": "s"}), for the labels of figures; empty for a scene without them and
-  // for one made from_scene.
+  // {"x1": "m", "th2": "rad", "t": "s"}), for the labels of figures and the report's summary; empty for a
+  // scene without them.
   const std::map<std::string, std::string>& units() const;
   double t0() const;
   double t_end() const;
@@ -115,6 +116,7 @@ class Simulation {
   System system_;
   std::shared_ptr<Latest> latest_;
   std::shared_ptr<const std::map<std::string, std::string>> units_;
+  static std::shared_ptr<const std::map<std::string, std::string>> units_of(const nlohmann::json& doc);
 };
 
 }  // namespace moreau::scene
