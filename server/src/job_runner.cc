@@ -388,7 +388,10 @@ void JobRunner::run(const std::shared_ptr<Job>& job) {
     commit->reason = summary.message;
   } else if (summary.status == RunStatus::kCancelled) {
     commit->state = JobState::kCancelled;
-    commit->reason = "cancelled by request (" + summary.message + ")";
+    // Said once: "cancelled by request at step 147968", not "cancelled by request (cancelled at step 147968)".
+    const std::string said = "cancelled ";
+    commit->reason = summary.message.rfind(said, 0) == 0 ? "cancelled by request " + summary.message.substr(said.size())
+                                                         : "cancelled by request (" + summary.message + ")";
   }
   summary.add_phase("write", csv.seconds() + seconds_since(t_write));
   const std::string report = sim.report_json(summary).dump(2) + "\n";

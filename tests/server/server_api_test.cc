@@ -587,6 +587,8 @@ TEST(ServerApi, CancellingARunningJobStopsAtItsNextCheck) {
   EXPECT_LE(job["report"]["steps"].get<std::int64_t>(), seen + moreau::RunObserver::kControlInterval)
       << "the run went on past its next cancellation check";
   EXPECT_THAT(job["reason"].get<std::string>(), ::testing::HasSubstr("cancelled"));
+  // Said once: "cancelled by request at step N", not "cancelled by request (cancelled at step N)".
+  EXPECT_THAT(job["reason"].get<std::string>(), ::testing::MatchesRegex("cancelled by request at step [0-9]+"));
   EXPECT_EQ(job["report"]["status"], "cancelled");
   EXPECT_LT(job["report"]["t_final"].get<double>(), 1e6);
   // A cancelled job keeps the trajectory it had; cancelling again is harmless.
