@@ -434,7 +434,7 @@ function drawLive() {
   plot.dataset.points = String(l.points.length);
   const note = l.indices ? `${l.indices.length} of the ${l.n} coordinates shown (evenly spread)` : '';
   const lastT = l.points[l.points.length - 1].t;
-  box.replaceChildren(plot, el('p', { class: 'note' }, `${l.points.length} states drawn, up to t = `, num(lastT), note ? `; ${note}` : ''));
+  box.replaceChildren(plot, legend(series), el('p', { class: 'note' }, `${l.points.length} states drawn, up to t = `, num(lastT), note ? `; ${note}` : ''));
 }
 
 // ---- plots (SVG drawn here) ---------------------------------------------------------------------

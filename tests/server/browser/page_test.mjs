@@ -142,7 +142,10 @@ async function main() {
     check(JSON.stringify(downloads) === JSON.stringify(['report.json', 'trajectory.csv', 'trajectory.json']), 'download links: ' + downloads);
     // PNG, or JPEG for a .jpg path (the one docs/ shows: docs/figures/web-page.jpg).
     const jpeg = screenshotPath.endsWith('.jpg');
-    await page.screenshot({ path: screenshotPath, fullPage: true, type: jpeg ? 'jpeg' : 'png', ...(jpeg ? { quality: 60 } : {}) });
+    // The whole page, at three quarters of its size to keep the file small.
+    const size = await page.evaluate(() => ({ width: document.documentElement.scrollWidth, height: document.documentElement.scrollHeight }));
+    await page.screenshot({ path: screenshotPath, clip: { x: 0, y: 0, ...size, scale: 0.75 }, captureBeyondViewport: true,
+                            type: jpeg ? 'jpeg' : 'png', ...(jpeg ? { quality: 55 } : {}) });
     check(fs.statSync(screenshotPath).size > 10000, 'screenshot saved to ' + screenshotPath);
 
     // The token is kept for the tab: after a reload the list loads without typing it again.
@@ -206,6 +209,7 @@ async function main() {
       document.querySelector('input[value=shipped]').checked = true;
       document.getElementById('overrides').value = 'integrator.t_end=5e4\noutput.every=10000';
     });
+    const shownBefore = await page.$eval('#job-id', (e) => e.textContent);
     await page.click('#submit-button');
     // The job's view is redrawn as its state changes: each button is found and clicked in one step in
     // the page, so a redraw between finding and clicking cannot detach it.
@@ -216,8 +220,10 @@ async function main() {
         b.click();
         return true;
       }, WAIT, id);
-    await page.waitForFunction(() => document.getElementById('job-summary').textContent.includes('state') &&
-                               document.getElementById('cancel-button') !== null, WAIT);
+    // (The new job's view, not the one shown before it.)
+    await page.waitForFunction((before) => document.getElementById('job-id').textContent !== before &&
+                               document.getElementById('job-summary').textContent.includes('state') &&
+                               document.getElementById('cancel-button') !== null, WAIT, shownBefore);
     const longId = await page.$eval('#job-id', (e) => e.textContent);
     await clickWhenThere('cancel-button');
     await page.waitForFunction((id) => {
@@ -235,13 +241,13 @@ async function main() {
     check(gone === 404, 'the Delete button deletes the finished job with its results (then 404): ' + gone);
 
     // ---- A live plot while a job runs, then its figures --------------------------------------------
-    // A 7-joint arm tracking a trajectory for 400 s of simulated time at h = 1e-4 (4 million steps:
+    // A 7-joint arm tracking a trajectory for 60 s of simulated time at h = 1e-5 (6 million steps:
     // seconds of work): the page draws q(t) from the job's `sample` events as they come.
     await setMode(page, 'run');
     await page.evaluate(() => {
       document.querySelector('input[value=shipped]').checked = true;
       document.getElementById('scene-select').value = 'iiwa14-tracking';
-      document.getElementById('overrides').value = 'integrator.t_end=400\noutput.every=100';
+      document.getElementById('overrides').value = 'integrator.t_end=60\nintegrator.h=1e-5\noutput.every=1000';
     });
     await page.click('#submit-button');
     await page.waitForFunction(() => /^#\/jobs\/[0-9a-f]{32}$/.test(location.hash) && document.getElementById('job-id').textContent === location.hash.slice(7), WAIT);
@@ -264,6 +270,9 @@ async function main() {
           `the live plot grows while the job runs: ${firstPoints} then ${live.points} states, 7 coordinates drawn (${live.state})`);
     await page.waitForFunction(() => / left$/.test(document.getElementById('job-progress').textContent), WAIT);
     check(true, 'the running job shows its progress with the time left: ' + await page.$eval('#job-progress', (e) => e.textContent));
+    // The screenshot with a few seconds drawn (unless the run is over by then: then as it was).
+    await page.waitForFunction(() => document.getElementById('live-section').hidden ||
+                               Number(document.getElementById('live-svg').dataset.points) >= 30, { timeout: 120000 });
     await shot(page, 'live', '#job-section');
     await page.waitForFunction(() => document.getElementById('live-section').hidden && figuresLoaded(4), { timeout: 120000 });
     check(true, 'when the job is done its four figures replace the live plot');
