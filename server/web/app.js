@@ -145,14 +145,16 @@ function short(x) {
   if (typeof x !== 'number') return x === null || x === undefined ? 'n/a' : String(x);
   if (!Number.isFinite(x)) return String(x);
   if (Number.isInteger(x) && Math.abs(x) < 1e15) return String(x);
-  return String(Number(x.toPrecision(6)));
+  const r = Number(x.toPrecision(6));
+  if (Math.abs(r) >= 1e6 || (r !== 0 && Math.abs(r) < 1e-4)) return r.toExponential().replace('e+', 'e');  // 1.23457e20, 2.5e-7
+  return String(r);
 }
 
 function num(x) {
-  const full = typeof x === 'number' ? String(x) : (x === null || x === undefined ? 'null' : String(x));
   const s = short(x);
   const span = el('span', { class: 'num' }, s);
-  if (s !== full) {
+  const full = String(x);
+  if (typeof x === 'number' && Number.isFinite(x) && s !== full) {
     span.title = visible(full);
     span.dataset.full = full;
   }
