@@ -11,7 +11,9 @@ using json = nlohmann::json;
 using scene::finite_or_null;
 
 namespace {
-constexpr std::size_t kMaxEventsKept = 512;  // per job, for late subscribers; older progress is dropped
+constexpr std::size_t kMaxEventsKept = 512;  // per job, for late subscribers; older progress and samples are dropped
+constexpr int kMaxSampleCoordinates = 16;    // of q and of v in a sample event
+bool droppable(const SseEvent& e) { return e.name == "progress" || e.name == "sample"; }
 }  // namespace
 
 std::optional<JobState> parse_state(const std::string& s) {
@@ -185,13 +187,31 @@ json job_record(const Job& job, JobState state, const std::string& reason, doubl
   return r;
 }
 
+json sample_event(const Sample& s) {
+  // All coordinates up to the bound; beyond it, kMaxSampleCoordinates of them evenly spread from the
+  // first to the last, named by their indices.
+  const int n = std::max(0, s.n);
+  const int shown = std::min(n, kMaxSampleCoordinates);
+  std::vector<int> indices;
+  for (int i = 0; i < shown; ++i)
+    indices.push_back(shown > 1 && n > shown ? static_cast<int>((static_cast<long>(i) * (n - 1)) / (shown - 1)) : i);
+  json q = json::array(), v = json::array();
+  for (int i : indices) {
+    q.push_back(finite_or_null(s.q[i]));
+    v.push_back(finite_or_null(s.v[i]));
+  }
+  json j = {{"t", finite_or_null(s.t)}, {"step", s.step}, {"n", n}, {"q", q}, {"v", v}, {"energy", finite_or_null(s.kinetic_energy)}};
+  if (shown < n) j["indices"] = indices;
+  return j;
+}
+
 void push_event(Job& job, const std::string& name, const json& data) {
   {
     std::lock_guard lock(job.mu);
     job.events.push_back(SseEvent{job.next_event_id++, name, data.dump()});
     if (job.events.size() > kMaxEventsKept) {
-      // Drop the oldest progress event (state changes are kept).
-      auto it = std::find_if(job.events.begin(), job.events.end(), [](const SseEvent& e) { return e.name == "progress"; });
+      // Drop the oldest progress or sample event (state changes are kept).
+      auto it = std::find_if(job.events.begin(), job.events.end(), droppable);
       job.events.erase(it != job.events.end() ? it : job.events.begin());
     }
   }

@@ -18,6 +18,7 @@
 #include "moreau/analysis/campaign.h"
 #include "moreau/scene/simulation.h"
 #include "moreau/analysis/study.h"
+#include "moreau/core/observer.h"
 #include "moreau/server/server_config.h"
 
 namespace moreau::server {
@@ -99,7 +100,7 @@ struct Job {
 };
 
 // How far past its record's event id a job that was not final continues after a restart: beyond every
-// progress event it can have sent since the record (10 a second for 13 years).
+// progress and sample event it can have sent since the record (10 of each a second for 6 years).
 inline constexpr std::uint64_t kEventIdGapAfterRestart = std::uint64_t{1} << 32;
 
 // The job as GET /v1/jobs/{id} shows it (with the report when `report` is given); a study as
@@ -113,8 +114,12 @@ nlohmann::json job_record(const Job& job, JobState state, const std::string& rea
 // The state a record names, if it names one.
 std::optional<JobState> parse_state(const std::string& s);
 
-// Appends an event for the job's streams (the oldest progress events go first beyond a bound).
+// Appends an event for the job's streams (the oldest progress and sample events go first beyond a bound).
 void push_event(Job& job, const std::string& name, const nlohmann::json& data);
+
+// The data of a `sample` event: t, step, n, the energy, and q and v (at most 16 coordinates of each,
+// evenly spread from the first to the last, with their "indices" when n is larger). Not finite: null.
+nlohmann::json sample_event(const Sample& s);
 
 double unix_now();
 

@@ -18,7 +18,7 @@ namespace moreau::server {
 class JobObserver final : public ForwardingObserver {
  public:
   JobObserver(Job& job, scene::TrajectoryCsvWriter& csv, std::int64_t record_every, std::int64_t engine_every, std::int64_t max_samples,
-              StreamObserver* stream, std::function<void()> progress)
+              StreamObserver* stream, std::function<void()> progress, std::function<void(const Sample&)> sample = nullptr)
       : ForwardingObserver(stream),
         job_(job),
         csv_(csv),
@@ -27,6 +27,7 @@ class JobObserver final : public ForwardingObserver {
         max_samples_(max_samples),
         stream_(stream),
         progress_(std::move(progress)),
+        sample_(std::move(sample)),
         last_progress_(std::chrono::steady_clock::now()) {}
 
   void on_sample(const Sample& s) override {
@@ -45,6 +46,7 @@ class JobObserver final : public ForwardingObserver {
       pending_v_.assign(s.v, s.v + s.n);
       n_ = s.n;
     }
+    maybe_sample(s);
     if (stream_) {
       stream_->on_sample(s);
       if (++since_progress_check_ >= 128) {
@@ -93,12 +95,25 @@ class JobObserver final : public ForwardingObserver {
     }
   }
 
+  // The state for a live plot at most ten times a second of wall time (the first sample at once): a
+  // clock read per recorded state, which costs nothing beside the step that made it.
+  void maybe_sample(const Sample& s) {
+    if (!sample_) return;
+    const auto now = std::chrono::steady_clock::now();
+    if (sampled_ && now - last_sample_ < std::chrono::milliseconds(100)) return;
+    sampled_ = true;
+    last_sample_ = now;
+    sample_(s);
+  }
+
   Job& job_;
   scene::TrajectoryCsvWriter& csv_;
   std::int64_t every_, engine_every_, max_samples_;
   StreamObserver* stream_;
   std::function<void()> progress_;
-  std::chrono::steady_clock::time_point last_progress_;
+  std::function<void(const Sample&)> sample_;
+  std::chrono::steady_clock::time_point last_progress_, last_sample_;
+  bool sampled_ = false;
   int since_progress_check_ = 0;
   std::int64_t rows_ = 0, last_written_ = -1;
   bool overflow_ = false;

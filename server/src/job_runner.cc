@@ -203,6 +203,10 @@ bool JobRunner::set_state(Job& job, JobState state, const std::string& reason) {
     job.reason = reason;
     job.started = started;
     job.finished = finished;
+    // A final job's figures show its run: its live-plot samples go, and it keeps its state changes and progress.
+    if (became_final)
+      job.events.erase(std::remove_if(job.events.begin(), job.events.end(), [](const SseEvent& e) { return e.name == "sample"; }),
+                       job.events.end());
     job.events.push_back(SseEvent{job.next_event_id++, "state", data.dump()});
   }
   job.cv.notify_all();
@@ -329,8 +333,10 @@ void JobRunner::run(const std::shared_ptr<Job>& job) {
   auto progress = [this, &job] {
     push_event(*job, "progress", {{"t", job->t_now.load()}, {"step", job->step_now.load()}, {"t0", job->t0}, {"t_end", job->t_end}});
   };
+  auto sample = [&job](const Sample& s) { push_event(*job, "sample", sample_event(s)); };
   const std::int64_t max_rows = max_trajectory_rows(config_, sim);
-  JobObserver observer(*job, csv, job->record_every, sim.output_every(), max_rows, stream_observer ? &*stream_observer : nullptr, progress);
+  JobObserver observer(*job, csv, job->record_every, sim.output_every(), max_rows, stream_observer ? &*stream_observer : nullptr, progress,
+                       sample);
 
   RunSummary summary = sim.run(&observer);
   observer.finish();
@@ -382,7 +388,10 @@ void JobRunner::run(const std::shared_ptr<Job>& job) {
     commit->reason = summary.message;
   } else if (summary.status == RunStatus::kCancelled) {
     commit->state = JobState::kCancelled;
-    commit->reason = "cancelled by request (" + summary.message + ")";
+    // Said once: "cancelled by request at step 147968", not "cancelled by request (cancelled at step 147968)".
+    const std::string said = "cancelled ";
+    commit->reason = summary.message.rfind(said, 0) == 0 ? "cancelled by request " + summary.message.substr(said.size())
+                                                         : "cancelled by request (" + summary.message + ")";
   }
   summary.add_phase("write", csv.seconds() + seconds_since(t_write));
   const std::string report = sim.report_json(summary).dump(2) + "\n";

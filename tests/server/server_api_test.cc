@@ -20,6 +20,7 @@
 
 #include "moreau/scene/simulation.h"
 #include "conditional.h"
+#include "job.h"
 #include "moreau/scene/trajectory_csv.h"
 #include "server_fixture.h"
 #include "trajectory.h"
@@ -587,11 +588,94 @@ TEST(ServerApi, CancellingARunningJobStopsAtItsNextCheck) {
   EXPECT_LE(job["report"]["steps"].get<std::int64_t>(), seen + moreau::RunObserver::kControlInterval)
       << "the run went on past its next cancellation check";
   EXPECT_THAT(job["reason"].get<std::string>(), ::testing::HasSubstr("cancelled"));
+  // Said once: "cancelled by request at step N", not "cancelled by request (cancelled at step N)".
+  EXPECT_THAT(job["reason"].get<std::string>(), ::testing::MatchesRegex("cancelled by request at step [0-9]+"));
   EXPECT_EQ(job["report"]["status"], "cancelled");
   EXPECT_LT(job["report"]["t_final"].get<double>(), 1e6);
   // A cancelled job keeps the trajectory it had; cancelling again is harmless.
   EXPECT_EQ(c->Get("/v1/jobs/" + id + "/trajectory?format=csv")->status, 200);
   EXPECT_EQ(c->Delete("/v1/jobs/" + id)->status, 200);
+}
+
+// A running job's stream carries its state for a live plot (`sample`: t, step, n, q, v, energy), at most
+// ten a second; once the job is final its stream replays no samples (its figures show the run).
+TEST(ServerApi, RunningJobSendsSamplesOfItsStateAndAFinalOneKeepsNone) {
+  ServerConfig cfg;
+  cfg.max_steps = 2'000'000'000;
+  cfg.max_samples = 1'000'000;
+  TestServer ts(cfg);
+  auto c = ts.client();
+  json scene = manipulator();
+  scene["integrator"]["t_end"] = 1e6;  // minutes of work
+  scene["output"]["every"] = 10000;
+  auto r = submit(*c, {{"scene", scene}});
+  ASSERT_EQ(r->status, 202) << r->body;
+  const std::string id = json::parse(r->body)["id"];
+  ASSERT_EQ(wait_running(*c, id), "running");
+  std::vector<json> samples;
+  std::string buffer;
+  const auto start = Clock::now();
+  c->Get("/v1/jobs/" + id + "/events", [&](const char* data, std::size_t size) {
+    buffer.append(data, size);
+    for (std::size_t end; (end = buffer.find("\n\n")) != std::string::npos; buffer.erase(0, end + 2)) {
+      const std::string block = buffer.substr(0, end);
+      const auto data_at = block.find("\ndata: ");
+      if (block.find("event: sample\n") != std::string::npos && data_at != std::string::npos)
+        samples.push_back(json::parse(block.substr(data_at + 7)));
+    }
+    return samples.size() < 4;
+  });
+  const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
+  ASSERT_EQ(samples.size(), 4u);
+  // The first at the start (step 0), the next ones at least 100 ms of wall time apart.
+  EXPECT_EQ(samples[0]["step"], 0);
+  EXPECT_GE(seconds, 0.25);
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    const json& s = samples[i];
+    EXPECT_EQ(s["n"], 2) << s;
+    ASSERT_EQ(s["q"].size(), 2u) << s;
+    ASSERT_EQ(s["v"].size(), 2u) << s;
+    EXPECT_TRUE(s["t"].is_number() && s["energy"].is_number()) << s;
+    EXPECT_FALSE(s.contains("indices")) << s;
+    if (i > 0) EXPECT_GT(s["step"].get<std::int64_t>(), samples[i - 1]["step"].get<std::int64_t>());
+  }
+  EXPECT_DOUBLE_EQ(samples[0]["q"][0].get<double>(), scene["initial"]["q"][0].get<double>());
+  ASSERT_EQ(c->Delete("/v1/jobs/" + id)->status, 202);
+  EXPECT_EQ(wait_final(*c, id)["state"], "cancelled");
+  const std::string replay = c->Get("/v1/jobs/" + id + "/events")->body;
+  EXPECT_THAT(replay, ::testing::HasSubstr("\"state\":\"cancelled\""));
+  EXPECT_EQ(replay.find("event: sample"), std::string::npos) << replay;
+}
+
+// A sample of many coordinates carries 16 of each of q and v, evenly spread from the first to the last
+// and named by their indices; a value that is not finite is null.
+TEST(ServerApi, SampleEventsOfManyCoordinatesAreBounded) {
+  std::vector<double> q(40), v(40);
+  for (int i = 0; i < 40; ++i) {
+    q[i] = i;
+    v[i] = -i;
+  }
+  q[39] = std::numeric_limits<double>::quiet_NaN();
+  moreau::Sample s{7, 0.5, 1e-3, 40, q.data(), v.data(), 1.25};
+  const json j = moreau::server::sample_event(s);
+  EXPECT_EQ(j["n"], 40);
+  EXPECT_EQ(j["step"], 7);
+  ASSERT_EQ(j["q"].size(), 16u);
+  ASSERT_EQ(j["v"].size(), 16u);
+  ASSERT_EQ(j["indices"].size(), 16u);
+  EXPECT_EQ(j["indices"].front(), 0);
+  EXPECT_EQ(j["indices"].back(), 39);
+  for (std::size_t k = 0; k + 1 < 16; ++k) {
+    EXPECT_LT(j["indices"][k].get<int>(), j["indices"][k + 1].get<int>());
+    EXPECT_EQ(j["q"][k].get<double>(), j["indices"][k].get<double>());
+    EXPECT_EQ(j["v"][k].get<double>(), -j["indices"][k].get<double>());
+  }
+  EXPECT_TRUE(j["q"][15].is_null());
+  // Few coordinates: all of them, no indices.
+  moreau::Sample few{0, 0.0, 1e-3, 3, q.data(), v.data(), 0.0};
+  const json k = moreau::server::sample_event(few);
+  EXPECT_EQ(k["q"], json({0.0, 1.0, 2.0}));
+  EXPECT_FALSE(k.contains("indices"));
 }
 
 // --max-job-seconds bounds the work one job can take, whatever its step count: a run of 1e9 manipulator

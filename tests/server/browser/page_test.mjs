@@ -5,8 +5,15 @@
 // shipped manipulator scene with an override, waits for the job's row to say done, checks that the four
 // figures loaded (natural width > 0) and the report is shown in words, reloads to check that the token
 // was kept for the tab, then submits a scene whose name is HTML with a script and an error whose text is
-// HTML, and checks that both are shown as text and nothing ran; cancels a long job and deletes it. It fails on any page error or CSP
-// violation, and saves a screenshot.
+// HTML, and checks that both are shown as text and nothing ran; cancels a long job (its state said once)
+// and deletes it. Then: a long job's live plot grows while it runs, with the time left, and its figures
+// replace the plot when it is done; a figure enlarges and Escape closes it, its SVG link fetches SVG;
+// numbers show 6 digits and copy in full; a study and a campaign submitted from the form show their
+// tables, summaries and figures; back and forward go between them; two jobs are compared in one plot
+// with a legend naming them; deep links open items in a fresh tab, and an unknown id says "not found".
+// Every wait is on the page's state, never a fixed time. It fails on any page error or CSP violation,
+// and saves screenshots: SCREENSHOT (the whole page after the first job) and web-NAME beside it for the
+// other states (live, figure, study, campaign, compare, not-found).
 //
 // Usage: node page_test.mjs SERVER_BINARY SOURCE_DIR SCREENSHOT.png|.jpg
 import puppeteer from 'puppeteer-core';
@@ -54,7 +61,32 @@ async function stopServer(proc) {
   await exited;
 }
 
+// In the page: whether the shown item has `count` figures, all loaded.
+function figuresLoadedInPage() {
+  window.figuresLoaded = (count) => {
+    const imgs = [...document.querySelectorAll('#job-figures img')];
+    return imgs.length === count && imgs.every((i) => i.complete && i.naturalWidth > 0);
+  };
+}
+
+// Chooses what the form submits: a run, a study or a campaign.
+async function setMode(page, mode) {
+  await page.click(`input[name=mode][value=${mode}]`);
+}
+
+// Screenshots of the page's states beside SCREENSHOT: web-live.jpg next to web-page.jpg (JPEG, or PNG
+// for a .png path), the viewport only, to keep each small.
+let shotBase = null;
+async function shot(page, name, selector) {
+  if (selector) await page.$eval(selector, (e) => e.scrollIntoView({ block: 'start', inline: 'nearest' }));
+  const jpeg = shotBase.ext === '.jpg';
+  const file = path.join(shotBase.dir, `web-${name}${shotBase.ext}`);
+  await page.screenshot({ path: file, type: jpeg ? 'jpeg' : 'png', ...(jpeg ? { quality: 55 } : {}) });
+  check(fs.statSync(file).size > 10000, 'screenshot saved to ' + file);
+}
+
 async function main() {
+  shotBase = { dir: path.dirname(screenshotPath), ext: path.extname(screenshotPath) };
   const dataDir = fs.mkdtempSync(path.join(os.tmpdir(), 'moreau-browser-'));
   const { proc, url } = await startServer(path.join(dataDir, 'data'));
   let browser;
@@ -66,6 +98,7 @@ async function main() {
     });
     const page = await browser.newPage();
     await page.setViewport({ width: 1280, height: 900 });
+    await page.evaluateOnNewDocument(figuresLoadedInPage);
     const problems = [];
     page.on('pageerror', (e) => problems.push('page error: ' + e.message));
     // Failed loads are expected only where the test provokes them: 401s before the token is entered, the
@@ -109,7 +142,10 @@ async function main() {
     check(JSON.stringify(downloads) === JSON.stringify(['report.json', 'trajectory.csv', 'trajectory.json']), 'download links: ' + downloads);
     // PNG, or JPEG for a .jpg path (the one docs/ shows: docs/figures/web-page.jpg).
     const jpeg = screenshotPath.endsWith('.jpg');
-    await page.screenshot({ path: screenshotPath, fullPage: true, type: jpeg ? 'jpeg' : 'png', ...(jpeg ? { quality: 60 } : {}) });
+    // The whole page, at three quarters of its size to keep the file small.
+    const size = await page.evaluate(() => ({ width: document.documentElement.scrollWidth, height: document.documentElement.scrollHeight }));
+    await page.screenshot({ path: screenshotPath, clip: { x: 0, y: 0, ...size, scale: 0.75 }, captureBeyondViewport: true,
+                            type: jpeg ? 'jpeg' : 'png', ...(jpeg ? { quality: 55 } : {}) });
     check(fs.statSync(screenshotPath).size > 10000, 'screenshot saved to ' + screenshotPath);
 
     // The token is kept for the tab: after a reload the list loads without typing it again.
@@ -173,6 +209,7 @@ async function main() {
       document.querySelector('input[value=shipped]').checked = true;
       document.getElementById('overrides').value = 'integrator.t_end=5e4\noutput.every=10000';
     });
+    const shownBefore = await page.$eval('#job-id', (e) => e.textContent);
     await page.click('#submit-button');
     // The job's view is redrawn as its state changes: each button is found and clicked in one step in
     // the page, so a redraw between finding and clicking cannot detach it.
@@ -183,8 +220,10 @@ async function main() {
         b.click();
         return true;
       }, WAIT, id);
-    await page.waitForFunction(() => document.getElementById('job-summary').textContent.includes('state') &&
-                               document.getElementById('cancel-button') !== null, WAIT);
+    // (The new job's view, not the one shown before it.)
+    await page.waitForFunction((before) => document.getElementById('job-id').textContent !== before &&
+                               document.getElementById('job-summary').textContent.includes('state') &&
+                               document.getElementById('cancel-button') !== null, WAIT, shownBefore);
     const longId = await page.$eval('#job-id', (e) => e.textContent);
     await clickWhenThere('cancel-button');
     await page.waitForFunction((id) => {
@@ -192,12 +231,231 @@ async function main() {
       return tr && tr.querySelector('td.state').textContent.startsWith('cancelled');
     }, WAIT, longId);
     check(true, 'the Cancel button cancels a running job: its row says cancelled');
+    const cancelledText = await page.$eval(`#jobs tr[data-id="${longId}"] td.state`, (td) => td.textContent);
+    check(/^cancelled by request at step \d+$/.test(cancelledText), 'the cancelled state is said once: ' + cancelledText);
     expected = { status: 404, url: '/v1/jobs/' + longId };
     await clickWhenThere('delete-button');
     await page.waitForFunction((id) => document.querySelector(`#jobs tr[data-id="${id}"]`) === null, WAIT, longId);
     const gone = await page.evaluate(async (id, token) => (await fetch('/v1/jobs/' + id, { headers: { Authorization: 'Bearer ' + token } })).status,
                                      longId, TOKEN);
     check(gone === 404, 'the Delete button deletes the finished job with its results (then 404): ' + gone);
+
+    // ---- A live plot while a job runs, then its figures --------------------------------------------
+    // A 7-joint arm tracking a trajectory for 60 s of simulated time at h = 1e-5 (6 million steps:
+    // seconds of work): the page draws q(t) from the job's `sample` events as they come.
+    await setMode(page, 'run');
+    await page.evaluate(() => {
+      document.querySelector('input[value=shipped]').checked = true;
+      document.getElementById('scene-select').value = 'iiwa14-tracking';
+      document.getElementById('overrides').value = 'integrator.t_end=60\nintegrator.h=1e-5\noutput.every=1000';
+    });
+    await page.click('#submit-button');
+    await page.waitForFunction(() => /^#\/jobs\/[0-9a-f]{32}$/.test(location.hash) && document.getElementById('job-id').textContent === location.hash.slice(7), WAIT);
+    const liveId = await page.$eval('#job-id', (e) => e.textContent);
+    await page.waitForFunction(() => {
+      const svg = document.getElementById('live-svg');
+      return svg && Number(svg.dataset.points) >= 2 && !document.getElementById('live-section').hidden;
+    }, WAIT);
+    const firstPoints = await page.$eval('#live-svg', (svg) => Number(svg.dataset.points));
+    await page.waitForFunction((n) => {
+      const svg = document.getElementById('live-svg');
+      return svg && Number(svg.dataset.points) > n && !document.getElementById('live-section').hidden;
+    }, WAIT, firstPoints);
+    const live = await page.evaluate(() => ({
+      points: Number(document.getElementById('live-svg').dataset.points),
+      lines: document.querySelectorAll('#live-svg polyline.series').length,
+      state: document.querySelector(`#jobs tr[data-id="${document.getElementById('job-id').textContent}"] td.state`).textContent,
+    }));
+    check(live.points > firstPoints && live.lines === 7 && live.state === 'running',
+          `the live plot grows while the job runs: ${firstPoints} then ${live.points} states, 7 coordinates drawn (${live.state})`);
+    await page.waitForFunction(() => / left$/.test(document.getElementById('job-progress').textContent), WAIT);
+    check(true, 'the running job shows its progress with the time left: ' + await page.$eval('#job-progress', (e) => e.textContent));
+    // The screenshot with a few seconds drawn (unless the run is over by then: then as it was).
+    await page.waitForFunction(() => document.getElementById('live-section').hidden ||
+                               Number(document.getElementById('live-svg').dataset.points) >= 30, { timeout: 120000 });
+    await shot(page, 'live', '#job-section');
+    await page.waitForFunction(() => document.getElementById('live-section').hidden && figuresLoaded(4), { timeout: 120000 });
+    check(true, 'when the job is done its four figures replace the live plot');
+
+    // ---- Figures: enlarge (Escape closes), PNG and SVG downloads ------------------------------------
+    await page.click('#job-figures img[data-kind=state]');
+    await page.waitForFunction(() => document.getElementById('figure-dialog').open &&
+                               document.getElementById('figure-large').naturalWidth === 1200, WAIT);
+    await shot(page, 'figure');
+    await page.keyboard.press('Escape');
+    await page.waitForFunction(() => !document.getElementById('figure-dialog').open, WAIT);
+    check(true, 'a figure clicked opens large in a dialog, and Escape closes it');
+    const formats = await page.$$eval('#job-figures figcaption a.figure-download', (as) => as.map((a) => a.dataset.format + ':' + a.textContent));
+    check(formats.length === 8 && formats.filter((f) => f === 'svg:SVG').length === 4, 'each figure has PNG and SVG links: ' + formats.length);
+    const svgResponse = page.waitForResponse((r) => r.url().includes(`/v1/jobs/${liveId}/figure?kind=phase&format=svg`) && r.status() === 200, WAIT);
+    await page.click('#job-figures figure:nth-child(4) a[data-format=svg]');
+    const svgType = (await svgResponse).headers()['content-type'];
+    check(svgType.startsWith('image/svg+xml'), 'the SVG link fetches the figure as SVG: ' + svgType);
+
+    // ---- Numbers: 6 significant digits shown, the full value on hover and on copy ---------------------
+    const numbers = await page.$$eval('#job-summary dd .num[data-full]', (spans) => spans.map((s) => [s.textContent, s.title, s.dataset.full]));
+    check(numbers.length > 0 && numbers.every(([shown, title, full]) => title === full && Number(shown) === Number(Number(full).toPrecision(6)) &&
+                                               shown.replace(/^-?0\.0*|[-.]|e.*$/g, '').length <= 6),
+          'numbers are shown to 6 significant digits with the full value as their title: ' + JSON.stringify(numbers[0]));
+    const copied = await page.evaluate(() => {
+      const dd = [...document.querySelectorAll('#job-summary dt')].find((dt) => dt.textContent === 'final state').nextElementSibling;
+      const range = document.createRange();
+      range.selectNodeContents(dd);
+      document.getSelection().removeAllRanges();
+      document.getSelection().addRange(range);
+      const data = new DataTransfer();
+      document.dispatchEvent(new ClipboardEvent('copy', { clipboardData: data, bubbles: true, cancelable: true }));
+      document.getSelection().removeAllRanges();
+      return { shown: dd.textContent, copied: data.getData('text/plain'), full: [...dd.querySelectorAll('[data-full]')].map((s) => s.dataset.full) };
+    });
+    check(copied.full.length > 0 && copied.full.every((f) => copied.copied.includes(f)) && copied.copied.length > copied.shown.length,
+          'copying the final state copies the full values: ' + copied.copied.slice(0, 80));
+    const plain = await page.evaluate(async (id, token) => {
+      const report = await (await fetch(`/v1/jobs/${id}/report`, { headers: { Authorization: 'Bearer ' + token } })).json();
+      return { summary: report.summary, shown: document.getElementById('job-plain').textContent };
+    }, liveId, TOKEN);
+    check(typeof plain.summary === 'string' ? plain.shown === plain.summary : plain.shown === '',
+          'the report\'s plain-language summary is shown when it has one, nothing otherwise: ' + JSON.stringify(plain));
+
+    // ---- A study: step sizes and schemes, its table and figures ---------------------------------------
+    await setMode(page, 'study');
+    await page.evaluate(() => {
+      document.querySelector('input[value=shipped]').checked = true;
+      document.getElementById('scene-select').value = 'manipulator';
+      document.getElementById('overrides').value = 'integrator.t_end=1';
+      document.getElementById('study-h').value = '1e-2:1e-3:2';
+      for (const box of document.querySelectorAll('#study-schemes input')) box.checked = box.value !== 'regularized';
+    });
+    await page.click('#submit-button');
+    await page.waitForFunction(() => /^#\/studies\/[0-9a-f]{32}$/.test(location.hash), WAIT);
+    await page.waitForFunction(() => {
+      const t = document.querySelector('#job-table table.results');
+      return t && t.tBodies[0].rows.length === 4 && figuresLoaded(2);
+    }, { timeout: 120000 });
+    const study = await page.evaluate(() => ({
+      id: document.getElementById('job-id').textContent,
+      title: document.getElementById('job-title').textContent,
+      schemes: [...document.querySelectorAll('#job-table table.results')[0].tBodies[0].rows].map((tr) => tr.cells[0].textContent),
+      downloads: [...document.querySelectorAll('#job-downloads a')].map((a) => a.textContent),
+      row: document.querySelector(`#jobs tr[data-id="${document.getElementById('job-id').textContent}"] td.kind`).textContent,
+    }));
+    check(study.title === 'Study' && JSON.stringify(study.schemes.sort()) === JSON.stringify(['abl', 'abl', 'explicit', 'explicit']) &&
+          study.downloads.includes('table.csv') && study.row === 'study',
+          'a study submitted from the page shows its table (2 schemes x 2 step sizes), its two figures and downloads, and is listed: ' + JSON.stringify(study));
+    await shot(page, 'study', '#job-section');
+
+    // ---- A campaign: two inputs with ranges and a sample count, its summary and figures ---------------
+    await setMode(page, 'campaign');
+    await page.evaluate(() => {
+      document.querySelector('input[value=shipped]').checked = true;
+      document.getElementById('scene-select').value = 'manipulator';
+      document.getElementById('overrides').value = 'integrator.t_end=3';
+      document.getElementById('campaign-inputs').replaceChildren();
+      document.getElementById('add-input').click();
+      document.getElementById('add-input').click();
+      const rows = document.querySelectorAll('#campaign-inputs .input-row');
+      const set = (row, path, low, high) => {
+        row.querySelector('.input-path').value = path;
+        row.querySelector('.input-low').value = low;
+        row.querySelector('.input-high').value = high;
+      };
+      set(rows[0], '/parameters/m1', '0.8', '1.2');
+      set(rows[1], '/initial/q/0', '2', '4');
+      document.getElementById('campaign-samples').value = '8';
+      document.getElementById('campaign-sampler').value = 'sobol';
+    });
+    await page.click('#submit-button');
+    await page.waitForFunction(() => /^#\/campaigns\/[0-9a-f]{32}$/.test(location.hash), WAIT);
+    await page.waitForFunction(() => document.getElementById('campaign-text') && document.getElementById('campaign-text').textContent.length > 0 &&
+                               figuresLoaded(3), { timeout: 120000 });
+    const campaign = await page.evaluate(() => ({
+      id: document.getElementById('job-id').textContent,
+      title: document.getElementById('job-title').textContent,
+      summary: document.getElementById('job-summary').textContent,
+      downloads: [...document.querySelectorAll('#job-downloads a')].map((a) => a.textContent),
+    }));
+    check(campaign.title === 'Campaign' && campaign.summary.includes('8 of 8') && campaign.downloads.includes('samples.csv'),
+          'a campaign submitted from the page shows its summary, its three figures and downloads: ' + JSON.stringify(campaign.downloads));
+    await shot(page, 'campaign', '#job-section');
+
+    // ---- Back and forward between the items chosen -----------------------------------------------------
+    await page.goBack();
+    await page.waitForFunction((id) => document.getElementById('job-id').textContent === id && location.hash === '#/studies/' + id, WAIT, study.id);
+    await page.goBack();
+    await page.waitForFunction((id) => document.getElementById('job-id').textContent === id && location.hash === '#/jobs/' + id, WAIT, liveId);
+    await page.goForward();
+    await page.waitForFunction((id) => document.getElementById('job-id').textContent === id && document.getElementById('job-title').textContent === 'Study', WAIT, study.id);
+    check(true, 'back and forward go between the job, the study and the campaign chosen');
+    await page.click(`#jobs tr[data-id="${campaign.id}"] td.scene`);
+    await page.waitForFunction((id) => location.hash === '#/campaigns/' + id && document.getElementById('job-id').textContent === id, WAIT, campaign.id);
+    check(true, 'choosing a row in the list sets the address to it');
+
+    // ---- Compare two runs: an implicit and an explicit tracking controller -----------------------------
+    await setMode(page, 'run');
+    const compareIds = [];
+    for (const name of ['manipulator-tracking', 'manipulator-tracking-explicit']) {
+      await page.evaluate((scene) => {
+        document.querySelector('input[value=shipped]').checked = true;
+        document.getElementById('scene-select').value = scene;
+        document.getElementById('overrides').value = 'integrator.t_end=3';
+      }, name);
+      await page.click('#submit-button');
+      await page.waitForFunction((prev) => /^#\/jobs\/[0-9a-f]{32}$/.test(location.hash) && !prev.includes(location.hash.slice(7)), WAIT, compareIds);
+      compareIds.push(await page.evaluate(() => location.hash.slice(7)));
+    }
+    for (const id of compareIds) {
+      await page.waitForFunction((jobId) => {
+        const box = document.querySelector(`#jobs tr[data-id="${jobId}"] td.pick input`);
+        return box && !box.disabled;
+      }, { timeout: 60000 }, id);
+      await page.click(`#jobs tr[data-id="${id}"] td.pick input`);
+    }
+    await page.waitForFunction(() => !document.getElementById('compare-button').disabled, WAIT);
+    await page.click('#compare-button');
+    await page.waitForFunction(() => new Set([...document.querySelectorAll('#compare-svg polyline.series')].map((p) => p.dataset.series)).size === 2, WAIT);
+    // Another quantity: a velocity (the columns the trajectories share are offered).
+    const velocity = await page.$$eval('#compare-quantity option', (os) => os.map((o) => o.value).find((v) => v.endsWith('_dot')));
+    await page.select('#compare-quantity', velocity);
+    await page.waitForFunction((v) => document.querySelector('#compare-svg text:last-of-type') &&
+                               [...document.querySelectorAll('#compare-svg text')].some((t) => t.textContent === v) &&
+                               new Set([...document.querySelectorAll('#compare-svg polyline.series')].map((p) => p.dataset.series)).size === 2, WAIT, velocity);
+    const legend = await page.$$eval('#compare-plot ul.legend li', (lis) => lis.map((li) => li.textContent));
+    check(legend.length === 2 && legend.some((l) => l.startsWith('manipulator-tracking, tracking, h = 0.001')) &&
+          legend.some((l) => l.startsWith('manipulator-tracking-explicit, tracking, h = 0.001')),
+          'two jobs compared: two series drawn in one plot, the legend names each (scene, scheme, h): ' + JSON.stringify(legend));
+    await shot(page, 'compare', '#compare-section');
+
+    // ---- A deep link in a fresh tab (which needs the token again), and an unknown id -------------------
+    const fresh = await browser.newPage();
+    await fresh.evaluateOnNewDocument(figuresLoadedInPage);
+    await fresh.setViewport({ width: 1280, height: 900 });
+    let freshExpected = 401;
+    fresh.on('pageerror', (e) => problems.push('fresh tab page error: ' + e.message));
+    fresh.on('console', (m) => {
+      if (m.type() !== 'error') return;
+      const status = /Failed to load resource: the server responded with a status of (\d+)/.exec(m.text());
+      if (status && Number(status[1]) === freshExpected) return;
+      problems.push('fresh tab console error: ' + m.text());
+    });
+    await fresh.goto(`${url}/#/studies/${study.id}`, { waitUntil: 'load' });
+    await fresh.waitForFunction(() => document.getElementById('list-error').textContent.includes('401'), WAIT);
+    await fresh.type('#token', TOKEN);
+    await fresh.click('#token-form button');
+    await fresh.waitForFunction((id) => document.getElementById('job-id').textContent === id &&
+                                document.querySelectorAll('#job-table table.results').length === 2, WAIT, study.id);
+    freshExpected = 404;
+    check(true, 'a deep link to the study opens it in a fresh tab');
+    await fresh.goto(`${url}/#/jobs/${liveId}`, { waitUntil: 'load' });
+    await fresh.waitForFunction((id) => document.getElementById('job-id').textContent === id && figuresLoaded(4), WAIT, liveId);
+    check(true, 'a deep link to the job opens it with its figures');
+    const missing = '0123456789abcdef0123456789abcdef';
+    await fresh.goto(`${url}/#/campaigns/${missing}`, { waitUntil: 'load' });
+    await fresh.waitForFunction(() => !document.getElementById('job-notfound').hidden, WAIT);
+    const notFound = await fresh.evaluate(() => ({ text: document.getElementById('job-notfound').textContent, details: document.getElementById('job-details').hidden }));
+    check(notFound.text.startsWith('Not found') && notFound.text.includes(missing) && notFound.details,
+          'an unknown id says it is not found: ' + notFound.text);
+    await shot(fresh, 'not-found');
+    await fresh.close();
 
     check(problems.length === 0, 'no page errors, console errors or CSP violations' + (problems.length ? ': ' + problems.join('; ') : ''));
   } finally {
