@@ -6,6 +6,7 @@
 #include "events_routes.h"
 #include "figures_routes.h"
 #include "jobs_routes.h"
+#include "kinematics_routes.h"
 #include "metrics.h"
 #include "request_screening.h"
 #include "responses.h"
@@ -62,6 +63,7 @@ const std::vector<Route>& api_routes() {
       {M::kGet, "/v1/jobs/{id}/events", "jobEvents", {}, kToken, of_kind<job_events, kRun>},
       {M::kGet, "/v1/jobs/{id}/report", "getReport", {}, kToken, job_report},
       {M::kGet, "/v1/jobs/{id}/trajectory", "getTrajectory", {"format", "from", "to", "every"}, kToken, job_trajectory},
+      {M::kGet, "/v1/jobs/{id}/kinematics", "getKinematics", {"t", "from", "to", "max_samples"}, kToken, job_kinematics},
       {M::kGet, "/v1/jobs/{id}/figure", "getJobFigure", kFigure, kToken, job_figure},
       // Studies.
       {M::kGet, "/v1/studies", "listStudies", kList, kToken, of_kind<list_jobs, kStudy>},
