@@ -178,6 +178,9 @@ TEST(ServerKinematics, QueuedJobHasLinksAndNoFramesYetAndOtherScenesAreRefused) 
   ASSERT_TRUE(r);
   ASSERT_EQ(r->status, 202) << r->body;
   const std::string robot_id = json::parse(r->body)["id"];
+  // The job says where its link poses are; a job without a robot does not.
+  EXPECT_EQ(get_json(*c, "/v1/jobs/" + robot_id)["links"]["kinematics"], "/v1/jobs/" + robot_id + "/kinematics");
+  EXPECT_FALSE(get_json(*c, "/v1/jobs/" + busy_id)["links"].contains("kinematics"));
   const json queued = get_json(*c, "/v1/jobs/" + robot_id + "/kinematics");
   EXPECT_EQ(queued["state"], "queued");
   EXPECT_EQ(queued["final"], false);
