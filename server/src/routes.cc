@@ -49,7 +49,10 @@ const std::vector<Route>& api_routes() {
       // The web page (server/web/), the health check, the metrics, the API's description, the shipped scenes.
       {M::kGet, "/", "webPage", {}, kOpen, web_page},
       {M::kGet, "/ui/app.js", "webPageScript", {}, kOpen, web_page_script},
+      {M::kGet, "/ui/robot3d.js", "webPageRobot3D", {}, kOpen, web_page_robot3d},
       {M::kGet, "/ui/style.css", "webPageStyle", {}, kOpen, web_page_style},
+      {M::kGet, "/ui/three.min.js", "webPageThree", {}, kOpen, web_page_three},
+      {M::kGet, "/ui/OrbitControls.js", "webPageOrbitControls", {}, kOpen, web_page_orbit_controls},
       {M::kGet, "/healthz", "health", {}, kOpen, health},
       {M::kGet, "/metrics", "metrics", {}, kToken, metrics},
       {M::kGet, "/v1/openapi.json", "openapi", {}, kToken, openapi},

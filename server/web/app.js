@@ -270,6 +270,13 @@ function showJob(job) {
   for (const [k, v] of facts) dl.append(el('dt', {}, k), el('dd', {}, String(v)));
   $('job-summary').replaceChildren(dl);
   showActions(job);
+  // A URDF robot's job: its 3D view (robot3d.js), drawn from the server's link poses.
+  if (window.MoreauRobot3D && window.MoreauRobot3D.jobId() !== job.id) window.MoreauRobot3D.close();
+  if (job.links && job.links.kinematics && window.MoreauRobot3D) {
+    const b = el('button', { type: 'button', id: 'robot3d-button' }, '3D view');
+    b.addEventListener('click', () => window.MoreauRobot3D.open($('job-robot3d'), job.id, (path) => request('GET', path)));
+    $('job-actions').append(b);
+  }
 
   const ul = $('job-guarantees');
   ul.replaceChildren();
