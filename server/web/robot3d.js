@@ -13,7 +13,8 @@
 //                                API with the page's token and resolves to a Response (app.js's request).
 //   close()                      removes the view and stops following.
 //   drawnPoses()                 for tests: each link's world matrix as three.js holds it after the last
-//                                render (16 numbers, column-major), with the frame's t and row.
+//                                render (16 numbers, column-major) and the shapes drawn in its frame, with
+//                                the frame's t and row.
 // Nothing the server sends is put in as HTML: names and messages are text (textContent).
 'use strict';
 
@@ -71,12 +72,14 @@
       else if (v.shape === 'sphere' && v.radius >= 0) geometry = new THREE.SphereBufferGeometry(v.radius, 32, 16);
       if (!geometry) continue;
       const mesh = new THREE.Mesh(geometry, material);
+      mesh.name = v.shape;
       mesh.matrixAutoUpdate = false;
       setPose(mesh.matrix, v.origin);
       if (v.shape === 'cylinder') mesh.matrix.multiply(Z_TO_Y);
       group.add(mesh);
       ++drawn;
     }
+    group.userData.shapes = group.children.map((c) => c.name);
     if (drawn > 0) return group;
     // No primitive geometry: a ball at the joint and a capsule to each child's joint origin.
     group.add(new THREE.Mesh(new THREE.SphereBufferGeometry(radius * 1.15, 24, 12), jointMaterial));
@@ -86,6 +89,7 @@
       const length = end.length();
       if (!(length > 1e-9)) continue;
       const capsule = new THREE.Group();
+      capsule.name = 'capsule';
       capsule.add(new THREE.Mesh(new THREE.CylinderBufferGeometry(radius, radius, length, 24), material));
       const cap = new THREE.SphereBufferGeometry(radius, 24, 12);
       const top = new THREE.Mesh(cap, material);
@@ -98,6 +102,7 @@
       capsule.position.copy(end).multiplyScalar(0.5);
       group.add(capsule);
     }
+    group.userData.shapes = group.children.map((c) => c.name || 'joint');
     return group;
   }
 
@@ -305,7 +310,7 @@
       row: view.shown.row,
       final: view.final,
       frames: view.frames.length,
-      links: view.linkObjects.map((o) => ({ name: o.name, matrix: Array.from(o.matrixWorld.elements) })),
+      links: view.linkObjects.map((o) => ({ name: o.name, matrix: Array.from(o.matrixWorld.elements), shapes: o.userData.shapes })),
     };
   }
 

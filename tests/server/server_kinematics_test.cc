@@ -3,8 +3,10 @@
 // to 1e-12, to the product of the URDF's transforms written out here from its text (origin xyz, then
 // roll-pitch-yaw as Rz(yaw) Ry(pitch) Rx(roll), then the joint's rotation about its axis), with the joint
 // positions of the stored trajectory's row at that time. Neither urdfdom's quaternions nor the model's
-// Rodrigues form (rigid_body.cc) is in that product. Also: the sampled form, a queued job (links, no
-// frames yet), a scene without a robot, and bad query parameters.
+// Rodrigues form (rigid_body.cc) is in that product. A pendulum drawn with a box, a cylinder and a
+// sphere (tests/server/shapes-pendulum.json) is held to its closed form, with its visuals as its URDF
+// writes them. Also: the sampled form, a queued job (links, no frames yet), a scene without a robot,
+// and bad query parameters.
 #include <cmath>
 #include <map>
 #include <regex>
@@ -160,6 +162,39 @@ TEST(ServerKinematics, LinkPosesEqualAnIndependentForwardKinematicsOfTheUrdf) {
   EXPECT_EQ(compared, 40);
   // The end effector moves: the check is not of a robot at rest.
   EXPECT_GT(std::abs(sampled["frames"][0]["poses"][9][3].get<double>() - sampled["frames"][4]["poses"][9][3].get<double>()), 1e-3);
+}
+
+TEST(ServerKinematics, PendulumDrawnWithPrimitivesMatchesItsClosedForm) {
+  TestServer server;
+  auto c = server.client();
+  auto r = submit(*c, {{"scene", moreau::server::testing::read_json_file("tests/server/shapes-pendulum.json")}});
+  ASSERT_TRUE(r);
+  ASSERT_EQ(r->status, 202) << r->body;
+  const std::string id = json::parse(r->body)["id"];
+  ASSERT_EQ(wait_final(*c, id)["state"], "done");
+  const json k = get_json(*c, "/v1/jobs/" + id + "/kinematics?max_samples=7");
+  ASSERT_EQ(k["links"].size(), 3u);
+  // The visuals as the URDF writes them; the tip's mesh counted, not described.
+  EXPECT_EQ(k["links"][0]["visuals"], json::parse(R"([{"shape": "box", "size": [0.2, 0.2, 0.5],
+      "origin": [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0.25]}])"));
+  EXPECT_EQ(k["links"][1]["visuals"], json::parse(R"([{"shape": "cylinder", "radius": 0.03, "length": 0.5,
+      "origin": [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, -0.25]}])"));
+  EXPECT_EQ(k["links"][2]["visuals"],
+            json::parse(R"([{"shape": "sphere", "radius": 0.06, "origin": [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0]}])"));
+  EXPECT_EQ(k["links"][2]["meshes"], 1);
+  EXPECT_EQ(k["links"][2]["parent"], "arm");
+  ASSERT_EQ(k["frames"].size(), 7u);
+  for (const json& frame : k["frames"]) {
+    // The arm turns by q about y at (0, 0, 0.5): R = Ry(q); the tip hangs 0.5 below the pivot.
+    const double q = frame["q"][0], cq = std::cos(q), sq = std::sin(q);
+    const json want_arm = {cq, 0, sq, 0, 0, 1, 0, 0, -sq, 0, cq, 0.5};
+    const json want_tip = {cq, 0, sq, -0.5 * sq, 0, 1, 0, 0, -sq, 0, cq, 0.5 - 0.5 * cq};
+    for (int i = 0; i < 12; ++i) {
+      EXPECT_NEAR(frame["poses"][1][i].get<double>(), want_arm[i].get<double>(), 1e-12) << "arm, entry " << i << ", t = " << frame["t"];
+      EXPECT_NEAR(frame["poses"][2][i].get<double>(), want_tip[i].get<double>(), 1e-12) << "tip, entry " << i << ", t = " << frame["t"];
+    }
+  }
+  EXPECT_GT(std::abs(k["frames"][0]["q"][0].get<double>() - k["frames"][3]["q"][0].get<double>()), 0.1);  // it swings
 }
 
 TEST(ServerKinematics, QueuedJobHasLinksAndNoFramesYetAndOtherScenesAreRefused) {

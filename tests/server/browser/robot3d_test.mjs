@@ -6,7 +6,8 @@
 // its 3D view is opened, and checks that the view follows it: frames arrive while it runs, and once it is
 // done the view holds the whole trajectory. Then it moves the time slider to several places and checks
 // that the pose three.js holds for every link after the render (its matrixWorld) equals the server's
-// forward kinematics at that time (GET /v1/jobs/{id}/kinematics?t=, fetched apart from the page).
+// forward kinematics at that time (GET /v1/jobs/{id}/kinematics?t=, fetched apart from the page). The
+// same for a pendulum whose URDF has a box, a cylinder and a sphere, drawn with them.
 // The tolerance: three.js r111 keeps a matrix as an Array of JavaScript numbers (doubles), and the page
 // copies the server's numbers into the link's matrix under a scene whose own matrix is the identity, so
 // the two agree to the last bit but for the sign of a zero; 1e-12 leaves room for that and for nothing a
@@ -58,6 +59,35 @@ async function stopServer(proc) {
   const exited = new Promise((resolve) => proc.on('exit', resolve));
   proc.kill('SIGTERM');
   await exited;
+}
+
+// Moves the view's slider to `index`, then holds the world matrix three.js has for every link to the pose
+// the server answers for the time the view shows. Returns the number of links compared.
+async function compareAtSlider(page, api, id, index) {
+  await page.evaluate((i) => {
+    const s = document.querySelector('.robot3d-controls input[type=range]');
+    s.value = String(i);
+    s.dispatchEvent(new Event('input', { bubbles: true }));
+  }, index);
+  const drawn = await page.evaluate(() => window.MoreauRobot3D.drawnPoses());
+  const shownText = await page.$eval('.robot3d-time', (e) => e.textContent);
+  const server = await api(`/v1/jobs/${id}/kinematics?t=${drawn.t}`);
+  check(server.frames.length === 1 && server.frames[0].row === drawn.row && server.frames[0].t === drawn.t,
+        `slider at ${index}: the view shows row ${drawn.row} (${shownText}), the row the server has for t = ${drawn.t}`);
+  const poses = server.frames[0].poses;
+  check(drawn.links.length === server.links.length && drawn.links.every((l, k) => l.name === server.links[k].name),
+        `the view draws the server's ${server.links.length} links`);
+  let worst = 0;
+  drawn.links.forEach((l, k) => {
+    const p = poses[k];  // row-major [R | p]; three.js's elements are column-major
+    for (let r = 0; r < 3; ++r) {
+      for (let c = 0; c < 4; ++c) worst = Math.max(worst, Math.abs(l.matrix[4 * c + r] - p[4 * r + c]));
+      worst = Math.max(worst, Math.abs(l.matrix[4 * r + 3]));  // the bottom row: 0 0 0
+    }
+    worst = Math.max(worst, Math.abs(l.matrix[15] - 1));
+  });
+  check(worst <= TOLERANCE, `at t = ${drawn.t} every link's drawn world matrix equals the server's pose (largest difference ${worst})`);
+  return drawn.links.length;
 }
 
 async function main() {
@@ -123,32 +153,7 @@ async function main() {
     // The slider: the poses drawn at several times equal the server's forward kinematics there.
     const n = last.frames;
     let compared = 0;
-    for (const index of [0, 37, Math.floor(n / 2), n - 2, n - 1]) {
-      await page.evaluate((i) => {
-        const s = document.querySelector('.robot3d-controls input[type=range]');
-        s.value = String(i);
-        s.dispatchEvent(new Event('input', { bubbles: true }));
-      }, index);
-      const drawn = await page.evaluate(() => window.MoreauRobot3D.drawnPoses());
-      const shownText = await page.$eval('.robot3d-time', (e) => e.textContent);
-      const server = await api(`/v1/jobs/${id}/kinematics?t=${drawn.t}`);
-      check(server.frames.length === 1 && server.frames[0].row === drawn.row && server.frames[0].t === drawn.t,
-            `slider at ${index}: the view shows row ${drawn.row} (${shownText}), the row the server has for t = ${drawn.t}`);
-      const poses = server.frames[0].poses;
-      check(drawn.links.length === server.links.length && drawn.links.every((l, k) => l.name === server.links[k].name),
-            `the view draws the server's ${server.links.length} links`);
-      let worst = 0;
-      drawn.links.forEach((l, k) => {
-        const p = poses[k];  // row-major [R | p]; three.js's elements are column-major
-        for (let r = 0; r < 3; ++r) {
-          for (let c = 0; c < 4; ++c) worst = Math.max(worst, Math.abs(l.matrix[4 * c + r] - p[4 * r + c]));
-          worst = Math.max(worst, Math.abs(l.matrix[4 * r + 3]));  // the bottom row: 0 0 0
-        }
-        worst = Math.max(worst, Math.abs(l.matrix[15] - 1));
-        ++compared;
-      });
-      check(worst <= TOLERANCE, `at t = ${drawn.t} every link's drawn world matrix equals the server's pose (largest difference ${worst})`);
-    }
+    for (const index of [0, 37, Math.floor(n / 2), n - 2, n - 1]) compared += await compareAtSlider(page, api, id, index);
     check(compared === 5 * 10, 'compared ' + compared + ' link poses');
     // The arm moved between the first and the last frame (the comparison is not of a robot at rest).
     const first = await api(`/v1/jobs/${id}/kinematics?t=0`);
@@ -178,6 +183,28 @@ async function main() {
     const jpeg = screenshotPath.endsWith('.jpg');
     await box.screenshot({ path: screenshotPath, type: jpeg ? 'jpeg' : 'png', ...(jpeg ? { quality: 70 } : {}) });
     check(fs.statSync(screenshotPath).size > 10000, 'screenshot saved to ' + screenshotPath);
+
+    // A robot drawn with its URDF's primitives (tests/server/shapes-pendulum.json): a box, a cylinder, and
+    // a sphere on a link merged through a fixed joint; the mesh beside it is not drawn.
+    const shapesScene = JSON.parse(fs.readFileSync(path.join(sourceDir, 'tests/server/shapes-pendulum.json'), 'utf8'));
+    const submitted = await fetch(url + '/v1/jobs', {
+      method: 'POST', headers: { Authorization: 'Bearer ' + TOKEN, 'Content-Type': 'application/json' },
+      body: JSON.stringify({ scene: shapesScene }),
+    });
+    const shapesId = (await submitted.json()).id;
+    await api(`/v1/jobs/${shapesId}?wait=30`);
+    await page.waitForFunction((jid) => document.querySelector(`#jobs tr[data-id="${jid}"]`) !== null, WAIT, shapesId);
+    await page.evaluate((jid) => document.querySelector(`#jobs tr[data-id="${jid}"]`).click(), shapesId);
+    await page.waitForFunction((jid) => document.getElementById('job-id').textContent === jid &&
+                               document.getElementById('robot3d-button') !== null, WAIT, shapesId);
+    check(await page.evaluate(() => document.querySelector('.robot3d') === null), 'choosing another job closes the 3D view');
+    await page.evaluate(() => document.getElementById('robot3d-button').click());
+    await page.waitForFunction(() => { const d = window.MoreauRobot3D.drawnPoses(); return d && d.final; }, WAIT);
+    const shapes = await page.evaluate(() => window.MoreauRobot3D.drawnPoses().links.map((l) => [l.name, l.shapes.join(' ')]));
+    check(JSON.stringify(shapes) === JSON.stringify([['base', 'box'], ['arm', 'cylinder'], ['tip', 'sphere']]),
+          'the pendulum is drawn with its URDF primitives: ' + JSON.stringify(shapes));
+    const shapeFrames = (await page.evaluate(() => window.MoreauRobot3D.drawnPoses())).frames;
+    for (const index of [0, Math.floor(shapeFrames / 3), shapeFrames - 1]) await compareAtSlider(page, api, shapesId, index);
 
     check(problems.length === 0, 'no page errors, console errors or CSP violations' + (problems.length ? ': ' + problems.join('; ') : ''));
   } finally {
