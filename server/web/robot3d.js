@@ -151,6 +151,14 @@
     v.controls.target.set(0, 0, 0.05 * reach);
     v.controls.update();
     v.controls.addEventListener('change', () => render(v));
+    v.onResize = () => {
+      const w = Math.max(320, v.box.clientWidth || 640);
+      v.camera.aspect = w / CANVAS_HEIGHT;
+      v.camera.updateProjectionMatrix();
+      v.renderer.setSize(w, CANVAS_HEIGHT);
+      render(v);
+    };
+    window.addEventListener('resize', v.onResize);
   }
 
   function render(v) {
@@ -182,13 +190,19 @@
     render(v);
   }
 
-  // Takes an answer: the frames replace the ones held; a view at its last frame stays at the last.
+  // Takes an answer: the frames replace the ones held (a running job's are spread over more rows each
+  // time). A view at its last frame stays at the last; elsewhere it keeps the time it showed.
   function takeFrames(v, answer) {
     const atEnd = v.index >= v.frames.length - 1;
     v.frames = Array.isArray(answer.frames) ? answer.frames : [];
     v.final = answer.final === true;
     v.state = String(answer.state);
-    showFrame(v, atEnd || v.playing ? v.frames.length - 1 : v.index);
+    let i = v.frames.length - 1;
+    if (!atEnd && !v.playing && v.shown) {
+      i = 0;
+      while (i + 1 < v.frames.length && Number(v.frames[i + 1].t) <= v.shown.t) ++i;
+    }
+    showFrame(v, i);
   }
 
   function poll(v, mine) {
@@ -245,7 +259,11 @@
         if (o.material) o.material.dispose();
       });
     }
-    if (v.renderer) v.renderer.dispose();
+    if (v.renderer) {
+      v.renderer.dispose();
+      v.renderer.forceContextLoss();  // a browser keeps only a few WebGL contexts: give this one back now
+    }
+    window.removeEventListener('resize', v.onResize);
     v.box.remove();
   }
 
