@@ -5,13 +5,15 @@
 // positions of the stored trajectory's row at that time. Neither urdfdom's quaternions nor the model's
 // Rodrigues form (rigid_body.cc) is in that product. A pendulum drawn with a box, a cylinder and a
 // sphere (tests/server/shapes-pendulum.json) is held to its closed form, with its visuals as its URDF
-// writes them. Also: the sampled form, a queued job (links, no frames yet), a scene without a robot,
-// and bad query parameters.
+// writes them. Also: the sampled form, a running job (the rows written so far), a queued job (links, no
+// frames yet), a scene without a robot, and bad query parameters.
+#include <chrono>
 #include <cmath>
 #include <map>
 #include <regex>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <gmock/gmock.h>
@@ -195,6 +197,45 @@ TEST(ServerKinematics, PendulumDrawnWithPrimitivesMatchesItsClosedForm) {
     }
   }
   EXPECT_GT(std::abs(k["frames"][0]["q"][0].get<double>() - k["frames"][3]["q"][0].get<double>()), 0.1);  // it swings
+}
+
+TEST(ServerKinematics, RunningJobServesTheRowsWrittenSoFar) {
+  TestServer server;
+  auto c = server.client();
+  // The iiwa for long enough to be seen running (about 15 s; cancelled below), a row every 2000 steps:
+  // about 70 rows, 10 kB, a second, which without the writer's periodic flush would stay in its 1 MiB
+  // buffer until the run ends.
+  auto r = submit(*c, {{"scene", moreau::scene::read_scene_file("scenes/iiwa14-joint-limit.json")},
+                       {"overrides", {"integrator.t_end=2000", "output.every=2000"}}});
+  ASSERT_TRUE(r);
+  ASSERT_EQ(r->status, 202) << r->body;
+  const std::string id = json::parse(r->body)["id"];
+  ASSERT_EQ(wait_running(*c, id), "running");
+  // The writer puts its rows on disk at least every 0.5 s: within a second or so some are there.
+  json k;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(8);
+  do {
+    k = get_json(*c, "/v1/jobs/" + id + "/kinematics?max_samples=3");
+    if (k["rows"].get<int>() > 0) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  } while (std::chrono::steady_clock::now() < deadline);
+  ASSERT_GT(k["rows"].get<int>(), 0) << k.dump().substr(0, 300);
+  EXPECT_EQ(k["state"], "running");
+  EXPECT_EQ(k["final"], false);
+  EXPECT_LT(k["t_last"].get<double>(), 2000.0);
+  ASSERT_FALSE(k["frames"].empty());
+  EXPECT_EQ(k["frames"].back()["t"], k["t_last"]);  // the newest row written, whole
+  EXPECT_EQ(k["frames"].back()["poses"].size(), 10u);
+  // Later, more rows.
+  const int rows = k["rows"];
+  json later;
+  do {
+    later = get_json(*c, "/v1/jobs/" + id + "/kinematics?max_samples=1");
+    if (later["rows"].get<int>() > rows) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  } while (std::chrono::steady_clock::now() < deadline);
+  EXPECT_GT(later["rows"].get<int>(), rows);
+  c->Delete("/v1/jobs/" + id);
 }
 
 TEST(ServerKinematics, QueuedJobHasLinksAndNoFramesYetAndOtherScenesAreRefused) {
