@@ -38,6 +38,7 @@ packages=(
   liblcm-dev liblcm-bin libglib2.0-dev  # live state (lcm.pc needs glib-2.0 and gthread-2.0)
   libosmesa6-dev libfreetype-dev libpng-dev fonts-dejavu-core  # figures
   libcpp-httplib-dev zlib1g-dev      # server (zlib: the hostile-client test makes gzip bodies)
+  libjs-three                        # three.js (MIT), compiled into the server for the page's 3D view of a robot
   libboost-dev                       # Boost.Odeint (rosenbrock4), the stiff peer of studies; Boost.Random's Sobol
                                      # sequence and Boost.Math's normal quantile for campaigns
   liburdfdom-dev                     # robots from URDF (the URDF module)

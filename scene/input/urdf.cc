@@ -5,7 +5,9 @@
 
 #include <dlfcn.h>
 
+#include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <map>
 #include <mutex>
 #include <set>
@@ -153,12 +155,51 @@ UrdfRobot read_urdf(std::string_view text, const UrdfSelection& selection) {
   UrdfRobot robot;
   robot.name = d.robot_name;
   robot.root_link = root;
+  // The links as a viewer draws them: placement, joint origin and primitive visuals.
+  auto add_link = [&robot](const std::string& name, const std::string& parent, const std::string& joint, int body, const Frame& in_body,
+                           const Eigen::Vector3d& joint_origin, const detail::UrdfVisuals& visuals) {
+    UrdfLink link;
+    link.name = name;
+    link.parent = parent;
+    link.joint = joint;
+    link.body = body;
+    link.in_body.rotation = in_body.R;
+    link.in_body.position = in_body.p;
+    link.joint_origin = joint_origin;
+    link.meshes = visuals.meshes;
+    for (const detail::UrdfVisual& v : visuals.primitives) {
+      // A dimension that is not a finite number >= 0 describes nothing to draw: left out, and the robot
+      // kept (its dynamics do not depend on how it looks).
+      const double dims[] = {v.size[0], v.size[1], v.size[2], v.radius, v.length};
+      if (!finite(v.origin) || !std::all_of(std::begin(dims), std::end(dims), [](double x) { return std::isfinite(x) && x >= 0.0; }))
+        continue;
+      UrdfVisual out;
+      out.shape = v.shape == detail::UrdfShape::kBox        ? UrdfVisual::Shape::kBox
+                  : v.shape == detail::UrdfShape::kCylinder ? UrdfVisual::Shape::kCylinder
+                                                            : UrdfVisual::Shape::kSphere;
+      const Frame origin = frame(v.origin);
+      out.origin.rotation = origin.R;
+      out.origin.position = origin.p;
+      out.size = Eigen::Vector3d(v.size[0], v.size[1], v.size[2]);
+      out.radius = v.radius;
+      out.length = v.length;
+      link.visuals.push_back(out);
+    }
+    robot.links.push_back(std::move(link));
+  };
   // Each selected link: the body it is part of (-1: the base, fixed to the world) and its frame there.
   struct Placement {
     int body;
     Frame in_body;
   };
   std::map<std::string, Placement> placed{{root, Placement{-1, Frame{}}}};
+  {
+    // The root's own visuals: the URDF's root link has them in the description; a root chosen below it, in
+    // the record of the joint above it.
+    const detail::UrdfVisuals* root_visuals = &d.root_visuals;
+    if (auto it = joint_of_child.find(root); it != joint_of_child.end()) root_visuals = &it->second->child_visuals;
+    add_link(root, "", "", -1, Frame{}, Eigen::Vector3d::Zero(), *root_visuals);
+  }
   for (const UrdfJoint& j : d.joints) {
     auto parent = placed.find(j.parent_link);
     if (parent == placed.end()) continue;  // outside the subtree at the root
@@ -172,6 +213,7 @@ UrdfRobot read_urdf(std::string_view text, const UrdfSelection& selection) {
     const Frame origin = compose(parent->second.in_body, frame(j.origin));
     if (j.type == UrdfJointType::kFixed) {
       placed[j.child_link] = Placement{parent->second.body, origin};
+      add_link(j.child_link, j.parent_link, j.name, parent->second.body, origin, frame(j.origin).p, j.child_visuals);
       if (parent->second.body >= 0) {
         robot.merged_links.push_back(j.child_link);
         if (j.child_inertial.present)
@@ -198,6 +240,7 @@ UrdfRobot read_urdf(std::string_view text, const UrdfSelection& selection) {
     robot.model.bodies.push_back(body);
     robot.joint_lines.push_back(j.line);
     placed[j.child_link] = Placement{index, Frame{}};
+    add_link(j.child_link, j.parent_link, j.name, index, Frame{}, frame(j.origin).p, j.child_visuals);
     if (j.type != UrdfJointType::kContinuous) {
       if (!j.has_limits) throw UrdfError(where + ": a revolute or prismatic joint needs <limit lower upper>");
       if (!(std::isfinite(j.lower) && std::isfinite(j.upper) && j.lower <= j.upper))
@@ -211,6 +254,21 @@ UrdfRobot read_urdf(std::string_view text, const UrdfSelection& selection) {
   }
   if (robot.model.bodies.empty()) throw UrdfError("the selected part of the robot has no moving joint (revolute, continuous or prismatic)");
   return robot;
+}
+
+void link_poses(const UrdfRobot& robot, RigidBodyData& data, const double* q, std::vector<UrdfFrame>& poses) {
+  update_kinematics(robot.model, data, q, nullptr);
+  poses.resize(robot.links.size());
+  for (std::size_t i = 0; i < robot.links.size(); ++i) {
+    const UrdfLink& link = robot.links[i];
+    if (link.body < 0) {  // on the base, whose frame is the world's
+      poses[i] = link.in_body;
+      continue;
+    }
+    const auto b = static_cast<std::size_t>(link.body);
+    poses[i].rotation = data.rotation[b] * link.in_body.rotation;
+    poses[i].position = data.position[b] + data.rotation[b] * link.in_body.position;
+  }
 }
 
 }  // namespace moreau::scene

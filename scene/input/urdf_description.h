@@ -21,6 +21,20 @@ struct UrdfInertial {
   double ixx = 0.0, ixy = 0.0, ixz = 0.0, iyy = 0.0, iyz = 0.0, izz = 0.0;  // about the centre of mass
 };
 
+// A link's <visual> whose <geometry> is a primitive; a <mesh> is counted, not described (the viewer has no
+// mesh files to load).
+enum class UrdfShape { kBox, kCylinder, kSphere };
+struct UrdfVisual {
+  UrdfShape shape = UrdfShape::kBox;
+  UrdfPose origin;                    // the visual frame in the link frame
+  double size[3] = {0.0, 0.0, 0.0};   // a box's edges
+  double radius = 0.0, length = 0.0;  // a cylinder's (along its z axis), a sphere's radius
+};
+struct UrdfVisuals {
+  std::vector<UrdfVisual> primitives;
+  int meshes = 0;
+};
+
 enum class UrdfJointType { kRevolute, kContinuous, kPrismatic, kFixed, kFloating, kPlanar, kUnknown };
 
 struct UrdfJoint {
@@ -32,6 +46,7 @@ struct UrdfJoint {
   double lower = 0.0, upper = 0.0;
   double damping = 0.0, friction = 0.0;  // <dynamics>
   UrdfInertial child_inertial;           // of child_link
+  UrdfVisuals child_visuals;             // of child_link
   int line = 0;                          // of the <joint> element (0: unknown)
   int child_line = 0;                    // of the child's <link> element
 };
@@ -39,6 +54,7 @@ struct UrdfJoint {
 struct UrdfDescription {
   std::string robot_name, root_link;
   int root_line = 0;
+  UrdfVisuals root_visuals;
   std::vector<UrdfJoint> joints;  // from the root: every parent link before its children
 };
 

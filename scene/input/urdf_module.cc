@@ -35,6 +35,8 @@ using moreau::scene::detail::UrdfInertial;
 using moreau::scene::detail::UrdfJoint;
 using moreau::scene::detail::UrdfJointType;
 using moreau::scene::detail::UrdfPose;
+using moreau::scene::detail::UrdfShape;
+using moreau::scene::detail::UrdfVisuals;
 
 class CollectErrors : public console_bridge::OutputHandler {
  public:
@@ -68,6 +70,40 @@ UrdfJointType joint_type(int type) {
     case urdf::Joint::PLANAR: return UrdfJointType::kPlanar;
     default: return UrdfJointType::kUnknown;
   }
+}
+
+// A link's <visual> elements as drawing needs them: boxes, cylinders and spheres, and how many meshes.
+UrdfVisuals visuals(const urdf::Link& link) {
+  UrdfVisuals out;
+  for (const urdf::VisualSharedPtr& v : link.visual_array) {
+    if (!v || !v->geometry) continue;
+    moreau::scene::detail::UrdfVisual r;
+    r.origin = pose(v->origin);
+    switch (v->geometry->type) {
+      case urdf::Geometry::BOX: {
+        const auto& box = static_cast<const urdf::Box&>(*v->geometry);
+        r.shape = UrdfShape::kBox;
+        r.size[0] = box.dim.x;
+        r.size[1] = box.dim.y;
+        r.size[2] = box.dim.z;
+        break;
+      }
+      case urdf::Geometry::CYLINDER: {
+        const auto& cylinder = static_cast<const urdf::Cylinder&>(*v->geometry);
+        r.shape = UrdfShape::kCylinder;
+        r.radius = cylinder.radius;
+        r.length = cylinder.length;
+        break;
+      }
+      case urdf::Geometry::SPHERE:
+        r.shape = UrdfShape::kSphere;
+        r.radius = static_cast<const urdf::Sphere&>(*v->geometry).radius;
+        break;
+      default: ++out.meshes; continue;
+    }
+    out.primitives.push_back(r);
+  }
+  return out;
 }
 
 // Lines of the <link> and <joint> elements under <robot>, by name; the number of links.
@@ -172,6 +208,7 @@ void describe(const std::string& text, UrdfDescription& out) {
   out.robot_name = model->getName();
   out.root_link = root->name;
   if (auto it = lines.links.find(root->name); it != lines.links.end()) out.root_line = it->second;
+  out.root_visuals = visuals(*root);
 
   // Depth first, without recursion (a chain can be as long as kMaxUrdfLinks).
   std::vector<urdf::LinkConstSharedPtr> stack{root};
@@ -214,6 +251,7 @@ void describe(const std::string& text, UrdfDescription& out) {
         r.child_inertial.iyz = in.iyz;
         r.child_inertial.izz = in.izz;
       }
+      if (child) r.child_visuals = visuals(*child);
       if (auto l = lines.joints.find(j.name); l != lines.joints.end()) r.line = l->second;
       if (auto l = lines.links.find(j.child_link_name); l != lines.links.end()) r.child_line = l->second;
       out.joints.push_back(std::move(r));

@@ -14,13 +14,17 @@
 namespace moreau::scene {
 namespace {
 constexpr std::size_t kBufferBytes = 1 << 20;
+// The rows written so far reach the file at least this often, not only once a buffer is full: readers
+// of a running job's file (the server's GET /v1/jobs/{id}/kinematics, which the page's 3D view follows;
+// `tail -f`) then see it advance while it runs, however slowly its rows come. One write a period.
+constexpr std::chrono::milliseconds kFlushPeriod{500};
 constexpr std::size_t kMaxRowBytes = 64;  // per value, including the separator
 static_assert(kMaxRowBytes > platform::kShortestMaxChars);
 }  // namespace
 
 TrajectoryCsvWriter::TrajectoryCsvWriter(const std::string& path, const std::vector<std::string>& q_names,
                                          const std::vector<std::string>& v_names, const std::vector<std::string>& signal_names)
-    : path_(path), buffer_(kBufferBytes) {
+    : path_(path), buffer_(kBufferBytes), flushed_(std::chrono::steady_clock::now()) {
   file_ = std::fopen(path.c_str(), "wb");
   if (!file_) throw std::runtime_error("cannot write '" + path + "': " + std::strerror(errno));
   std::string header = "t,h";
@@ -68,7 +72,16 @@ void TrajectoryCsvWriter::on_sample(const Sample& s) {
     put(s.signals[i]);
   }
   buffer_[used_++] = '\n';
-  seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  auto now = std::chrono::steady_clock::now();
+  if (now - flushed_ >= kFlushPeriod) {
+    flush_buffer();
+    if (file_ && std::fflush(file_) != 0 && !failed_) {
+      failed_ = true;
+      error_ = errno;
+    }
+    flushed_ = now = std::chrono::steady_clock::now();
+  }
+  seconds_ += std::chrono::duration<double>(now - start).count();
 }
 
 void TrajectoryCsvWriter::flush_buffer() {

@@ -140,6 +140,7 @@ json job_json(const Job& job, const json* report) {
                      {"planned_steps", job.planned_steps},
                      {"fraction", span > 0 ? finite_or_null(std::clamp((t - job.t0) / span, 0.0, 1.0)) : json(0.0)}};
     if (job.has_report && final) links["report"] = url + "/report";
+    if (job.robot) links["kinematics"] = url + "/kinematics";  // from the rows written so far
     if (job.has_trajectory && final) {
       links["trajectory"] = url + "/trajectory";
       links["figure"] = url + "/figure?kind=" + scene::figure_name(scene::default_figure<scene::TrajectoryFigure>());
@@ -179,6 +180,7 @@ json job_record(const Job& job, JobState state, const std::string& reason, doubl
     r["stream"] = {{"prefix", job.stream.prefix}, {"period", job.stream.period}, {"realtime", job.stream.realtime}};
   }
   if (job.strict) r["strict"] = true;
+  if (job.robot) r["robot"] = true;
   if (job.crashes > 0) r["crashes"] = job.crashes;
   // The id this state's event takes: the next one, since a record is written just before its state's
   // event is pushed (JobRunner::set_state). Exact for a final state (no progress event comes between);

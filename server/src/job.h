@@ -53,6 +53,9 @@ struct Job {
   StreamSettings stream;
   // The request's `strict`: a run whose relied-on hypothesis fails ends failed (else a warning).
   bool strict = false;
+  // A URDF robot's run: GET /v1/jobs/{id}/kinematics serves its link poses (links.kinematics). In job.json
+  // as "robot".
+  bool robot = false;
   // How many times the server died (no clean stop) while this job ran: it is run again after the first,
   // not after the second (JobStore::recover). In job.json as "crashes".
   int crashes = 0;

@@ -111,6 +111,7 @@ std::vector<std::shared_ptr<Job>> JobStore::recover() {
     job->planned_steps = record.value("planned_steps", std::int64_t{0});
     job->reason = record.value("reason", "");
     job->strict = record.contains("strict") && record["strict"].is_boolean() && record["strict"].get<bool>();
+    job->robot = record.contains("robot") && record["robot"].is_boolean() && record["robot"].get<bool>();
     job->crashes = record.contains("crashes") && record["crashes"].is_number_integer() ? record["crashes"].get<int>() : 0;
     if (record.contains("progress") && record["progress"].is_object()) {
       const json& p = record["progress"];

@@ -208,6 +208,7 @@ void prepare_run(ApiContext& api, Job& job, const json& doc, const StreamSetting
   job.t_now = sim.t0();
   job.planned_steps = planned;
   job.record_every = every;
+  job.robot = lag && lag->compiled && lag->compiled->robot;
   job.stream = stream;
   if (stream.enabled) set_channels(job.stream, job.id);
   job.sim.emplace(sim.with_limits(limits));

@@ -6,6 +6,7 @@
 #include "events_routes.h"
 #include "figures_routes.h"
 #include "jobs_routes.h"
+#include "kinematics_routes.h"
 #include "metrics.h"
 #include "request_screening.h"
 #include "responses.h"
@@ -49,7 +50,10 @@ const std::vector<Route>& api_routes() {
       // The web page (server/web/), the health check, the metrics, the API's description, the shipped scenes.
       {M::kGet, "/", "webPage", {}, kOpen, web_page},
       {M::kGet, "/ui/app.js", "webPageScript", {}, kOpen, web_page_script},
+      {M::kGet, "/ui/robot3d.js", "webPageRobot3D", {}, kOpen, web_page_robot3d},
       {M::kGet, "/ui/style.css", "webPageStyle", {}, kOpen, web_page_style},
+      {M::kGet, "/ui/three.min.js", "webPageThree", {}, kOpen, web_page_three},
+      {M::kGet, "/ui/OrbitControls.js", "webPageOrbitControls", {}, kOpen, web_page_orbit_controls},
       {M::kGet, "/healthz", "health", {}, kOpen, health},
       {M::kGet, "/metrics", "metrics", {}, kToken, metrics},
       {M::kGet, "/v1/openapi.json", "openapi", {}, kToken, openapi},
@@ -63,6 +67,7 @@ const std::vector<Route>& api_routes() {
       {M::kGet, "/v1/jobs/{id}/events", "jobEvents", {}, kToken, of_kind<job_events, kRun>},
       {M::kGet, "/v1/jobs/{id}/report", "getReport", {}, kToken, job_report},
       {M::kGet, "/v1/jobs/{id}/trajectory", "getTrajectory", {"format", "from", "to", "every"}, kToken, job_trajectory},
+      {M::kGet, "/v1/jobs/{id}/kinematics", "getKinematics", {"t", "from", "to", "max_samples"}, kToken, job_kinematics},
       {M::kGet, "/v1/jobs/{id}/figure", "getJobFigure", kJobFigure, kToken, job_figure},
       // Studies.
       {M::kGet, "/v1/studies", "listStudies", kList, kToken, of_kind<list_jobs, kStudy>},

@@ -48,6 +48,34 @@ void web_page_style(ApiContext&, const Request& req, Response& res) {
   send_page_file(req, res, web_style_css(), etag, "text/css; charset=utf-8");
 }
 
+void web_page_robot3d(ApiContext&, const Request& req, Response& res) {
+  static const std::string etag = strong_etag(web_robot3d_js());
+  send_page_file(req, res, web_robot3d_js(), etag, "text/javascript; charset=utf-8");
+}
+
+namespace {
+
+// A file of libjs-three, or 404 when the server was built without it (the 3D view then says so).
+void send_three_file(const Request& req, Response& res, std::string_view text, const std::string& etag) {
+  if (text.empty())
+    return send_error(
+        res, 404, "three.js is not built in", "",
+        "this server was built without Debian's libjs-three; install it (scripts/install-deps.sh) and rebuild for the 3D view");
+  send_page_file(req, res, text, etag, "text/javascript; charset=utf-8");
+}
+
+}  // namespace
+
+void web_page_three(ApiContext&, const Request& req, Response& res) {
+  static const std::string etag = strong_etag(web_three_js());
+  send_three_file(req, res, web_three_js(), etag);
+}
+
+void web_page_orbit_controls(ApiContext&, const Request& req, Response& res) {
+  static const std::string etag = strong_etag(web_orbit_controls_js());
+  send_three_file(req, res, web_orbit_controls_js(), etag);
+}
+
 void openapi(ApiContext&, const Request& req, Response& res) {
   static const std::string etag = strong_etag(openapi_document());
   if (not_modified(req, res, etag)) return;

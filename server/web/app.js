@@ -575,6 +575,7 @@ function showItem(kind, item) {
   $('job-table').replaceChildren();
   $('job-plain').replaceChildren();
   $('job-tools').replaceChildren();
+  if (kind !== 'run' && window.MoreauRobot3D) window.MoreauRobot3D.close();  // a study or a campaign has no robot to show
   if (kind === 'run') showJob(item);
   else if (kind === 'study') showStudy(item);
   else showCampaign(item);
@@ -615,6 +616,13 @@ function showJob(job) {
   showProgress(job);
   // One sentence for a student, written by the server; nothing when the report has none.
   if (r && typeof r.summary === 'string' && r.summary) $('job-plain').append(el('p', { class: 'plain' }, r.summary));
+  // A URDF robot's job: its 3D view (robot3d.js), drawn from the server's link poses.
+  if (window.MoreauRobot3D && window.MoreauRobot3D.jobId() !== job.id) window.MoreauRobot3D.close();
+  if (job.links && job.links.kinematics && window.MoreauRobot3D) {
+    const b = el('button', { type: 'button', id: 'robot3d-button' }, '3D view');
+    b.addEventListener('click', () => window.MoreauRobot3D.open($('job-robot3d'), job.id, (path) => request('GET', path)));
+    $('job-tools').append(b);
+  }
 
   const ul = $('job-guarantees');
   ul.replaceChildren();

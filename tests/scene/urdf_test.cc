@@ -4,6 +4,8 @@
 //   expression scene;
 // - the 7-joint KUKA iiwa (scenes/robots/kuka-iiwa14.urdf) against KDL (orocos-kdl), whose chain this
 //   test builds from urdfdom's parse by hand, as kdl_parser does: M, C(q, v) v, G at random states;
+// - where every link of the iiwa is (link_poses, what GET /v1/jobs/{id}/kinematics serves) against KDL's
+//   forward kinematics of the same chain, to 1e-12; and the <visual> primitives a viewer draws, as written;
 // - the 6-joint PUMA 560 (scenes/robots/puma560.urdf) against the textbook Jacobian model built from its
 //   published Denavit-Hartenberg table (M and G), which also checks the table's conversion to URDF;
 // - energy of a free, frictionless swing conserved to O(h), with the measured order;
@@ -18,6 +20,7 @@
 #include <sstream>
 
 #include <kdl/chain.hpp>
+#include <kdl/chainfksolverpos_recursive.hpp>
 #include <kdl/chaindynparam.hpp>
 #include <kdl/jntspaceinertiamatrix.hpp>
 #include <urdf_parser/urdf_parser.h>
@@ -226,6 +229,74 @@ TEST(Urdf, SevenJointArmMatchesKdl) {
 // is the continuous law's at that state): u = 0.9 (M a_r + C(q, v) v_r + G) - A sgn(sigma), its model
 // part from KDL (M, gravity, and C(q, v) v_r by polarization of KDL's Coriolis vector), the reference
 // sin(t + i) and its derivatives written here, against the u the run's samples carry.
+TEST(Urdf, LinkPosesMatchKdlForwardKinematics) {
+  const std::string text = read_text(iiwa_path());
+  const UrdfRobot robot = read_urdf(text);
+  const KDL::Chain chain = kdl_chain(text, "base", "iiwa_link_ee");
+  KDL::ChainFkSolverPos_recursive fk(chain);
+  // The root, the fixed iiwa_link_0 on the base, the seven moving links, and iiwa_link_ee merged into the last.
+  ASSERT_EQ(robot.links.size(), 10u);
+  EXPECT_EQ(robot.links.front().name, "base");
+  EXPECT_EQ(robot.links.front().parent, "");
+  EXPECT_EQ(robot.links.back().name, "iiwa_link_ee");
+  EXPECT_EQ(robot.links.back().parent, "iiwa_link_7");
+  EXPECT_EQ(robot.links.back().body, 6);
+  EXPECT_NEAR(robot.links.back().joint_origin.z(), 0.045, 0.0);
+  RigidBodyData data(robot.model);
+  std::vector<UrdfFrame> poses;
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-2.5, 2.5);
+  for (int trial = 0; trial < 20; ++trial) {
+    KDL::JntArray qk(7);
+    std::vector<double> q(7);
+    for (unsigned i = 0; i < 7; ++i) q[i] = qk(i) = u(rng);
+    link_poses(robot, data, q.data(), poses);
+    ASSERT_EQ(poses.size(), robot.links.size());
+    for (std::size_t k = 0; k < robot.links.size(); ++k) {
+      KDL::Frame want;  // the root: the world frame
+      for (unsigned s = 0; s < chain.getNrOfSegments(); ++s) {
+        if (chain.getSegment(s).getName() == robot.links[k].name) {
+          ASSERT_GE(fk.JntToCart(qk, want, static_cast<int>(s + 1)), 0);
+        }
+      }
+      for (int r = 0; r < 3; ++r) {
+        EXPECT_NEAR(poses[k].position(r), want.p(r), 1e-12) << robot.links[k].name;
+        for (int c = 0; c < 3; ++c) EXPECT_NEAR(poses[k].rotation(r, c), want.M(r, c), 1e-12) << robot.links[k].name;
+      }
+    }
+  }
+}
+
+TEST(Urdf, VisualPrimitivesAreDescribedAndMeshesCounted) {
+  const std::string text = R"(<robot name="shapes">
+  <link name="a"><visual><geometry><box size="0.1 0.2 0.3"/></geometry></visual></link>
+  <joint name="j" type="continuous"><parent link="a"/><child link="b"/><origin xyz="0 0 0.5"/><axis xyz="0 1 0"/></joint>
+  <link name="b">
+    <inertial><mass value="1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial>
+    <visual><origin xyz="0 0 0.25" rpy="0 0 0"/><geometry><cylinder radius="0.05" length="0.5"/></geometry></visual>
+    <visual><geometry><sphere radius="0.07"/></geometry></visual>
+    <visual><geometry><mesh filename="package://x/b.stl"/></geometry></visual>
+  </link>
+</robot>)";
+  const UrdfRobot robot = read_urdf(text);
+  ASSERT_EQ(robot.links.size(), 2u);
+  const UrdfLink& a = robot.links[0];
+  const UrdfLink& b = robot.links[1];
+  ASSERT_EQ(a.visuals.size(), 1u);
+  EXPECT_EQ(a.visuals[0].shape, UrdfVisual::Shape::kBox);
+  EXPECT_EQ(a.visuals[0].size, Eigen::Vector3d(0.1, 0.2, 0.3));
+  EXPECT_EQ(b.joint, "j");
+  EXPECT_EQ(b.joint_origin, Eigen::Vector3d(0, 0, 0.5));
+  ASSERT_EQ(b.visuals.size(), 2u);
+  EXPECT_EQ(b.visuals[0].shape, UrdfVisual::Shape::kCylinder);
+  EXPECT_EQ(b.visuals[0].radius, 0.05);
+  EXPECT_EQ(b.visuals[0].length, 0.5);
+  EXPECT_EQ(b.visuals[0].origin.position, Eigen::Vector3d(0, 0, 0.25));
+  EXPECT_EQ(b.visuals[1].shape, UrdfVisual::Shape::kSphere);
+  EXPECT_EQ(b.visuals[1].radius, 0.07);
+  EXPECT_EQ(b.meshes, 1);
+}
+
 TEST(Urdf, TrackingControllerModelPartMatchesKdl) {
   const std::string text = read_text(iiwa_path());
   const double h = 1e-4, lambda = 10.0, scale = 0.9;

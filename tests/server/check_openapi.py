@@ -137,7 +137,9 @@ def check_answer(doc, what, op, status, ctype, body):
                  (what, status, "/".join(map(str, e.absolute_path)), e.message[:300]))
 
 
-def concrete(path, job_id, study_id, campaign_id=None):
+def concrete(path, job_id, study_id, campaign_id=None, robot_id=None):
+    if path.endswith("/kinematics"):  # only a URDF job has link poses
+        path = path.replace("{id}", robot_id or job_id)
     if path.startswith("/v1/studies/"):
         path = path.replace("{id}", study_id)
     if path.startswith("/v1/campaigns/"):
@@ -175,7 +177,11 @@ def check_live(doc, doc_text, server_bin, scenes):
         status, ctype, body = request_3(base, "POST", "/v1/campaigns", campaign_body)
         check_answer(doc, "POST /v1/campaigns", ops[("/v1/campaigns", "post")], status, ctype, body)
         campaign_id = json.loads(body)["id"]
-        for kind, i in (("jobs", job_id), ("studies", study_id), ("campaigns", campaign_id)):
+        # A URDF robot's job, for the operations only such a job answers (the kinematics).
+        status, ctype, body = request_3(base, "POST", "/v1/jobs", {"scene": "iiwa14-joint-limit", "overrides": ["integrator.t_end=0.2"]})
+        check_answer(doc, "POST /v1/jobs (a URDF robot)", ops[("/v1/jobs", "post")], status, ctype, body)
+        robot_id = json.loads(body)["id"]
+        for kind, i in (("jobs", job_id), ("jobs", robot_id), ("studies", study_id), ("campaigns", campaign_id)):
             status, _, body = request_3(base, "GET", "/v1/%s/%s?wait=60" % (kind, i))
             if status != 200 or json.loads(body)["state"] != "done":
                 fail("the %s %s did not finish: %s" % (kind, i, body[:300]))
@@ -185,7 +191,7 @@ def check_live(doc, doc_text, server_bin, scenes):
         # Cancelling comes last: it does not change a finished job, but order it after the reads anyway.
         for path, method, op in sorted(operations(doc), key=lambda x: x[1] == "delete"):
             M = method.upper()
-            url = concrete(path, job_id, study_id, campaign_id)
+            url = concrete(path, job_id, study_id, campaign_id, robot_id)
             body_ = posts.get(path) if M == "POST" else None
             cases = [("", url)]
             query = [p for p in op.get("parameters", []) if p["in"] == "query"]

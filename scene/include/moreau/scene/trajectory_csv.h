@@ -5,6 +5,7 @@
 // the number of steps.
 #pragma once
 
+#include <chrono>
 #include <cstdio>
 #include <istream>
 #include <string>
@@ -35,6 +36,7 @@ class TrajectoryCsvWriter : public RunObserver {
   bool failed_ = false;
   int error_ = 0;  // errno of the first failed write
   double seconds_ = 0.0;
+  std::chrono::steady_clock::time_point flushed_;  // when the rows last reached the file
 };
 
 // A trajectory as TrajectoryCsvWriter writes it, read back: q[i] and v[i] hold coordinate i over time.
