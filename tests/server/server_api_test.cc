@@ -637,7 +637,9 @@ TEST(ServerApi, RunningJobSendsSamplesOfItsStateAndAFinalOneKeepsNone) {
     ASSERT_EQ(s["v"].size(), 2u) << s;
     EXPECT_TRUE(s["t"].is_number() && s["energy"].is_number()) << s;
     EXPECT_FALSE(s.contains("indices")) << s;
-    if (i > 0) EXPECT_GT(s["step"].get<std::int64_t>(), samples[i - 1]["step"].get<std::int64_t>());
+    if (i > 0) {
+      EXPECT_GT(s["step"].get<std::int64_t>(), samples[i - 1]["step"].get<std::int64_t>());
+    }
   }
   EXPECT_DOUBLE_EQ(samples[0]["q"][0].get<double>(), scene["initial"]["q"][0].get<double>());
   ASSERT_EQ(c->Delete("/v1/jobs/" + id)->status, 202);
