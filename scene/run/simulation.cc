@@ -40,16 +40,23 @@ Simulation Simulation::from_json(const nlohmann::json& doc) {
     sim.system_ = std::make_shared<const LagrangianScene>(load_scene(doc));
   }
   sim.latest_ = std::make_shared<Latest>();
-  sim.units_ = units_of(doc);
+  sim.units_ = units_of(doc, sim.lagrangian());
   return sim;
 }
 
-// /units is free-form (scene-format.md): its string members are the units; other members are ignored.
-std::shared_ptr<const std::map<std::string, std::string>> Simulation::units_of(const nlohmann::json& doc) {
+// /units is free-form (scene-format.md): its string members are the units; other members are ignored. A
+// URDF robot's joints have the units URDF fixes (radians for revolute and continuous joints, metres for
+// prismatic ones, seconds), unless /units says otherwise.
+std::shared_ptr<const std::map<std::string, std::string>> Simulation::units_of(const nlohmann::json& doc, const LagrangianScene* scene) {
   auto units = std::make_shared<std::map<std::string, std::string>>();
   if (doc.is_object() && doc.contains("units") && doc["units"].is_object())
     for (const auto& [name, unit] : doc["units"].items())
       if (unit.is_string()) (*units)[name] = unit.get<std::string>();
+  if (scene && scene->compiled && scene->compiled->robot) {
+    units->emplace("t", "s");
+    for (const RigidBody& body : scene->compiled->robot->bodies)
+      units->emplace(body.joint_name, body.joint == JointType::kPrismatic ? "m" : "rad");
+  }
   return units;
 }
 
@@ -73,7 +80,7 @@ Simulation Simulation::from_scene(LagrangianScene scene, const RunLimits& limits
   apply_limits(scene.settings.grid(), limits);
   sim.system_ = std::make_shared<const LagrangianScene>(std::move(scene));
   sim.latest_ = std::make_shared<Latest>();
-  sim.units_ = units_of(doc);
+  sim.units_ = units_of(doc, sim.lagrangian());
   return sim;
 }
 

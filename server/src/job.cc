@@ -189,7 +189,7 @@ json job_record(const Job& job, JobState state, const std::string& reason, doubl
   return r;
 }
 
-json sample_event(const Sample& s) {
+json sample_event(const Sample& s, const std::vector<std::string>& q_names) {
   // All coordinates up to the bound; beyond it, kMaxSampleCoordinates of them evenly spread from the
   // first to the last, named by their indices.
   const int n = std::max(0, s.n);
@@ -204,6 +204,11 @@ json sample_event(const Sample& s) {
   }
   json j = {{"t", finite_or_null(s.t)}, {"step", s.step}, {"n", n}, {"q", q}, {"v", v}, {"energy", finite_or_null(s.kinetic_energy)}};
   if (shown < n) j["indices"] = indices;
+  if (static_cast<int>(q_names.size()) == n) {
+    json names = json::array();
+    for (int i : indices) names.push_back(q_names[static_cast<std::size_t>(i)]);
+    j["names"] = std::move(names);
+  }
   return j;
 }
 

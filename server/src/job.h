@@ -121,8 +121,9 @@ std::optional<JobState> parse_state(const std::string& s);
 void push_event(Job& job, const std::string& name, const nlohmann::json& data);
 
 // The data of a `sample` event: t, step, n, the energy, and q and v (at most 16 coordinates of each,
-// evenly spread from the first to the last, with their "indices" when n is larger). Not finite: null.
-nlohmann::json sample_event(const Sample& s);
+// evenly spread from the first to the last, with their "indices" when n is larger), and the shown
+// coordinates' "names" when `q_names` names all n. Not finite: null.
+nlohmann::json sample_event(const Sample& s, const std::vector<std::string>& q_names = {});
 
 double unix_now();
 

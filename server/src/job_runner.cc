@@ -333,7 +333,7 @@ void JobRunner::run(const std::shared_ptr<Job>& job) {
   auto progress = [this, &job] {
     push_event(*job, "progress", {{"t", job->t_now.load()}, {"step", job->step_now.load()}, {"t0", job->t0}, {"t_end", job->t_end}});
   };
-  auto sample = [&job](const Sample& s) { push_event(*job, "sample", sample_event(s)); };
+  auto sample = [&job, names = sim.position_names()](const Sample& s) { push_event(*job, "sample", sample_event(s, names)); };
   const std::int64_t max_rows = max_trajectory_rows(config_, sim);
   JobObserver observer(*job, csv, job->record_every, sim.output_every(), max_rows, stream_observer ? &*stream_observer : nullptr, progress,
                        sample);

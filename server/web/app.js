@@ -401,6 +401,8 @@ function addSample(entry, data) {
   }
   l.n = isNum(data.n) ? data.n : 0;
   l.indices = Array.isArray(data.indices) ? data.indices : null;
+  // The coordinates' names from the scene (shown as text, like everything the server sends).
+  l.names = Array.isArray(data.names) ? data.names.slice(0, 64).map(String) : null;
   const last = l.points[l.points.length - 1];
   if (last && data.t <= last.t) return;  // a replay of what was drawn
   const values = (a) => (Array.isArray(a) ? a.slice(0, 64).map((x) => (isNum(x) ? x : null)) : []);
@@ -416,7 +418,8 @@ function liveSeries(l, quantity) {
   const out = [];
   for (let i = 0; i < width; ++i) {
     const index = l.indices && isNum(l.indices[i]) ? l.indices[i] : i;
-    out.push({ name: `${quantity}[${index}]`, xs: l.points.map((p) => p.t), ys: l.points.map((p) => (i < p[quantity].length ? p[quantity][i] : null)) });
+    const named = l.names && typeof l.names[i] === 'string' ? l.names[i] : null;
+    out.push({ name: named !== null ? (quantity === 'v' ? `${named} (velocity)` : named) : `${quantity}[${index}]`, xs: l.points.map((p) => p.t), ys: l.points.map((p) => (i < p[quantity].length ? p[quantity][i] : null)) });
   }
   return out;
 }

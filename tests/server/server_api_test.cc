@@ -637,6 +637,7 @@ TEST(ServerApi, RunningJobSendsSamplesOfItsStateAndAFinalOneKeepsNone) {
     ASSERT_EQ(s["v"].size(), 2u) << s;
     EXPECT_TRUE(s["t"].is_number() && s["energy"].is_number()) << s;
     EXPECT_FALSE(s.contains("indices")) << s;
+    EXPECT_EQ(s["names"], json({"x1", "th2"})) << s;  // the scene's coordinates, for the plot's legend
     if (i > 0) {
       EXPECT_GT(s["step"].get<std::int64_t>(), samples[i - 1]["step"].get<std::int64_t>());
     }
@@ -673,6 +674,13 @@ TEST(ServerApi, SampleEventsOfManyCoordinatesAreBounded) {
     EXPECT_EQ(j["v"][k].get<double>(), -j["indices"][k].get<double>());
   }
   EXPECT_TRUE(j["q"][15].is_null());
+  EXPECT_FALSE(j.contains("names"));  // none given
+  // Named: the names of the coordinates shown, in the same order.
+  std::vector<std::string> names;
+  for (int i = 0; i < 40; ++i) names.push_back("joint_" + std::to_string(i));
+  const json named = moreau::server::sample_event(s, names);
+  ASSERT_EQ(named["names"].size(), 16u);
+  for (std::size_t k = 0; k < 16; ++k) EXPECT_EQ(named["names"][k], "joint_" + std::to_string(named["indices"][k].get<int>()));
   // Few coordinates: all of them, no indices.
   moreau::Sample few{0, 0.0, 1e-3, 3, q.data(), v.data(), 0.0};
   const json k = moreau::server::sample_event(few);

@@ -265,10 +265,13 @@ async function main() {
     const live = await page.evaluate(() => ({
       points: Number(document.getElementById('live-svg').dataset.points),
       lines: document.querySelectorAll('#live-svg polyline.series').length,
+      legend: [...document.querySelectorAll('#live-plot ul.legend li')].map((li) => li.textContent),
       state: document.querySelector(`#jobs tr[data-id="${document.getElementById('job-id').textContent}"] td.state`).textContent,
     }));
     check(live.points > firstPoints && live.lines === 7 && live.state === 'running',
           `the live plot grows while the job runs: ${firstPoints} then ${live.points} states, 7 coordinates drawn (${live.state})`);
+    check(live.legend.length === 7 && live.legend.every((name, i) => name === `iiwa_joint_${i + 1}`),
+          'the live plot names the coordinates as the scene does: ' + live.legend.join(', '));
     await page.waitForFunction(() => / left$/.test(document.getElementById('job-progress').textContent), WAIT);
     check(true, 'the running job shows its progress with the time left: ' + await page.$eval('#job-progress', (e) => e.textContent));
     // The screenshot with a few seconds drawn (unless the run is over by then: then as it was).

@@ -66,7 +66,8 @@ class Simulation {
   // sigma_<q> and u_<q> for each coordinate q; empty for other scenes.
   std::vector<std::string> signal_names() const;
   // The scene's /units, its string members (a coordinate's or a state's name, or "t", to the unit's text:
-  // {"x1": "m", "th2": "rad", "t": "s"}), for the labels of figures and the report's summary; empty for a
+  // {"x1": "m", "th2": "rad", "t": "s"}), for the labels of figures and the report's summary; a URDF
+  // robot's joints in radians or metres and time in seconds unless /units says otherwise; empty for a
   // scene without them.
   const std::map<std::string, std::string>& units() const;
   double t0() const;
@@ -116,7 +117,7 @@ class Simulation {
   System system_;
   std::shared_ptr<Latest> latest_;
   std::shared_ptr<const std::map<std::string, std::string>> units_;
-  static std::shared_ptr<const std::map<std::string, std::string>> units_of(const nlohmann::json& doc);
+  static std::shared_ptr<const std::map<std::string, std::string>> units_of(const nlohmann::json& doc, const LagrangianScene* scene);
 };
 
 }  // namespace moreau::scene
