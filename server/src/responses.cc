@@ -1,6 +1,7 @@
 #include "responses.h"
 
 #include <cctype>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -47,10 +48,12 @@ std::string no_endpoint(const Request& req) {
 
 std::optional<double> number_param(const Request& req, const char* name, double lo, double hi) {
   if (!req.has_param(name)) return std::nullopt;
+  // The whole value, as JSON spells numbers (std::from_chars: no hex, no leading space or '+', and a NUL
+  // byte ends nothing: strtod read "600\0abc" as 600 and "\0" as 0).
   const std::string v = req.get_param_value(name);
-  char* end = nullptr;
-  const double d = std::strtod(v.c_str(), &end);
-  if (v.empty() || *end != '\0' || !std::isfinite(d) || d < lo || d > hi)
+  double d = 0.0;
+  const auto [end, ec] = std::from_chars(v.data(), v.data() + v.size(), d, std::chars_format::general);
+  if (v.empty() || ec != std::errc() || end != v.data() + v.size() || !std::isfinite(d) || d < lo || d > hi)
     throw std::invalid_argument(std::string("query parameter '") + name + "' must be a number in [" + platform::significant(lo, 10) + ", " +
                                 platform::significant(hi, 10) + "]");
   return d;

@@ -158,6 +158,9 @@ std::string unknown_query_parameter(const Request& req) {
   static const std::vector<std::string_view> kNone;
   const std::vector<std::string_view>& params = route ? route->query : kNone;
   for (const auto& [name, value] : req.params) {
+    // Given twice, a parameter would be read as its first value and the second ignored unseen.
+    if (const auto n = req.params.count(name); n > 1 && std::find(params.begin(), params.end(), name) != params.end())
+      return "query parameter '" + name.substr(0, 64) + "' is given " + std::to_string(n) + " times; give it once";
     if (std::find(params.begin(), params.end(), name) != params.end()) continue;
     std::string takes;
     for (const std::string_view p : params) {

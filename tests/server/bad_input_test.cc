@@ -554,6 +554,16 @@ std::vector<Case> cases() {
   t.push_back(get("FigureKindUnknown", "/v1/jobs/{id}/figure?kind=pie", 400, "kind must be state, energy, step, phase or tracking"));
   t.push_back(get("FigureWidthOneBillion", "/v1/jobs/{id}/figure?width=1e9", 400, "'width' must be a number in [64, 4096]"));
   t.push_back(get("FigureHeightTiny", "/v1/jobs/{id}/figure?height=10", 400, "'height' must be a number in [64, 4096]"));
+  // A number is the whole value, spelt as JSON spells it: strtod once read "600\0abc" as 600, a lone NUL
+  // as 0, and hexadecimal.
+  t.push_back(get("FigureWidthWithANulInside", "/v1/jobs/{id}/figure?width=600%00abc", 400, "'width' must be a number in [64, 4096]"));
+  t.push_back(get("WaitALoneNul", "/v1/jobs/{id}?wait=%00", 400, "'wait' must be a number in [0, 60]"));
+  t.push_back(get("WaitHexadecimal", "/v1/jobs/{id}?wait=0x10", 400, "'wait' must be a number in [0, 60]"));
+  t.push_back(get("WaitLeadingSpace", "/v1/jobs/{id}?wait=%201", 400, "'wait' must be a number in [0, 60]"));
+  t.push_back(get("FigureRobustYNotABoolean", "/v1/jobs/{id}/figure?robust_y=1", 400, "'robust_y' must be true or false"));
+  // Given twice, the second value would be ignored unseen.
+  t.push_back(
+      get("FigureKindTwice", "/v1/jobs/{id}/figure?kind=state&kind=energy", 400, "query parameter 'kind' is given 2 times; give it once"));
   t.push_back(get("TrajectoryFormatXml", "/v1/jobs/{id}/trajectory?format=xml", 400, "format must be json, csv or npy"));
 
   // Job ids: unknown, malformed, path traversal (plain and percent-encoded), and scene names.
