@@ -17,11 +17,10 @@
 //
 // Usage: node robot3d_test.mjs SERVER_BINARY SOURCE_DIR SCREENSHOT.png|.jpg
 import puppeteer from 'puppeteer-core';
-import { spawn } from 'node:child_process';
 import fs from 'node:fs';
 import os from 'node:os';
 import path from 'node:path';
-import readline from 'node:readline';
+import { check, startServer as startServerWith, stopServer } from './harness.mjs';
 
 const [serverBin, sourceDir, screenshotPath] = process.argv.slice(2);
 if (!serverBin || !sourceDir || !screenshotPath) {
@@ -29,37 +28,9 @@ if (!serverBin || !sourceDir || !screenshotPath) {
   process.exit(2);
 }
 const TOKEN = 'browser-test-token';
+const startServer = (dataDir) => startServerWith(serverBin, sourceDir, dataDir, TOKEN);
 const WAIT = { timeout: 60000 };
 const TOLERANCE = 1e-12;
-
-function check(condition, message) {
-  if (!condition) throw new Error('check failed: ' + message);
-  console.log('ok:', message);
-}
-
-// The server, on a free port it picks and prints: wait for that line, not for a time.
-async function startServer(dataDir) {
-  const proc = spawn(serverBin, ['--host', '127.0.0.1', '--port', '0', '--token', TOKEN, '--workers', '2',
-                                 '--data', dataDir, '--scenes', path.join(sourceDir, 'scenes')],
-                     { stdio: ['ignore', 'pipe', 'inherit'] });
-  const lines = readline.createInterface({ input: proc.stdout });
-  const url = await new Promise((resolve, reject) => {
-    lines.on('line', (line) => {
-      const m = line.match(/listening on (http:\/\/127\.0\.0\.1:\d+)/);
-      if (m) resolve(m[1]);
-    });
-    proc.on('exit', (code) => reject(new Error('moreau-server exited with ' + code + ' before listening')));
-  });
-  lines.on('line', () => {});  // keep draining
-  return { proc, url };
-}
-
-async function stopServer(proc) {
-  if (proc.exitCode !== null) return;
-  const exited = new Promise((resolve) => proc.on('exit', resolve));
-  proc.kill('SIGTERM');
-  await exited;
-}
 
 // Moves the view's slider to `index`, then holds the world matrix three.js has for every link to the pose
 // the server answers for the time the view shows. Returns the number of links compared.
