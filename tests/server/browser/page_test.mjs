@@ -361,7 +361,9 @@ async function main() {
     await page.goForward();
     await page.waitForFunction((id) => document.getElementById('job-id').textContent === id && document.getElementById('job-title').textContent === 'Study', WAIT, study.id);
     check(true, 'back and forward go between the job, the study and the campaign chosen');
-    await page.click(`#jobs tr[data-id="${campaign.id}"] td.scene`);
+    // Clicked in the page in one go: the list redraws a row's cells at every update of its item, so a
+    // handle taken before the click may be gone by the time it lands ("Node is detached").
+    await page.evaluate((id) => document.querySelector(`#jobs tr[data-id="${id}"] td.scene`).click(), campaign.id);
     await page.waitForFunction((id) => location.hash === '#/campaigns/' + id && document.getElementById('job-id').textContent === id, WAIT, campaign.id);
     check(true, 'choosing a row in the list sets the address to it');
 
@@ -379,11 +381,13 @@ async function main() {
       compareIds.push(await page.evaluate(() => location.hash.slice(7)));
     }
     for (const id of compareIds) {
+      // Ticked in the page once it can be (the job has its trajectory), in one go for the same reason.
       await page.waitForFunction((jobId) => {
         const box = document.querySelector(`#jobs tr[data-id="${jobId}"] td.pick input`);
-        return box && !box.disabled;
+        if (!box || box.disabled) return false;
+        if (!box.checked) box.click();
+        return box.checked;
       }, { timeout: 60000 }, id);
-      await page.click(`#jobs tr[data-id="${id}"] td.pick input`);
     }
     await page.waitForFunction(() => !document.getElementById('compare-button').disabled, WAIT);
     await page.click('#compare-button');
