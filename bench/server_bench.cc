@@ -1,6 +1,7 @@
 // moreau-server benchmarks, against an in-process server on 127.0.0.1 with keep-alive clients:
 //   BM_SmallJobs       jobs per second: the manipulator with t_end = 1 (1000 steps), each client
-//                      submitting a job and waiting for its result, again and again
+//                      submitting a job and waiting for its result, again and again; and the submit
+//                      latency (POST to 202) of all clients pooled, p50 and p99 in ms
 //   BM_SubmitToResult  latency from POST /v1/jobs to the finished job (p50, p90, p99 in ms)
 //   BM_StreamingOverhead  a job's integration time (1e5 steps, every state recorded) without and with
 //                      LCM streaming at the default period: the cost streaming adds to the integrator
@@ -8,6 +9,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdlib>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -46,9 +48,12 @@ std::string small_job_body() {
 }
 
 // Submits and waits; returns false on any error.
-bool one_job(httplib::Client& c, const std::string& body, json* report = nullptr) {
+// `submit_ms`, if given, gets the time from the POST to its 202.
+bool one_job(httplib::Client& c, const std::string& body, json* report = nullptr, std::vector<float>* submit_ms = nullptr) {
+  const auto t0 = Clock::now();
   auto r = c.Post("/v1/jobs", body, "application/json");
   if (!r || r->status != 202) return false;
+  if (submit_ms) submit_ms->push_back(std::chrono::duration<float, std::milli>(Clock::now() - t0).count());
   const std::string id = json::parse(r->body)["id"];
   while (true) {
     auto g = c.Get("/v1/jobs/" + id + "?wait=10");
@@ -63,13 +68,23 @@ bool one_job(httplib::Client& c, const std::string& body, json* report = nullptr
   }
 }
 
+// The submit latency (POST to 202) of every client of a run, pooled: the last client out reports the
+// percentiles (counters are summed over the clients, the others report 0).
+struct SubmitLatencies {
+  std::mutex mu;
+  std::vector<float> ms;
+  int finished = 0;
+};
+
 void BM_SmallJobs(benchmark::State& state) {
+  static SubmitLatencies pooled;
   TestServer& ts = shared_server();
   auto c = ts.client();
   const std::string body = small_job_body();
   std::int64_t jobs = 0;
+  std::vector<float> submit_ms;
   for (auto _ : state) {
-    if (!one_job(*c, body)) {
+    if (!one_job(*c, body, nullptr, &submit_ms)) {
       state.SkipWithError("a job failed");
       break;
     }
@@ -77,6 +92,21 @@ void BM_SmallJobs(benchmark::State& state) {
   }
   state.SetItemsProcessed(jobs);
   state.counters["jobs_per_s"] = benchmark::Counter(static_cast<double>(jobs), benchmark::Counter::kIsRate);
+  std::lock_guard lock(pooled.mu);
+  pooled.ms.insert(pooled.ms.end(), submit_ms.begin(), submit_ms.end());
+  double p50 = 0, p99 = 0;
+  if (++pooled.finished == state.threads() && !pooled.ms.empty()) {
+    std::sort(pooled.ms.begin(), pooled.ms.end());
+    auto pct = [&](double p) {
+      return pooled.ms[std::min(pooled.ms.size() - 1, static_cast<std::size_t>(p * static_cast<double>(pooled.ms.size())))];
+    };
+    p50 = pct(0.50);
+    p99 = pct(0.99);
+    pooled.ms.clear();
+    pooled.finished = 0;
+  }
+  state.counters["submit_p50_ms"] = p50;
+  state.counters["submit_p99_ms"] = p99;
 }
 BENCHMARK(BM_SmallJobs)->ThreadRange(1, 8)->UseRealTime()->MinTime(2.0);
 
