@@ -26,33 +26,48 @@
 //     else forward-backward splitting w <- J(w - gamma (D w - q)), J the resolvent of gamma G^{-1}
 //     (scalar, exact), gamma = mu / L^2, whose iterate's pattern is polished by step 2's equations.
 //
-// Path following (Katzenelson, Bell System Tech. J. 44, 1965; Fujisawa and Kuh, SIAM J.
-// Appl. Math. 22, 1972; Eaves, "A short course in solving equations with PL homotopies", 1976). Parametrise each graph by t_i = u_i + d_i
-// w_i (d_i = D_ii > 0), which increases strictly along the curve: (u_i, w_i) = (U_i(t_i), W_i(t_i)), U_i and W_i piecewise linear, the
-// cells of R^m the products of pieces. (GE) is F(t) = U(t) + D W(t) - q = 0, F affine on each cell with Jacobian J = diag(a) + D diag((1 -
-// a) / d), a_i = 1 / (1 + d_i s_i) in [0, 1] (0 on a vertical piece, 1 on a horizontal one). Expanding det(J diag(d)) column by column, it
-// is the sum over index sets S of prod_{i not in S} a_i d_i prod_{i in S} (1 - a_i) det D_SS: positive on every cell when D is a P-matrix
-// (every principal minor positive; in particular when D + D^T is positive definite). So F is piecewise affine and coherently oriented, a
-// homeomorphism of R^m, and the preimage of the segment from F(t0) to 0 is a polygonal path from any start t0 to the solution. It is
-// followed cell by cell: in the current cell the pattern's own solution (step 2's equations) is the zero of the cell's affine piece of F,
-// so moving from the current point towards it keeps F(t) on the segment (F shrinks by the factor 1 - lambda); if it lies in the cell, it is
-// the solution; otherwise the point moves to the cell's boundary and the components that reach it move to their adjacent piece. With one
-// component on the boundary, the new cell's direction continues it across (Cramer's rule: the two Jacobians differ in that column only and
-// have determinants of one sign); with several (a degenerate point: ties, q at a breakpoint), the subsets of them that may switch are
-// tried, fewest first, and the first whose pattern's direction points into its cell for each of them is taken (the path continues in one
-// such cell). The path visits each cell in one interval of the homotopy parameter, and each pivot either ends the path or leaves a cell for
-// good, so it terminates after at most the number of cells. That bound is the worst case (Murty 1978's examples make pivoting methods for
-// P-matrix LCPs exponential); on the problems measured it takes about as many pivots as components that change piece (docs/ numerics.md,
-// "The graph inclusion solver's fallback"). With every graph the corner law it is the path of Lemke's scheme for LCP(q, D) with covering
-// vector F(t0), entered at the point t0 that solves the problem perturbed by it (Cottle, Pang and Stone, "The Linear Complementarity
-// Problem", 1992, section 4.4) instead of at z = 0. A cap of 20 m + 100 pivots stops a rounding-driven loop; it is a safety net, never a
-// tolerance. The path's end is the final pattern's own solution, checked by the acceptance test below like every other answer. Exactness:
-// on a vertical piece u_i is the vertex abscissa itself (0.0 for a component at rest), on a horizontal piece w_i the vertex ordinate
-// itself. A solution is accepted only when max_i |u_i + (D w)_i - q_i| and the distance of each (u_i, w_i) to its piece are within 256 eps
-// of the problem's scale; otherwise solve() returns false and the caller must not take the step. Where D is only positive semidefinite
-// (dependent contact gradients), a solution exists for the problems the scenes pose but a pattern's equations may be singular: the path
-// then stops and the enumeration or forward-backward route above is tried, still under the acceptance test. No allocation after
-// configure().
+// Path following (Katzenelson, Bell System Tech. J. 44, 1965; Fujisawa and Kuh, SIAM J. Appl. Math. 22,
+// 1972; Eaves, "A short course in solving equations with PL homotopies", 1976). Parametrise each graph by
+// t_i = u_i + d_i w_i (d_i = D_ii > 0), which increases strictly along the curve: (u_i, w_i) = (U_i(t_i),
+// W_i(t_i)), U_i and W_i piecewise linear, the cells of R^m the products of pieces. (GE) is F(t) = U(t) +
+// D W(t) - q = 0, F affine on each cell with Jacobian J = diag(a) + D diag((1 - a) / d), a_i = 1 / (1 +
+// d_i s_i) in [0, 1] (0 on a vertical piece, 1 on a horizontal one). Expanding det(J diag(d)) column by
+// column, it is the sum over index sets S of prod_{i not in S} a_i d_i prod_{i in S} (1 - a_i) det D_SS:
+// positive on every cell when D is a P-matrix (every principal minor positive; in particular when D + D^T
+// is positive definite). So F is piecewise affine and coherently oriented, a homeomorphism of R^m, and the
+// preimage of the segment from F(t0) to 0 is a polygonal path from any start t0 to the solution.
+//
+// It is followed cell by cell: in the current cell the pattern's own solution (step 2's equations) is the
+// zero of the cell's affine piece of F, so moving from the current point towards it keeps F(t) on the
+// segment (F shrinks by the factor 1 - lambda); if it lies in the cell, it is the solution; otherwise the
+// point moves to the cell's boundary and the components that reach it move to their adjacent piece. With
+// one component on the boundary, the new cell's direction continues it across (Cramer's rule: the two
+// Jacobians differ in that column only and have determinants of one sign); with several (a degenerate
+// point: ties, q at a breakpoint), the subsets of them that may switch are tried, fewest first, and the
+// first whose pattern's direction points into its cell for each of them is taken (the path continues in
+// one such cell). Start: the active-set iteration's last point, put onto the graphs by the scalar
+// resolvents.
+//
+// Termination: the path visits each cell in one interval of the homotopy parameter, and each pivot either
+// ends the path or leaves a cell for good, so it ends after at most the number of cells. That bound is
+// exponential in m, as for Lemke's method, which Murty (Math. Programming Study 7, 1978) showed to take
+// 2^m pivots on some P-matrix problems; on the problems measured the path takes about as many pivots as
+// components change piece (docs/numerics.md, "The graph inclusion solver's fallback"). With every graph
+// the corner law it is the path of Lemke's scheme for LCP(q, D) with covering vector F(t0), entered at the
+// point t0 that solves the problem perturbed by it instead of at z = 0 (Cottle, Pang and Stone, "The
+// Linear Complementarity Problem", 1992, section 4.4). A cap of 20 m + 100 pivots stops a rounding-driven
+// loop; it is a safety net, never a tolerance. The path's end is the final pattern's own solution, checked
+// by the acceptance test below like every other answer.
+//
+// Exactness: on a vertical piece u_i is the vertex abscissa itself (0.0 for a component at rest), on a
+// horizontal piece w_i the vertex ordinate itself. A solution is accepted only when max_i |u_i + (D w)_i -
+// q_i| and the distance of each (u_i, w_i) to its piece are within 256 eps of the problem's scale;
+// otherwise solve() returns false and the caller must not take the step.
+// Where D is only positive semidefinite (dependent contact gradients), existence rests on the problem's
+// structure rather than on D (a positive semidefinite LCP that is feasible is solvable), and a pattern's
+// equations may be singular: the path then stops and the enumeration or forward-backward route of step 3
+// is tried, still under the acceptance test.
+// No allocation after configure().
 #pragma once
 
 #include <algorithm>
