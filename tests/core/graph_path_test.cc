@@ -168,5 +168,40 @@ TEST(GraphInclusionPath, SolvesBeyondTheEnumerationLimit) {
   }
 }
 
+// D only positive semidefinite: four frictionless contacts on a planar rigid body (three velocities), D =
+// H M^{-1} H^T of rank 3, the contact law the corner law, q = H v for a random approaching velocity v
+// (feasible: a solution exists). The path may stop at a singular pattern; whatever route answers, an
+// accepted answer satisfies (GE) to round-off, checked from its definition, and every problem is solved.
+TEST(GraphInclusionPath, PositiveSemidefiniteDIsSolvedAndVerified) {
+  const int m = 4;
+  const MonotoneGraph corner = MonotoneGraph::complementarity();
+  std::vector<const MonotoneGraph*> g(m, &corner);
+  int by_route[5] = {0, 0, 0, 0, 0};
+  for (int seed = 0; seed < 500; ++seed) {
+    std::mt19937 rng(static_cast<unsigned>(seed) + 7000u);
+    std::normal_distribution<double> N(0.0, 1.0);
+    Eigen::MatrixXd H(m, 3);
+    for (int i = 0; i < m; ++i) {  // normal (0, 1) at the corner (x_i, -0.5): rows [0, 1, x_i]
+      const double x = (seed % 2) ? -1.0 + 2.0 * i / (m - 1) : N(rng);
+      H.row(i) << 0.0, 1.0, x;
+    }
+    const Eigen::Vector3d Minv(1.0, 1.0, 3.0);
+    const Eigen::MatrixXd D = H * Minv.asDiagonal() * H.transpose();
+    const Eigen::VectorXd q = H * Eigen::Vector3d(N(rng), N(rng), N(rng));
+    for (Solver::Fallback f : {Solver::Fallback::kPathOnly, Solver::Fallback::kPath}) {
+      Solver solver;
+      solver.configure(m);
+      solver.set_fallback(f);
+      Eigen::VectorXd u(m), w(m);
+      GraphSolveStats st;
+      ASSERT_TRUE(solver.solve(D, q, g.data(), u, w, st)) << "seed " << seed << " residual " << st.residual;
+      EXPECT_LE(Residual(D, q, g, u, w), 1e-13 * Scale(D, q, u, w)) << "seed " << seed;
+      if (f == Solver::Fallback::kPathOnly) ++by_route[static_cast<int>(st.route)];
+    }
+  }
+  std::printf("path alone on positive semidefinite D: decoupled %d, path %d, enumeration %d, forward-backward %d\n", by_route[0],
+              by_route[2], by_route[3], by_route[4]);
+}
+
 }  // namespace
 }  // namespace moreau
