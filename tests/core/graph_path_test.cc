@@ -2,8 +2,9 @@
 // following, against the enumeration of every piece pattern (the small-m oracle, solve_by_enumeration)
 // on random problems of m <= 10 with P-matrices D (positive definite symmetric part, not symmetric),
 // graphs of every named kind (up to five pieces) and random q; then degenerate problems (q at a
-// breakpoint, components that tie all the way, integer data); then sizes beyond the enumeration's limit
-// (m = 12, 16, 32), checked against the definition of (GE) directly.
+// breakpoint, components that tie all the way, integer data); sizes beyond the enumeration's limit
+// (m = 12, 16, 32), checked against the definition of (GE) directly; a positive semidefinite D; and
+// ill-conditioned P-matrices (condition number 1e8).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -202,6 +203,32 @@ TEST(GraphInclusionPath, PositiveSemidefiniteDIsSolvedAndVerified) {
   }
   std::printf("path alone on positive semidefinite D: decoupled %d, path %d, enumeration %d, forward-backward %d\n", by_route[0],
               by_route[2], by_route[3], by_route[4]);
+}
+
+// Ill-conditioned P-matrices: symmetric part Q diag(1 ... 1e-8) Q^T (condition number 1e8) plus a skew
+// part, every graph kind including walls on both sides (mos without slope), m from 2 to 8: the path alone
+// finishes every problem and agrees with the oracle.
+TEST(GraphInclusionPath, IllConditionedProblems) {
+  const MonotoneGraph walls = MonotoneGraph::mos(0.0, 1.0, 0.0);
+  for (int seed = 0; seed < 2000; ++seed) {
+    std::mt19937 rng(static_cast<unsigned>(seed) * 31u + 5u);
+    std::normal_distribution<double> N(0.0, 1.0);
+    const int m = 2 + seed % 7;
+    const Eigen::MatrixXd R = Eigen::MatrixXd::NullaryExpr(m, m, [&] { return N(rng); });
+    const Eigen::MatrixXd K = Eigen::MatrixXd::NullaryExpr(m, m, [&] { return N(rng); });
+    const Eigen::MatrixXd Q = Eigen::HouseholderQR<Eigen::MatrixXd>(R).householderQ();
+    Eigen::VectorXd ev(m);
+    for (int i = 0; i < m; ++i) ev(i) = std::pow(1e8, -static_cast<double>(i) / (m - 1));
+    const Eigen::MatrixXd D = Q * ev.asDiagonal() * Q.transpose() + (seed % 3) * 0.3 * (K - K.transpose());
+    const Eigen::VectorXd q = Eigen::VectorXd::NullaryExpr(m, [&] { return 2.0 * N(rng); });
+    std::vector<const MonotoneGraph*> g(m);
+    for (int i = 0; i < m; ++i) {
+      const std::size_t k = rng() % (Pool().size() + 1);
+      g[i] = k < Pool().size() ? &Pool()[k] : &walls;
+    }
+    Agree(D, q, g, seed);
+    if (HasFailure()) return;
+  }
 }
 
 }  // namespace
