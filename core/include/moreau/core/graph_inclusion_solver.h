@@ -20,13 +20,53 @@
 //     piece, else move each component that left its piece to the piece where its scalar resolvent
 //     u_i + D_ii w_i lands (the primal-dual active-set update, i.e. semismooth Newton on the natural
 //     map). Warm-started from the previous call's pattern.
-//  3. if that stalls or cycles: every pattern (when there are at most kMaxEnumeration), exact; else
-//     forward-backward splitting w <- J(w - gamma (D w - q)), J the resolvent of gamma G^{-1} (scalar,
-//     exact), gamma = mu / L^2, whose iterate's pattern is polished by step 2's equations.
+//  3. if that stalls or cycles: piecewise-linear path following (below), exact and finite when D is a
+//     P-matrix. Only if the path meets a singular pattern (D not a P-matrix, e.g. positive semidefinite
+//     with dependent rows) or its safety cap: every pattern (when there are at most kMaxEnumeration),
+//     else forward-backward splitting w <- J(w - gamma (D w - q)), J the resolvent of gamma G^{-1}
+//     (scalar, exact), gamma = mu / L^2, whose iterate's pattern is polished by step 2's equations.
+//
+// Path following (Katzenelson, Bell System Tech. J. 44, 1965; Fujisawa and Kuh, SIAM J. Appl. Math. 22,
+// 1972; Eaves, "A short course in solving equations with PL homotopies", 1976). Parametrise each graph by
+// t_i = u_i + d_i w_i (d_i = D_ii > 0), which increases strictly along the curve: (u_i, w_i) = (U_i(t_i),
+// W_i(t_i)), U_i and W_i piecewise linear, the cells of R^m the products of pieces. (GE) is F(t) = U(t) +
+// D W(t) - q = 0, F affine on each cell with Jacobian J = diag(a) + D diag((1 - a) / d), a_i = 1 / (1 +
+// d_i s_i) in [0, 1] (0 on a vertical piece, 1 on a horizontal one). Expanding det(J diag(d)) column by
+// column, it is the sum over index sets S of prod_{i not in S} a_i d_i prod_{i in S} (1 - a_i) det D_SS:
+// positive on every cell when D is a P-matrix (every principal minor positive; in particular when D + D^T
+// is positive definite). So F is piecewise affine and coherently oriented, a homeomorphism of R^m, and the
+// preimage of the segment from F(t0) to 0 is a polygonal path from any start t0 to the solution.
+//
+// It is followed cell by cell: in the current cell the pattern's own solution (step 2's equations) is the
+// zero of the cell's affine piece of F, so moving from the current point towards it keeps F(t) on the
+// segment (F shrinks by the factor 1 - lambda); if it lies in the cell, it is the solution; otherwise the
+// point moves to the cell's boundary and the components that reach it move to their adjacent piece. With
+// one component on the boundary, the new cell's direction continues it across (Cramer's rule: the two
+// Jacobians differ in that column only and have determinants of one sign); with several (a degenerate
+// point: ties, q at a breakpoint), the subsets of them that may switch are tried, fewest first, and the
+// first whose pattern's direction points into its cell for each of them is taken (the path continues in
+// one such cell). Start: the active-set iteration's last point, put onto the graphs by the scalar
+// resolvents.
+//
+// Termination: the path visits each cell in one interval of the homotopy parameter, and each pivot either
+// ends the path or leaves a cell for good, so it ends after at most the number of cells. That bound is
+// exponential in m, as for Lemke's method, which Murty (Math. Programming Study 7, 1978) showed to take
+// 2^m pivots on some P-matrix problems; on the problems measured the path takes about as many pivots as
+// components change piece (docs/numerics.md, "The graph inclusion solver's fallback"). With every graph
+// the corner law it is the path of Lemke's scheme for LCP(q, D) with covering vector F(t0), entered at the
+// point t0 that solves the problem perturbed by it instead of at z = 0 (Cottle, Pang and Stone, "The
+// Linear Complementarity Problem", 1992, section 4.4). A cap of 20 m + 100 pivots stops a rounding-driven
+// loop; it is a safety net, never a tolerance. The path's end is the final pattern's own solution, checked
+// by the acceptance test below like every other answer.
+//
 // Exactness: on a vertical piece u_i is the vertex abscissa itself (0.0 for a component at rest), on a
-// horizontal piece w_i the vertex ordinate itself. A solution is accepted only when
-// max_i |u_i + (D w)_i - q_i| and the distance of each (u_i, w_i) to its piece are within 256 eps of the
-// problem's scale; otherwise solve() returns false and the caller must not take the step.
+// horizontal piece w_i the vertex ordinate itself. A solution is accepted only when max_i |u_i + (D w)_i -
+// q_i| and the distance of each (u_i, w_i) to its piece are within 256 eps of the problem's scale;
+// otherwise solve() returns false and the caller must not take the step.
+// Where D is only positive semidefinite (dependent contact gradients), existence rests on the problem's
+// structure rather than on D (a positive semidefinite LCP that is feasible is solvable), and a pattern's
+// equations may be singular: the path then stops and the enumeration or forward-backward route of step 3
+// is tried, still under the acceptance test.
 // No allocation after configure().
 #pragma once
 
@@ -43,11 +83,15 @@
 
 namespace moreau {
 
+// Which step of the method (graph_inclusion_solver.h) gave the answer.
+enum class GraphSolveRoute { kDecoupled, kActiveSet, kPath, kEnumeration, kForwardBackward };
+
 struct GraphSolveStats {
-  int iterations = 0;      // pattern solves (or scalar resolvents in the decoupled case), or FB sweeps
-  double residual = 0.0;   // max of the equation residual and the distances to the pieces
-  double tolerance = 0.0;  // the round-off bound the residual was accepted against
-  bool used_fallback = false;
+  int iterations = 0;          // pattern solves (or scalar resolvents in the decoupled case), or FB sweeps
+  double residual = 0.0;       // max of the equation residual and the distances to the pieces
+  double tolerance = 0.0;      // the round-off bound the residual was accepted against
+  bool used_fallback = false;  // the active-set iteration did not finish (step 3 ran)
+  GraphSolveRoute route = GraphSolveRoute::kDecoupled;
 };
 
 template <int M>
@@ -55,6 +99,13 @@ class GraphInclusionSolver {
  public:
   using Pieces = Eigen::Matrix<int, M, 1>;
   static constexpr long kMaxEnumeration = 59049;  // 3^10 patterns
+
+  // What follows the active-set iteration (step 3). kPath: path following (the default). kEnumeration:
+  // the former route, every pattern up to kMaxEnumeration then forward-backward, kept for comparison
+  // (bench/core_bench.cc). kPathOnly: path following from the decoupled start, without the active-set
+  // iteration, so that tests exercise it on every problem.
+  enum class Fallback { kPath, kEnumeration, kPathOnly };
+  void set_fallback(Fallback f) { fallback_ = f; }
 
   GraphInclusionSolver() = default;
 
@@ -71,6 +122,10 @@ class GraphInclusionSolver {
     free_.setZero(m);
     pinned_.setZero(m);
     last_graphs_.assign(static_cast<std::size_t>(m), nullptr);
+    cu_.setZero(m);
+    cw_.setZero(m);
+    tied_.setZero(m);
+    tied_up_.setZero(m);
   }
 
   // The problems to come have m <= the configured size components, in the leading m rows and columns of
@@ -94,6 +149,18 @@ class GraphInclusionSolver {
     return solve_coupled(D, q, graphs, u, w, st);
   }
 
+  // The oracle of the tests: every pattern in turn (at most kMaxEnumeration of them), the first whose
+  // solution lies on its pieces, under the same acceptance test. Exact, and exponential in m.
+  bool solve_by_enumeration(const Mat<M>& D, const Vec<M>& q, const MonotoneGraph* const* graphs, Vec<M>& u, Vec<M>& w,
+                            GraphSolveStats& st) {
+    st = GraphSolveStats{};
+    graphs_ = graphs;
+    if (m_ == 0) return true;
+    set_scales(D, graphs);
+    st.used_fallback = true;
+    return enumerate(D, q, u, w, st) && accept(D, q, u, w, pieces_, st);
+  }
+
  private:
   // m = 1: the scalar resolvent, with the acceptance test written out. (Apart from solve_coupled, so
   // that a one-component solver, M = 1, compiles to this alone.)
@@ -114,14 +181,7 @@ class GraphInclusionSolver {
 
   bool solve_coupled(const Mat<M>& D, const Vec<M>& q, const MonotoneGraph* const* graphs, Vec<M>& u, Vec<M>& w, GraphSolveStats& st) {
     const int m = m_;
-    scale_d_ = 0.0;  // max_i sum_j |D_ij|
-    for (int i = 0; i < m; ++i) {
-      double row = std::abs(D(i, 0));
-      for (int j = 1; j < m; ++j) row += std::abs(D(i, j));
-      scale_d_ = std::max(scale_d_, row);
-    }
-    graph_scale_ = 0.0;
-    for (int i = 0; i < m; ++i) graph_scale_ = std::max(graph_scale_, graphs[i]->scale());
+    set_scales(D, graphs);
 
     if (is_diagonal(D)) {
       for (int i = 0; i < m; ++i) {
@@ -137,6 +197,12 @@ class GraphInclusionSolver {
       return accept(D, q, u, w, pieces_, st);
     }
 
+    if (fallback_ == Fallback::kPathOnly) {
+      for (int i = 0; i < m; ++i) last_graphs_[i] = graphs[i];
+      st.used_fallback = true;
+      if (follow_path(D, q, q, nullptr, u, w, st)) return true;
+      return enumerate(D, q, u, w, st) ? accept(D, q, u, w, pieces_, st) : forward_backward(D, q, u, w, st);
+    }
     // Warm start: the previous pattern where the graph is the same, else the decoupled guess.
     for (int i = 0; i < m; ++i) {
       if (last_graphs_[i] != graphs[i] || pieces_(i) < 0 || pieces_(i) >= graphs[i]->num_pieces()) {
@@ -147,13 +213,142 @@ class GraphInclusionSolver {
     const int max_iter = 2 * m + 8;
     for (int it = 0; it < max_iter; ++it) {
       ++st.iterations;
-      if (solve_pattern(D, q, pieces_, u, w) && consistent(pieces_, u, w, q)) return accept(D, q, u, w, pieces_, st);
+      if (solve_pattern(D, q, pieces_, u, w) && consistent(pieces_, u, w, q)) {
+        st.route = GraphSolveRoute::kActiveSet;
+        return accept(D, q, u, w, pieces_, st);
+      }
       if (!update_pattern(D, u, w)) break;
     }
 
     st.used_fallback = true;
+    if (fallback_ != Fallback::kEnumeration) {
+      // Start from the active-set iteration's last point where it is finite: t_i = u_i + d_i w_i.
+      if (finite(u) && finite(w) && follow_path(D, q, u, &w, u, w, st)) return true;
+    }
     if (enumerate(D, q, u, w, st)) return accept(D, q, u, w, pieces_, st);
     return forward_backward(D, q, u, w, st);
+  }
+
+  void set_scales(const Mat<M>& D, const MonotoneGraph* const* graphs) {
+    const int m = m_;
+    scale_d_ = 0.0;  // max_i sum_j |D_ij|
+    for (int i = 0; i < m; ++i) {
+      double row = std::abs(D(i, 0));
+      for (int j = 1; j < m; ++j) row += std::abs(D(i, j));
+      scale_d_ = std::max(scale_d_, row);
+    }
+    graph_scale_ = 0.0;
+    for (int i = 0; i < m; ++i) graph_scale_ = std::max(graph_scale_, graphs[i]->scale());
+  }
+
+  // The path following of step 3 (see the header). Start: t_i = a_i + d_i b_i (b null: t_i = a_i), moved
+  // onto the graph by the scalar resolvent. cu_, cw_ hold the path's current point, on the pieces of
+  // pieces_; u, w the current pattern's solution. Returns true with an accepted solution in u, w; false
+  // when a pattern is singular, no continuation passes the direction test, or the cap is reached.
+  bool follow_path(const Mat<M>& D, const Vec<M>& q, const Vec<M>& a, const Vec<M>* b, Vec<M>& u, Vec<M>& w, GraphSolveStats& st) {
+    const int m = m_;
+    for (int i = 0; i < m; ++i) {
+      const double d = diag(D, i);
+      const double t = b ? a(i) + d * (*b)(i) : a(i);
+      pieces_(i) = graphs_[i]->resolve(t, d, cu_(i), cw_(i));
+      if (pieces_(i) < 0) return false;
+    }
+    const int max_pivots = 20 * m + 100;
+    bool solved = false;  // u, w hold pieces_'s solution already (from the continuation test)
+    for (int pivot = 0; pivot < max_pivots; ++pivot) {
+      if (!solved) {
+        ++st.iterations;
+        if (!solve_pattern(D, q, pieces_, u, w)) return false;
+      }
+      solved = false;
+      if (consistent(pieces_, u, w, q)) {
+        st.route = GraphSolveRoute::kPath;
+        return accept(D, q, u, w, pieces_, st);
+      }
+      // The largest step towards the pattern's solution that stays in the cell, and the components
+      // that reach its boundary with it (within kTie: a tie is resolved by the direction test).
+      constexpr double kTie = 1e-12;
+      double lambda = 1.0;
+      for (int i = 0; i < m; ++i) {
+        const double li = exit_fraction(i, u, w);
+        if (li < lambda) lambda = li;
+      }
+      int nt = 0;
+      for (int i = 0; i < m; ++i) {
+        const double li = exit_fraction(i, u, w);
+        if (li <= lambda + kTie) tied_(nt++) = i;
+      }
+      if (nt == 0) return false;  // rounding: the solution is off the cell yet nothing leaves it
+      for (int k = 0; k < nt; ++k) tied_up_(k) = upward(tied_(k), u, w) ? 1 : 0;
+      // Move: the non-tied components along their pieces, the tied ones exactly onto the vertex they reach.
+      for (int i = 0; i < m; ++i) {
+        const GraphPiece& g = graphs_[i]->piece(pieces_(i));
+        if (g.vertical) {
+          cw_(i) = std::clamp(cw_(i) + lambda * (w(i) - cw_(i)), g.lo, g.hi);
+        } else {
+          cu_(i) = std::clamp(cu_(i) + lambda * (u(i) - cu_(i)), g.lo, g.hi);
+          cw_(i) = g.slope == 0.0 ? g.w0 : g.w0 + g.slope * (cu_(i) - g.u0);
+        }
+      }
+      for (int k = 0; k < nt; ++k) {
+        const int i = tied_(k);
+        const int v = tied_up_(k) ? pieces_(i) : pieces_(i) - 1;  // piece j runs from vertex j - 1 to j
+        cu_(i) = graphs_[i]->u()[v];
+        cw_(i) = graphs_[i]->w()[v];
+      }
+      // The continuation: the subsets of the tied components that switch to their adjacent piece, fewest
+      // first (one tied component: it switches), the first whose direction enters its cell.
+      if (nt > 12) return false;
+      bool found = false;
+      for (int size = 1; size <= nt && !found; ++size) {
+        for (unsigned mask = 1; mask < (1u << nt) && !found; ++mask) {
+          if (__builtin_popcount(mask) != size) continue;
+          trial_ = pieces_;
+          for (int k = 0; k < nt; ++k)
+            if (mask & (1u << k)) trial_(tied_(k)) += tied_up_(k) ? 1 : -1;
+          ++st.iterations;
+          if (!solve_pattern(D, q, trial_, z_, t_)) continue;  // z_ = u, t_ = w of the trial pattern
+          found = enters(D, mask, nt, z_, t_);
+        }
+      }
+      if (!found) return false;
+      pieces_ = trial_;
+      u = z_;
+      w = t_;
+      solved = true;
+    }
+    return false;
+  }
+
+  // The fraction of the way from the path's current point to the pattern's solution (u, w) at which
+  // component i leaves its piece (+inf if it does not).
+  double exit_fraction(int i, const Vec<M>& u, const Vec<M>& w) const {
+    const GraphPiece& g = graphs_[i]->piece(pieces_(i));
+    const double x0 = g.vertical ? cw_(i) : cu_(i), x1 = g.vertical ? w(i) : u(i);
+    if (x1 > g.hi) return (g.hi - x0) / (x1 - x0);
+    if (x1 < g.lo) return (g.lo - x0) / (x1 - x0);
+    return std::numeric_limits<double>::infinity();
+  }
+  // Whether component i moves up its graph (towards larger t) on the way to (u, w).
+  bool upward(int i, const Vec<M>& u, const Vec<M>& w) const {
+    const GraphPiece& g = graphs_[i]->piece(pieces_(i));
+    return g.vertical ? w(i) > cw_(i) : u(i) > cu_(i);
+  }
+  // Whether the direction towards the trial pattern's solution (u, w) enters the trial cell at each tied
+  // component, within round-off: t_i = u_i + d_i w_i moves on in the direction the component was going
+  // where it switched piece, and does not where it stayed (the vertex bounds its piece on that side).
+  bool enters(const Mat<M>& D, unsigned mask, int nt, const Vec<M>& u, const Vec<M>& w) const {
+    for (int k = 0; k < nt; ++k) {
+      const int i = tied_(k);
+      const double d = diag(D, i);
+      const double t0 = cu_(i) + d * cw_(i), t1 = u(i) + d * w(i);
+      const double slack = 1e-12 * (std::abs(t0) + std::abs(t1) + graphs_[i]->scale()) + 1e-300;
+      const bool switched = (mask >> k) & 1u;
+      const bool onward = tied_up_(k) ? t1 > t0 + slack : t1 < t0 - slack;
+      const bool back = tied_up_(k) ? t1 < t0 - slack : t1 > t0 + slack;
+      if (switched ? back : onward) return false;
+    }
+    return true;
   }
 
   bool is_diagonal(const Mat<M>& D) const {
@@ -300,6 +495,7 @@ class GraphInclusionSolver {
       ++st.iterations;
       if (solve_pattern(D, q, trial_, u, w) && consistent(trial_, u, w, q)) {
         pieces_ = trial_;
+        st.route = GraphSolveRoute::kEnumeration;
         return true;
       }
     }
@@ -307,6 +503,7 @@ class GraphInclusionSolver {
   }
 
   bool forward_backward(const Mat<M>& D, const Vec<M>& q, Vec<M>& u, Vec<M>& w, GraphSolveStats& st) {
+    st.route = GraphSolveRoute::kForwardBackward;
     const Mat<M> Dm = D.topLeftCorner(m_, m_);  // the problem's block (use_leading); the fallback may allocate
     const Mat<M> Ds = 0.5 * (Dm + Dm.transpose());
     Eigen::SelfAdjointEigenSolver<Mat<M>> eig(Ds, Eigen::EigenvaluesOnly);
@@ -357,6 +554,9 @@ class GraphInclusionSolver {
   std::vector<const MonotoneGraph*> last_graphs_;
   double scale_d_ = 0.0, graph_scale_ = 0.0;
   Pieces pieces_, trial_;
+  Pieces tied_, tied_up_;  // the path's components that reach the cell's boundary, and whether going up
+  Vec<M> cu_, cw_;         // the path's current point
+  Fallback fallback_ = Fallback::kPath;
   Pieces free_, pinned_;  // the free and the pinned components of the pattern being solved (solve_pattern)
   Mat<M> K_;              // their equations' matrix, in its leading block
   Vec<M> r_, t_, z_;
