@@ -85,6 +85,10 @@ int run(const RunOptions& opt) {
   RunSummary summary = sim->run(&fan, &diagnostics);
   progress.finish();
   summary.phase_seconds.insert(summary.phase_seconds.begin(), {"load", load_s});
+  // The impacts' times, marked on the figures' time axes and written beside the CSV.
+  std::vector<double> impacts;
+  if (const ContactDiagnostics* contacts = diagnostics.contacts())
+    for (const auto& impact : contacts->impacts) impacts.push_back(impact.t);
   if (csv) {
     const auto t_close = Clock::now();
     try {
@@ -97,9 +101,6 @@ int run(const RunOptions& opt) {
     for (auto& [name, s] : summary.phase_seconds)
       if (name == "integrate") s = std::max(0.0, s - csv->seconds());
     // Beside the CSV, what its columns are, so that `moreau plot` labels a bare CSV as this run's figures.
-    std::vector<double> impacts;
-    if (const ContactDiagnostics* contacts = diagnostics.contacts())
-      for (const auto& impact : contacts->impacts) impacts.push_back(impact.t);
     const std::string meta_path = scene::trajectory_metadata_path(opt.out_csv);
     std::ofstream meta(meta_path, std::ios::binary | std::ios::trunc);
     meta << scene::trajectory_metadata(*sim, std::filesystem::path(opt.out_csv).filename().string(), summary.converged_time, impacts);
@@ -113,9 +114,8 @@ int run(const RunOptions& opt) {
   if (recorder) {
     const auto t_fig = Clock::now();
     if (summary.converged_time) recorder->data().converged_time = *summary.converged_time;
-    scene::label_for_system(recorder->data(), *sim);                  // a Lur'e system: state x, output y, storage W
-    if (const ContactDiagnostics* contacts = diagnostics.contacts())  // impacts are marked on the time axis
-      for (const auto& impact : contacts->impacts) recorder->data().impact_times.push_back(impact.t);
+    scene::label_for_system(recorder->data(), *sim);  // a Lur'e system: state x, output y, storage W
+    recorder->data().impact_times = impacts;
     for (const auto& [kind, path] : figures) {
       try {
         write_figure(kind, recorder->data(), opt.figure_flags, path);

@@ -1,6 +1,7 @@
 // What the browser tests share: a check that prints what it held, and a moreau-server on 127.0.0.1 with a
 // token, started on a free port it picks and stopped with SIGTERM.
 import { spawn } from 'node:child_process';
+import fs from 'node:fs';
 import path from 'node:path';
 import readline from 'node:readline';
 
@@ -31,4 +32,19 @@ export async function stopServer(proc) {
   const exited = new Promise((resolve) => proc.on('exit', resolve));
   proc.kill('SIGTERM');
   await exited;
+}
+
+// Runs a test's main(): "browser test passed", or its error and exit status 1.
+export function run(main) {
+  main().then(() => console.log('browser test passed'), (e) => {
+    console.error(e.stack || String(e));
+    process.exit(1);
+  });
+}
+
+// After a test, whatever happened: the browser closed, the server stopped, its data removed.
+export async function cleanUp(browser, proc, dataDir) {
+  if (browser) await browser.close();
+  await stopServer(proc);
+  fs.rmSync(dataDir, { recursive: true, force: true });
 }

@@ -20,7 +20,7 @@ import puppeteer from 'puppeteer-core';
 import fs from 'node:fs';
 import os from 'node:os';
 import path from 'node:path';
-import { check, startServer as startServerWith, stopServer } from './harness.mjs';
+import { check, cleanUp, run, startServer as startServerWith } from './harness.mjs';
 
 const [serverBin, sourceDir, screenshotPath] = process.argv.slice(2);
 if (!serverBin || !sourceDir || !screenshotPath) {
@@ -438,13 +438,8 @@ async function main() {
 
     check(problems.length === 0, 'no page errors, console errors or CSP violations' + (problems.length ? ': ' + problems.join('; ') : ''));
   } finally {
-    if (browser) await browser.close();
-    await stopServer(proc);
-    fs.rmSync(dataDir, { recursive: true, force: true });
+    await cleanUp(browser, proc, dataDir);
   }
 }
 
-main().then(() => console.log('browser test passed'), (e) => {
-  console.error(e.stack || String(e));
-  process.exit(1);
-});
+run(main);
