@@ -79,6 +79,7 @@
 #include "moreau/core/controller.h"
 #include "moreau/core/graph_inclusion_solver.h"
 #include "moreau/core/maximal_monotone_graph.h"
+#include "moreau/core/moreau_jean_settings.h"
 #include "moreau/core/observer.h"
 #include "moreau/core/one_step_solver.h"
 #include "moreau/core/run_diagnostics.h"
@@ -91,15 +92,6 @@
 #include "moreau/platform/number_text.h"
 
 namespace moreau {
-
-enum class PositionUpdate { kMdi, kStandard };
-
-// The grid (a fixed step) and the scheme's own options.
-struct MoreauJeanSettings : TimeGrid {
-  PositionUpdate position_update = PositionUpdate::kMdi;
-  bool correct_positions = false;
-  int max_recorded_impacts = 10000;
-};
 
 template <class Model>
 class MoreauJeanIntegrator {

@@ -74,6 +74,10 @@ struct ImpactEvent {
   double reference_impulse = 0.0;
   bool reference_evaluated = false;  // false: more than 10 simultaneous impacts, or a degenerate LCP
   int simultaneous = 1;              // impacts in the same step
+  // Contacts that carried impulse in the same step without approaching: closed contacts the impulse
+  // passed through (a touching Newton's cradle, a stack hit from above). With them the step is a
+  // simultaneous multiple impact under Moreau's law, and the reference covers them too.
+  int closed_carrying = 0;
 };
 
 struct ContactDiagnostics {

@@ -1,0 +1,90 @@
+// An exact solver of the linear complementarity problem of a contact step at scale,
+//
+//   w = D z + q,   0 <= z  perp  w >= 0,                                                    (LCP)
+//
+// D symmetric positive definite and sparse: the Delassus operator H M^{-1} H^T of contacts with linearly
+// independent gradients (the stack, the cradle, a column of balls), restricted to the rows of the step's
+// predicted active set. The one-step problem of Moreau-Jean (eq. (8) of Brogliato 2003) is this LCP in
+// the contact impulses z = P and the post-step normal velocities w = U+ + e min(U-, 0).
+//
+// Method: block principal pivoting (Judice and Pires, "A block principal pivoting algorithm for
+// large-scale strictly monotone linear complementarity problems", Computers & Operations Research 21,
+// 1994). A complementary set F (z free, w_F = 0) gives z_F = -D_FF^{-1} q_F and w_G = q_G + D_GF z_F on
+// the rest (z_G = 0). The rows where z_F < 0 or w_G < 0 are infeasible; while their number falls, all of
+// them change sides at once; when it has not fallen for Options::block_retries passes, one pivot of Murty's
+// least-index rule is taken instead (the infeasible row of largest index changes sides; Murty, "Note on a
+// Bard-type scheme for solving the complementarity problem", Opsearch 11, 1974), which visits no set
+// twice and ends for every P-matrix, so the method terminates in finitely many passes with the exact
+// solution, unique since D is positive definite. No enumeration of the 2^m sets and no iteration to a
+// tolerance: each pass solves a linear system, and the answer is a complementary set's exact solution
+// (w_F == 0.0 by construction, z_G == 0.0).
+//
+// Cost: one sparse LDL^T factorisation of D_FF per pass whose set differs from the last one factorised
+// (a banded D, as a stack's tridiagonal one, factorises in O(|F|)); a step whose answer has the set of
+// the previous step (a system at rest, contacts that stay closed) starts from it, is accepted at the first
+// pass and reuses the factor: two triangular solves.
+//
+// Accepting a pass: z_F >= -tol_z and w_G >= -tol_w, the round-off of the solve (tol_w = 64 eps (|q|_inf
+// + |D|_inf |z|_inf), tol_z = 64 eps |z|_inf, the allowance the dense solvers use); the residual reported
+// is max_i |min(z_i, w_i)| relative to |q|_inf. A D_FF that is not positive definite within round-off
+// (dependent gradients) ends the solve with `singular` set: the problem is outside this solver.
+#pragma once
+
+#include <Eigen/SparseCholesky>
+#include <Eigen/SparseCore>
+#include <vector>
+
+namespace moreau {
+
+struct SparseLcpStats {
+  int passes = 0;          // complementary sets tried
+  int murty_pivots = 0;    // passes that changed one row (the least-index rule)
+  int factorisations = 0;  // passes whose D_FF was factorised (the others reused the factor)
+  double residual = 0.0;   // max_i |min(z_i, w_i)| / |q|_inf over the problem's rows
+  double tolerance = 0.0;  // tol_w / |q|_inf of the accepted pass
+  bool singular = false;   // some D_FF was not positive definite
+};
+
+class SparseLcpSolver {
+ public:
+  using SparseMatrix = Eigen::SparseMatrix<double>;  // column-major
+
+  struct Options {
+    int block_retries = 3;          // passes without fewer infeasible rows before Murty's rule (Judice-Pires use 3)
+    bool least_index_only = false;  // Murty's rule from the first pass (slower; the reference of the block phase)
+  };
+  Options options;
+
+  // D: m x m, symmetric positive definite on the sets it is asked about (both triangles stored).
+  void set_matrix(const SparseMatrix& D);
+  int size() const { return static_cast<int>(D_.rows()); }
+
+  // Solves (LCP) on the rows `rows` of D (distinct, increasing; the other rows are not part of the
+  // problem). q, z and w are indexed by D's rows; z and w are written at `rows` only. `in_F[r]` says
+  // whether row r starts in the complementary set (the previous answer: a warm start) and holds the
+  // answer's set on return. False when the problem is outside the solver (stats.singular) or, which
+  // termination rules out in exact arithmetic, no pass was accepted within the pass budget.
+  bool solve(const std::vector<int>& rows, const Eigen::VectorXd& q, Eigen::VectorXd& z, Eigen::VectorXd& w, std::vector<char>& in_F,
+             SparseLcpStats& stats);
+
+  // The passes one solve may take before it gives up: 2^m bounds Murty's rule, far beyond any problem
+  // met; a budget linear in m (plus a margin) keeps a step's cost bounded.
+  static int pass_budget(int m) { return 50 + 10 * m; }
+
+ private:
+  bool factorise(SparseLcpStats& stats);
+
+  SparseMatrix D_;
+  double d_norm_inf_ = 0.0;      // max row sum of |D|
+  std::vector<int> F_, G_;       // this pass's complementary set and its complement (row indices of D)
+  std::vector<int> factored_F_;  // the set whose D_FF is in ldlt_
+  bool factor_valid_ = false;
+  std::vector<int> local_;  // per row of D: its index in F_, -1 outside F_
+  std::vector<char> role_;  // per row of D: 0 outside the problem, 1 in G, 2 in F
+  SparseMatrix dff_;
+  Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower> ldlt_;  // AMD ordering: banded and 2D patterns alike
+  Eigen::VectorXd rhs_, zf_;
+  std::vector<Eigen::Triplet<double>> triplets_;
+};
+
+}  // namespace moreau

@@ -1,0 +1,142 @@
+// Block principal pivoting with Murty's fallback (sparse_lcp.h).
+#include "moreau/core/sparse_lcp.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace moreau {
+
+void SparseLcpSolver::set_matrix(const SparseMatrix& D) {
+  D_ = D;
+  D_.makeCompressed();
+  const int m = static_cast<int>(D_.rows());
+  Eigen::VectorXd row_sums = Eigen::VectorXd::Zero(m);
+  for (int j = 0; j < D_.outerSize(); ++j)
+    for (SparseMatrix::InnerIterator it(D_, j); it; ++it) row_sums(it.row()) += std::abs(it.value());
+  d_norm_inf_ = m > 0 ? row_sums.maxCoeff() : 0.0;
+  local_.assign(static_cast<std::size_t>(m), -1);
+  role_.assign(static_cast<std::size_t>(m), 0);
+  factor_valid_ = false;
+  factored_F_.clear();
+}
+
+// D_FF from the columns of F (its rows picked through local_), factorised unless the set is the one
+// factorised last.
+bool SparseLcpSolver::factorise(SparseLcpStats& stats) {
+  if (factor_valid_ && F_ == factored_F_) return true;
+  const int nf = static_cast<int>(F_.size());
+  triplets_.clear();
+  for (int a = 0; a < nf; ++a)
+    for (SparseMatrix::InnerIterator it(D_, F_[static_cast<std::size_t>(a)]); it; ++it) {
+      const int b = local_[static_cast<std::size_t>(it.row())];
+      if (b >= 0) triplets_.emplace_back(b, a, it.value());
+    }
+  dff_.resize(nf, nf);
+  dff_.setFromTriplets(triplets_.begin(), triplets_.end());
+  ldlt_.compute(dff_);
+  ++stats.factorisations;
+  factor_valid_ = false;
+  if (ldlt_.info() != Eigen::Success) return false;
+  // Positive definite within round-off: every pivot of D above 64 eps times the largest diagonal entry.
+  const double largest = dff_.diagonal().cwiseAbs().maxCoeff();
+  if (!(ldlt_.vectorD().minCoeff() > 64.0 * std::numeric_limits<double>::epsilon() * largest)) return false;
+  factored_F_ = F_;
+  factor_valid_ = true;
+  return true;
+}
+
+bool SparseLcpSolver::solve(const std::vector<int>& rows, const Eigen::VectorXd& q, Eigen::VectorXd& z, Eigen::VectorXd& w,
+                            std::vector<char>& in_F, SparseLcpStats& stats) {
+  stats = SparseLcpStats{};
+  const int m = static_cast<int>(rows.size());
+  double q_inf = 0.0;
+  for (int r : rows) q_inf = std::max(q_inf, std::abs(q(r)));
+  for (int r : rows) role_[static_cast<std::size_t>(r)] = in_F[static_cast<std::size_t>(r)] ? 2 : 1;
+
+  int best = m + 1, retries = std::max(0, options.block_retries);
+  bool accepted = false;
+  const double eps64 = 64.0 * std::numeric_limits<double>::epsilon();
+  while (stats.passes < pass_budget(m)) {
+    ++stats.passes;
+    F_.clear();
+    G_.clear();
+    for (int r : rows) (role_[static_cast<std::size_t>(r)] == 2 ? F_ : G_).push_back(r);
+    for (std::size_t a = 0; a < F_.size(); ++a) local_[static_cast<std::size_t>(F_[a])] = static_cast<int>(a);
+
+    // z_F = -D_FF^{-1} q_F, z_G = 0; w_F = 0, w_G = q_G + D_GF z_F.
+    double z_inf = 0.0;
+    if (!F_.empty()) {
+      if (!factorise(stats)) {
+        for (int r : F_) local_[static_cast<std::size_t>(r)] = -1;
+        stats.singular = true;
+        break;
+      }
+      const int nf = static_cast<int>(F_.size());
+      rhs_.resize(nf);
+      for (int a = 0; a < nf; ++a) rhs_(a) = -q(F_[static_cast<std::size_t>(a)]);
+      zf_ = ldlt_.solve(rhs_);
+      for (int a = 0; a < nf; ++a) {
+        const int r = F_[static_cast<std::size_t>(a)];
+        z(r) = zf_(a);
+        w(r) = 0.0;
+        z_inf = std::max(z_inf, std::abs(zf_(a)));
+      }
+    }
+    for (int r : G_) {
+      z(r) = 0.0;
+      w(r) = q(r);
+    }
+    for (int r : F_) {
+      const double zr = z(r);
+      if (zr == 0.0) continue;
+      for (SparseMatrix::InnerIterator it(D_, r); it; ++it)
+        if (role_[static_cast<std::size_t>(it.row())] == 1) w(it.row()) += it.value() * zr;
+    }
+    for (int r : F_) local_[static_cast<std::size_t>(r)] = -1;
+
+    const double tol_w = eps64 * (q_inf + d_norm_inf_ * z_inf);
+    const double tol_z = eps64 * z_inf;
+    int infeasible = 0, last = -1;
+    for (int r : rows) {
+      const bool bad = role_[static_cast<std::size_t>(r)] == 2 ? z(r) < -tol_z : w(r) < -tol_w;
+      if (bad) {
+        ++infeasible;
+        last = r;
+      }
+    }
+    if (infeasible == 0) {
+      accepted = true;
+      stats.tolerance = q_inf > 0.0 ? tol_w / q_inf : 0.0;
+      break;
+    }
+    if (infeasible < best && !options.least_index_only) {
+      best = infeasible;
+      retries = std::max(0, options.block_retries);
+    } else if (retries > 0 && !options.least_index_only) {
+      --retries;
+    } else {
+      // Murty's least-index rule: only the infeasible row of largest index changes sides.
+      ++stats.murty_pivots;
+      char& role = role_[static_cast<std::size_t>(last)];
+      role = role == 2 ? 1 : 2;
+      continue;
+    }
+    for (int r : rows) {
+      char& role = role_[static_cast<std::size_t>(r)];
+      const bool bad = role == 2 ? z(r) < -tol_z : w(r) < -tol_w;
+      if (bad) role = role == 2 ? 1 : 2;
+    }
+  }
+
+  double residual = 0.0;
+  for (int r : rows) {
+    residual = std::max(residual, std::abs(std::min(z(r), w(r))));
+    in_F[static_cast<std::size_t>(r)] = role_[static_cast<std::size_t>(r)] == 2;
+    role_[static_cast<std::size_t>(r)] = 0;
+  }
+  stats.residual = q_inf > 0.0 ? residual / q_inf : residual;
+  return accepted;
+}
+
+}  // namespace moreau
