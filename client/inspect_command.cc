@@ -50,22 +50,42 @@ void inspect_lagrangian(const scene::LagrangianScene& sc, std::ostream& os) {
          << "\n";
     }
   } else {
+    // A large scene: its first 8 and last 2 coordinates and constraints (--json of `moreau run` lists all).
+    const std::size_t n = sc.coordinates.size();
     os << "coordinates  ";
-    for (std::size_t i = 0; i < sc.coordinates.size(); ++i) os << (i ? ", " : "") << sc.coordinates[i];
+    for (std::size_t i = 0; i < n; ++i) {
+      if (n > 16 && i == 8) {
+        os << ", ...";
+        i = n - 2;
+      }
+      os << (i ? ", " : "") << sc.coordinates[i];
+    }
     os << "\n";
   }
-  os << "constraints  " << sc.constraint_names.size() << "\n";
-  for (std::size_t i = 0; i < sc.constraint_names.size(); ++i)
+  const std::size_t nc = sc.constraint_names.size();
+  os << "constraints  " << nc << "\n";
+  for (std::size_t i = 0; i < nc; ++i) {
+    if (nc > 16 && i == 8) {
+      os << "  ... " << nc - 10 << " more\n";
+      i = nc - 2;
+    }
     os << "  " << sc.constraint_names[i] << ": " << sc.constraint_gaps[i] << " >= 0, e = " << sc.restitution[i] << "\n";
+  }
   os << "model        M " << (sc.compiled && sc.compiled->constant_mass ? "constant" : "depends on q") << ", C "
      << scene::to_string(sc.coriolis) << (robot ? " (rigid-body algorithms)" : "") << ", M and C zero beyond "
      << (sc.compiled ? sc.compiled->bandwidth : -1) << " from the diagonal" << (sc.has_force ? ", F given" : ", no F") << "\n";
   os << "scheme       " << scene::scheme_name(sc.scheme) << ", h = " << sc.settings.h << ", t in [" << sc.settings.t0 << ", "
      << sc.settings.t_end << "]\n";
-  if (sc.scheme == scene::Scheme::kMoreauJean)
+  if (scene::uses_large_contact_path(sc)) {
+    const LinearContactSystem& sys = *sc.compiled->linear_contacts;
+    os << "solver       the large-contact path (linear_contact_integrator.h): constant diagonal M, linear gaps (H: "
+       << sys.gradients.nonZeros() << " nonzeros); the Delassus operator H M^-1 H^T formed once, sparse; the step's LCP by block "
+       << "principal pivoting with Murty's rule over a sparse LDL^T of the closed contacts' block, reused while they stay closed\n";
+  } else if (sc.scheme == scene::Scheme::kMoreauJean) {
     os << "solver       the Moreau-Jean one-step problem (graph_inclusion_solver.h) over dense LU of M + h (C + W)\n";
-  else
+  } else {
     os << "solver       the one-step inclusion (6.5): active set, then principal pivoting; " << linear_solver(sc) << "\n";
+  }
 }
 
 void inspect_lure(const scene::LureScene& sc, std::ostream& os) {

@@ -86,6 +86,7 @@ LinearContactIntegrator::LinearContactIntegrator(const LinearContactSystem& syst
   for (Eigen::VectorXd* x : {&q_, &v_, &qn_, &vf_, &vn_, &vpos_}) x->setZero(n_);
   for (Eigen::VectorXd* x : {&gap_, &U_, &Un_, &Hvf_, &lcp_q_, &lcp_z_, &lcp_w_, &P_, &ref_q_, &ref_z_, &ref_w_}) x->setZero(nc_);
   in_F_.assign(static_cast<std::size_t>(nc_), 0);
+  was_active_.assign(static_cast<std::size_t>(nc_), 0);
   ref_F_.assign(static_cast<std::size_t>(nc_), 0);
   impacting_.assign(static_cast<std::size_t>(nc_), 0);
   active_rows_.reserve(static_cast<std::size_t>(nc_));
@@ -144,6 +145,7 @@ bool LinearContactIntegrator::begin(double t, StepFailure& f) {
   potential_ = potential(q_);
   d.lagrange_dirichlet.start(kinetic_ + potential_);
   std::fill(in_F_.begin(), in_F_.end(), 0);
+  std::fill(was_active_.begin(), was_active_.end(), 0);
   polish_F_.clear();
   polish_ok_ = false;
   return true;
@@ -171,7 +173,11 @@ bool LinearContactIntegrator::step(std::int64_t k, double t, double h, double t_
   P_.setZero();
   if (any_active) {
     for (int i : active_rows_) lcp_q_(i) = Hvf_(i) + sys_.restitution[static_cast<std::size_t>(i)] * std::min(U_(i), 0.0);
-    // Contacts outside I_k leave the warm start's set: they are not part of this problem.
+    // Warm start: a contact that was in I_{k-1} starts where the last answer left it; one that enters
+    // I_k now starts closed (it was predicted to close), so a stack that lands at once needs one pass,
+    // not one per contact.
+    for (int i : active_rows_)
+      if (!was_active_[static_cast<std::size_t>(i)]) in_F_[static_cast<std::size_t>(i)] = 1;
     SparseLcpStats st;
     if (!step_lcp_.solve(active_rows_, lcp_q_, lcp_z_, lcp_w_, in_F_, st)) {
       return f.at(k, t, q_.data(), v_.data(),
@@ -193,6 +199,7 @@ bool LinearContactIntegrator::step(std::int64_t k, double t, double h, double t_
     std::size_t a = 0;
     for (int i = 0; i < nc_; ++i) {
       const bool in_active = a < active_rows_.size() && active_rows_[a] == i;
+      was_active_[static_cast<std::size_t>(i)] = in_active;
       if (in_active)
         ++a;
       else

@@ -2,6 +2,7 @@
 // -dPhi(q'), with optional unilateral constraints) -> a LagrangianScene with its compiled tapes. See
 // docs/scene-format.md; the parts shared with the Lur'e compiler are scene_reader.h.
 #include "moreau/expr/interval.h"
+#include "moreau/expr/linear_form.h"
 #include "moreau/scene/scene.h"
 
 #include <algorithm>
@@ -93,18 +94,34 @@ class LagrangianCompiler : SceneReader {
     }
     if (!system.contains("mass")) throw SceneError("/system", "missing required field 'mass'");
     const json& mass = system["mass"];
-    if (!mass.is_array() || mass.empty())
-      throw SceneError("/system/mass", "expected a square array of arrays (the n x n mass matrix), got " + type_name(mass));
+    diagonal_mass_ = mass.is_object();
+    if (diagonal_mass_) {
+      check_fields(mass, "/system/mass", {"diagonal"});
+      if (!mass.contains("diagonal") || !mass["diagonal"].is_array() || mass["diagonal"].empty())
+        throw SceneError("/system/mass/diagonal", "expected a non-empty array (the diagonal of M, one entry per coordinate)");
+    } else if (!mass.is_array() || mass.empty()) {
+      throw SceneError("/system/mass",
+                       "expected a square array of arrays (the n x n mass matrix) or {\"diagonal\": [...]}, got " + type_name(mass));
+    }
     if (system.contains("coordinates")) {
       const json& c = system["coordinates"];
       if (!c.is_array() || c.empty()) throw SceneError("/system/coordinates", "expected a non-empty array of names");
       n_ = static_cast<int>(c.size());
     } else {
-      n_ = static_cast<int>(mass.size());
+      n_ = static_cast<int>(diagonal_mass_ ? mass["diagonal"].size() : mass.size());
     }
-    if (n_ > kMaxDof)
-      throw SceneError(system.contains("coordinates") ? "/system/coordinates" : "/system/mass",
-                       "more than " + std::to_string(kMaxDof) + " degrees of freedom (got " + std::to_string(n_) + ")");
+    const std::string n_ptr = system.contains("coordinates") ? "/system/coordinates" : "/system/mass";
+    if (n_ > kMaxLinearContactDof)
+      throw SceneError(n_ptr, "more than " + std::to_string(kMaxLinearContactDof) + " degrees of freedom (got " + std::to_string(n_) +
+                                  "): the limit of one run, whose memory and step time grow with n");
+    // Beyond the dense limits the scene runs on the large-contact path (linear_contact_integrator.h),
+    // whose requirements each field checks (large_requirement).
+    const std::size_t constraints = system.contains("constraints") && system["constraints"].is_array() ? system["constraints"].size() : 0;
+    large_ = n_ > kMaxDof || constraints > static_cast<std::size_t>(kMaxConstraints);
+    if (n_ > kMaxDof && !diagonal_mass_)
+      throw SceneError(n_ptr, "more than " + std::to_string(kMaxDof) + " degrees of freedom (got " + std::to_string(n_) +
+                                  ") with a full mass matrix: up to " + std::to_string(kMaxDof) +
+                                  " the step is dense; beyond, give M as {\"diagonal\": [...]} of constants for the large-contact path");
     if (system.contains("coordinates")) {
       std::vector<std::string> names;
       for (int i = 0; i < n_; ++i) {
@@ -246,6 +263,22 @@ class LagrangianCompiler : SceneReader {
   }
 
   void mass_matrix(const json& mass) {
+    if (diagonal_mass_) {
+      const json& d = mass["diagonal"];
+      if (d.size() != static_cast<std::size_t>(n_))
+        throw SceneError("/system/mass/diagonal",
+                         "expected " + std::to_string(n_) + " entries (one per coordinate), got " + std::to_string(d.size()));
+      mass_diagonal_.resize(static_cast<std::size_t>(n_));
+      for (int i = 0; i < n_; ++i) {
+        const std::string ptr = "/system/mass/diagonal/" + std::to_string(i);
+        mass_diagonal_[static_cast<std::size_t>(i)] = expression(d[i], ptr, kPosition, "the mass matrix (M depends on q only)");
+        if (large_ && !graph_.is_constant(mass_diagonal_[static_cast<std::size_t>(i)])) throw large_requirement(ptr, "is not a constant");
+      }
+      if (large_) return;  // no dense M: the large-contact path reads mass_diagonal_
+      M_.assign(static_cast<std::size_t>(n_ * n_), graph_.constant(0.0));
+      for (int i = 0; i < n_; ++i) M_[static_cast<std::size_t>(i * n_ + i)] = mass_diagonal_[static_cast<std::size_t>(i)];
+      return;
+    }
     if (mass.size() != static_cast<std::size_t>(n_))
       throw SceneError("/system/mass", "expected " + std::to_string(n_) + " rows (one per coordinate), got " + std::to_string(mass.size()));
     M_.assign(static_cast<std::size_t>(n_ * n_), 0);
@@ -258,6 +291,15 @@ class LagrangianCompiler : SceneReader {
   }
 
   void coriolis(const json& system, LagrangianScene& scene) {
+    if (large_) {
+      // A constant M has no Christoffel symbols: C = 0 whether "christoffel" or "none" is asked.
+      if (system.contains("coriolis") && !system["coriolis"].is_string())
+        throw large_requirement("/system/coriolis", "an explicit C(q, v) is not taken");
+      scene.coriolis = system.contains("coriolis") && system["coriolis"] == "none" ? CoriolisSource::kNone : CoriolisSource::kChristoffel;
+      if (system.contains("coriolis") && system["coriolis"] != "none" && system["coriolis"] != "christoffel")
+        throw SceneError("/system/coriolis", "expected \"christoffel\", \"none\" or an n x n matrix, got " + brief(system["coriolis"]));
+      return;
+    }
     C_.assign(static_cast<std::size_t>(n_ * n_), graph_.constant(0.0));
     std::string mode = "christoffel";
     if (system.contains("coriolis")) {
@@ -320,20 +362,32 @@ class LagrangianCompiler : SceneReader {
     potential_ = -1;
     if (system.contains("potential")) {
       potential_ = expression(system["potential"], "/system/potential", kPosition, "the potential (V depends on q only)");
-      for (int i = 0; i < n_; ++i) g_[i] = graph_.derivative(potential_, 1 + i);
+      if (large_) {
+        // n derivatives of a potential of n terms would cost n^2: its affine form gives them at once.
+        const std::optional<expr::AffineForm> form = expr::affine_form(graph_, potential_);
+        if (!form) throw large_requirement("/system/potential", "is not linear in q (a constant gradient, as gravity's)");
+        for (const auto& [slot, a] : form->coefficients) g_[static_cast<std::size_t>(slot - 1)] = graph_.constant(a);
+      } else {
+        for (int i = 0; i < n_; ++i) g_[i] = graph_.derivative(potential_, 1 + i);
+      }
     }
     if (system.contains("potential_gradient")) {
       const json& pg = array_of(system["potential_gradient"], "/system/potential_gradient", static_cast<std::size_t>(n_), "an array");
-      for (int i = 0; i < n_; ++i)
+      for (int i = 0; i < n_; ++i) {
         g_[i] =
             expression(pg[i], "/system/potential_gradient/" + std::to_string(i), kPosition, "the potential gradient (depends on q only)");
+        if (large_ && !graph_.is_constant(g_[i]))
+          throw large_requirement("/system/potential_gradient/" + std::to_string(i), "is not a constant");
+      }
     }
     gradient_ = g_;
     scene.has_force = system.contains("force");
+    has_force_ = scene.has_force;
     if (system.contains("force")) {
       const json& f = array_of(system["force"], "/system/force", static_cast<std::size_t>(n_), "an array");
       for (int i = 0; i < n_; ++i) {
         force_[i] = expression(f[i], "/system/force/" + std::to_string(i), kTime | kPosition | kVelocity, "the force");
+        if (large_ && !graph_.is_constant(force_[i])) throw large_requirement("/system/force/" + std::to_string(i), "is not a constant");
         g_[i] = graph_.binary(Op::kAdd, g_[i], force_[i]);
       }
       // Theorem 4.3 needs F independent of t (4.16).
@@ -341,12 +395,16 @@ class LagrangianCompiler : SceneReader {
     }
     // Assumption 3.3 from the expressions alone. A given potential_gradient is not known to be a gradient
     // (curl-free), so V's existence is not concluded then.
-    scene.forces_smooth_everywhere = !system.contains("potential_gradient");
+    // (A constant one is: it is the gradient of g^T q, smooth everywhere.)
+    bool constant_gradient = system.contains("potential_gradient");
+    for (int i = 0; i < n_ && constant_gradient; ++i) constant_gradient = graph_.is_constant(gradient_[static_cast<std::size_t>(i)]);
+    scene.forces_smooth_everywhere = !system.contains("potential_gradient") || constant_gradient;
     for (int i = 0; i < n_; ++i) scene.forces_smooth_everywhere = scene.forces_smooth_everywhere && graph_.smooth_everywhere(g_[i]);
   }
 
   void controller(const json& system, LagrangianScene& scene) {
     scene.controller = Controller<Eigen::Dynamic>::zero(n_);
+    if (large_ && system.contains("controller")) throw large_requirement("/system/controller", "a controller (dPhi) is not taken");
     if (system.contains("controller")) read_controller(system["controller"], "/system/controller", scene.controller);
   }
 
@@ -391,6 +449,7 @@ class LagrangianCompiler : SceneReader {
   void tracking(const json& system, LagrangianScene& scene) {
     if (!system.contains("tracking")) return;
     const std::string at = "/system/tracking";
+    if (large_) throw large_requirement(at, "tracking is not taken");
     const json& tr = system["tracking"];
     require_object(tr, at);
     check_fields(tr, at, {"reference", "lambda", "controller", "law", "period", "boundary_layer", "band", "nominal", "measurement"});
@@ -537,8 +596,10 @@ class LagrangianCompiler : SceneReader {
     const json& c = system["constraints"];
     if (!c.is_array())
       throw SceneError("/system/constraints", "expected an array of {\"gap\": h(q), \"restitution\": e}, got " + type_name(c));
-    if (c.size() > static_cast<std::size_t>(kMaxConstraints))
-      throw SceneError("/system/constraints", "more than " + std::to_string(kMaxConstraints) + " constraints");
+    if (c.size() > static_cast<std::size_t>(kMaxLinearContacts))
+      throw SceneError("/system/constraints", "more than " + std::to_string(kMaxLinearContacts) + " constraints (got " +
+                                                  std::to_string(c.size()) +
+                                                  "): the limit of one run, whose memory and step time grow with it");
     std::set<std::string> names;
     for (std::size_t k = 0; k < c.size(); ++k) {
       const std::string ptr = "/system/constraints/" + std::to_string(k);
@@ -561,7 +622,14 @@ class LagrangianCompiler : SceneReader {
       }
       if (!names.insert(name).second) throw SceneError(ptr + "/name", "duplicate constraint name '" + name + "'");
       gaps_.push_back(h);
-      for (int j = 0; j < n_; ++j) gap_gradients_.push_back(graph_.derivative(h, 1 + j));
+      // Linear gaps (a constant gradient) allow the large-contact path; beyond the dense limits they are
+      // required, and the n derivatives of each gap are not formed (n times m graph nodes).
+      gap_forms_.push_back(expr::affine_form(graph_, h));
+      if (large_) {
+        if (!gap_forms_.back()) throw large_requirement(ptr + "/gap", "is not linear in q");
+      } else {
+        for (int j = 0; j < n_; ++j) gap_gradients_.push_back(graph_.derivative(h, 1 + j));
+      }
       scene.constraint_names.push_back(name);
       scene.constraint_gaps.push_back(c[k]["gap"].is_string() ? c[k]["gap"].get<std::string>() : c[k]["gap"].dump());
       scene.restitution.push_back(e);
@@ -576,7 +644,7 @@ class LagrangianCompiler : SceneReader {
                  {"scheme", "h", "t_end", "t0", "step_rule", "k1", "k3", "max_steps", "position_correction", "position_update", "theta"});
     // Which scheme, and whether the scene's fields belong to it: the scheme table's row decides (scheme.h).
     const bool constrained = !scene.constraint_names.empty();
-    scene.scheme = constrained ? Scheme::kMoreauJean : (scene.tracking ? Scheme::kTracking : Scheme::kAbl);
+    scene.scheme = constrained || large_ ? Scheme::kMoreauJean : (scene.tracking ? Scheme::kTracking : Scheme::kAbl);
     if (in.contains("scheme")) {
       if (!in["scheme"].is_string()) throw SceneError("/integrator/scheme", "expected a string");
       const std::string name = in["scheme"].get<std::string>();
@@ -587,6 +655,8 @@ class LagrangianCompiler : SceneReader {
       if (!named || !traits(*named).scene_can_name)
         throw SceneError("/integrator/scheme", "unknown scheme '" + name + "' (expected: " + expected + ")");
       scene.scheme = *named;
+      if (large_ && scene.scheme != Scheme::kMoreauJean)
+        throw large_requirement("/integrator/scheme", "the " + name + " scheme is not taken");
       if (scene.tracking && scene.scheme != Scheme::kTracking)
         throw SceneError("/integrator/scheme", "a scene with /system/tracking runs the tracking scheme, not " + name);
       if (!scene.tracking && scene.scheme == Scheme::kTracking)
@@ -689,6 +759,7 @@ class LagrangianCompiler : SceneReader {
   // `params`: the free parameters' values (ParametricLagrangianScene), nullptr when there are none. The
   // tapes are compiled at the first call and kept: a parametric scene checks each binding with them.
   void check_at_initial_state(const LagrangianScene& scene, const double* params) {
+    if (large_) return check_large_at_initial_state(scene);
     std::vector<Node> outs;
     for (int i = 0; i < n_ * n_; ++i) outs.push_back(M_[i]);
     for (int i = 0; i < n_; ++i) outs.push_back(g_[i]);
@@ -820,6 +891,121 @@ class LagrangianCompiler : SceneReader {
     return w;
   }
 
+  // The error for a field that the large-contact path cannot take (a system beyond the dense limits).
+  SceneError large_requirement(const std::string& ptr, const std::string& what) const {
+    return SceneError(ptr, what + ": a system of more than " + std::to_string(kMaxDof) + " coordinates or " +
+                               std::to_string(kMaxConstraints) +
+                               " constraints runs on the large-contact path, which takes a constant diagonal mass, a linear potential, "
+                               "constant forces, linear gaps, no controller and the moreau-jean scheme (docs/scaling.md)");
+  }
+
+  // The system of the large-contact path (linear_contact_integrator.h) from the affine forms, when the
+  // scene has that structure: M constant and diagonal, C = 0, g = grad V + F constant, every gap linear,
+  // no controller, no robot, no tracking, no free parameter. Null otherwise.
+  std::shared_ptr<const LinearContactSystem> linear_contact_system(const LagrangianScene& scene) const {
+    if (robot_ || scene.tracking || num_params() > 0) return nullptr;
+    if (!scene.controller.gains.isZero(0.0) || !scene.controller.weights.isZero(0.0) || scene.controller.norm_gain != 0.0) return nullptr;
+    auto sys = std::make_shared<LinearContactSystem>();
+    sys->mass.resize(n_);
+    sys->force.resize(n_);
+    for (int i = 0; i < n_; ++i) {
+      const Node m = large_ ? mass_diagonal_[static_cast<std::size_t>(i)] : M_[static_cast<std::size_t>(i * n_ + i)];
+      if (!graph_.is_constant(m) || !graph_.is_constant(g_[static_cast<std::size_t>(i)])) return nullptr;
+      sys->mass(i) = graph_.constant_value(m);
+      sys->force(i) = graph_.constant_value(g_[static_cast<std::size_t>(i)]);
+    }
+    if (!large_) {
+      for (int i = 0; i < n_; ++i)
+        for (int j = 0; j < n_; ++j) {
+          const Node m = M_[static_cast<std::size_t>(i * n_ + j)], c = C_[static_cast<std::size_t>(i * n_ + j)];
+          if (i != j && !(graph_.is_constant(m) && graph_.constant_value(m) == 0.0)) return nullptr;
+          if (!(graph_.is_constant(c) && graph_.constant_value(c) == 0.0)) return nullptr;
+        }
+    }
+    // V(q) = g^T q (+ a constant) is the potential when F = 0 (W of Lemma 3 uses it).
+    sys->force_is_potential = !has_force_;  // a constant gradient (given or from V) is that of g^T q
+    std::vector<Eigen::Triplet<double>> t;
+    const int m = static_cast<int>(gap_forms_.size());
+    sys->offsets.resize(m);
+    for (int i = 0; i < m; ++i) {
+      const std::optional<expr::AffineForm>& form = gap_forms_[static_cast<std::size_t>(i)];
+      if (!form) return nullptr;
+      sys->offsets(i) = form->constant;
+      for (const auto& [slot, a] : form->coefficients) t.emplace_back(i, slot - 1, a);
+    }
+    sys->gradients.resize(m, n_);
+    sys->gradients.setFromTriplets(t.begin(), t.end());
+    sys->restitution = scene.restitution;
+    return sys;
+  }
+
+  // check_at_initial_state for the large-contact path: the system's own validation (masses, gradients),
+  // finite values, and an admissible initial position.
+  void check_large_at_initial_state(const LagrangianScene& scene) {
+    if (num_params() > 0) throw large_requirement("/parameters", "free parameters (a campaign's) are not taken");
+    const std::shared_ptr<const LinearContactSystem> sys = linear_contact_system(scene);
+    if (!sys) throw large_requirement("/system", "the system does not have that structure");
+    for (int i = 0; i < n_; ++i) {
+      if (!(sys->mass(i) > 0.0) || !std::isfinite(sys->mass(i)))
+        throw SceneError("/system/mass/diagonal/" + std::to_string(i),
+                         "must be a finite positive number (M positive definite), got " + format(sys->mass(i)));
+      if (!std::isfinite(sys->force(i)))
+        throw SceneError(doc_["system"].contains("force") ? "/system/force/" + std::to_string(i) : "/system/potential",
+                         "the generalized force grad V + F is not finite (component " + std::to_string(i) + ")");
+    }
+    const std::string invalid = sys->validate();
+    if (!invalid.empty()) throw SceneError("/system/constraints", invalid);
+    const Eigen::VectorXd q0 = Eigen::Map<const Eigen::VectorXd>(scene.q0.data(), n_);
+    const Eigen::VectorXd gaps = sys->gradients * q0 + sys->offsets;
+    for (int i = 0; i < sys->num_constraints(); ++i) {
+      if (!std::isfinite(gaps(i)))
+        throw SceneError("/system/constraints/" + std::to_string(i) + "/gap", "h(q) is not finite at the initial state");
+      if (gaps(i) < 0.0)
+        throw SceneError("/initial/q", "violates constraint '" + scene.constraint_names[static_cast<std::size_t>(i)] +
+                                           "': h(q0) = " + format(gaps(i)) + " < 0 (the initial position must be admissible, h(q0) >= 0)");
+    }
+    const Eigen::VectorXd v0 = Eigen::Map<const Eigen::VectorXd>(scene.v0.data(), n_);
+    const double e0 = 0.5 * v0.cwiseProduct(v0).dot(sys->mass);
+    if (!std::isfinite(e0))
+      throw SceneError("/initial/v", "the kinetic energy 1/2 <M v0, v0> is not finite at the initial state (" + format(e0) + ")");
+    large_system_ = sys;
+  }
+
+  // The compiled scene of the large-contact path: no dense M, C or gap gradients; grad V and F apart
+  // (2n constants) and V for the reports' checks, and the system the integrator runs.
+  std::shared_ptr<CompiledLagrangian> build_large() {
+    auto c = std::make_shared<CompiledLagrangian>();
+    c->n = n_;
+    c->dense = false;
+    c->constant_mass = true;
+    c->bandwidth = 0;
+    c->num_constraints = static_cast<int>(gaps_.size());
+    std::vector<Node> split = gradient_;
+    split.insert(split.end(), force_.begin(), force_.end());
+    c->split_force_tape = expr::Tape::compile(graph_, split, 1 + 2 * n_, num_params());
+    {
+      expr::Tape::Wiring w = terms_wiring({});
+      for (int i = 0; i < n_; ++i) w.outputs.push_back({{0, i}});  // grad V
+      for (int i = 0; i < n_; ++i) w.outputs.push_back({{1, i}});  // F
+      c->split_force_tape.wire(w);
+    }
+    if (potential_ >= 0) {
+      c->has_potential = true;
+      c->potential_tape = expr::Tape::compile(graph_, {potential_}, 1 + 2 * n_, num_params());
+      expr::Tape::Wiring w = position_wiring();
+      w.outputs.push_back({{0, 0}});
+      c->potential_tape.wire(w);
+    }
+    if (!gaps_.empty()) {  // the gaps alone (no gradients: the system holds H)
+      c->constraint_tape = expr::Tape::compile(graph_, gaps_, 1 + 2 * n_, num_params());
+      expr::Tape::Wiring w = position_wiring();
+      for (int i = 0; i < c->num_constraints; ++i) w.outputs.push_back({{0, i}});
+      c->constraint_tape.wire(w);
+    }
+    c->linear_contacts = large_system_;
+    return c;
+  }
+
   // Builds the tapes (step, mass, grad V and F apart, V, the gaps, their Hessians, the parameters' terms)
   // and the constant parts.
   std::shared_ptr<CompiledLagrangian> build() {
@@ -934,7 +1120,13 @@ class LagrangianCompiler : SceneReader {
 
   std::vector<std::string> coord_names_, vel_names_;
   std::vector<Node> M_, C_, g_;
-  std::vector<Node> gradient_, force_;  // grad V and F alone (constant 0 when absent)
+  bool diagonal_mass_ = false;                               // /system/mass given as {"diagonal": [...]}
+  bool large_ = false;                                       // beyond the dense limits: the large-contact path
+  bool has_force_ = false;                                   // /system/force given
+  std::vector<Node> mass_diagonal_;                          // M's diagonal when given so
+  std::vector<std::optional<expr::AffineForm>> gap_forms_;   // each gap as an affine form, when it is one
+  std::shared_ptr<const LinearContactSystem> large_system_;  // the large-contact path's system (check_large_at_initial_state)
+  std::vector<Node> gradient_, force_;                       // grad V and F alone (constant 0 when absent)
   void enclose_forces(CompiledLagrangian& c, double t0, double t_end) const;
   Node potential_ = -1;
   bool constant_mass_ = true;
@@ -979,7 +1171,7 @@ LagrangianScene LagrangianCompiler::compile() {
     scene.robot_name = robot_->name;
   } else {
     mass_matrix(system["mass"]);
-    for (int i = 0; i < n_ * n_; ++i)
+    for (std::size_t i = 0; i < M_.size(); ++i)  // none when large_: its diagonal is checked constant
       if (!graph_.is_constant(M_[i]) && !(num_params() > 0 && bound_only(M_[i]))) constant_mass_ = false;
     coriolis(system, scene);
   }
@@ -1012,7 +1204,9 @@ LagrangianScene LagrangianCompiler::compile() {
   if (const auto every = output_every()) scene.settings.output_every = *every;
   exact(scene);
   check_at_initial_state(scene, free_values_.empty() ? nullptr : free_values_.data());
-  std::shared_ptr<CompiledLagrangian> compiled = build();
+  std::shared_ptr<CompiledLagrangian> compiled = large_ ? build_large() : build();
+  // A dense-size scene with the large-contact structure may run on that path too (run_scene chooses by n).
+  if (!large_) compiled->linear_contacts = linear_contact_system(scene);
   scene.unread_parameters = unread_parameters();
   enclose_forces(*compiled, scene.settings.t0, scene.settings.t_end);
   scene.compiled = std::move(compiled);

@@ -3,15 +3,62 @@
 #include <algorithm>
 #include <cmath>
 
+#include <Eigen/SparseQR>
+
 #include "moreau/scene/scene_model.h"
 
 namespace moreau::scene::detail {
+
+namespace {
+
+// A scene compiled for the large-contact path alone: the gaps and gradients from its linear system
+// (h(q) = H q + c, H sparse), the rank of the active rows by sparse QR; `gradients` stays empty.
+ActiveConstraints large_contact_path_at_end(const LagrangianScene& scene, const RunSummary& s) {
+  ActiveConstraints out;
+  const CompiledLagrangian& c = *scene.compiled;
+  if (!c.linear_contacts) return out;
+  const LinearContactSystem& sys = *c.linear_contacts;
+  const int n = scene.n;
+  const Eigen::Map<const Eigen::VectorXd> q(s.q_final.data(), n);
+  std::vector<double> v(static_cast<std::size_t>(n), 0.0), split(static_cast<std::size_t>(2 * n));
+  ForceTerms(c).split(s.t_final, s.q_final.data(), v.data(), split.data(), split.data() + n);
+  out.grad_u = Eigen::Map<const Eigen::VectorXd>(split.data(), n);
+  const double h = scene.settings.h;
+  out.gap_tolerance = 10.0 * h * h * out.grad_u.norm() / std::max(s.mass.lambda_min, 1e-300) + 1e-12;
+  const Eigen::VectorXd gaps = sys.gradients * q + sys.offsets;
+  for (int i = 0; i < sys.num_constraints(); ++i)
+    if (std::isfinite(gaps(i)) && gaps(i) <= out.gap_tolerance) out.active.push_back(i);
+  out.evaluated = true;
+  out.sparse_rank = 0;
+  if (out.active.empty()) return out;
+  std::vector<Eigen::Triplet<double>> t;
+  for (std::size_t a = 0; a < out.active.size(); ++a)
+    for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(sys.gradients, out.active[a]); it; ++it)
+      t.emplace_back(static_cast<int>(a), static_cast<int>(it.col()), it.value());
+  // The rank of the active rows H_A (a x n) is that of its transpose; SparseQR factorises the one with at
+  // least as many rows as columns, with column pivoting by the same 1e-10 threshold as the report's dense QR.
+  const Eigen::Index a = static_cast<Eigen::Index>(out.active.size());
+  const bool transpose = a < n;
+  Eigen::SparseMatrix<double> A(transpose ? n : a, transpose ? a : n);
+  if (transpose)
+    for (auto& e : t) e = Eigen::Triplet<double>(e.col(), e.row(), e.value());
+  A.setFromTriplets(t.begin(), t.end());
+  A.makeCompressed();
+  Eigen::SparseQR<Eigen::SparseMatrix<double>, Eigen::COLAMDOrdering<int>> qr;
+  qr.setPivotThreshold(1e-10);
+  qr.compute(A);
+  out.sparse_rank = qr.info() == Eigen::Success ? static_cast<int>(qr.rank()) : 0;
+  return out;
+}
+
+}  // namespace
 
 ActiveConstraints active_constraints_at_end(const LagrangianScene& scene, const RunSummary& s) {
   ActiveConstraints out;
   const CompiledLagrangian* c = scene.compiled.get();
   const int n = scene.n, m = static_cast<int>(scene.constraint_names.size());
   if (!c || m == 0 || static_cast<int>(s.q_final.size()) != n) return out;
+  if (!c->dense) return large_contact_path_at_end(scene, s);
   // The tapes read (t, q, v); at rest v = 0.
   std::vector<double> slots(static_cast<std::size_t>(1 + 2 * n), 0.0);
   slots[0] = s.t_final;

@@ -15,8 +15,11 @@ namespace moreau::scene::detail {
 struct ActiveConstraints {
   bool evaluated = false;     // false without compiled constraints, or without a final state of n coordinates
   std::vector<int> active;    // the active constraints, in the scene's order
-  Eigen::MatrixXd gradients;  // row a: grad h_i(q*) of the a-th active constraint (active.size() x n)
-  Eigen::VectorXd grad_u;     // grad U(q*), the potential's part of the forces
+  Eigen::MatrixXd gradients;  // row a: grad h_i(q*) of the a-th active constraint (active.size() x n); empty on the large-contact path
+  // The rank of the active gradients when it is computed here (a scene on the large-contact path, whose
+  // gradients stay sparse: sparse QR); -1 otherwise (the caller ranks `gradients`).
+  int sparse_rank = -1;
+  Eigen::VectorXd grad_u;  // grad U(q*), the potential's part of the forces
   double gap_tolerance = 0.0;
 };
 

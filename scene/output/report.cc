@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <functional>
 #include <sstream>
 
 #include <Eigen/Dense>
@@ -36,6 +37,30 @@ std::string vec(const std::vector<double>& v) {
 }
 
 nlohmann::json num(double v) { return finite_or_null(v); }
+
+// A list of a large scene in the text report: its first 8 and last 2 entries when it has more than
+// kListedInText (the JSON report and the trajectory have them all).
+constexpr std::size_t kListedInText = 16;
+template <class Item>
+std::string listed(const std::vector<Item>& items, const std::function<std::string(const Item&)>& text) {
+  std::string out;
+  const bool cut = items.size() > kListedInText;
+  for (std::size_t i = 0; i < items.size(); ++i) {
+    if (cut && i == 8) {
+      out += ", ...";
+      i = items.size() - 2;
+    }
+    out += (i ? ", " : "") + text(items[i]);
+  }
+  if (cut) out += " (" + std::to_string(items.size()) + " in all; every one in --json)";
+  return out;
+}
+std::string listed_names(const std::vector<std::string>& names) {
+  return listed<std::string>(names, [](const std::string& x) { return x; });
+}
+std::string listed_vec(const std::vector<double>& v) {
+  return v.size() <= kListedInText ? vec(v) : "(" + listed<double>(v, [](const double& x) { return fmt(x); }) + ")";
+}
 
 nlohmann::json energy_json(const EnergyTrack& e) {
   if (!e.evaluated) return nullptr;
@@ -337,6 +362,10 @@ ActiveContacts active_contacts_at_end(const LagrangianScene& scene, const RunSum
   const detail::ActiveConstraints at_end = detail::active_constraints_at_end(scene, s);
   out.active = at_end.active;
   if (out.active.empty()) return out;
+  if (at_end.sparse_rank >= 0) {  // the large-contact path ranks its sparse gradients itself
+    out.rank = at_end.sparse_rank;
+    return out;
+  }
   Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(at_end.gradients);
   qr.setThreshold(1e-10);
   out.rank = static_cast<int>(qr.rank());
@@ -371,7 +400,8 @@ void add_contacts(nlohmann::json& j, const LagrangianScene& scene, const RunSumm
                        {"kinetic_energy_change", num(e.kinetic_change)},
                        {"eq9_kinetic_energy_change", e.reference_evaluated ? num(e.eq9_change) : nlohmann::json("not evaluated")},
                        {"reference_impulse", e.reference_evaluated ? num(e.reference_impulse) : nlohmann::json("not evaluated")},
-                       {"simultaneous", e.simultaneous}});
+                       {"simultaneous", e.simultaneous},
+                       {"closed_contacts_carrying_impulse", e.closed_carrying}});
   }
   nlohmann::json settle = nlohmann::json::array();
   for (int i = 0; i < c->constraints; ++i) {
@@ -386,6 +416,9 @@ void add_contacts(nlohmann::json& j, const LagrangianScene& scene, const RunSumm
       {"active_at_end", active_names},
       {"active_gradient_rank", at_end.rank},
       {"reactions_unique_at_end", at_end.unique()},
+      {"impact_law",
+       "moreau: Newton restitution at each contact; simultaneous impacts and the closed contacts carrying impulse solved together as one "
+       "LCP"},
       {"impact_count", c->impact_count},
       {"impacts", impacts},
       {"impacts_truncated", c->impacts_truncated},
@@ -410,17 +443,21 @@ void add_contacts(nlohmann::json& j, const LagrangianScene& scene, const RunSumm
 
 std::string contact_text(const LagrangianScene& scene, const RunSummary& s, const ContactDiagnostics* c) {
   std::ostringstream os;
-  std::string names;
-  for (std::size_t i = 0; i < scene.coordinates.size(); ++i) names += (i ? ", " : "") + scene.coordinates[i];
+  const std::string names = listed_names(scene.coordinates);
   os << "Moreau: " << (scene.name.empty() ? "scene" : scene.name) << " (" << scene.n << " DOF: " << names << "), scheme "
      << scheme_name(scene.scheme) << ", fixed h = " << fmt(scene.settings.h) << ", t in [" << fmt(scene.settings.t0) << ", "
      << fmt(scene.settings.t_end) << "]\n";
   warnings_text(os, scene.unread_parameters);
   os << "  status        " << to_string(s.status) << ": " << s.steps << " steps to t = " << fmt(s.t_final) << "\n";
   if (!s.message.empty()) os << "  message       " << s.message << "\n";
-  os << "  final state   q = " << vec(s.q_final) << "\n";
-  os << "                v = " << vec(s.v_final) << "\n";
-  for (std::size_t i = 0; i < scene.constraint_names.size(); ++i) {
+  os << "  final state   q = " << listed_vec(s.q_final) << "\n";
+  os << "                v = " << listed_vec(s.v_final) << "\n";
+  const std::size_t nc = scene.constraint_names.size();
+  for (std::size_t i = 0; i < nc; ++i) {
+    if (nc > kListedInText && i == 8) {
+      os << "                ... " << nc - 10 << " more (" << nc << " in all; every one in --json)\n";
+      i = nc - 2;
+    }
     os << (i == 0 ? "  constraints   " : "                ") << scene.constraint_names[i] << ": " << scene.constraint_gaps[i]
        << " >= 0, e = " << fmt(scene.restitution[i]) << "\n";
   }
@@ -442,10 +479,18 @@ std::string contact_text(const LagrangianScene& scene, const RunSummary& s, cons
     if (c->impact_count > static_cast<std::int64_t>(shown))
       os << "                ... " << c->impact_count - static_cast<std::int64_t>(shown) << " more (all in --json"
          << (c->impacts_truncated ? ", up to the recording limit" : "") << ")\n";
-    if (!c->impacts.empty())
-      os << "                eq. (9): Moreau's impact law solved apart from V^k for the contacts impacting together (an\n"
-         << "                independent LCP), against the step's dT in M(Q^k): largest difference " << fmt(c->max_eq9_mismatch)
+    if (!c->impacts.empty()) {
+      std::int64_t multiple = 0;
+      for (const ImpactEvent& e : c->impacts) multiple += e.closed_carrying > 0;
+      os << "                impact law: Moreau's, Newton's U+ = -e U- at each contact, the contacts impacting together and\n"
+         << "                the closed ones the impulse passes through solved as one LCP (a touching Newton's cradle gives\n"
+         << "                the simultaneous-impact answer, not the sequential one)";
+      if (multiple > 0) os << "; " << multiple << " recorded impact(s) passed impulse through closed contacts";
+      os << "\n";
+      os << "                eq. (9): that law solved apart from V^k over every contact carrying impulse (an independent\n"
+         << "                LCP), against the step's dT in M(Q^k): largest difference " << fmt(c->max_eq9_mismatch)
          << " (the step also integrates the smooth forces and the controller over h)\n";
+    }
     if (c->rest_step >= 0) {
       os << "  rest          v == 0.0 exactly from step " << c->rest_step << " (t = " << fmt(c->rest_time) << ") to the end\n";
     } else if (s.below_normal_step) {
@@ -453,10 +498,21 @@ std::string contact_text(const LagrangianScene& scene, const RunSummary& s, cons
     } else {
       os << "  rest          v is not exactly 0 at the last step\n";
     }
-    for (int i = 0; i < c->constraints; ++i) {
-      if (c->settle_step[i] >= 0)
-        os << "                contact " << name_of(scene, i)
-           << " closed (impulse every step, U == 0.0) from t = " << fmt(c->settle_time[i]) << "\n";
+    std::vector<int> settled;
+    for (int i = 0; i < c->constraints; ++i)
+      if (c->settle_step[i] >= 0) settled.push_back(i);
+    const bool cut = settled.size() > kListedInText;
+    double last = 0.0;
+    for (int i : settled) last = std::max(last, c->settle_time[static_cast<std::size_t>(i)]);
+    for (std::size_t k = 0; k < settled.size(); ++k) {
+      if (cut && k == 8) {
+        os << "                ... " << settled.size() - 8 << " more contacts closed, the last from t = " << fmt(last) << " ("
+           << settled.size() << " of " << c->constraints << " closed; every one in --json)\n";
+        break;
+      }
+      const int i = settled[k];
+      os << "                contact " << name_of(scene, i)
+         << " closed (impulse every step, U == 0.0) from t = " << fmt(c->settle_time[static_cast<std::size_t>(i)]) << "\n";
     }
     os << "  smallest gap  " << fmt(c->smallest_gap) << " (" << name_of(scene, c->smallest_gap_constraint)
        << ", t = " << fmt(c->smallest_gap_time) << ")" << (c->smallest_gap < 0.0 ? ": penetration" : "") << "\n";

@@ -109,7 +109,20 @@ RunSummary run_scene(const LagrangianScene& scene, RunObserver* observer, Contac
     checks.emplace(scene, observer);
     observer = &*checks;
   }
-  RunSummary s = dispatch_dof(scene.n, [&](auto dof) {
+  RunSummary s;
+  if (uses_large_contact_path(scene)) {
+    if (scene.scheme != Scheme::kMoreauJean)
+      throw std::invalid_argument(std::string("the ") + row.name +
+                                  " scheme does not run a scene beyond the dense limits; moreau-jean does");
+    MoreauJeanSettings settings = scene.contact_settings;
+    settings.grid() = scene.settings.grid();
+    LinearContactIntegrator integrator(*scene.compiled->linear_contacts, settings);
+    s = integrator.run(Eigen::Map<const Eigen::VectorXd>(scene.q0.data(), scene.n),
+                       Eigen::Map<const Eigen::VectorXd>(scene.v0.data(), scene.n), observer, contacts);
+    if (checks) checks->record_into(s);
+    return s;
+  }
+  s = dispatch_dof(scene.n, [&](auto dof) {
     constexpr int N = decltype(dof)::value;
     switch (scene.scheme) {
       case Scheme::kMoreauJean: return run_moreau_jean<N>(scene, observer, contacts);
@@ -122,9 +135,17 @@ RunSummary run_scene(const LagrangianScene& scene, RunObserver* observer, Contac
   return s;
 }
 
+bool uses_large_contact_path(const LagrangianScene& scene) {
+  const CompiledLagrangian* c = scene.compiled.get();
+  return c && c->linear_contacts && scene.scheme == Scheme::kMoreauJean && (!c->dense || scene.n >= kLinearContactFromDof);
+}
+
 LagrangianScene scene_variant(const LagrangianScene& scene, Scheme scheme, double h) {
   if (traits(scheme).system != SystemType::kLagrangian)
     throw std::invalid_argument(std::string("the ") + scheme_name(scheme) + " scheme does not integrate a Lagrangian scene");
+  if (scene.compiled && !scene.compiled->dense && scheme != Scheme::kMoreauJean)
+    throw std::invalid_argument(std::string("the ") + scheme_name(scheme) + " scheme does not run a scene beyond the dense limits (" +
+                                std::to_string(kMaxDof) + " coordinates, " + std::to_string(kMaxConstraints) + " constraints)");
   LagrangianScene at = scene;
   at.scheme = scheme;
   at.settings.h = h;

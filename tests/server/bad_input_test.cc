@@ -426,7 +426,11 @@ std::vector<Case> cases() {
                      for (int i = 0; i < 50000; ++i) names.push_back(std::string(1, 'x').append(std::to_string(i)));
                      s["system"]["coordinates"] = names;
                    }),
-                   400, "/system/coordinates", "more than 64 degrees of freedom"));
+                   400, "/system/coordinates", "more than 10000 degrees of freedom (got 50000)"));
+  t.push_back(post("HundredCoordinatesWithAController", scene_body([](json& s) {
+                     s["system"]["mass"] = {{"diagonal", std::vector<int>(100, 1)}};
+                   }),
+                   400, "/system/controller", "runs on the large-contact path"));
   t.push_back(post("MassSixtyFiveSquare", scene_body([](json& s) {
                      s["system"]["mass"] = json::array();
                      for (int i = 0; i < 65; ++i) s["system"]["mass"].push_back(std::vector<int>(65, 0));

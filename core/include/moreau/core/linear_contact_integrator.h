@@ -126,6 +126,7 @@ class LinearContactIntegrator {
   Eigen::VectorXd gap_, U_, Un_, Hvf_, lcp_q_, lcp_z_, lcp_w_, P_;
   std::vector<int> active_rows_;  // I_k, increasing
   std::vector<char> in_F_;        // per contact: closed (complementary set) in the last answer
+  std::vector<char> was_active_;  // per contact: in I_{k-1}
   std::vector<char> impacting_;
   std::vector<int> rows_;  // scratch: a subset of the contacts
   double kinetic_ = 0.0, potential_ = 0.0;

@@ -85,6 +85,7 @@
 #include "moreau/core/run_diagnostics.h"
 #include "moreau/core/run_summary.h"
 #include "moreau/core/small_lu.h"
+#include "moreau/core/sparse_lcp.h"
 #include "moreau/core/step_conditions.h"
 #include "moreau/core/stepping_driver.h"
 #include "moreau/core/time_grid.h"
@@ -172,6 +173,8 @@ class MoreauJeanIntegrator {
     S_.setZero(nc_, nc_);
     Sd_.setZero(nc_, nc_);
     pref_.setZero(nc_);
+    qref_.setZero(nc_);
+    zref_.setZero(nc_);
     s_.setZero(nc_);
     rows_.assign(static_cast<std::size_t>(nc_), 0);
     impact_rows_.assign(static_cast<std::size_t>(nc_), 0);
@@ -583,24 +586,24 @@ class MoreauJeanIntegrator {
   // The impacts of this step: contacts with a positive impulse that were approaching (U^k < 0 beyond
   // round-off). Measured: the step's kinetic energy change in the metric of M(Q^k),
   // 1/2 <M V^{k+1}, V^{k+1}> - 1/2 <M V^k, V^k> (the same for contacts impacting together). Reference:
-  // Moreau's impact law alone (no smooth forces, no controller) from V^k at Q^k for all the impacting
-  // contacts together, V+ = V^k + M^{-1} H_I^T P, 0 <= U+_i + e_i U-_i perp P_i >= 0, solved by
-  // enumerating the active sets of its LCP in the Delassus matrix H_I M^{-1} H_I^T (independent of the
-  // step's solver); its energy change is eq. (9), -1/2 (1-e)/(1+e) |V+ - V^k|_M^2 for a common e, in the
-  // form 1/2 sum_i (1 - e_i) P_i U-_i that holds for any e_i. The two differ by what the step adds over h
-  // (smooth forces, controller, the other contacts): exactly 0 for a ball, O(h) in general.
+  // Moreau's impact law alone (no smooth forces, no controller) from V^k at Q^k for every contact that
+  // carries impulse in the step, the impacting ones and the closed ones the impulse passes through (a
+  // touching Newton's cradle: a simultaneous multiple impact), V+ = V^k + M^{-1} H_C^T P,
+  // 0 <= U+_i + e_i min(U-_i, 0) perp P_i >= 0, solved exactly in the Delassus matrix H_C M^{-1} H_C^T by
+  // block principal pivoting (sparse_lcp.h; independent of the step's solver). Its energy change is
+  // 1/2 sum_i P_i (U+_i + U-_i) = 1/2 sum_i P_i (U-_i - e_i min(U-_i, 0)): eq. (9)'s
+  // 1/2 sum_i (1 - e_i) P_i U-_i on the approaching contacts, 0 on closed ones. The two differ by what the
+  // step adds over h (smooth forces, controller): exactly 0 for a ball, O(h) in general.
   void record_impacts(ContactDiagnostics& d, std::int64_t step, double t, int simultaneous) {
     double eq9 = 0.0;
-    const bool evaluated = solve_impact_law(simultaneous, eq9);
+    int carrying = 0;
+    const bool evaluated = solve_impact_law(eq9, carrying);
     rhs_.noalias() = terms_.M * vn_;
     const double measured = 0.5 * vn_.dot(rhs_) - kinetic_;  // kinetic_ = 1/2 <M V^k, V^k>
-    int a = 0;
     for (int i = 0; i < nc_; ++i) {
       if (!impacting_[i]) continue;
       const double P = P_(i);
       ++d.impact_count;
-      const double reference_impulse = evaluated ? pref_(a) : 0.0;
-      ++a;
       const bool recorded = static_cast<int>(d.impacts.size()) < settings_.max_recorded_impacts;
       if (!recorded) d.impacts_truncated = true;
       if (!recorded && !observer_) continue;
@@ -614,59 +617,80 @@ class MoreauJeanIntegrator {
       ev.restitution = restitution_[static_cast<std::size_t>(i)];
       ev.kinetic_change = measured;
       ev.reference_evaluated = evaluated;
-      ev.reference_impulse = reference_impulse;
+      ev.reference_impulse = evaluated ? pref_(i) : 0.0;
       ev.eq9_change = evaluated ? eq9 : 0.0;
       ev.simultaneous = simultaneous;
+      ev.closed_carrying = carrying - simultaneous;
       if (evaluated && recorded) d.max_eq9_mismatch = std::max(d.max_eq9_mismatch, std::abs(measured - eq9));
       if (observer_) observer_->on_impact(ev);
       if (recorded) d.impacts.push_back(ev);
     }
   }
 
-  // Moreau's impact law for the impacting contacts (see record_impacts) into pref_ (in contact order),
-  // and its energy change 1/2 sum_i (1 - e_i) P_i U-_i. False when there are more than
-  // kMaxEnumeratedImpacts of them or no active set satisfies the LCP within round-off (degenerate H).
-  bool solve_impact_law(int r, double& energy_change) {
-    if (r > kMaxEnumeratedImpacts) return false;
-    int a = 0;
+  // Moreau's impact law for the contacts that carry impulse in the step (see record_impacts) into pref_
+  // (indexed by contact), their number, and its energy change. Up to kMaxEnumeratedImpacts of them the
+  // LCP is solved by trying its 2^r active sets (no allocation, the step stays allocation-free); beyond,
+  // by block principal pivoting (sparse_lcp.h). False when no active set satisfies it within round-off
+  // or their Delassus matrix is singular (dependent gradients: the impulses are not unique).
+  bool solve_impact_law(double& energy_change, int& carrying) {
+    int r = 0;
     for (int i = 0; i < nc_; ++i)
-      if (impacting_[i]) impact_rows_[a++] = i;
+      if (P_(i) > 0.0) impact_rows_[r++] = i;
+    carrying = r;
+    double scale = 0.0;
     for (int a1 = 0; a1 < r; ++a1) {
       rhs_ = H_.row(impact_rows_[a1]).transpose();
       Z_.col(a1).noalias() = mlu_.solve(rhs_);
     }
-    double scale = 0.0;
     for (int a1 = 0; a1 < r; ++a1) {
       for (int b1 = 0; b1 < r; ++b1) Sd_(a1, b1) = H_.row(impact_rows_[a1]).dot(Z_.col(b1));  // Delassus
-      scale = std::max(scale, std::abs(U_(impact_rows_[a1])));
+      const double u = U_(impact_rows_[a1]);
+      qref_(a1) = u + restitution_[impact_rows_[a1]] * std::min(u, 0.0);  // U+ + e min(U-, 0) at P = 0
+      scale = std::max(scale, std::abs(u));
     }
-    const double tol = 1e-10 * scale;
-    for (int set = 1; set < (1 << r); ++set) {
-      // Active contacts: U+_i = -e_i U-_i, i.e. (S P)_i = -(1 + e_i) U-_i; the others P_i = 0.
-      int m = 0;
-      for (int a1 = 0; a1 < r; ++a1) {
-        if (!(set & (1 << a1))) continue;
-        int mm = 0;
-        for (int b1 = 0; b1 < r; ++b1)
-          if (set & (1 << b1)) S_(m, mm++) = Sd_(a1, b1);
-        s_(m++) = -(1.0 + restitution_[impact_rows_[a1]]) * U_(impact_rows_[a1]);
+    bool solved = false;
+    if (r <= kMaxEnumeratedImpacts) {
+      const double tol = 1e-10 * scale;
+      for (int set = 1; set < (1 << r) && !solved; ++set) {
+        // Active contacts: (S P)_i = -qref_i; the others P_i = 0.
+        int m = 0;
+        for (int a1 = 0; a1 < r; ++a1) {
+          if (!(set & (1 << a1))) continue;
+          int mm = 0;
+          for (int b1 = 0; b1 < r; ++b1)
+            if (set & (1 << b1)) S_(m, mm++) = Sd_(a1, b1);
+          s_(m++) = -qref_(a1);
+        }
+        if (!lu_solve_in_place(S_, s_, m)) continue;
+        int k1 = 0;
+        for (int a1 = 0; a1 < r; ++a1) zref_(a1) = (set & (1 << a1)) ? s_(k1++) : 0.0;
+        bool ok = true;
+        for (int a1 = 0; a1 < r && ok; ++a1) {
+          double w = qref_(a1);
+          for (int b1 = 0; b1 < r; ++b1) w += Sd_(a1, b1) * zref_(b1);
+          ok = zref_(a1) >= -tol && w >= -tol;
+        }
+        solved = ok;
       }
-      if (!lu_solve_in_place(S_, s_, m)) continue;
-      bool ok = true;
-      int k1 = 0;
-      for (int a1 = 0; a1 < r; ++a1) pref_(a1) = (set & (1 << a1)) ? s_(k1++) : 0.0;
-      for (int a1 = 0; a1 < r && ok; ++a1) {
-        if (pref_(a1) < -tol) ok = false;
-        double u_plus = U_(impact_rows_[a1]);
-        for (int b1 = 0; b1 < r; ++b1) u_plus += Sd_(a1, b1) * pref_(b1);
-        if (u_plus + restitution_[impact_rows_[a1]] * U_(impact_rows_[a1]) < -tol) ok = false;
-      }
-      if (!ok) continue;
-      energy_change = 0.0;
-      for (int a1 = 0; a1 < r; ++a1) energy_change += 0.5 * (1.0 - restitution_[impact_rows_[a1]]) * pref_(a1) * U_(impact_rows_[a1]);
-      return true;
+    } else {
+      impact_lcp_.set_matrix(Sd_.topLeftCorner(r, r).sparseView());
+      impact_set_.resize(static_cast<std::size_t>(r));
+      for (int a1 = 0; a1 < r; ++a1) impact_set_[static_cast<std::size_t>(a1)] = a1;
+      impact_closed_.assign(static_cast<std::size_t>(r), 1);
+      Eigen::VectorXd q = qref_.head(r), z(r), w(r);
+      SparseLcpStats st;
+      solved = impact_lcp_.solve(impact_set_, q, z, w, impact_closed_, st);
+      if (solved) zref_.head(r) = z;
     }
-    return false;
+    if (!solved) return false;
+    energy_change = 0.0;
+    pref_.setZero();
+    for (int a1 = 0; a1 < r; ++a1) {
+      const int i = impact_rows_[a1];
+      pref_(i) = zref_(a1);
+      energy_change += 0.5 * zref_(a1) * (U_(i) - restitution_[i] * std::min(U_(i), 0.0));
+    }
+    return true;
   }
 
   // Projects qn_ onto {h >= 0} in the metric of M(Q^k): Newton steps on the linearised constraints,
@@ -750,9 +774,13 @@ class MoreauJeanIntegrator {
   ColsN Z_;
   Eigen::MatrixXd S_, Sd_;
   Eigen::VectorXd s_, pref_;
-  static constexpr int kMaxEnumeratedImpacts = 10;  // 2^10 active sets at most
-  std::vector<int> rows_;                           // the rebounding contacts of an impact step
-  std::vector<int> impact_rows_;                    // the impacting contacts (Moreau's impact law)
+  static constexpr int kMaxEnumeratedImpacts = 10;  // Moreau's impact law by enumeration: 2^10 active sets at most
+  Eigen::VectorXd qref_, zref_;                     // its LCP's q and solution, by carrying contact
+  SparseLcpSolver impact_lcp_;                      // beyond kMaxEnumeratedImpacts contacts
+  std::vector<int> impact_set_;
+  std::vector<char> impact_closed_;
+  std::vector<int> rows_;         // the rebounding contacts of an impact step
+  std::vector<int> impact_rows_;  // the impacting contacts (Moreau's impact law)
   std::vector<char> impacting_;
   std::vector<const MonotoneGraph*> corr_ptrs_;
   GraphInclusionSolver<Eigen::Dynamic> corr_solver_;

@@ -72,7 +72,7 @@ struct ImpactEvent {
   double kinetic_change = 0.0;
   double eq9_change = 0.0;
   double reference_impulse = 0.0;
-  bool reference_evaluated = false;  // false: more than 10 simultaneous impacts, or a degenerate LCP
+  bool reference_evaluated = false;  // false: the contacts carrying impulse have dependent gradients (impulses not unique)
   int simultaneous = 1;              // impacts in the same step
   // Contacts that carried impulse in the same step without approaching: closed contacts the impulse
   // passed through (a touching Newton's cradle, a stack hit from above). With them the step is a

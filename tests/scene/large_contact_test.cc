@@ -1,0 +1,200 @@
+// Scenes on the large-contact path (issue 53): beyond the dense limits, compiled from the scene format
+// with a diagonal mass, and within them chosen by structure. Checked against the dense Moreau-Jean step
+// (an independent implementation of the same scheme), the statics of a resting stack and the closed form
+// of Newton's cradle; and every requirement of the path refused with the field named.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "moreau/scene/report.h"
+#include "moreau/scene/scene.h"
+
+namespace moreau::scene {
+namespace {
+
+using nlohmann::json;
+constexpr double kRadius = 0.0625;  // a power of two: exact positions, touching gaps 0.0
+
+// The stack of scripts/make-contact-scene.py.
+json stack_scene(int n, double drop, double t_end, double e = 0.5) {
+  json coords = json::array(), mass = json::array(), grad = json::array(), cons = json::array(), q0 = json::array();
+  for (int i = 0; i < n; ++i) {
+    coords.push_back("y" + std::to_string(i + 1));
+    mass.push_back(i % 3 == 1 ? "2*m" : "m");
+    grad.push_back(i % 3 == 1 ? "2*m*g" : "m*g");
+    q0.push_back(kRadius + i * (2 * kRadius + drop) + drop);
+    cons.push_back({{"name", "c" + std::to_string(i + 1)},
+                    {"gap", i == 0 ? std::string("y1 - r") : "y" + std::to_string(i + 1) + " - y" + std::to_string(i) + " - 2*r"},
+                    {"restitution", "e"}});
+  }
+  return {{"name", "stack"},
+          {"parameters", {{"m", 1}, {"g", 9.81}, {"r", kRadius}, {"e", e}}},
+          {"system",
+           {{"type", "lagrangian"},
+            {"coordinates", coords},
+            {"mass", {{"diagonal", mass}}},
+            {"potential_gradient", grad},
+            {"constraints", cons}}},
+          {"initial", {{"q", q0}, {"v", std::vector<int>(static_cast<std::size_t>(n), 0)}}},
+          {"integrator", {{"scheme", "moreau-jean"}, {"h", 1e-3}, {"t_end", t_end}}}};
+}
+
+json cradle_scene(int n, double gap, double t_end, double e) {
+  json coords = json::array(), mass = json::array(), cons = json::array(), q0 = json::array(), v0 = json::array();
+  for (int i = 0; i < n; ++i) {
+    coords.push_back("x" + std::to_string(i + 1));
+    mass.push_back("m");
+    q0.push_back(i * (2 * kRadius + gap));
+    v0.push_back(i == 0 ? 1 : 0);
+    if (i + 1 < n) cons.push_back({{"gap", "x" + std::to_string(i + 2) + " - x" + std::to_string(i + 1) + " - 2*r"}, {"restitution", e}});
+  }
+  return {{"name", "cradle"},
+          {"parameters", {{"m", 1}, {"r", kRadius}}},
+          {"system", {{"type", "lagrangian"}, {"coordinates", coords}, {"mass", {{"diagonal", mass}}}, {"constraints", cons}}},
+          {"initial", {{"q", q0}, {"v", v0}}},
+          {"integrator", {{"scheme", "moreau-jean"}, {"h", 1e-3}, {"t_end", t_end}}}};
+}
+
+LagrangianScene on_dense_step(LagrangianScene sc) {
+  auto c = std::make_shared<CompiledLagrangian>(*sc.compiled);
+  c->linear_contacts = nullptr;
+  sc.compiled = c;
+  return sc;
+}
+
+struct Trajectory : RunObserver {
+  std::vector<std::vector<double>> q, v;
+  void on_sample(const Sample& s) override {
+    q.emplace_back(s.q, s.q + s.n);
+    v.emplace_back(s.v, s.v + s.n);
+  }
+};
+
+TEST(LargeContactScene, AgreesWithTheDenseStepWhereBothRun) {
+  // A dropped stack of 12 (impacts travelling up and down, contacts opening and closing, rest) and a
+  // touching cradle of 9 with e = 0.5: the large-contact path and the dense step, step by step.
+  for (const json& doc : {stack_scene(12, 2e-3, 0.3), cradle_scene(9, 0.0, 0.05, 0.5)}) {
+    const LagrangianScene sc = load_scene(doc);
+    ASSERT_TRUE(uses_large_contact_path(sc));
+    const LagrangianScene dense = on_dense_step(sc);
+    ASSERT_FALSE(uses_large_contact_path(dense));
+    Trajectory a, b;
+    ContactDiagnostics ca, cb;
+    const RunSummary sa = run_scene(sc, &a, &ca), sb = run_scene(dense, &b, &cb);
+    ASSERT_EQ(sa.status, RunStatus::kCompleted) << sa.message;
+    ASSERT_EQ(sb.status, RunStatus::kCompleted) << sb.message;
+    ASSERT_EQ(a.q.size(), b.q.size());
+    double dq = 0.0, dv = 0.0;
+    for (std::size_t k = 0; k < a.q.size(); ++k)
+      for (std::size_t j = 0; j < a.q[k].size(); ++j) {
+        dq = std::max(dq, std::abs(a.q[k][j] - b.q[k][j]));
+        dv = std::max(dv, std::abs(a.v[k][j] - b.v[k][j]));
+      }
+    EXPECT_LE(dq, 1e-12) << doc["name"];
+    EXPECT_LE(dv, 1e-10) << doc["name"];
+    EXPECT_EQ(ca.impact_count, cb.impact_count) << doc["name"];
+    EXPECT_GT(ca.impact_count, 0) << doc["name"];  // not a comparison of two resting states
+    EXPECT_GT(a.q.size(), 50u) << doc["name"];
+    EXPECT_EQ(sa.rest_step, sb.rest_step) << doc["name"];
+    // Both record eq. (9) over every contact carrying impulse: the same reference.
+    EXPECT_NEAR(ca.max_eq9_mismatch, cb.max_eq9_mismatch, 1e-12) << doc["name"];
+  }
+}
+
+TEST(LargeContactScene, AStackOfAThousandRestsExactly) {
+  const LagrangianScene sc = load_scene(stack_scene(1000, 0.0, 0.05));
+  ASSERT_FALSE(sc.compiled->dense);
+  ContactDiagnostics c;
+  const RunSummary s = run_scene(sc, nullptr, &c);
+  ASSERT_EQ(s.status, RunStatus::kCompleted) << s.message;
+  EXPECT_EQ(s.rest_step, 0);
+  for (double v : s.v_final) ASSERT_EQ(v, 0.0);
+  EXPECT_EQ(c.impact_count, 0);
+  // The report: every contact closed, reactions unique (a square bidiagonal gradient matrix).
+  const json report = report_json(sc, s, &c);
+  EXPECT_EQ(report["contacts"]["active_gradient_rank"], 1000);
+  EXPECT_EQ(report["contacts"]["reactions_unique_at_end"], true);
+  const std::string text = report_text(sc, s, &c);
+  EXPECT_NE(text.find("(1000 in all; every one in --json)"), std::string::npos) << text.substr(0, 600);
+}
+
+TEST(LargeContactScene, AGappedCradleOfAThousandPassesTheVelocityOnExactly) {
+  const int n = 1024;
+  const LagrangianScene sc = load_scene(cradle_scene(n, 0.01, 0.01 * (n - 1) + 0.05, 1.0));
+  ContactDiagnostics c;
+  const RunSummary s = run_scene(sc, nullptr, &c);
+  ASSERT_EQ(s.status, RunStatus::kCompleted) << s.message;
+  for (int i = 0; i + 1 < n; ++i) ASSERT_EQ(s.v_final[static_cast<std::size_t>(i)], 0.0) << i;
+  EXPECT_EQ(s.v_final.back(), 1.0);
+  EXPECT_EQ(c.impact_count, n - 1);
+}
+
+TEST(LargeContactScene, ATouchingCradleReportsItsImpactLawAndChecksEq9OverEveryContact) {
+  // The issue's example: touching balls, e = 0.5; the step passes impulse through the closed contacts,
+  // and eq. (9)'s reference covers them (a 0.094 mismatch when it covered the approaching contact alone).
+  for (bool dense : {false, true}) {
+    LagrangianScene sc = load_scene(cradle_scene(5, 0.0, 0.01, 0.5));
+    if (dense) sc = on_dense_step(sc);
+    ContactDiagnostics c;
+    const RunSummary s = run_scene(sc, nullptr, &c);
+    ASSERT_EQ(s.status, RunStatus::kCompleted) << s.message;
+    ASSERT_GE(c.impacts.size(), 1u);
+    EXPECT_EQ(c.impacts[0].closed_carrying, 3) << dense;
+    EXPECT_LE(c.max_eq9_mismatch, 1e-12) << dense;
+    const json report = report_json(sc, s, &c);
+    EXPECT_EQ(report["contacts"]["impacts"][0]["closed_contacts_carrying_impulse"], 3);
+    EXPECT_NE(report_text(sc, s, &c).find("passed impulse through closed contacts"), std::string::npos);
+  }
+}
+
+void ExpectError(const json& doc, const std::string& pointer, const std::string& part) {
+  try {
+    load_scene(doc);
+    ADD_FAILURE() << "accepted; expected an error at " << pointer;
+  } catch (const SceneError& e) {
+    EXPECT_EQ(e.pointer(), pointer) << e.what();
+    EXPECT_NE(std::string(e.what()).find(part), std::string::npos) << e.what();
+  }
+}
+
+TEST(LargeContactScene, RefusesWhatThePathCannotTakeNamingTheField) {
+  json doc = stack_scene(100, 0.0, 0.01);
+  doc["system"]["constraints"][7]["gap"] = "y8 - y7 - 2*r + 0.01*y8^2";
+  ExpectError(doc, "/system/constraints/7/gap", "is not linear in q");
+  doc = stack_scene(100, 0.0, 0.01);
+  doc["system"]["mass"]["diagonal"][3] = "m + y4^2";
+  ExpectError(doc, "/system/mass/diagonal/3", "is not a constant");
+  doc = stack_scene(100, 0.0, 0.01);
+  doc["system"]["controller"] = json::array({{{"type", "abs"}, {"gains", std::vector<double>(100, 1.0)}}});
+  ExpectError(doc, "/system/controller", "large-contact path");
+  doc = stack_scene(100, 0.0, 0.01);
+  doc["integrator"]["scheme"] = "abl";
+  ExpectError(doc, "/integrator/scheme", "large-contact path");
+  doc = stack_scene(100, 0.0, 0.01);
+  doc["system"]["mass"] = json::array();
+  for (int i = 0; i < 100; ++i) doc["system"]["mass"].push_back(std::vector<int>(100, 0));
+  ExpectError(doc, "/system/coordinates", "with a full mass matrix");
+  doc = stack_scene(100, 0.0, 0.01);
+  doc["system"]["mass"]["diagonal"][5] = "-m";
+  ExpectError(doc, "/system/mass/diagonal/5", "finite positive");
+  doc = stack_scene(100, 0.0, 0.01);
+  doc["initial"]["q"][50] = 0.0;
+  ExpectError(doc, "/initial/q", "violates constraint 'c51'");
+  // The limit itself.
+  doc = stack_scene(3, 0.0, 0.01);
+  json names = json::array();
+  for (int i = 0; i < 10001; ++i) names.push_back("z" + std::to_string(i));
+  doc["system"]["coordinates"] = names;
+  ExpectError(doc, "/system/coordinates", "more than 10000 degrees of freedom (got 10001)");
+}
+
+TEST(LargeContactScene, StudiesOfOtherSchemesAreRefusedBeyondTheDenseLimits) {
+  const LagrangianScene sc = load_scene(stack_scene(100, 0.0, 0.01));
+  EXPECT_THROW(scene_variant(sc, Scheme::kAbl, 1e-3), std::invalid_argument);
+  EXPECT_NO_THROW(scene_variant(sc, Scheme::kMoreauJean, 1e-3));
+}
+
+}  // namespace
+}  // namespace moreau::scene
