@@ -10,6 +10,9 @@
 //                 y = q, NewtonImpactNSL(e), MoreauJeanOSI(theta = 1), LCP.
 //   damped-relay  scenes/damped-relay.json: m x'' = -c x' - a Sign(x'): LagrangianLinearTIDS with damping
 //                 matrix c, RelayNSL on y = x', MoreauJeanOSI(theta = 1), Relay.
+//   stack         scripts/make-contact-scene.py stack N: N balls resting on a floor and on each other
+//                 (one LagrangianLinearTIDS per ball, an Interaction per contact), NewtonImpactNSL(0.5), LCP.
+//   cradle        scripts/make-contact-scene.py cradle N --gap G: Newton's cradle, e = 1, the first ball at 1.
 //   lure-relay    scenes/lure-relay-2state.json: x' = A x - B Sign(C x): FirstOrderLinearTIDS,
 //                 FirstOrderLinearTIR (y = C x, r = B lambda), RelayNSL(-1, 1), EulerMoreauOSI(theta = 1), Relay.
 //
@@ -100,6 +103,8 @@ struct Options {
   double h = NAN, t_end = NAN, theta = 1.0, tol = NAN;
   int reps = 7, every = 1;
   std::string csv, solver = "default", newton = "nonlinear";
+  int n = 8;          // stack, cradle: the number of balls
+  double gap = 0.01;  // cradle: the space between neighbouring balls
 };
 
 // One simulation ready to step: what the timed loop and the CSV writer need.
@@ -274,12 +279,64 @@ Built BuildLureRelay(const Options& o) {
   return b;
 }
 
+// The contact workloads at scale (docs/scaling.md), as scripts/make-contact-scene.py writes them: one
+// LagrangianLinearTIDS per ball (mass 1), one Interaction per contact, y = H q + b with H = [1] on the
+// floor and [-1, 1] between neighbours, NewtonImpactNSL(e), MoreauJeanOSI, LCP (Lemke by default).
+constexpr double kBallRadius = 0.0625;
+
+Built BuildBalls(const Options& o, bool stack) {
+  constexpr double g = 9.81;
+  const double e = stack ? 0.5 : 1.0;
+  Built b;
+  b.nsds = std::make_shared<NonSmoothDynamicalSystem>(0.0, o.t_end);
+  std::vector<SP::LagrangianLinearTIDS> balls;
+  for (int i = 0; i < o.n; ++i) {
+    auto mass = std::make_shared<SimpleMatrix>(1, 1);
+    (*mass)(0, 0) = 1.0;
+    const double q0 = stack ? kBallRadius + i * 2 * kBallRadius : i * (2 * kBallRadius + o.gap);
+    const double v0 = !stack && i == 0 ? 1.0 : 0.0;
+    auto ds = std::make_shared<LagrangianLinearTIDS>(Vec({q0}), Vec({v0}), mass);
+    if (stack) ds->setFExtPtr(Vec({-g}));
+    b.nsds->insertDynamicalSystem(ds);
+    balls.push_back(ds);
+  }
+  auto nslaw = std::make_shared<NewtonImpactNSL>(e);
+  if (stack) {
+    auto H = std::make_shared<SimpleMatrix>(1, 1);
+    (*H)(0, 0) = 1.0;
+    auto relation = std::make_shared<LagrangianLinearTIR>(H, Vec({-kBallRadius}));
+    b.nsds->link(std::make_shared<Interaction>(nslaw, relation), balls[0]);
+  }
+  for (int i = 1; i < o.n; ++i) {
+    auto H = std::make_shared<SimpleMatrix>(1, 2);
+    (*H)(0, 0) = -1.0;
+    (*H)(0, 1) = 1.0;
+    auto relation = std::make_shared<LagrangianLinearTIR>(H, Vec({-2 * kBallRadius}));
+    b.nsds->link(std::make_shared<Interaction>(nslaw, relation), balls[static_cast<std::size_t>(i - 1)],
+                 balls[static_cast<std::size_t>(i)]);
+  }
+  auto osi = std::make_shared<MoreauJeanOSI>(o.theta);
+  auto osnspb = std::make_shared<LCP>(LcpSolverId(o.solver));
+  Finish(b, o, osi, osnspb);
+  b.state = [balls](std::vector<double>& out) {
+    for (const auto& ds : balls) out.push_back((*ds->q())(0));
+    for (const auto& ds : balls) out.push_back((*ds->velocity())(0));
+  };
+  const char* x = stack ? "y" : "x";
+  b.columns = "t";
+  for (int i = 0; i < o.n; ++i) b.columns += "," + std::string(x) + std::to_string(i + 1);
+  for (int i = 0; i < o.n; ++i) b.columns += "," + std::string(x) + std::to_string(i + 1) + "_dot";
+  return b;
+}
+
 Built Build(const Options& o) {
+  if (o.workload == "stack") return BuildBalls(o, true);
+  if (o.workload == "cradle") return BuildBalls(o, false);
   if (o.workload == "manipulator") return BuildManipulator(o);
   if (o.workload == "ball") return BuildBall(o);
   if (o.workload == "damped-relay") return BuildDampedRelay(o);
   if (o.workload == "lure-relay") return BuildLureRelay(o);
-  throw std::runtime_error("unknown workload '" + o.workload + "' (manipulator, ball, damped-relay, lure-relay)");
+  throw std::runtime_error("unknown workload '" + o.workload + "' (manipulator, ball, damped-relay, lure-relay, stack, cradle)");
 }
 
 void Defaults(Options& o) {
@@ -288,7 +345,9 @@ void Defaults(Options& o) {
     const char* name;
     double h, t_end;
   };
-  const D table[] = {{"manipulator", 1e-3, 10.0}, {"ball", 1e-3, 3.0}, {"damped-relay", 1e-3, 6.0}, {"lure-relay", 1e-3, 10.0}};
+  const D table[] = {{"manipulator", 1e-3, 10.0}, {"ball", 1e-3, 3.0},  {"damped-relay", 1e-3, 6.0},
+                     {"lure-relay", 1e-3, 10.0},  {"stack", 1e-3, 1.0}, {"cradle", 1e-3, NAN}};
+  if (o.workload == "cradle" && std::isnan(o.t_end)) o.t_end = (o.n - 1) * o.gap + 0.05;  // the wave, then 50 steps
   for (const D& d : table) {
     if (o.workload == d.name) {
       if (std::isnan(o.h)) o.h = d.h;
@@ -309,7 +368,8 @@ using Clock = std::chrono::steady_clock;
 
 void Usage() {
   std::fprintf(stderr,
-               "usage: siconos_bench manipulator|ball|damped-relay|lure-relay [--h H] [--t-end T] [--reps N]\n"
+               "usage: siconos_bench manipulator|ball|damped-relay|lure-relay|stack|cradle [--h H] [--t-end T] [--reps N]\n"
+               "       [--n N] [--gap G]  (stack, cradle: N balls; cradle: G apart)\n"
                "       [--csv FILE] [--every K] [--theta TH] [--solver NAME] [--newton nonlinear|linear] [--tol TOL]\n");
 }
 
@@ -349,6 +409,10 @@ int main(int argc, char** argv) {
       o.newton = next();
     else if (a == "--tol")
       o.tol = std::stod(next());
+    else if (a == "--n")
+      o.n = std::stoi(next());
+    else if (a == "--gap")
+      o.gap = std::stod(next());
     else {
       Usage();
       return 2;
@@ -400,8 +464,9 @@ int main(int argc, char** argv) {
     }
     std::ostringstream js;
     js.precision(10);
-    js << "{\"workload\": \"" << o.workload << "\", \"h\": " << o.h << ", \"t_end\": " << o.t_end << ", \"theta\": " << o.theta
-       << ", \"solver\": \"" << o.solver << "\", \"newton\": \"" << o.newton << "\", \"steps\": " << steps << ", \"reps\": " << o.reps;
+    js << "{\"workload\": \"" << o.workload << "\", \"n\": " << o.n << ", \"h\": " << o.h << ", \"t_end\": " << o.t_end
+       << ", \"theta\": " << o.theta << ", \"solver\": \"" << o.solver << "\", \"newton\": \"" << o.newton << "\", \"steps\": " << steps
+       << ", \"reps\": " << o.reps;
     if (!step_ns.empty()) {
       js << ", \"ns_per_step\": " << Median(step_ns) << ", \"ns_per_step_min\": " << *std::min_element(step_ns.begin(), step_ns.end())
          << ", \"ns_per_step_max\": " << *std::max_element(step_ns.begin(), step_ns.end()) << ", \"setup_us\": " << Median(setup_us)

@@ -1,0 +1,143 @@
+// Contact systems at scale (docs/scaling.md): the stack of N balls at rest and dropped, and the gapped
+// Newton's cradle, from N = 2 to 8192, each a scene compiled as `moreau run` compiles it (the scenes of
+// scripts/make-contact-scene.py) and run by run_scene. `dense` variants run the same scene on the dense
+// Moreau-Jean step (N <= 64): the two sides of the crossover kLinearContactFromDof.
+//
+//   build/bench/scaling_bench --benchmark_filter='Stack|Cradle' --benchmark_repetitions=5 \
+//       --benchmark_report_aggregates_only=true
+//
+// Counters: ns_per_step (the run's wall time over its steps), and for the dropped stack the median and
+// worst single step (timed from one sample to the next, every step sampled) and their ratio.
+#include <benchmark/benchmark.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "moreau/scene/scene.h"
+#include "per_step.h"
+
+namespace {
+
+using moreau::RunObserver;
+using moreau::RunStatus;
+using moreau::RunSummary;
+using moreau::Sample;
+using nlohmann::json;
+namespace scene = moreau::scene;
+
+constexpr double kRadius = 0.0625;
+
+// The stack of scripts/make-contact-scene.py: N balls of mass 1 on a floor, each gap opened by `drop`.
+json stack_scene(int n, double drop, double t_end) {
+  json coords = json::array(), mass = json::array(), grad = json::array(), cons = json::array(), q0 = json::array();
+  for (int i = 0; i < n; ++i) {
+    coords.push_back("y" + std::to_string(i + 1));
+    mass.push_back("m");
+    grad.push_back("m*g");
+    q0.push_back(kRadius + i * (2 * kRadius + drop) + drop);
+    cons.push_back({{"gap", i == 0 ? std::string("y1 - r") : "y" + std::to_string(i + 1) + " - y" + std::to_string(i) + " - 2*r"},
+                    {"restitution", "e"}});
+  }
+  return {{"name", "stack"},
+          {"parameters", {{"m", 1}, {"g", 9.81}, {"r", kRadius}, {"e", 0.5}}},
+          {"system",
+           {{"type", "lagrangian"},
+            {"coordinates", coords},
+            {"mass", {{"diagonal", mass}}},
+            {"potential_gradient", grad},
+            {"constraints", cons}}},
+          {"initial", {{"q", q0}, {"v", std::vector<int>(static_cast<std::size_t>(n), 0)}}},
+          {"integrator", {{"scheme", "moreau-jean"}, {"h", 1e-3}, {"t_end", t_end}}}};
+}
+
+// The gapped cradle: N balls of mass 1 on a line, `gap` apart, the first at v0 = 1, e = 1.
+json cradle_scene(int n, double gap, double t_end) {
+  json coords = json::array(), mass = json::array(), cons = json::array(), q0 = json::array(), v0 = json::array();
+  for (int i = 0; i < n; ++i) {
+    coords.push_back("x" + std::to_string(i + 1));
+    mass.push_back("m");
+    q0.push_back(i * (2 * kRadius + gap));
+    v0.push_back(i == 0 ? 1 : 0);
+    if (i + 1 < n) cons.push_back({{"gap", "x" + std::to_string(i + 2) + " - x" + std::to_string(i + 1) + " - 2*r"}, {"restitution", 1}});
+  }
+  return {{"name", "cradle"},
+          {"parameters", {{"m", 1}, {"r", kRadius}}},
+          {"system", {{"type", "lagrangian"}, {"coordinates", coords}, {"mass", {{"diagonal", mass}}}, {"constraints", cons}}},
+          {"initial", {{"q", q0}, {"v", v0}}},
+          {"integrator", {{"scheme", "moreau-jean"}, {"h", 1e-3}, {"t_end", t_end}}}};
+}
+
+// The scene on the dense step: the same compile without the large-contact system.
+scene::LagrangianScene dense(scene::LagrangianScene sc) {
+  auto c = std::make_shared<scene::CompiledLagrangian>(*sc.compiled);
+  c->linear_contacts = nullptr;
+  sc.compiled = c;
+  return sc;
+}
+
+void BM_StackAtRest(benchmark::State& state) {
+  const scene::LagrangianScene sc = scene::load_scene(stack_scene(static_cast<int>(state.range(0)), 0.0, 0.2));
+  moreau::bench::RunScene(state, sc);
+}
+void BM_StackAtRest_dense(benchmark::State& state) {
+  const scene::LagrangianScene sc = dense(scene::load_scene(stack_scene(static_cast<int>(state.range(0)), 0.0, 0.2)));
+  moreau::bench::RunScene(state, sc);
+}
+void BM_GappedCradle(benchmark::State& state) {
+  const int n = static_cast<int>(state.range(0));
+  const scene::LagrangianScene sc = scene::load_scene(cradle_scene(n, 0.01, 0.01 * (n - 1) + 0.05));
+  moreau::bench::RunScene(state, sc);
+}
+void BM_GappedCradle_dense(benchmark::State& state) {
+  const int n = static_cast<int>(state.range(0));
+  const scene::LagrangianScene sc = dense(scene::load_scene(cradle_scene(n, 0.01, 0.01 * (n - 1) + 0.05)));
+  moreau::bench::RunScene(state, sc);
+}
+
+// Every step's wall time, from one sample to the next (output every step).
+struct StepClock : RunObserver {
+  std::vector<double> seconds;
+  std::chrono::steady_clock::time_point last = std::chrono::steady_clock::now();
+  void on_sample(const Sample&) override {
+    const auto now = std::chrono::steady_clock::now();
+    seconds.push_back(std::chrono::duration<double>(now - last).count());
+    last = now;
+  }
+};
+
+// A stack dropped from 1 mm gaps: impacts travel up and down it, contacts close and open, until it rests.
+void BM_StackDropped(benchmark::State& state) {
+  const int n = static_cast<int>(state.range(0));
+  const scene::LagrangianScene sc = scene::load_scene(stack_scene(n, 1e-3, 0.5));
+  std::int64_t steps = 0;
+  double median = 0.0, worst = 0.0;
+  for (auto _ : state) {
+    StepClock clock;
+    clock.seconds.reserve(1000);
+    clock.last = std::chrono::steady_clock::now();
+    const RunSummary s = scene::run_scene(sc, &clock);
+    steps = s.steps;
+    if (s.status != RunStatus::kCompleted) state.SkipWithError(s.message.c_str());
+    std::vector<double> t(clock.seconds.begin() + 1, clock.seconds.end());  // the first is the initial sample
+    std::sort(t.begin(), t.end());
+    median = t[t.size() / 2];
+    worst = t.back();
+  }
+  moreau::bench::SetPerStep(state, steps);
+  state.counters["median_step_us"] = median * 1e6;
+  state.counters["worst_step_us"] = worst * 1e6;
+  state.counters["worst_over_median"] = worst / median;
+}
+
+}  // namespace
+
+BENCHMARK(BM_StackAtRest)->RangeMultiplier(2)->Range(2, 8192)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_StackAtRest_dense)->RangeMultiplier(2)->Range(2, 64)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_StackDropped)->RangeMultiplier(4)->Range(8, 8192)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_GappedCradle)->Arg(2)->Arg(8)->Arg(16)->Arg(64)->Arg(256)->Arg(1024)->Arg(4096)->Arg(8192)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_GappedCradle_dense)->RangeMultiplier(2)->Range(2, 64)->Unit(benchmark::kMillisecond);
+
+BENCHMARK_MAIN();
