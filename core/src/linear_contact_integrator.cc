@@ -49,6 +49,21 @@ std::string LinearContactSystem::validate() const {
     if (!(mass(j) > 0.0) || !std::isfinite(mass(j))) return "mass " + std::to_string(j) + " is not a finite positive number";
   if (!force.allFinite()) return "force is not finite";
   if (!offsets.allFinite()) return "an offset is not finite";
+  // How densely the contacts couple: D = H M^-1 H^T has at most sum_j c_j^2 nonzeros, c_j the contacts
+  // on coordinate j. The path is for contacts that each touch a few others (a ball has a handful of
+  // neighbours); a dense coupling would make each pass's factorisation cubic, one request's step time
+  // unbounded in practice.
+  std::vector<long long> per_coordinate(static_cast<std::size_t>(n), 0);
+  for (int i = 0; i < nc; ++i)
+    for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(gradients, i); it; ++it)
+      ++per_coordinate[static_cast<std::size_t>(it.col())];
+  long long coupling = 0;
+  for (long long c : per_coordinate) coupling += c * c;
+  const long long allowed = kMaxDelassusNonzerosPerContact * static_cast<long long>(nc) + 4096;
+  if (coupling > allowed)
+    return "the contacts couple too densely for this path: H M^-1 H^T may have " + std::to_string(coupling) + " nonzeros, more than " +
+           std::to_string(kMaxDelassusNonzerosPerContact) + " per contact (" + std::to_string(allowed) +
+           "); it is for contacts that each touch a few others";
   for (int i = 0; i < nc; ++i) {
     bool nonzero = false;
     for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(gradients, i); it; ++it) {
@@ -181,8 +196,8 @@ bool LinearContactIntegrator::step(std::int64_t k, double t, double h, double t_
     SparseLcpStats st;
     if (!step_lcp_.solve(active_rows_, lcp_q_, lcp_z_, lcp_w_, in_F_, st)) {
       return f.at(k, t, q_.data(), v_.data(),
-                  st.singular ? "the gradients of the closed contacts are dependent (the Delassus operator is singular on them); "
-                                "this system needs the dense Moreau-Jean path"
+                  st.singular ? "the gradients of the closed contacts are linearly dependent (the Delassus operator is singular on "
+                                "them): their impulses are not unique, and the large-contact path solves independent contacts only"
                               : "the one-step complementarity problem was not solved within " +
                                     std::to_string(SparseLcpSolver::pass_budget(static_cast<int>(active_rows_.size()))) + " passes");
     }

@@ -158,10 +158,18 @@ Axis time_axis(const Window& w) {
   return a;
 }
 
+// Coordinates a figure draws when none are chosen: all of them up to this many; beyond, this many evenly
+// spaced from the first to the last (a stack of 10,000 balls as 20,000 curves would be unreadable and
+// cost the renderer gigabytes), said in the panels' titles (kSubsetNote).
+constexpr std::size_t kMaxDefaultCoordinates = 16;
+
 std::vector<std::size_t> pick_coordinates(const TimeSeriesData& d, const FigureOptions& o, const char* who) {
   const std::size_t n = std::max(d.q.size(), d.v.size());
   std::vector<std::size_t> idx = o.coordinates;
-  if (idx.empty()) {
+  if (idx.empty() && n > kMaxDefaultCoordinates) {
+    for (std::size_t k = 0; k < kMaxDefaultCoordinates; ++k)
+      idx.push_back((k * (n - 1) + (kMaxDefaultCoordinates - 1) / 2) / (kMaxDefaultCoordinates - 1));
+  } else if (idx.empty()) {
     idx.resize(n);
     std::iota(idx.begin(), idx.end(), std::size_t{0});
   }
@@ -277,8 +285,13 @@ Figure state_figure(const TimeSeriesData& d, const FigureOptions& o) {
       f.panels.push_back(make_panel(data, names, axis, groups.size() > 1 ? with_unit(title, unit) : title, with_unit(axis, unit),
                                     f.panels.empty(), shown));
   };
-  if (!d.q.empty()) add_group(d.q, d.q_names, d.q_units, d.q_axis, d.q_title);
-  if (!d.v.empty()) add_group(d.v, d.v_names, d.v_units, d.v_axis, d.v_title);
+  // Some of many coordinates (pick_coordinates): the titles say so.
+  const std::size_t n = std::max(d.q.size(), d.v.size());
+  const std::string subset = o.coordinates.empty() && coords.size() < n
+                                 ? " (" + std::to_string(coords.size()) + " of " + std::to_string(n) + " coordinates, evenly spaced)"
+                                 : "";
+  if (!d.q.empty()) add_group(d.q, d.q_names, d.q_units, d.q_axis, d.q_title + subset);
+  if (!d.v.empty()) add_group(d.v, d.v_names, d.v_units, d.v_axis, d.v_title + subset);
   // Outputs: every one of them (the coordinate choice indexes q and v).
   if (!d.y.empty()) {
     std::vector<std::size_t> all(d.y.size());

@@ -484,3 +484,32 @@ TEST(RenderFigures, EveryKindRendersToPngAndSvg) {
     EXPECT_THAT(render_svg(f), HasSubstr("<polyline"));
   }
 }
+
+// A system of many coordinates (a stack of balls): without a choice, 16 evenly spaced from the first to
+// the last are drawn and the titles say so; a choice is drawn whole.
+TEST(RenderFigures, ManyCoordinatesDrawSixteenEvenlySpacedAndSaySo) {
+  TimeSeriesData d = small_trajectory();
+  const std::vector<double> q0 = d.q[0], v0 = d.v[0];
+  d.q.assign(40, q0);
+  d.v.assign(40, v0);
+  d.q_names.clear();
+  d.v_names.clear();
+  d.q_units.clear();
+  d.v_units.clear();
+  for (int i = 0; i < 40; ++i) {
+    d.q_names.push_back("y" + std::to_string(i + 1));
+    d.v_names.push_back("y" + std::to_string(i + 1) + "_dot");
+  }
+  const Figure f = state_figure(d);
+  ASSERT_EQ(f.panels.size(), 2u);
+  ASSERT_EQ(f.panels[0].series.size(), 16u);
+  EXPECT_EQ(f.panels[0].series.front().label, "y1");
+  EXPECT_EQ(f.panels[0].series.back().label, "y40");
+  EXPECT_THAT(f.panels[0].title, HasSubstr("(16 of 40 coordinates, evenly spaced)"));
+  FigureOptions o;
+  o.coordinates = {3, 4};
+  const Figure chosen = state_figure(d, o);
+  ASSERT_EQ(chosen.panels[0].series.size(), 2u);
+  EXPECT_THAT(chosen.panels[0].title, ::testing::Not(HasSubstr("of 40")));
+  validate(f);
+}

@@ -182,6 +182,15 @@ TEST(LargeContactScene, RefusesWhatThePathCannotTakeNamingTheField) {
   doc = stack_scene(100, 0.0, 0.01);
   doc["initial"]["q"][50] = 0.0;
   ExpectError(doc, "/initial/q", "violates constraint 'c51'");
+  // Contacts that couple densely: 100 constraints each on all of 100 coordinates (a dense Delassus
+  // operator, cubic per factorisation) are refused, naming the coupling.
+  doc = stack_scene(100, 0.0, 0.01);
+  for (int k = 0; k < 100; ++k) {
+    std::string gap = "y1 + 100";
+    for (int j = 2; j <= 100; ++j) gap += " + y" + std::to_string(j);
+    doc["system"]["constraints"][k]["gap"] = gap;
+  }
+  ExpectError(doc, "/system/constraints", "couple too densely");
   // The limit itself.
   doc = stack_scene(3, 0.0, 0.01);
   json names = json::array();

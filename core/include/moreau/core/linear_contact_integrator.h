@@ -57,6 +57,9 @@ namespace moreau {
 // balls: about 4 MB and under a millisecond a step).
 inline constexpr int kMaxLinearContactDof = 10000;
 inline constexpr int kMaxLinearContacts = 10000;
+// The coupling the path takes: the Delassus operator's nonzeros at most this many per contact (plus 4096,
+// a dense 64 x 64); a ball in a packing couples each of its contacts with about 2 x 12 others.
+inline constexpr long long kMaxDelassusNonzerosPerContact = 32;
 
 struct LinearContactSystem {
   Eigen::VectorXd mass;                                    // the diagonal of M: n entries, each > 0
@@ -69,7 +72,8 @@ struct LinearContactSystem {
   int dof() const { return static_cast<int>(mass.size()); }
   int num_constraints() const { return static_cast<int>(gradients.rows()); }
   // "" when the system is valid for the integrator, else what is wrong (sizes, a mass <= 0, a gradient
-  // row that is zero, a restitution outside [0, 1], a value that is not finite, a size above the limits).
+  // row that is zero, a restitution outside [0, 1], a value that is not finite, a size above the limits,
+  // contacts that couple too densely).
   std::string validate() const;
 };
 
