@@ -1,10 +1,10 @@
 // Contact systems at scale (docs/scaling.md): the stack of N balls at rest and dropped, and the gapped
 // Newton's cradle, from N = 2 to 8192, each a scene compiled as `moreau run` compiles it (the scenes of
-// scripts/make-contact-scene.py) and run by run_scene. `dense` variants run the same scene on the dense
-// Moreau-Jean step (N <= 64): the two sides of the crossover kLinearContactFromDof.
+// scripts/make-contact-scene.py, tests/support/contact_scenes.h) and run by run_scene. `dense` variants
+// run the same scene on the dense Moreau-Jean step (N <= 64): the two sides of the crossover
+// kLinearContactFromDof.
 //
-//   build/bench/scaling_bench --benchmark_filter='Stack|Cradle' --benchmark_repetitions=5 \
-//       --benchmark_report_aggregates_only=true
+//   build/bench/scaling_bench --benchmark_filter='Stack|Cradle' --benchmark_min_time=0.2
 //
 // Counters: ns_per_step (the run's wall time over its steps), and for the dropped stack the median and
 // worst single step (timed from one sample to the next, every step sampled) and their ratio.
@@ -18,6 +18,7 @@
 
 #include "moreau/scene/scene.h"
 #include "per_step.h"
+#include "support/contact_scenes.h"
 
 namespace {
 
@@ -25,50 +26,10 @@ using moreau::RunObserver;
 using moreau::RunStatus;
 using moreau::RunSummary;
 using moreau::Sample;
-using nlohmann::json;
 namespace scene = moreau::scene;
 
-constexpr double kRadius = 0.0625;
-
-// The stack of scripts/make-contact-scene.py: N balls of mass 1 on a floor, each gap opened by `drop`.
-json stack_scene(int n, double drop, double t_end) {
-  json coords = json::array(), mass = json::array(), grad = json::array(), cons = json::array(), q0 = json::array();
-  for (int i = 0; i < n; ++i) {
-    coords.push_back("y" + std::to_string(i + 1));
-    mass.push_back("m");
-    grad.push_back("m*g");
-    q0.push_back(kRadius + i * (2 * kRadius + drop) + drop);
-    cons.push_back({{"gap", i == 0 ? std::string("y1 - r") : "y" + std::to_string(i + 1) + " - y" + std::to_string(i) + " - 2*r"},
-                    {"restitution", "e"}});
-  }
-  return {{"name", "stack"},
-          {"parameters", {{"m", 1}, {"g", 9.81}, {"r", kRadius}, {"e", 0.5}}},
-          {"system",
-           {{"type", "lagrangian"},
-            {"coordinates", coords},
-            {"mass", {{"diagonal", mass}}},
-            {"potential_gradient", grad},
-            {"constraints", cons}}},
-          {"initial", {{"q", q0}, {"v", std::vector<int>(static_cast<std::size_t>(n), 0)}}},
-          {"integrator", {{"scheme", "moreau-jean"}, {"h", 1e-3}, {"t_end", t_end}}}};
-}
-
-// The gapped cradle: N balls of mass 1 on a line, `gap` apart, the first at v0 = 1, e = 1.
-json cradle_scene(int n, double gap, double t_end) {
-  json coords = json::array(), mass = json::array(), cons = json::array(), q0 = json::array(), v0 = json::array();
-  for (int i = 0; i < n; ++i) {
-    coords.push_back("x" + std::to_string(i + 1));
-    mass.push_back("m");
-    q0.push_back(i * (2 * kRadius + gap));
-    v0.push_back(i == 0 ? 1 : 0);
-    if (i + 1 < n) cons.push_back({{"gap", "x" + std::to_string(i + 2) + " - x" + std::to_string(i + 1) + " - 2*r"}, {"restitution", 1}});
-  }
-  return {{"name", "cradle"},
-          {"parameters", {{"m", 1}, {"r", kRadius}}},
-          {"system", {{"type", "lagrangian"}, {"coordinates", coords}, {"mass", {{"diagonal", mass}}}, {"constraints", cons}}},
-          {"initial", {{"q", q0}, {"v", v0}}},
-          {"integrator", {{"scheme", "moreau-jean"}, {"h", 1e-3}, {"t_end", t_end}}}};
-}
+using moreau::test_support::cradle_scene;
+using moreau::test_support::stack_scene;
 
 // The scene on the dense step: the same compile without the large-contact system.
 scene::LagrangianScene dense(scene::LagrangianScene sc) {

@@ -350,10 +350,6 @@ void LinearContactIntegrator::record_impacts(ContactDiagnostics& d, std::int64_t
   const int closed = static_cast<int>(carrying.size()) - impacts_now;
   for (int i : active_rows_) {
     if (!impacting_[static_cast<std::size_t>(i)]) continue;
-    ++d.impact_count;
-    const bool recorded = static_cast<int>(d.impacts.size()) < settings_.max_recorded_impacts;
-    if (!recorded) d.impacts_truncated = true;
-    if (!recorded && !observer_) continue;
     ImpactEvent ev;
     ev.step = step;
     ev.t = t;
@@ -368,9 +364,7 @@ void LinearContactIntegrator::record_impacts(ContactDiagnostics& d, std::int64_t
     ev.eq9_change = evaluated ? eq9 : 0.0;
     ev.simultaneous = impacts_now;
     ev.closed_carrying = closed;
-    if (evaluated && recorded) d.max_eq9_mismatch = std::max(d.max_eq9_mismatch, std::abs(measured - eq9));
-    if (observer_) observer_->on_impact(ev);
-    if (recorded) d.impacts.push_back(ev);
+    count_impact(d, ev, settings_.max_recorded_impacts, observer_);
   }
   for (int i : carrying) ref_F_[static_cast<std::size_t>(i)] = 0;
 }

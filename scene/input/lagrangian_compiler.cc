@@ -891,6 +891,27 @@ class LagrangianCompiler : SceneReader {
     return w;
   }
 
+  // grad V and F apart (the same nodes that g = grad V + F adds), wired to write grad V to sinks[0] and F
+  // to sinks[1] (CompiledLagrangian::split_force_tape).
+  void compile_split_force_tape(CompiledLagrangian& c) const {
+    std::vector<Node> split = gradient_;
+    split.insert(split.end(), force_.begin(), force_.end());
+    c.split_force_tape = expr::Tape::compile(graph_, split, 1 + 2 * n_, num_params());
+    expr::Tape::Wiring w = terms_wiring({});
+    for (int i = 0; i < n_; ++i) w.outputs.push_back({{0, i}});  // grad V
+    for (int i = 0; i < n_; ++i) w.outputs.push_back({{1, i}});  // F
+    c.split_force_tape.wire(w);
+  }
+
+  // V(q) alone, wired to read q from sources[0] and write V to sinks[0][0].
+  void compile_potential_tape(CompiledLagrangian& c) const {
+    c.has_potential = true;
+    c.potential_tape = expr::Tape::compile(graph_, {potential_}, 1 + 2 * n_, num_params());
+    expr::Tape::Wiring w = position_wiring();
+    w.outputs.push_back({{0, 0}});
+    c.potential_tape.wire(w);
+  }
+
   // The error for a field that the large-contact path cannot take (a system beyond the dense limits).
   SceneError large_requirement(const std::string& ptr, const std::string& what) const {
     return SceneError(ptr, what + ": a system of more than " + std::to_string(kMaxDof) + " coordinates or " +
@@ -983,22 +1004,8 @@ class LagrangianCompiler : SceneReader {
     c->constant_mass = true;
     c->bandwidth = 0;
     c->num_constraints = static_cast<int>(gaps_.size());
-    std::vector<Node> split = gradient_;
-    split.insert(split.end(), force_.begin(), force_.end());
-    c->split_force_tape = expr::Tape::compile(graph_, split, 1 + 2 * n_, num_params());
-    {
-      expr::Tape::Wiring w = terms_wiring({});
-      for (int i = 0; i < n_; ++i) w.outputs.push_back({{0, i}});  // grad V
-      for (int i = 0; i < n_; ++i) w.outputs.push_back({{1, i}});  // F
-      c->split_force_tape.wire(w);
-    }
-    if (potential_ >= 0) {
-      c->has_potential = true;
-      c->potential_tape = expr::Tape::compile(graph_, {potential_}, 1 + 2 * n_, num_params());
-      expr::Tape::Wiring w = position_wiring();
-      w.outputs.push_back({{0, 0}});
-      c->potential_tape.wire(w);
-    }
+    compile_split_force_tape(*c);
+    if (potential_ >= 0) compile_potential_tape(*c);
     if (!gaps_.empty()) {  // the gaps alone (no gradients: the system holds H)
       c->constraint_tape = expr::Tape::compile(graph_, gaps_, 1 + 2 * n_, num_params());
       expr::Tape::Wiring w = position_wiring();
@@ -1060,16 +1067,7 @@ class LagrangianCompiler : SceneReader {
     c->bound_terms_tape = expr::Tape::compile(graph_, bound_outputs, 1 + 2 * n_, num_params());
     for (int t = 0; t < 2 * nn; ++t)
       if (c->constant_terms[t] != 0.0) widen(t);
-    // grad V and F apart, the same nodes that g = grad V + F adds.
-    std::vector<Node> split = gradient_;
-    split.insert(split.end(), force_.begin(), force_.end());
-    c->split_force_tape = expr::Tape::compile(graph_, split, 1 + 2 * n_, num_params());
-    {
-      expr::Tape::Wiring w = terms_wiring({});
-      for (int i = 0; i < n_; ++i) w.outputs.push_back({{0, i}});  // grad V
-      for (int i = 0; i < n_; ++i) w.outputs.push_back({{1, i}});  // F
-      c->split_force_tape.wire(w);
-    }
+    compile_split_force_tape(*c);
     if (robot_) {
       c->robot = std::make_shared<const RigidBodyModel>(robot_->model);
       c->constant_mass = false;
@@ -1083,11 +1081,7 @@ class LagrangianCompiler : SceneReader {
     c->step_tape.wire(terms_wiring(step_targets));
     c->mass_tape.wire(terms_wiring(mass_targets));
     if (potential_ >= 0) {
-      c->has_potential = true;
-      c->potential_tape = expr::Tape::compile(graph_, {potential_}, 1 + 2 * n_, num_params());
-      expr::Tape::Wiring w = position_wiring();
-      w.outputs.push_back({{0, 0}});
-      c->potential_tape.wire(w);
+      compile_potential_tape(*c);
       std::vector<Node> with_potential = step_outputs;
       with_potential.push_back(potential_);
       c->step_potential_tape = expr::Tape::compile(graph_, with_potential, 1 + 2 * n_, num_params());

@@ -10,52 +10,15 @@
 
 #include "moreau/scene/report.h"
 #include "moreau/scene/scene.h"
+#include "support/contact_scenes.h"
 
 namespace moreau::scene {
 namespace {
 
 using nlohmann::json;
-constexpr double kRadius = 0.0625;  // a power of two: exact positions, touching gaps 0.0
+using test_support::cradle_scene;
 
-// The stack of scripts/make-contact-scene.py.
-json stack_scene(int n, double drop, double t_end, double e = 0.5) {
-  json coords = json::array(), mass = json::array(), grad = json::array(), cons = json::array(), q0 = json::array();
-  for (int i = 0; i < n; ++i) {
-    coords.push_back("y" + std::to_string(i + 1));
-    mass.push_back(i % 3 == 1 ? "2*m" : "m");
-    grad.push_back(i % 3 == 1 ? "2*m*g" : "m*g");
-    q0.push_back(kRadius + i * (2 * kRadius + drop) + drop);
-    cons.push_back({{"name", "c" + std::to_string(i + 1)},
-                    {"gap", i == 0 ? std::string("y1 - r") : "y" + std::to_string(i + 1) + " - y" + std::to_string(i) + " - 2*r"},
-                    {"restitution", "e"}});
-  }
-  return {{"name", "stack"},
-          {"parameters", {{"m", 1}, {"g", 9.81}, {"r", kRadius}, {"e", e}}},
-          {"system",
-           {{"type", "lagrangian"},
-            {"coordinates", coords},
-            {"mass", {{"diagonal", mass}}},
-            {"potential_gradient", grad},
-            {"constraints", cons}}},
-          {"initial", {{"q", q0}, {"v", std::vector<int>(static_cast<std::size_t>(n), 0)}}},
-          {"integrator", {{"scheme", "moreau-jean"}, {"h", 1e-3}, {"t_end", t_end}}}};
-}
-
-json cradle_scene(int n, double gap, double t_end, double e) {
-  json coords = json::array(), mass = json::array(), cons = json::array(), q0 = json::array(), v0 = json::array();
-  for (int i = 0; i < n; ++i) {
-    coords.push_back("x" + std::to_string(i + 1));
-    mass.push_back("m");
-    q0.push_back(i * (2 * kRadius + gap));
-    v0.push_back(i == 0 ? 1 : 0);
-    if (i + 1 < n) cons.push_back({{"gap", "x" + std::to_string(i + 2) + " - x" + std::to_string(i + 1) + " - 2*r"}, {"restitution", e}});
-  }
-  return {{"name", "cradle"},
-          {"parameters", {{"m", 1}, {"r", kRadius}}},
-          {"system", {{"type", "lagrangian"}, {"coordinates", coords}, {"mass", {{"diagonal", mass}}}, {"constraints", cons}}},
-          {"initial", {{"q", q0}, {"v", v0}}},
-          {"integrator", {{"scheme", "moreau-jean"}, {"h", 1e-3}, {"t_end", t_end}}}};
-}
+json stack_scene(int n, double drop, double t_end) { return test_support::stack_scene(n, drop, t_end, 0.5, true); }
 
 LagrangianScene on_dense_step(LagrangianScene sc) {
   auto c = std::make_shared<CompiledLagrangian>(*sc.compiled);
@@ -187,14 +150,14 @@ TEST(LargeContactScene, RefusesWhatThePathCannotTakeNamingTheField) {
   doc = stack_scene(100, 0.0, 0.01);
   for (int k = 0; k < 100; ++k) {
     std::string gap = "y1 + 100";
-    for (int j = 2; j <= 100; ++j) gap += " + y" + std::to_string(j);
+    for (int j = 2; j <= 100; ++j) gap += " + " + test_support::indexed("y", j);
     doc["system"]["constraints"][k]["gap"] = gap;
   }
   ExpectError(doc, "/system/constraints", "couple too densely");
   // The limit itself.
   doc = stack_scene(3, 0.0, 0.01);
   json names = json::array();
-  for (int i = 0; i < 10001; ++i) names.push_back("z" + std::to_string(i));
+  for (int i = 0; i < 10001; ++i) names.push_back(test_support::indexed("z", i));
   doc["system"]["coordinates"] = names;
   ExpectError(doc, "/system/coordinates", "more than 10000 degrees of freedom (got 10001)");
 }

@@ -602,18 +602,13 @@ class MoreauJeanIntegrator {
     const double measured = 0.5 * vn_.dot(rhs_) - kinetic_;  // kinetic_ = 1/2 <M V^k, V^k>
     for (int i = 0; i < nc_; ++i) {
       if (!impacting_[i]) continue;
-      const double P = P_(i);
-      ++d.impact_count;
-      const bool recorded = static_cast<int>(d.impacts.size()) < settings_.max_recorded_impacts;
-      if (!recorded) d.impacts_truncated = true;
-      if (!recorded && !observer_) continue;
       ImpactEvent ev;
       ev.step = step;
       ev.t = t;
       ev.constraint = i;
       ev.pre = U_(i);
       ev.post = Un_(i);
-      ev.impulse = P;
+      ev.impulse = P_(i);
       ev.restitution = restitution_[static_cast<std::size_t>(i)];
       ev.kinetic_change = measured;
       ev.reference_evaluated = evaluated;
@@ -621,9 +616,7 @@ class MoreauJeanIntegrator {
       ev.eq9_change = evaluated ? eq9 : 0.0;
       ev.simultaneous = simultaneous;
       ev.closed_carrying = carrying - simultaneous;
-      if (evaluated && recorded) d.max_eq9_mismatch = std::max(d.max_eq9_mismatch, std::abs(measured - eq9));
-      if (observer_) observer_->on_impact(ev);
-      if (recorded) d.impacts.push_back(ev);
+      count_impact(d, ev, settings_.max_recorded_impacts, observer_);
     }
   }
 

@@ -114,4 +114,17 @@ struct ContactDiagnostics {
   bool potential_known = false;  // false when the scene gives no potential U (W is then kinetic only)
 };
 
+// Counts one impact of a run into `d`: recorded while fewer than `max_recorded` are (impacts_truncated
+// after), its eq. (9) difference in max_eq9_mismatch when recorded with a reference, and told to
+// `observer` (which may be null). The one bookkeeping of every Moreau-Jean integrator.
+template <class Observer>
+void count_impact(ContactDiagnostics& d, const ImpactEvent& ev, int max_recorded, Observer* observer) {
+  ++d.impact_count;
+  const bool recorded = static_cast<int>(d.impacts.size()) < max_recorded;
+  if (!recorded) d.impacts_truncated = true;
+  if (ev.reference_evaluated && recorded) d.max_eq9_mismatch = std::max(d.max_eq9_mismatch, std::abs(ev.kinetic_change - ev.eq9_change));
+  if (observer) observer->on_impact(ev);
+  if (recorded) d.impacts.push_back(ev);
+}
+
 }  // namespace moreau

@@ -1,0 +1,64 @@
+// The contact scenes at scale of the benchmarks and tests (docs/scaling.md), as
+// scripts/make-contact-scene.py writes them: a stack of N balls on a floor and a Newton's cradle, masses
+// given as {"diagonal": [...]}, linear gaps. The radius is a power of two, so positions and gaps are exact
+// binary numbers and touching contacts have gap 0.0.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+namespace moreau::test_support {
+
+inline constexpr double kBallRadius = 0.0625;
+
+// "y12": a name and a number (appended, not "y" + std::to_string: GCC 12 warns wrongly of an overlap there).
+inline std::string indexed(const char* name, int i) { return std::string(name).append(std::to_string(i)); }
+
+// N balls on a floor under gravity, each gap opened by `drop` (0: resting, every contact closed). With
+// `varied_masses`, every third ball (the second, the fifth, ...) has mass 2 m.
+inline nlohmann::json stack_scene(int n, double drop, double t_end, double e = 0.5, bool varied_masses = false) {
+  using nlohmann::json;
+  json coords = json::array(), mass = json::array(), grad = json::array(), cons = json::array(), q0 = json::array();
+  for (int i = 0; i < n; ++i) {
+    const bool heavy = varied_masses && i % 3 == 1;
+    coords.push_back(indexed("y", i + 1));
+    mass.push_back(heavy ? "2*m" : "m");
+    grad.push_back(heavy ? "2*m*g" : "m*g");
+    q0.push_back(kBallRadius + i * (2 * kBallRadius + drop) + drop);
+    cons.push_back({{"name", indexed("c", i + 1)},
+                    {"gap", i == 0 ? std::string("y1 - r") : indexed("y", i + 1) + " - " + indexed("y", i) + " - 2*r"},
+                    {"restitution", "e"}});
+  }
+  return {{"name", "stack"},
+          {"parameters", {{"m", 1}, {"g", 9.81}, {"r", kBallRadius}, {"e", e}}},
+          {"system",
+           {{"type", "lagrangian"},
+            {"coordinates", coords},
+            {"mass", {{"diagonal", mass}}},
+            {"potential_gradient", grad},
+            {"constraints", cons}}},
+          {"initial", {{"q", q0}, {"v", std::vector<int>(static_cast<std::size_t>(n), 0)}}},
+          {"integrator", {{"scheme", "moreau-jean"}, {"h", 1e-3}, {"t_end", t_end}}}};
+}
+
+// N balls of mass 1 on a line, `gap` apart (0: touching), the first at v0 = 1, restitution e.
+inline nlohmann::json cradle_scene(int n, double gap, double t_end, double e = 1.0) {
+  using nlohmann::json;
+  json coords = json::array(), mass = json::array(), cons = json::array(), q0 = json::array(), v0 = json::array();
+  for (int i = 0; i < n; ++i) {
+    coords.push_back(indexed("x", i + 1));
+    mass.push_back("m");
+    q0.push_back(i * (2 * kBallRadius + gap));
+    v0.push_back(i == 0 ? 1 : 0);
+    if (i + 1 < n) cons.push_back({{"gap", indexed("x", i + 2) + " - " + indexed("x", i + 1) + " - 2*r"}, {"restitution", e}});
+  }
+  return {{"name", "cradle"},
+          {"parameters", {{"m", 1}, {"r", kBallRadius}}},
+          {"system", {{"type", "lagrangian"}, {"coordinates", coords}, {"mass", {{"diagonal", mass}}}, {"constraints", cons}}},
+          {"initial", {{"q", q0}, {"v", v0}}},
+          {"integrator", {{"scheme", "moreau-jean"}, {"h", 1e-3}, {"t_end", t_end}}}};
+}
+
+}  // namespace moreau::test_support
