@@ -122,9 +122,16 @@ bool SparseLcpSolver::solve(const std::vector<int>& rows, const Eigen::VectorXd&
       role = role == 2 ? 1 : 2;
       continue;
     }
+    // Rows leaving F: those whose z is at least half as negative as the most negative one (all of them
+    // when option removal_fraction is 0). A wrong row in F pulls z negative along a whole chain of
+    // contacts; removing only the chain's few strongly negative rows keeps the rest of a good guess.
+    double most_negative = 0.0;
+    for (int r : rows)
+      if (role_[static_cast<std::size_t>(r)] == 2) most_negative = std::min(most_negative, z(r));
+    const double leave_below = std::min(-tol_z, options.removal_fraction * most_negative);
     for (int r : rows) {
       char& role = role_[static_cast<std::size_t>(r)];
-      const bool bad = role == 2 ? z(r) < -tol_z : w(r) < -tol_w;
+      const bool bad = role == 2 ? z(r) < leave_below : w(r) < -tol_w;
       if (bad) role = role == 2 ? 1 : 2;
     }
   }

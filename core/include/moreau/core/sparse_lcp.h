@@ -10,8 +10,10 @@
 // Method: block principal pivoting (Judice and Pires, "A block principal pivoting algorithm for
 // large-scale strictly monotone linear complementarity problems", Computers & Operations Research 21,
 // 1994). A complementary set F (z free, w_F = 0) gives z_F = -D_FF^{-1} q_F and w_G = q_G + D_GF z_F on
-// the rest (z_G = 0). The rows where z_F < 0 or w_G < 0 are infeasible; while their number falls, all of
-// them change sides at once; when it has not fallen for Options::block_retries passes, one pivot of Murty's
+// the rest (z_G = 0). The rows where z_F < 0 or w_G < 0 are infeasible; while their number falls, they
+// change sides at once (the rows of G all of them; the rows of F those with z at least
+// Options::removal_fraction as negative as the most negative, since one wrong row in F pulls a whole chain
+// of contacts negative); when it has not fallen for Options::block_retries passes, one pivot of Murty's
 // least-index rule is taken instead (the infeasible row of largest index changes sides; Murty, "Note on a
 // Bard-type scheme for solving the complementarity problem", Opsearch 11, 1974), which visits no set
 // twice and ends for every P-matrix, so the method terminates in finitely many passes with the exact
@@ -52,6 +54,7 @@ class SparseLcpSolver {
   struct Options {
     int block_retries = 3;          // passes without fewer infeasible rows before Murty's rule (Judice-Pires use 3)
     bool least_index_only = false;  // Murty's rule from the first pass (slower; the reference of the block phase)
+    double removal_fraction = 0.5;  // block passes move out of F the rows with z below this times the most negative z
   };
   Options options;
 
