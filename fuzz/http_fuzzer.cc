@@ -137,6 +137,7 @@ bool healthy(int port) {
 }
 
 void at_exit() {
+  if (g_instance == nullptr) return;  // stopped by MoreauFuzzerTeardown
   stop_instance(g_instance);
   g_instance = nullptr;
 }
@@ -151,6 +152,10 @@ extern "C" int LLVMFuzzerInitialize(int*, char***) {
   std::atexit(at_exit);
   return 0;
 }
+
+// The corpus replay (replay_main.cc) stops the server before main returns; under libFuzzer, which has
+// no such hook, the atexit handler does.
+extern "C" void MoreauFuzzerTeardown() { at_exit(); }
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   if (size == 0) return 0;
