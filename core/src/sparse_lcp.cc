@@ -15,6 +15,10 @@ void SparseLcpSolver::set_matrix(const SparseMatrix& D) {
   for (int j = 0; j < D_.outerSize(); ++j)
     for (SparseMatrix::InnerIterator it(D_, j); it; ++it) row_sums(it.row()) += std::abs(it.value());
   d_norm_inf_ = m > 0 ? row_sums.maxCoeff() : 0.0;
+  int bandwidth = 0;
+  for (int j = 0; j < D_.outerSize(); ++j)
+    for (SparseMatrix::InnerIterator it(D_, j); it; ++it) bandwidth = std::max(bandwidth, std::abs(static_cast<int>(it.row()) - j));
+  banded_ = bandwidth <= kNaturalOrderingBandwidth;
   local_.assign(static_cast<std::size_t>(m), -1);
   role_.assign(static_cast<std::size_t>(m), 0);
   factor_valid_ = false;
@@ -34,16 +38,43 @@ bool SparseLcpSolver::factorise(SparseLcpStats& stats) {
     }
   dff_.resize(nf, nf);
   dff_.setFromTriplets(triplets_.begin(), triplets_.end());
-  ldlt_.compute(dff_);
   ++stats.factorisations;
   factor_valid_ = false;
-  if (ldlt_.info() != Eigen::Success) return false;
+  // The smallest pivot of D_FF = L D L^T, or -1 when the factorisation failed.
+  const auto smallest_pivot = [&](auto& ldlt) {
+    ldlt.compute(dff_);
+    return ldlt.info() == Eigen::Success ? ldlt.vectorD().minCoeff() : -1.0;
+  };
+  const double pivot = banded_ ? smallest_pivot(banded_ldlt_) : smallest_pivot(ldlt_);
   // Positive definite within round-off: every pivot of D above 64 eps times the largest diagonal entry.
   const double largest = dff_.diagonal().cwiseAbs().maxCoeff();
-  if (!(ldlt_.vectorD().minCoeff() > 64.0 * std::numeric_limits<double>::epsilon() * largest)) return false;
+  if (!(pivot > 64.0 * std::numeric_limits<double>::epsilon() * largest)) return false;
   factored_F_ = F_;
   factor_valid_ = true;
   return true;
+}
+
+// Projected Gauss-Seidel sweeps over the problem's rows, forward then backward, from z with its negative
+// entries set to 0: z_r <- max(0, z_r - w_r / D_rr). One sweep carries an impulse along a whole chain
+// of contacts, where a block pass closes one more contact of an impact wave per pass (each pass a
+// factorisation); the rows it leaves with z > 0 become the complementary set the passes start from. A
+// guess only: the answer is still a pass's exact solution.
+void SparseLcpSolver::guess_by_gauss_seidel(const std::vector<int>& rows, const Eigen::VectorXd& q, Eigen::VectorXd& z, int sweeps) {
+  for (int r : rows) z(r) = std::max(0.0, z(r));
+  const auto relax = [&](int r) {
+    double w = q(r), diagonal = 0.0;
+    for (SparseMatrix::InnerIterator it(D_, r); it; ++it) {  // column r of the symmetric D: its row r
+      if (role_[static_cast<std::size_t>(it.row())] == 0) continue;
+      if (it.row() == r) diagonal = it.value();
+      w += it.value() * z(it.row());
+    }
+    if (diagonal > 0.0) z(r) = std::max(0.0, z(r) - w / diagonal);
+  };
+  for (int sweep = 0; sweep < sweeps; ++sweep) {
+    for (int r : rows) relax(r);
+    for (auto it = rows.rbegin(); it != rows.rend(); ++it) relax(*it);
+  }
+  for (int r : rows) role_[static_cast<std::size_t>(r)] = z(r) > 0.0 ? 2 : 1;
 }
 
 bool SparseLcpSolver::solve(const std::vector<int>& rows, const Eigen::VectorXd& q, Eigen::VectorXd& z, Eigen::VectorXd& w,
@@ -55,6 +86,7 @@ bool SparseLcpSolver::solve(const std::vector<int>& rows, const Eigen::VectorXd&
   for (int r : rows) role_[static_cast<std::size_t>(r)] = in_F[static_cast<std::size_t>(r)] ? 2 : 1;
 
   int best = m + 1, retries = std::max(0, options.block_retries);
+  int sweeps = options.guess_sweeps, guesses = 0, guessed_at = 0;
   bool accepted = false;
   const double eps64 = 64.0 * std::numeric_limits<double>::epsilon();
   while (stats.passes < pass_budget(m)) {
@@ -75,7 +107,10 @@ bool SparseLcpSolver::solve(const std::vector<int>& rows, const Eigen::VectorXd&
       const int nf = static_cast<int>(F_.size());
       rhs_.resize(nf);
       for (int a = 0; a < nf; ++a) rhs_(a) = -q(F_[static_cast<std::size_t>(a)]);
-      zf_ = ldlt_.solve(rhs_);
+      if (banded_)
+        zf_ = banded_ldlt_.solve(rhs_);
+      else
+        zf_ = ldlt_.solve(rhs_);
       for (int a = 0; a < nf; ++a) {
         const int r = F_[static_cast<std::size_t>(a)];
         z(r) = zf_(a);
@@ -109,6 +144,17 @@ bool SparseLcpSolver::solve(const std::vector<int>& rows, const Eigen::VectorXd&
       accepted = true;
       stats.tolerance = q_inf > 0.0 ? tol_w / q_inf : 0.0;
       break;
+    }
+    // The warm start failed, or the passes since the last guess did not end: a guess by Gauss-Seidel
+    // sweeps, a bounded number of times (then the rules below alone, whose termination is Murty's).
+    const bool guess_now = stats.passes == 1 || stats.passes - guessed_at >= kPassesBeforeNewGuess;
+    if (!options.least_index_only && options.guess_sweeps > 0 && guess_now && guesses <= options.guess_restarts) {
+      if (guesses++ > 0) sweeps *= 4;
+      guess_by_gauss_seidel(rows, q, z, sweeps);
+      guessed_at = stats.passes;
+      best = m + 1;
+      retries = std::max(0, options.block_retries);
+      continue;
     }
     if (infeasible < best && !options.least_index_only) {
       best = infeasible;

@@ -59,12 +59,14 @@ TEST(SparseLcp, AgreesWithEnumerationOnEveryRandomProblemUpToTenRows) {
       for (int i = 0; i < m; ++i) q(i) = trial % 5 == 0 && coin(rng) ? 0.0 : normal(rng);  // ties: q_i = 0
       const Eigen::VectorXd expected = enumerate_lcp(D, q);
 
-      // The default rules, Murty's rule alone, and the classic block phase (all infeasible rows flip) without retries.
-      for (int mode = 0; mode < 3; ++mode) {
+      // The default rules (Gauss-Seidel guesses, then the block phase), Murty's rule alone, the classic block
+      // phase (all infeasible rows flip) without retries or guesses, and the default block phase without guesses.
+      for (int mode = 0; mode < 4; ++mode) {
         SparseLcpSolver solver;
         solver.options.least_index_only = mode == 1;
         solver.options.block_retries = mode == 2 ? 0 : 3;
         if (mode == 2) solver.options.removal_fraction = 0.0;  // the classic block rule: every infeasible row flips
+        if (mode >= 2) solver.options.guess_sweeps = 0;
         solver.set_matrix(D.sparseView());
         std::vector<int> rows(m);
         for (int i = 0; i < m; ++i) rows[i] = i;
