@@ -96,6 +96,71 @@ void RandomProblems(int n, int count, unsigned seed) {
 }
 
 // dist(-(P y + x), d phi(y)) for phi = sum a_i |y_i| + a_norm ||y||, computed here from its definition.
+// Independent reference for phi = sum a_i |y_i| + a_norm ||y|| (Remark 4.2), a_norm > 0, when y = 0 is
+// not the answer: every sign pattern s (components with a_i = 0 always free), and for each the radius
+// t = ||y|| of its equations y_F = -(P_FF + (a_norm / t) I)^{-1} (x_F + a_F s_F), y_R = 0, found by a scan
+// of t over 16 decades and bisection of each sign change; the first y that keeps its pattern's signs and
+// multipliers is the answer (unique by Theorem 4.1). Another route than the solver's (no pivoting, no
+// Newton), and exponential: the small-n oracle only.
+inline Eigen::VectorXd BruteForceWithNorm(const Eigen::MatrixXd& P, const Eigen::VectorXd& x, const Eigen::VectorXd& a, double a_norm) {
+  const int n = static_cast<int>(x.size());
+  int total = 1;
+  for (int i = 0; i < n; ++i) total *= 3;
+  for (int code = 0; code < total; ++code) {
+    std::vector<int> s(n), free;
+    int c = code;
+    bool skip = false;
+    for (int i = 0; i < n; ++i) {
+      s[i] = c % 3 - 1;
+      c /= 3;
+      if (a(i) == 0.0 && s[i] != 0) skip = true;  // a component without a gain has no sign pattern
+      if (s[i] != 0 || a(i) == 0.0) free.push_back(i);
+    }
+    if (skip || free.empty()) continue;
+    const int m = static_cast<int>(free.size());
+    const auto y_at = [&](double t) {
+      Eigen::MatrixXd A(m, m);
+      Eigen::VectorXd b(m);
+      for (int r = 0; r < m; ++r) {
+        b(r) = -(x(free[r]) + a(free[r]) * s[free[r]]);
+        for (int cc = 0; cc < m; ++cc) A(r, cc) = P(free[r], free[cc]) + (r == cc ? a_norm / t : 0.0);
+      }
+      const Eigen::VectorXd yf = A.fullPivLu().solve(b);
+      Eigen::VectorXd y = Eigen::VectorXd::Zero(n);
+      for (int r = 0; r < m; ++r) y(free[r]) = yf(r);
+      return y;
+    };
+    const auto h = [&](double t) { return y_at(t).norm() - t; };
+    double t_prev = 1e-8, h_prev = h(t_prev);
+    for (int k = 1; k <= 400; ++k) {
+      const double t = 1e-8 * std::pow(10.0, 16.0 * k / 400.0);
+      const double h_t = h(t);
+      if ((h_prev > 0.0) != (h_t > 0.0)) {
+        double lo = t_prev, hi = t;
+        const bool lo_positive = h_prev > 0.0;
+        for (int it = 0; it < 200; ++it) {
+          const double mid = 0.5 * (lo + hi);
+          ((h(mid) > 0.0) == lo_positive ? lo : hi) = mid;
+        }
+        const Eigen::VectorXd y = y_at(0.5 * (lo + hi));
+        Eigen::VectorXd w = -(P * y + x) - (a_norm / y.norm()) * y;
+        bool ok = true;
+        for (int i = 0; i < n && ok; ++i) {
+          if (s[i] != 0)
+            ok = y(i) * s[i] >= 0.0;
+          else if (a(i) > 0.0)
+            ok = std::abs(w(i)) <= a(i) * (1 + 1e-9) + 1e-12;
+        }
+        if (ok) return y;
+      }
+      t_prev = t;
+      h_prev = h_t;
+    }
+  }
+  ADD_FAILURE() << "brute force with the norm term found no pattern";
+  return Eigen::VectorXd::Zero(n);
+}
+
 inline double InclusionResidual(const Eigen::MatrixXd& P, const Eigen::VectorXd& x, const Eigen::VectorXd& a, double a_norm,
                                 const Eigen::VectorXd& y) {
   Eigen::VectorXd w = -(P * y + x);

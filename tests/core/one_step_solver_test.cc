@@ -213,5 +213,64 @@ TEST(OneStepSolver, NormAndAbsTogether) {
   }
 }
 
+// The norm term's fallback (the search over the radius t = ||y||, each trial a separable problem solved
+// by pivoting) on random problems: against the independent enumeration of every pattern with its radius
+// equation for n <= 6, and for n up to 10 and at 40 against the inclusion's residual computed from its
+// definition (the solution being unique, a y that satisfies (6.5) to round-off is it). Some gains are 0
+// (components free of the l1 term), P nonsymmetric (a skew part, as C and W add), nearly singular in
+// some trials.
+TEST(OneStepSolver, NormTermSearchOverTheRadiusAgreesWithEnumeration) {
+  std::mt19937 rng(20261129);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  std::uniform_real_distribution<double> unif(0.0, 2.0);
+  int compared = 0, zeros = 0, checked = 0;
+  for (const int n : {1, 2, 3, 4, 5, 6, 7, 8, 10, 40}) {
+    for (int trial = 0; trial < (n <= 6 ? 60 : 30); ++trial) {
+      Eigen::VectorXd a(n);
+      for (int i = 0; i < n; ++i) a(i) = trial % 4 == 0 && i % 3 == 0 ? 0.0 : unif(rng);
+      const double a_norm = 0.2 + unif(rng);
+      Eigen::MatrixXd G(n, n), K(n, n);
+      for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) {
+          G(i, j) = gauss(rng);
+          K(i, j) = gauss(rng);
+        }
+      const double delta = trial % 5 == 0 ? 1e-3 : 0.5;
+      const Eigen::MatrixXd P = G * G.transpose() + delta * Eigen::MatrixXd::Identity(n, n) + 0.8 * (K - K.transpose());
+      Eigen::VectorXd x(n);
+      for (int i = 0; i < n; ++i) x(i) = 3.0 * gauss(rng);
+      // y = 0 is solve()'s closed form, outside the search: such problems are drawn again.
+      if ((x - x.cwiseMax(-a).cwiseMin(a)).norm() <= a_norm) continue;
+      OneStepSolver<Eigen::Dynamic> solver;
+      solver.configure(a, a_norm);
+      Eigen::VectorXd y(n);
+      OneStepStats st;
+      ASSERT_TRUE(solver.solve_by_radius(P, x, y, st)) << "n = " << n << ", trial " << trial;
+      const double scale = 1.0 + x.cwiseAbs().maxCoeff() + P.cwiseAbs().maxCoeff() * y.cwiseAbs().maxCoeff();
+      EXPECT_LE(InclusionResidual(P, x, a, a_norm, y), 1e-12 * scale) << "n = " << n << ", trial " << trial;
+      ++checked;
+      for (int i = 0; i < n; ++i) zeros += a(i) > 0.0 && y(i) == 0.0;
+      if (n <= 6) {
+        const Eigen::VectorXd expected = BruteForceWithNorm(P, x, a, a_norm);
+        for (int i = 0; i < n; ++i) {
+          EXPECT_NEAR(y(i), expected(i), 1e-8 * (1.0 + expected.cwiseAbs().maxCoeff())) << "n = " << n << ", trial " << trial;
+          if (a(i) > 0.0 && std::abs(expected(i)) < 1e-10) {
+            EXPECT_EQ(y(i), 0.0) << "exact rest, n = " << n << ", trial " << trial;
+          }
+        }
+        ++compared;
+      }
+      // solve() gives the same answer, by whichever route it takes.
+      Eigen::VectorXd y_solve(n);
+      OneStepStats st_solve;
+      ASSERT_TRUE(solver.solve(P, x, y_solve, st_solve));
+      EXPECT_LE((y_solve - y).cwiseAbs().maxCoeff(), 1e-9 * (1.0 + y.cwiseAbs().maxCoeff())) << "n = " << n << ", trial " << trial;
+    }
+  }
+  EXPECT_GT(compared, 250);
+  EXPECT_GT(checked, 350);
+  EXPECT_GT(zeros, 50) << "components at rest (exactly 0.0) went untested";
+}
+
 }  // namespace
 }  // namespace moreau
