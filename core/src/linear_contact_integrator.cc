@@ -13,21 +13,6 @@ constexpr double kEps64 = 64.0 * std::numeric_limits<double>::epsilon();
 
 bool all_finite(const Eigen::VectorXd& x) { return x.allFinite(); }
 
-// D_SS for the rows S of a symmetric sparse D (both triangles stored), S increasing.
-void submatrix(const Eigen::SparseMatrix<double>& D, const std::vector<int>& rows, std::vector<int>& local,
-               Eigen::SparseMatrix<double>& out) {
-  std::vector<Eigen::Triplet<double>> t;
-  for (std::size_t a = 0; a < rows.size(); ++a) local[static_cast<std::size_t>(rows[a])] = static_cast<int>(a);
-  for (std::size_t a = 0; a < rows.size(); ++a)
-    for (Eigen::SparseMatrix<double>::InnerIterator it(D, rows[a]); it; ++it) {
-      const int b = local[static_cast<std::size_t>(it.row())];
-      if (b >= 0) t.emplace_back(b, static_cast<int>(a), it.value());
-    }
-  for (int r : rows) local[static_cast<std::size_t>(r)] = -1;
-  out.resize(static_cast<Eigen::Index>(rows.size()), static_cast<Eigen::Index>(rows.size()));
-  out.setFromTriplets(t.begin(), t.end());
-}
-
 }  // namespace
 
 std::string LinearContactSystem::validate() const {
@@ -104,6 +89,7 @@ LinearContactIntegrator::LinearContactIntegrator(const LinearContactSystem& syst
   was_active_.assign(static_cast<std::size_t>(nc_), 0);
   ref_F_.assign(static_cast<std::size_t>(nc_), 0);
   impacting_.assign(static_cast<std::size_t>(nc_), 0);
+  local_.assign(static_cast<std::size_t>(nc_), -1);
   active_rows_.reserve(static_cast<std::size_t>(nc_));
   rows_.reserve(static_cast<std::size_t>(nc_));
 }
@@ -242,10 +228,8 @@ bool LinearContactIntegrator::step(std::int64_t k, double t, double h, double t_
     if (impacts_now > 0) record_impacts(d, k + 1, t_next, impacts_now);
     if (!rows_.empty() && settings_.position_update == PositionUpdate::kMdi) {
       // V_pos = V^{k+1} - M^{-1} H_R^T (H_R M^{-1} H_R^T)^{-1} U_R^{k+1}: D_RR is the Schur complement.
-      std::vector<int> local(static_cast<std::size_t>(nc_), -1);
-      Eigen::SparseMatrix<double> drr;
-      submatrix(D_, rows_, local, drr);
-      mdi_ldlt_.compute(drr);
+      SparseLcpSolver::principal_submatrix(D_, rows_, local_, triplets_, drr_);
+      mdi_ldlt_.compute(drr_);
       if (mdi_ldlt_.info() != Eigen::Success)
         return f.at(k, t, q_.data(), v_.data(), "the gradients of the rebounding contacts are dependent");
       Eigen::VectorXd u(static_cast<Eigen::Index>(rows_.size()));
@@ -334,20 +318,20 @@ void LinearContactIntegrator::polish(Eigen::VectorXd& v) {
 // 1/2 sum_i P_i (U+_i + U-_i) = 1/2 sum_i P_i (U-_i - e_i min(U-_i, 0)), which is eq. (9)'s
 // 1/2 sum_i (1 - e_i) P_i U-_i on approaching contacts and 0 on closed ones.
 void LinearContactIntegrator::record_impacts(ContactDiagnostics& d, std::int64_t step, double t, int impacts_now) {
-  std::vector<int> carrying;
+  carrying_.clear();
   for (int i : active_rows_)
-    if (P_(i) > 0.0) carrying.push_back(i);
-  for (int i : carrying) {
+    if (P_(i) > 0.0) carrying_.push_back(i);
+  for (int i : carrying_) {
     ref_q_(i) = U_(i) + sys_.restitution[static_cast<std::size_t>(i)] * std::min(U_(i), 0.0);
     ref_F_[static_cast<std::size_t>(i)] = 1;
   }
   SparseLcpStats st;
-  const bool evaluated = impact_lcp_.solve(carrying, ref_q_, ref_z_, ref_w_, ref_F_, st);
+  const bool evaluated = impact_lcp_.solve(carrying_, ref_q_, ref_z_, ref_w_, ref_F_, st);
   double eq9 = 0.0;
   if (evaluated)
-    for (int i : carrying) eq9 += 0.5 * ref_z_(i) * (U_(i) - sys_.restitution[static_cast<std::size_t>(i)] * std::min(U_(i), 0.0));
+    for (int i : carrying_) eq9 += 0.5 * ref_z_(i) * (U_(i) - sys_.restitution[static_cast<std::size_t>(i)] * std::min(U_(i), 0.0));
   const double measured = kinetic(vn_) - kinetic_;
-  const int closed = static_cast<int>(carrying.size()) - impacts_now;
+  const int closed = static_cast<int>(carrying_.size()) - impacts_now;
   for (int i : active_rows_) {
     if (!impacting_[static_cast<std::size_t>(i)]) continue;
     ImpactEvent ev;
@@ -366,7 +350,7 @@ void LinearContactIntegrator::record_impacts(ContactDiagnostics& d, std::int64_t
     ev.closed_carrying = closed;
     count_impact(d, ev, settings_.max_recorded_impacts, observer_);
   }
-  for (int i : carrying) ref_F_[static_cast<std::size_t>(i)] = 0;
+  for (int i : carrying_) ref_F_[static_cast<std::size_t>(i)] = 0;
 }
 
 // Projects Q^{k+1} onto {H q + c >= 0} in the metric of M: the gaps are linear, so one LCP

@@ -25,19 +25,25 @@ void SparseLcpSolver::set_matrix(const SparseMatrix& D) {
   factored_F_.clear();
 }
 
-// D_FF from the columns of F (its rows picked through local_), factorised unless the set is the one
-// factorised last.
+void SparseLcpSolver::principal_submatrix(const SparseMatrix& D, const std::vector<int>& rows, std::vector<int>& local,
+                                          std::vector<Eigen::Triplet<double>>& scratch, SparseMatrix& out) {
+  scratch.clear();
+  for (std::size_t a = 0; a < rows.size(); ++a) local[static_cast<std::size_t>(rows[a])] = static_cast<int>(a);
+  for (std::size_t a = 0; a < rows.size(); ++a)
+    for (SparseMatrix::InnerIterator it(D, rows[a]); it; ++it) {
+      const int b = local[static_cast<std::size_t>(it.row())];
+      if (b >= 0) scratch.emplace_back(b, static_cast<int>(a), it.value());
+    }
+  for (int r : rows) local[static_cast<std::size_t>(r)] = -1;
+  const auto size = static_cast<Eigen::Index>(rows.size());
+  out.resize(size, size);
+  out.setFromTriplets(scratch.begin(), scratch.end());
+}
+
+// D_FF, factorised unless the set is the one factorised last.
 bool SparseLcpSolver::factorise(SparseLcpStats& stats) {
   if (factor_valid_ && F_ == factored_F_) return true;
-  const int nf = static_cast<int>(F_.size());
-  triplets_.clear();
-  for (int a = 0; a < nf; ++a)
-    for (SparseMatrix::InnerIterator it(D_, F_[static_cast<std::size_t>(a)]); it; ++it) {
-      const int b = local_[static_cast<std::size_t>(it.row())];
-      if (b >= 0) triplets_.emplace_back(b, a, it.value());
-    }
-  dff_.resize(nf, nf);
-  dff_.setFromTriplets(triplets_.begin(), triplets_.end());
+  principal_submatrix(D_, F_, local_, triplets_, dff_);
   ++stats.factorisations;
   factor_valid_ = false;
   // The smallest pivot of D_FF = L D L^T, or -1 when the factorisation failed.
@@ -94,13 +100,11 @@ bool SparseLcpSolver::solve(const std::vector<int>& rows, const Eigen::VectorXd&
     F_.clear();
     G_.clear();
     for (int r : rows) (role_[static_cast<std::size_t>(r)] == 2 ? F_ : G_).push_back(r);
-    for (std::size_t a = 0; a < F_.size(); ++a) local_[static_cast<std::size_t>(F_[a])] = static_cast<int>(a);
 
     // z_F = -D_FF^{-1} q_F, z_G = 0; w_F = 0, w_G = q_G + D_GF z_F.
     double z_inf = 0.0;
     if (!F_.empty()) {
       if (!factorise(stats)) {
-        for (int r : F_) local_[static_cast<std::size_t>(r)] = -1;
         stats.singular = true;
         break;
       }
@@ -128,7 +132,6 @@ bool SparseLcpSolver::solve(const std::vector<int>& rows, const Eigen::VectorXd&
       for (SparseMatrix::InnerIterator it(D_, r); it; ++it)
         if (role_[static_cast<std::size_t>(it.row())] == 1) w(it.row()) += it.value() * zr;
     }
-    for (int r : F_) local_[static_cast<std::size_t>(r)] = -1;
 
     const double tol_w = eps64 * (q_inf + d_norm_inf_ * z_inf);
     const double tol_z = eps64 * z_inf;

@@ -145,8 +145,12 @@ class LinearContactIntegrator {
   Eigen::VectorXd polish_rhs_;
   // The MDI update's Schur complement D_RR on the rebounding contacts, and the reference impulses.
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> mdi_ldlt_;
+  Eigen::SparseMatrix<double> drr_;
+  std::vector<int> local_;                        // per contact: -1 (principal_submatrix's scratch)
+  std::vector<Eigen::Triplet<double>> triplets_;  // principal_submatrix's scratch
   Eigen::VectorXd ref_q_, ref_z_, ref_w_;
   std::vector<char> ref_F_;
+  std::vector<int> carrying_;  // the contacts carrying impulse in an impact step (record_impacts)
 };
 
 }  // namespace moreau

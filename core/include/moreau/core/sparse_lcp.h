@@ -82,6 +82,13 @@ class SparseLcpSolver {
   bool solve(const std::vector<int>& rows, const Eigen::VectorXd& q, Eigen::VectorXd& z, Eigen::VectorXd& w, std::vector<char>& in_F,
              SparseLcpStats& stats);
 
+  // D_SS for the rows S (increasing) of a symmetric sparse D, both triangles stored: the principal
+  // submatrix each pass factorises, and the Schur complement the impact step's position update solves
+  // with. `local` (one entry per row of D, all -1) and `scratch` are the caller's, reused between calls;
+  // `local` is all -1 again on return.
+  static void principal_submatrix(const SparseMatrix& D, const std::vector<int>& rows, std::vector<int>& local,
+                                  std::vector<Eigen::Triplet<double>>& scratch, SparseMatrix& out);
+
   // The passes one solve may take before it gives up: 2^m bounds Murty's rule, far beyond any problem
   // met; a budget linear in m (plus a margin) keeps a step's cost bounded.
   static int pass_budget(int m) { return 50 + 10 * m; }
