@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "moreau/core/graph_inclusion_solver.h"
@@ -143,6 +144,24 @@ TEST(GraphInclusionPath, AgreesWithEnumerationOnDegenerateProblems) {
 // Beyond the enumeration's 3^10 patterns: m = 12, 16, 32 relay and mixed rows, the path alone and the
 // default route, each answer checked against (GE)'s definition to round-off, and the default route never
 // reaching enumeration or forward-backward.
+// Solves (D, q, g) with the path alone and with the default route, each answer accepted and satisfying (GE)
+// to 1e-13 of its scale from the definition; `check` then sees each route's statistics.
+template <typename Check>
+void SolveWithEachFallback(const Eigen::MatrixXd& D, const Eigen::VectorXd& q, const std::vector<const MonotoneGraph*>& g,
+                           const std::string& label, Check check) {
+  const int m = static_cast<int>(q.size());
+  for (Solver::Fallback f : {Solver::Fallback::kPathOnly, Solver::Fallback::kPath}) {
+    Solver solver;
+    solver.configure(m);
+    solver.set_fallback(f);
+    Eigen::VectorXd u(m), w(m);
+    GraphSolveStats st;
+    ASSERT_TRUE(solver.solve(D, q, g.data(), u, w, st)) << label << " residual " << st.residual;
+    EXPECT_LE(Residual(D, q, g, u, w), 1e-13 * Scale(D, q, u, w)) << label;
+    check(f, st);
+  }
+}
+
 TEST(GraphInclusionPath, SolvesBeyondTheEnumerationLimit) {
   for (int m : {12, 16, 32}) {
     int fell_back = 0, max_pivots = 0;
@@ -153,18 +172,13 @@ TEST(GraphInclusionPath, SolvesBeyondTheEnumerationLimit) {
       const Eigen::VectorXd q = Eigen::VectorXd::NullaryExpr(m, [&] { return 2.0 * N(rng); });
       std::vector<const MonotoneGraph*> g(m);
       for (int i = 0; i < m; ++i) g[i] = seed % 2 ? &Pool()[0] : &Pool()[rng() % Pool().size()];
-      for (Solver::Fallback f : {Solver::Fallback::kPathOnly, Solver::Fallback::kPath}) {
-        Solver solver;
-        solver.configure(m);
-        solver.set_fallback(f);
-        Eigen::VectorXd u(m), w(m);
-        GraphSolveStats st;
-        ASSERT_TRUE(solver.solve(D, q, g.data(), u, w, st)) << "m " << m << " seed " << seed << " residual " << st.residual;
-        EXPECT_TRUE(st.route == GraphSolveRoute::kPath || st.route == GraphSolveRoute::kActiveSet) << "m " << m << " seed " << seed;
-        EXPECT_LE(Residual(D, q, g, u, w), 1e-13 * Scale(D, q, u, w)) << "m " << m << " seed " << seed;
-        if (f == Solver::Fallback::kPath) fell_back += st.used_fallback;
-        if (f == Solver::Fallback::kPathOnly) max_pivots = std::max(max_pivots, st.iterations);
-      }
+      SolveWithEachFallback(D, q, g, std::string("m ").append(std::to_string(m)).append(" seed ").append(std::to_string(seed)),
+                            [&](Solver::Fallback f, const GraphSolveStats& st) {
+                              EXPECT_TRUE(st.route == GraphSolveRoute::kPath || st.route == GraphSolveRoute::kActiveSet)
+                                  << "m " << m << " seed " << seed;
+                              if (f == Solver::Fallback::kPath) fell_back += st.used_fallback;
+                              if (f == Solver::Fallback::kPathOnly) max_pivots = std::max(max_pivots, st.iterations);
+                            });
     }
     std::printf("m = %d: %d of 200 problems needed the fallback; path alone: at most %d pattern solves\n", m, fell_back, max_pivots);
   }
@@ -190,16 +204,9 @@ TEST(GraphInclusionPath, PositiveSemidefiniteDIsSolvedAndVerified) {
     const Eigen::Vector3d Minv(1.0, 1.0, 3.0);
     const Eigen::MatrixXd D = H * Minv.asDiagonal() * H.transpose();
     const Eigen::VectorXd q = H * Eigen::Vector3d(N(rng), N(rng), N(rng));
-    for (Solver::Fallback f : {Solver::Fallback::kPathOnly, Solver::Fallback::kPath}) {
-      Solver solver;
-      solver.configure(m);
-      solver.set_fallback(f);
-      Eigen::VectorXd u(m), w(m);
-      GraphSolveStats st;
-      ASSERT_TRUE(solver.solve(D, q, g.data(), u, w, st)) << "seed " << seed << " residual " << st.residual;
-      EXPECT_LE(Residual(D, q, g, u, w), 1e-13 * Scale(D, q, u, w)) << "seed " << seed;
+    SolveWithEachFallback(D, q, g, std::string("seed ").append(std::to_string(seed)), [&](Solver::Fallback f, const GraphSolveStats& st) {
       if (f == Solver::Fallback::kPathOnly) ++by_route[static_cast<int>(st.route)];
-    }
+    });
   }
   std::printf("path alone on positive semidefinite D: decoupled %d, path %d, enumeration %d, forward-backward %d\n", by_route[0],
               by_route[2], by_route[3], by_route[4]);
