@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""Side-by-side comparison of Moreau and Siconos 4.4 on four workloads (docs/siconos-comparison.md).
+"""Side-by-side comparison of Moreau and Siconos 4.4 (docs/siconos-comparison.md; the contact rows at scale:
+docs/scaling.md).
 
 For each row it runs both sides in turn:
   - Moreau: the Google Benchmark binaries (build/bench/core_bench, build/bench/second_paper_bench) with
@@ -78,6 +79,23 @@ ROWS = [
     dict(id="damped-relay-mj-moving", scene="damped-relay.json", scheme="moreau-jean", siconos="damped-relay",
          h=1e-4, t_end=3.6, bench=("second_paper_bench", "BM_DampedRelayMoreauJeanJsonScene_moving"),
          compiled=None, score="damped-relay"),
+    # Contact systems at scale (docs/scaling.md): the stack of N balls at rest on a floor, and the gapped
+    # Newton's cradle (1 cm apart, e = 1, the first ball at 1 m/s), scenes written by
+    # scripts/make-contact-scene.py; Moreau runs them on its large-contact path. Scored against their exact
+    # answers (the stack does not move; the cradle ends at (0, ..., 0, 1)); Moreau meets both exactly, so
+    # no equal-accuracy rerun: the ratio is at the same h, with each side's error shown.
+    dict(id="stack-8", contact=("stack", 8), siconos="stack", h=1e-3, t_end=1.0, bench=None, compiled=None,
+         score="stack"),
+    dict(id="stack-64", contact=("stack", 64), siconos="stack", h=1e-3, t_end=1.0, bench=None, compiled=None,
+         score="stack"),
+    dict(id="stack-128", contact=("stack", 128), siconos="stack", h=1e-3, t_end=1.0, bench=None, compiled=None,
+         score="stack"),
+    dict(id="cradle-8", contact=("cradle", 8), siconos="cradle", h=1e-3, t_end=0.12, bench=None, compiled=None,
+         score="cradle"),
+    dict(id="cradle-64", contact=("cradle", 64), siconos="cradle", h=1e-3, t_end=0.68, bench=None, compiled=None,
+         score="cradle"),
+    dict(id="cradle-256", contact=("cradle", 256), siconos="cradle", h=1e-3, t_end=2.6, bench=None, compiled=None,
+         score="cradle"),
 ]
 
 # Samples with |v| <= this are "at rest" when a rest time is read off a trajectory (Moreau's are 0.0
@@ -190,6 +208,18 @@ def score(kind, cols, ref=None):
         return dict(max_err_x=err)
     if kind == "manipulator":
         return dict(max_err_q=trajectory_distance(cols, ref, ("x1", "th2")))
+    if kind == "stack":
+        # At rest from the start: every position stays at its initial value, every velocity 0.
+        ys = [name for name in cols if name.startswith("y") and not name.endswith("_dot")]
+        sink = max(abs(y - cols[n][0]) for n in ys for y in cols[n])
+        speed = max(abs(v) for n in ys for v in cols[n + "_dot"])
+        return dict(max_sink=sink, max_speed=speed)
+    if kind == "cradle":
+        # e = 1, equal masses: the wave hands the velocity on exactly; the end state is (0, ..., 0, 1).
+        xs = [name for name in cols if name.startswith("x") and not name.endswith("_dot")]
+        final = [cols[n + "_dot"][-1] for n in xs]
+        exact = [0.0] * (len(xs) - 1) + [1.0]
+        return dict(final_v_err=max(abs(v - e) for v, e in zip(final, exact)))
     raise ValueError(kind)
 
 
@@ -230,11 +260,24 @@ def moreau_sets(row):
     return sets
 
 
+def scene_path(row):
+    """The row's scene file: from scenes/, or written by scripts/make-contact-scene.py (row["contact"])."""
+    return row.get("path") or os.path.join(ROOT, "scenes", row["scene"])
+
+
+def siconos_extra(row):
+    """siconos_bench's arguments for the row's size (the contact workloads)."""
+    if "contact" not in row:
+        return []
+    kind, n = row["contact"]
+    return ["--n", str(n)] + (["--gap", "0.01"] if kind == "cradle" else [])
+
+
 def moreau_run_timing(cli, row, reps):
     """Median over reps processes of the report's integrate phase per step (plus one warm-up)."""
     vals = []
     for i in range(reps + 1):
-        rep = json.loads(run([cli, "run", os.path.join(ROOT, "scenes", row["scene"]), "--json"] + moreau_sets(row)))
+        rep = json.loads(run([cli, "run", scene_path(row), "--json"] + moreau_sets(row)))
         steps = rep["steps"]
         if i:
             vals.append(rep["phase_seconds"]["integrate"] * 1e9 / steps)
@@ -248,13 +291,13 @@ def moreau_trajectory(cli, row, path, h=None, every=1):
                 "--set", f"output.every={every}"]
         if "scheme" in row:
             sets += ["--set", f"integrator.scheme={row['scheme']}"]
-    run([cli, "run", os.path.join(ROOT, "scenes", row["scene"]), "--out", path, "--json"] + sets)
+    run([cli, "run", scene_path(row), "--out", path, "--json"] + sets)
     return read_csv(path)
 
 
 def siconos_run(binary, row, reps, csv_path=None, h=None, every=1, extra=()):
     cmd = [binary, row["siconos"], "--h", repr(h if h is not None else row["h"]), "--t-end", repr(row["t_end"]),
-           "--reps", str(reps)] + list(extra)
+           "--reps", str(reps)] + siconos_extra(row) + list(extra)
     if csv_path:
         cmd += ["--csv", csv_path, "--every", str(every)]
     return json.loads(run(cmd).strip().splitlines()[-1])
@@ -274,7 +317,8 @@ def fmt(x, digits=3):
 
 def headline_error(kind, s):
     """The one number equal accuracy is judged on: the position error over the run."""
-    return {"ball": "max_err_y", "damped-relay": "max_err_q", "lure": "max_err_x", "manipulator": "max_err_q"}[kind]
+    return {"ball": "max_err_y", "damped-relay": "max_err_q", "lure": "max_err_x", "manipulator": "max_err_q",
+            "stack": "max_sink", "cradle": "final_v_err"}[kind]
 
 
 def headline(kind, s):
@@ -290,6 +334,10 @@ def headline(kind, s):
         return r
     if kind == "lure":
         return f"x {fmt(s['max_err_x'])}"
+    if kind == "stack":
+        return f"sink {fmt(s['max_sink'])}, |v| {fmt(s['max_speed'])}"
+    if kind == "cradle":
+        return f"final v {fmt(s['final_v_err'])}"
     return f"q {fmt(s['max_err_q'])}"
 
 
@@ -363,6 +411,13 @@ def main():
         refs["distance"] = trajectory_distance(refs["moreau"], refs["siconos"], ("x1", "th2"))
 
     for row in rows:
+        if "contact" in row:
+            kind_n = row["contact"]
+            row["path"] = os.path.join(tmp, f"{row['id']}.json")
+            extra_args = ["--gap", "0.01"] if kind_n[0] == "cradle" else []
+            with open(row["path"], "w") as f:
+                f.write(run([sys.executable, os.path.join(ROOT, "scripts", "make-contact-scene.py"), kind_n[0], str(kind_n[1]),
+                             "--h", repr(row["h"]), "--t-end", repr(row["t_end"])] + extra_args))
         # Accuracy first (untimed), then the timed rounds.
         log(f"{row['id']}: trajectories")
         m_cols = moreau_trajectory(cli, row, os.path.join(tmp, f"moreau-{row['id']}.csv"))
@@ -392,7 +447,9 @@ def main():
             siconos_run(args.siconos, row, 0, path, h=h, extra=extra)
             return score(kind, read_csv(path), refs.get("siconos"))[key]
 
-        if m_err[key] > s_err[key]:
+        if kind in ("stack", "cradle"):
+            pass  # exact answers: Moreau's error is 0 (checked below in the table), no rerun
+        elif m_err[key] > s_err[key]:
             log(f"{row['id']}: Moreau at equal accuracy")
             h_eq, e_eq = equal_accuracy_h(row, s_err[key], moreau_error_at, whole_steps=False)
         elif s_err[key] > m_err[key]:
@@ -415,7 +472,7 @@ def main():
         s_eq_ns = min(s_eq_runs) if s_eq_runs else s_ns
         m_comp = min(c_runs) if c_runs else None
         results.append(dict(
-            row=row["id"], scene=row["scene"], h=row["h"], t_end=row["t_end"],
+            row=row["id"], scene=row.get("scene", " ".join(map(str, row.get("contact", ())))), h=row["h"], t_end=row["t_end"],
             moreau_ns=m_ns, moreau_rounds=m_runs,
             moreau_source=row["bench"][1] if row["bench"] else "moreau run --json: phase_seconds.integrate / steps",
             moreau_compiled_ns=m_comp, moreau_compiled_rounds=c_runs,
@@ -433,6 +490,8 @@ def main():
     lines = []
     for r in results:
         eq = f"{r['ratio_equal_accuracy']:.0f}x"
+        if r["score"] in ("stack", "cradle"):
+            eq = "-" if r["moreau_error"][r["headline"]] != 0.0 else "(Moreau exact; same h)"
         if r["moreau_h_equal_accuracy"] != r["h"]:
             eq += f" (Moreau h {r['moreau_h_equal_accuracy']:.3g})"
         if r["siconos_h_equal_accuracy"] != r["h"]:
@@ -455,7 +514,8 @@ def main():
     print()
     print("errors: max over the run's samples; ball y and damped relay q, v against the closed form, rest = |rest time - "
           "exact|, min y = deepest penetration; Lur'e x against the closed form; manipulator q against each side's own "
-          "fine run. 'at equal accuracy': the side whose position error is the larger is rerun at the h that "
+          "fine run; stack: the largest sink of a ball and speed (exact: 0, 0); cradle: the final velocities against "
+          "(0, ..., 0, 1). 'at equal accuracy': the side whose position error is the larger is rerun at the h that "
           "matches the other's (shown) and charged for the extra steps: Moreau at its ns/step at h, Siconos at its "
           "ns/step timed at that h in the same rounds.")
     if refs:
@@ -467,7 +527,7 @@ def main():
                       f"{fmt(r['moreau_error']['vs_other_ref'])}, Siconos {fmt(r['siconos_error']['vs_other_ref'])}")
     la = os.getloadavg()
     print(f"timing: {args.rounds} rounds x median of {args.reps} (Moreau: Google Benchmark repetitions, or moreau run "
-          f"processes for damped-relay; Siconos: the stepping loop after a warm-up run), smallest round median kept. "
+          f"processes for damped-relay and the contact rows; Siconos: the stepping loop after a warm-up run), smallest round median kept. "
           f"Load average at the end {la[0]:.2f} {la[1]:.2f} {la[2]:.2f}, {os.cpu_count()} cores.")
     if args.json:
         with open(args.json, "w") as f:
