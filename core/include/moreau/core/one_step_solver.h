@@ -160,7 +160,7 @@ class OneStepSolver {
     w_from_pattern_ = false;
     double scale_px;  // ||P||_inf
     if constexpr (N == Eigen::Dynamic) {
-      abs_row_sums(P, dy_);  // dy_ is free until the pattern iteration
+      abs_row_sums(P, dy_, bandwidth_);  // dy_ is free until the pattern iteration
       scale_px = dy_.maxCoeff();
     } else {
       scale_px = P.cwiseAbs().rowwise().sum().maxCoeff();
@@ -474,6 +474,11 @@ class OneStepSolver {
       pin_zeros(s, y);
       return y.allFinite();
     }
+    if (bandwidth_ >= 0 && an_ == 0.0) {  // the band of P itself, pinned: no copy of the whole of P
+      if (!banded_lu_solve(y, &P)) return false;
+      pin_zeros(s, y);
+      return y.allFinite();
+    }
     A_ = P;
     for (int i = 0; i < n; ++i) {
       if (!pinned_(i)) continue;
@@ -700,10 +705,20 @@ class OneStepSolver {
   // pivoting confined to the band, on copies in J_ and r_ (A_ and b_ stay for the norm term's Newton
   // iteration). A row swap brings entries up to 2 bandwidth_ right of the diagonal, so the upper factor
   // is kept that wide. False when a pivot is 0 (A_ singular): the pattern then has no usable solution.
-  bool banded_lu_solve(Vec<N>& y) {
+  // With `pinned_source`, the matrix is that P with the pinned components' rows and columns those of the
+  // identity (what solve_pattern would have made A_), read from P's band directly.
+  bool banded_lu_solve(Vec<N>& y, const Mat<N>* pinned_source = nullptr) {
     const int n = size(), kl = bandwidth_, ku = 2 * bandwidth_;
-    for (int j = 0; j < n; ++j)  // the band and the fill-in rows above it (zeros in A_)
-      for (int i = std::max(0, j - ku); i <= std::min(n - 1, j + kl); ++i) J_(i, j) = A_(i, j);
+    for (int j = 0; j < n; ++j) {  // the band and the fill-in rows above it (zeros in A_)
+      for (int i = std::max(0, j - ku); i <= std::min(n - 1, j + kl); ++i) {
+        if (pinned_source == nullptr)
+          J_(i, j) = A_(i, j);
+        else if (pinned_(i) || pinned_(j))
+          J_(i, j) = i == j ? 1.0 : 0.0;
+        else
+          J_(i, j) = i - j <= kl && j - i <= kl ? (*pinned_source)(i, j) : 0.0;
+      }
+    }
     r_ = b_;
     for (int k = 0; k < n; ++k) {
       const int last_row = std::min(n - 1, k + kl), last_col = std::min(n - 1, k + ku);

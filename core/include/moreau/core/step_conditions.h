@@ -104,7 +104,9 @@ class StepConditionChecker {
   // recorded so far, capped at 1, less a margin; recording a ratio below it changes nothing). For n = 2,
   // where the upper bound 4 h^2 ||C||_F^2 / lambda_min(M)^2 is below it, that bound is returned
   // (kUpperBound) without the closed form of ||C||_2: most steps of a run.
-  StepCheck check(const Mat<N>& M, const Mat<N>& C, double h, double ratio_sq_ceiling) {
+  // band >= 0: M and C are zero beyond it from the diagonal, and the bounds read the band only (the same
+  // values: the entries left out add |0.0|).
+  StepCheck check(const Mat<N>& M, const Mat<N>& C, double h, double ratio_sq_ceiling, int band = -1) {
     StepCheck c;
     const double h2 = 4.0 * h * h;
     if constexpr (N == 1) {
@@ -124,8 +126,8 @@ class StepConditionChecker {
       c.ratio_sq_num = h2 * 0.5 * (f2 + std::sqrt(std::max(0.0, f2 * f2 - 4.0 * det * det)));
     } else {
       // Bounds first (see the top of this file); exact values only where the bounds cannot decide.
-      const double g = gershgorin_lower(M);
-      const double c2_bound = C.cwiseAbs().colwise().sum().maxCoeff() * max_abs_row_sum(C);
+      const double g = gershgorin_lower(M, band);
+      const double c2_bound = max_abs_column_sum(C, band) * max_abs_row_sum(C, band);
       if (g > 0.0 && h2 * c2_bound <= g * g) {
         c.lambda_min_m = g;
         c.exact = false;
@@ -201,23 +203,33 @@ class StepConditionChecker {
   }
   // Dynamic sizes sum the rows column by column (abs_row_sums, types.h); fixed sizes keep the row sums
   // they always had, so the recorded bounds of small scenes stay bit for bit the same.
-  double gershgorin_lower(const Mat<N>& M) {
+  double gershgorin_lower(const Mat<N>& M, int band = -1) {
     double g = std::numeric_limits<double>::infinity();
     if constexpr (N == Eigen::Dynamic) {
-      abs_row_sums(M, sums_);
+      abs_row_sums(M, sums_, band);
       for (int i = 0; i < M.rows(); ++i) g = std::min(g, M(i, i) - (sums_(i) - std::abs(M(i, i))));
     } else {
       for (int i = 0; i < M.rows(); ++i) g = std::min(g, M(i, i) - (M.row(i).cwiseAbs().sum() - std::abs(M(i, i))));
     }
     return g;
   }
-  double max_abs_row_sum(const Mat<N>& C) {
+  double max_abs_row_sum(const Mat<N>& C, int band = -1) {
     if constexpr (N == Eigen::Dynamic) {
-      abs_row_sums(C, sums_);
+      abs_row_sums(C, sums_, band);
       return sums_.maxCoeff();
     } else {
       return C.cwiseAbs().rowwise().sum().maxCoeff();
     }
+  }
+  // max_j sum_i |C(i, j)|, over the band when band >= 0 (the same sums up to the order of their
+  // additions: an ulp).
+  double max_abs_column_sum(const Mat<N>& C, int band = -1) {
+    if (band < 0 || C.cols() == 0) return C.cwiseAbs().colwise().sum().maxCoeff();
+    double largest = 0.0;
+    for_each_band_segment(C, band, [&](Eigen::Index j, Eigen::Index first, Eigen::Index length) {
+      largest = std::max(largest, C.col(j).segment(first, length).cwiseAbs().sum());
+    });
+    return largest;
   }
   double lambda_min_exact(const Mat<N>& M, bool& exact) {
     ++eigenvalue_computations_;
