@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
+#include <utility>
 #include <vector>
 
 #include "moreau/core/one_step_solver.h"
@@ -19,18 +20,27 @@ namespace {
 // Independent reference for phi = sum a_i |y_i| (no norm term): try every sign pattern, solve its
 // linear system with a different factorisation (full-pivot LU on the reduced system), keep the one
 // satisfying the inclusion. Unique by Theorem 4.1, so the first hit is the answer.
+// Every sign pattern s in {-1, 0, 1}^n, in order (3^n of them): the references' enumeration.
+inline std::vector<std::vector<int>> SignPatterns(int n) {
+  std::vector<std::vector<int>> out(1, std::vector<int>());
+  for (int i = 0; i < n; ++i) {
+    std::vector<std::vector<int>> longer;
+    for (const std::vector<int>& head : out)
+      for (int si : {-1, 0, 1}) {
+        longer.push_back(head);
+        longer.back().push_back(si);
+      }
+    out = std::move(longer);
+  }
+  return out;
+}
+
 inline Eigen::VectorXd BruteForce(const Eigen::MatrixXd& P, const Eigen::VectorXd& x, const Eigen::VectorXd& a) {
   const int n = static_cast<int>(x.size());
-  int total = 1;
-  for (int i = 0; i < n; ++i) total *= 3;
-  for (int code = 0; code < total; ++code) {
-    std::vector<int> s(n), free;
-    int c = code;
-    for (int i = 0; i < n; ++i) {
-      s[i] = c % 3 - 1;
-      c /= 3;
+  for (const std::vector<int>& s : SignPatterns(n)) {
+    std::vector<int> free;
+    for (int i = 0; i < n; ++i)
       if (s[i] != 0) free.push_back(i);
-    }
     Eigen::VectorXd y = Eigen::VectorXd::Zero(n);
     if (!free.empty()) {
       const int m = static_cast<int>(free.size());
@@ -104,15 +114,10 @@ void RandomProblems(int n, int count, unsigned seed) {
 // Newton), and exponential: the small-n oracle only.
 inline Eigen::VectorXd BruteForceWithNorm(const Eigen::MatrixXd& P, const Eigen::VectorXd& x, const Eigen::VectorXd& a, double a_norm) {
   const int n = static_cast<int>(x.size());
-  int total = 1;
-  for (int i = 0; i < n; ++i) total *= 3;
-  for (int code = 0; code < total; ++code) {
-    std::vector<int> s(n), free;
-    int c = code;
+  for (const std::vector<int>& s : SignPatterns(n)) {
+    std::vector<int> free;
     bool skip = false;
     for (int i = 0; i < n; ++i) {
-      s[i] = c % 3 - 1;
-      c /= 3;
       if (a(i) == 0.0 && s[i] != 0) skip = true;  // a component without a gain has no sign pattern
       if (s[i] != 0 || a(i) == 0.0) free.push_back(i);
     }
