@@ -2,7 +2,7 @@
 // Newton's cradle, from N = 2 to 8192, each a scene compiled as `moreau run` compiles it (the scenes of
 // scripts/make-contact-scene.py, tests/support/contact_scenes.h) and run by run_scene. `dense` variants
 // run the same scene on the dense Moreau-Jean step (N <= 64): the two sides of the crossover
-// kLinearContactFromDof.
+// kLargeContactFromDof.
 //
 //   build/bench/scaling_bench --benchmark_filter='Stack|Cradle' --benchmark_min_time=0.2
 //
@@ -35,7 +35,7 @@ using moreau::test_support::stack_scene;
 // The scene on the dense step: the same compile without the large-contact system.
 scene::LagrangianScene dense(scene::LagrangianScene sc) {
   auto c = std::make_shared<scene::CompiledLagrangian>(*sc.compiled);
-  c->linear_contacts = nullptr;
+  c->large_contacts = nullptr;
   sc.compiled = c;
   return sc;
 }

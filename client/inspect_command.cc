@@ -77,8 +77,8 @@ void inspect_lagrangian(const scene::LagrangianScene& sc, std::ostream& os) {
   os << "scheme       " << scene::scheme_name(sc.scheme) << ", h = " << sc.settings.h << ", t in [" << sc.settings.t0 << ", "
      << sc.settings.t_end << "]\n";
   if (scene::uses_large_contact_path(sc)) {
-    const LinearContactSystem& sys = *sc.compiled->linear_contacts;
-    os << "solver       the large-contact path (linear_contact_integrator.h): constant diagonal M, linear gaps (H: "
+    const LargeContactSystem& sys = *sc.compiled->large_contacts;
+    os << "solver       the large-contact path (large_contact_integrator.h): constant diagonal M, linear gaps (H: "
        << sys.gradients.nonZeros() << " nonzeros); the Delassus operator H M^-1 H^T formed once, sparse; the step's LCP by block "
        << "principal pivoting with Murty's rule over a sparse LDL^T of the closed contacts' block, reused while they stay closed\n";
   } else if (sc.scheme == scene::Scheme::kMoreauJean) {

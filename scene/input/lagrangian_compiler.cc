@@ -111,10 +111,10 @@ class LagrangianCompiler : SceneReader {
       n_ = static_cast<int>(diagonal_mass_ ? mass["diagonal"].size() : mass.size());
     }
     const std::string n_ptr = system.contains("coordinates") ? "/system/coordinates" : "/system/mass";
-    if (n_ > kMaxLinearContactDof)
-      throw SceneError(n_ptr, "more than " + std::to_string(kMaxLinearContactDof) + " degrees of freedom (got " + std::to_string(n_) +
+    if (n_ > kMaxLargeContactDof)
+      throw SceneError(n_ptr, "more than " + std::to_string(kMaxLargeContactDof) + " degrees of freedom (got " + std::to_string(n_) +
                                   "): the limit of one run, whose memory and step time grow with n");
-    // Beyond the dense limits the scene runs on the large-contact path (linear_contact_integrator.h),
+    // Beyond the dense limits the scene runs on the large-contact path (large_contact_integrator.h),
     // whose requirements each field checks (large_requirement).
     const std::size_t constraints = system.contains("constraints") && system["constraints"].is_array() ? system["constraints"].size() : 0;
     large_ = n_ > kMaxDof || constraints > static_cast<std::size_t>(kMaxConstraints);
@@ -596,8 +596,8 @@ class LagrangianCompiler : SceneReader {
     const json& c = system["constraints"];
     if (!c.is_array())
       throw SceneError("/system/constraints", "expected an array of {\"gap\": h(q), \"restitution\": e}, got " + type_name(c));
-    if (c.size() > static_cast<std::size_t>(kMaxLinearContacts))
-      throw SceneError("/system/constraints", "more than " + std::to_string(kMaxLinearContacts) + " constraints (got " +
+    if (c.size() > static_cast<std::size_t>(kMaxLargeContacts))
+      throw SceneError("/system/constraints", "more than " + std::to_string(kMaxLargeContacts) + " constraints (got " +
                                                   std::to_string(c.size()) +
                                                   "): the limit of one run, whose memory and step time grow with it");
     std::set<std::string> names;
@@ -920,13 +920,13 @@ class LagrangianCompiler : SceneReader {
                                "constant forces, linear gaps, no controller and the moreau-jean scheme (docs/scaling.md)");
   }
 
-  // The system of the large-contact path (linear_contact_integrator.h) from the affine forms, when the
+  // The system of the large-contact path (large_contact_integrator.h) from the affine forms, when the
   // scene has that structure: M constant and diagonal, C = 0, g = grad V + F constant, every gap linear,
   // no controller, no robot, no tracking, no free parameter. Null otherwise.
-  std::shared_ptr<const LinearContactSystem> linear_contact_system(const LagrangianScene& scene) const {
+  std::shared_ptr<const LargeContactSystem> large_contact_system(const LagrangianScene& scene) const {
     if (robot_ || scene.tracking || num_params() > 0) return nullptr;
     if (!scene.controller.gains.isZero(0.0) || !scene.controller.weights.isZero(0.0) || scene.controller.norm_gain != 0.0) return nullptr;
-    auto sys = std::make_shared<LinearContactSystem>();
+    auto sys = std::make_shared<LargeContactSystem>();
     sys->mass.resize(n_);
     sys->force.resize(n_);
     for (int i = 0; i < n_; ++i) {
@@ -967,7 +967,7 @@ class LagrangianCompiler : SceneReader {
   // finite values, and an admissible initial position.
   void check_large_at_initial_state(const LagrangianScene& scene) {
     if (num_params() > 0) throw large_requirement("/parameters", "free parameters (a campaign's) are not taken");
-    const std::shared_ptr<const LinearContactSystem> sys = linear_contact_system(scene);
+    const std::shared_ptr<const LargeContactSystem> sys = large_contact_system(scene);
     if (!sys) throw large_requirement("/system", "the system does not have that structure");
     for (int i = 0; i < n_; ++i) {
       if (!(sys->mass(i) > 0.0) || !std::isfinite(sys->mass(i)))
@@ -1012,7 +1012,7 @@ class LagrangianCompiler : SceneReader {
       for (int i = 0; i < c->num_constraints; ++i) w.outputs.push_back({{0, i}});
       c->constraint_tape.wire(w);
     }
-    c->linear_contacts = large_system_;
+    c->large_contacts = large_system_;
     return c;
   }
 
@@ -1117,13 +1117,13 @@ class LagrangianCompiler : SceneReader {
 
   std::vector<std::string> coord_names_, vel_names_;
   std::vector<Node> M_, C_, g_;
-  bool diagonal_mass_ = false;                               // /system/mass given as {"diagonal": [...]}
-  bool large_ = false;                                       // beyond the dense limits: the large-contact path
-  bool has_force_ = false;                                   // /system/force given
-  std::vector<Node> mass_diagonal_;                          // M's diagonal when given so
-  std::vector<std::optional<expr::AffineForm>> gap_forms_;   // each gap as an affine form, when it is one
-  std::shared_ptr<const LinearContactSystem> large_system_;  // the large-contact path's system (check_large_at_initial_state)
-  std::vector<Node> gradient_, force_;                       // grad V and F alone (constant 0 when absent)
+  bool diagonal_mass_ = false;                              // /system/mass given as {"diagonal": [...]}
+  bool large_ = false;                                      // beyond the dense limits: the large-contact path
+  bool has_force_ = false;                                  // /system/force given
+  std::vector<Node> mass_diagonal_;                         // M's diagonal when given so
+  std::vector<std::optional<expr::AffineForm>> gap_forms_;  // each gap as an affine form, when it is one
+  std::shared_ptr<const LargeContactSystem> large_system_;  // the large-contact path's system (check_large_at_initial_state)
+  std::vector<Node> gradient_, force_;                      // grad V and F alone (constant 0 when absent)
   void enclose_forces(CompiledLagrangian& c, double t0, double t_end) const;
   Node potential_ = -1;
   bool constant_mass_ = true;
@@ -1203,7 +1203,7 @@ LagrangianScene LagrangianCompiler::compile() {
   check_at_initial_state(scene, free_values_.empty() ? nullptr : free_values_.data());
   std::shared_ptr<CompiledLagrangian> compiled = large_ ? build_large() : build();
   // A dense-size scene with the large-contact structure may run on that path too (run_scene chooses by n).
-  if (!large_) compiled->linear_contacts = linear_contact_system(scene);
+  if (!large_) compiled->large_contacts = large_contact_system(scene);
   scene.unread_parameters = unread_parameters();
   enclose_forces(*compiled, scene.settings.t0, scene.settings.t_end);
   scene.compiled = std::move(compiled);

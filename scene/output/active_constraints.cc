@@ -16,8 +16,8 @@ namespace {
 ActiveConstraints large_contact_path_at_end(const LagrangianScene& scene, const RunSummary& s) {
   ActiveConstraints out;
   const CompiledLagrangian& c = *scene.compiled;
-  if (!c.linear_contacts) return out;
-  const LinearContactSystem& sys = *c.linear_contacts;
+  if (!c.large_contacts) return out;
+  const LargeContactSystem& sys = *c.large_contacts;
   const int n = scene.n;
   const Eigen::Map<const Eigen::VectorXd> q(s.q_final.data(), n);
   std::vector<double> v(static_cast<std::size_t>(n), 0.0), split(static_cast<std::size_t>(2 * n));

@@ -116,7 +116,7 @@ RunSummary run_scene(const LagrangianScene& scene, RunObserver* observer, Contac
                                   " scheme does not run a scene beyond the dense limits; moreau-jean does");
     MoreauJeanSettings settings = scene.contact_settings;
     settings.grid() = scene.settings.grid();
-    LinearContactIntegrator integrator(*scene.compiled->linear_contacts, settings);
+    LargeContactIntegrator integrator(*scene.compiled->large_contacts, settings);
     s = integrator.run(Eigen::Map<const Eigen::VectorXd>(scene.q0.data(), scene.n),
                        Eigen::Map<const Eigen::VectorXd>(scene.v0.data(), scene.n), observer, contacts);
     if (checks) checks->record_into(s);
@@ -137,7 +137,7 @@ RunSummary run_scene(const LagrangianScene& scene, RunObserver* observer, Contac
 
 bool uses_large_contact_path(const LagrangianScene& scene) {
   const CompiledLagrangian* c = scene.compiled.get();
-  return c && c->linear_contacts && scene.scheme == Scheme::kMoreauJean && (!c->dense || scene.n >= kLinearContactFromDof);
+  return c && c->large_contacts && scene.scheme == Scheme::kMoreauJean && (!c->dense || scene.n >= kLargeContactFromDof);
 }
 
 LagrangianScene scene_variant(const LagrangianScene& scene, Scheme scheme, double h) {

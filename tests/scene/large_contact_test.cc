@@ -22,7 +22,7 @@ json stack_scene(int n, double drop, double t_end) { return test_support::stack_
 
 LagrangianScene on_dense_step(LagrangianScene sc) {
   auto c = std::make_shared<CompiledLagrangian>(*sc.compiled);
-  c->linear_contacts = nullptr;
+  c->large_contacts = nullptr;
   sc.compiled = c;
   return sc;
 }

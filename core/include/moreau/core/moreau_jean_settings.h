@@ -1,5 +1,5 @@
 // The options of the Moreau-Jean scheme (eq. (8) of Brogliato 2003), shared by its dense integrator
-// (moreau_jean_integrator.h) and its large-contact integrator (linear_contact_integrator.h).
+// (moreau_jean_integrator.h) and its large-contact integrator (large_contact_integrator.h).
 #pragma once
 
 #include "moreau/core/time_grid.h"

@@ -22,7 +22,7 @@
 #include "moreau/core/regularization.h"
 #include "moreau/core/observer.h"
 #include "moreau/core/run_diagnostics.h"
-#include "moreau/core/linear_contact_integrator.h"
+#include "moreau/core/large_contact_integrator.h"
 #include "moreau/core/rigid_body.h"
 #include "moreau/core/run_summary.h"
 #include "moreau/core/spline_reference.h"
@@ -36,15 +36,15 @@ namespace moreau::scene {
 // 10 minutes of the manipulator at 300 ns per step. /integrator/max_steps may lower it, not raise it.
 inline constexpr std::int64_t kMaxStepsLimit = 2'000'000'000;
 // Largest number of degrees of freedom of the dense step (every scheme; a URDF robot). A scene beyond it
-// (up to kMaxLinearContactDof, linear_contact_integrator.h) runs on the large-contact path, which needs
+// (up to kMaxLargeContactDof, large_contact_integrator.h) runs on the large-contact path, which needs
 // its structure: constant diagonal M, linear potential and gaps, constant forces, no controller.
 inline constexpr int kMaxDof = 64;
 // Largest number of unilateral constraints of the dense step (and of Lur'e outputs); up to
-// kMaxLinearContacts on the large-contact path.
+// kMaxLargeContacts on the large-contact path.
 inline constexpr int kMaxConstraints = 64;
 // From this many coordinates a scene that has the large-contact structure runs on that path even within
 // the dense limits: measured crossover of the two steps (docs/scaling.md).
-inline constexpr int kLinearContactFromDof = 8;
+inline constexpr int kLargeContactFromDof = 8;
 
 class SceneError : public std::runtime_error {
  public:
@@ -138,12 +138,12 @@ struct CompiledLagrangian {
   // [t0, t_end], from interval arithmetic over the expressions (expr/interval.h); none when unbounded or
   // not enclosed (a robot's gravity, a free parameter). Assumption 4.1 2)-3) for all states rests on them.
   std::optional<double> gradient_bound, force_bound;
-  // The large-contact path (linear_contact_integrator.h): the system, when the scene has its structure
+  // The large-contact path (large_contact_integrator.h): the system, when the scene has its structure
   // (constant diagonal M, C = 0, constant grad V + F, linear gaps, no controller, no robot). `dense`
   // false: compiled for that path alone (a scene beyond kMaxDof coordinates or kMaxConstraints
   // constraints): no dense M, C or gap gradients; constant_terms, step_tape, mass_tape and the gap
   // gradients of constraint_tape are empty, and only run_scene's large-contact route runs it.
-  std::shared_ptr<const LinearContactSystem> linear_contacts;
+  std::shared_ptr<const LargeContactSystem> large_contacts;
   bool dense = true;
 };
 
@@ -244,9 +244,9 @@ struct LagrangianScene {
 // study compares. Throws std::invalid_argument for a scheme of another system type.
 LagrangianScene scene_variant(const LagrangianScene& scene, Scheme scheme, double h);
 
-// Whether run_scene runs the scene on the large-contact path (linear_contact_integrator.h): the
-// moreau-jean scheme on a scene with that structure (CompiledLagrangian::linear_contacts), beyond the
-// dense limits or from kLinearContactFromDof coordinates.
+// Whether run_scene runs the scene on the large-contact path (large_contact_integrator.h): the
+// moreau-jean scheme on a scene with that structure (CompiledLagrangian::large_contacts), beyond the
+// dense limits or from kLargeContactFromDof coordinates.
 bool uses_large_contact_path(const LagrangianScene& scene);
 
 // Validates and compiles a Lagrangian scene. Throws SceneError naming the field (a "lure" scene gets

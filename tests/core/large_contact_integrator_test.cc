@@ -1,4 +1,4 @@
-// The large-contact Moreau-Jean path (linear_contact_integrator.h) and its LCP solver (sparse_lcp.h),
+// The large-contact Moreau-Jean path (large_contact_integrator.h) and its LCP solver (sparse_lcp.h),
 // against independent references: the enumeration of every complementary set for small LCPs, the statics
 // of a resting stack (each contact carries the weight above it), the closed forms of Newton's cradle.
 #include <gtest/gtest.h>
@@ -8,7 +8,7 @@
 #include <random>
 #include <vector>
 
-#include "moreau/core/linear_contact_integrator.h"
+#include "moreau/core/large_contact_integrator.h"
 #include "moreau/core/sparse_lcp.h"
 
 namespace moreau {
@@ -140,8 +140,8 @@ TEST(SparseLcp, RefusesDependentRows) {
 
 // N balls of radius r on a vertical line above a floor: coordinates y_i (heights of the centres), gaps
 // y_1 - r (the floor) and y_{i+1} - y_i - 2r, gravity.
-LinearContactSystem stack(int n, const std::vector<double>& masses, double r, double g) {
-  LinearContactSystem s;
+LargeContactSystem stack(int n, const std::vector<double>& masses, double r, double g) {
+  LargeContactSystem s;
   s.mass.resize(n);
   s.force.resize(n);
   for (int i = 0; i < n; ++i) {
@@ -176,18 +176,18 @@ struct RestWatcher : RunObserver {
   }
 };
 
-TEST(LinearContact, AStackRestsExactlyWithEachContactCarryingTheWeightAboveIt) {
+TEST(LargeContactIntegrator, AStackRestsExactlyWithEachContactCarryingTheWeightAboveIt) {
   // r a power of two: the centres r (1 + 2i) and so the gaps are exact, every contact touching with gap
   // 0.0 (with r = 0.05 some gaps are 3e-17 and the ball above falls that far in a real, tiny impact).
   const double r = 0.0625, g = 9.81, h = 1e-3;
   for (int n : {1, 2, 8, 64, 1024}) {
     const std::vector<double> masses{1.0, 0.3, 2.5};
-    const LinearContactSystem sys = stack(n, masses, r, g);
+    const LargeContactSystem sys = stack(n, masses, r, g);
     ASSERT_EQ(sys.validate(), "");
     MoreauJeanSettings settings;
     settings.t_end = 0.1;
     settings.h = h;
-    LinearContactIntegrator integrator(sys, settings);
+    LargeContactIntegrator integrator(sys, settings);
     Eigen::VectorXd q0(n), v0 = Eigen::VectorXd::Zero(n);
     for (int i = 0; i < n; ++i) q0(i) = r + 2.0 * r * i;  // every contact touching
     RestWatcher watch;
@@ -211,8 +211,8 @@ TEST(LinearContact, AStackRestsExactlyWithEachContactCarryingTheWeightAboveIt) {
 }
 
 // N balls on a horizontal line (no gravity), gaps x_{i+1} - x_i - d >= 0 between neighbours, masses 1.
-LinearContactSystem cradle(int n, double d, double e) {
-  LinearContactSystem s;
+LargeContactSystem cradle(int n, double d, double e) {
+  LargeContactSystem s;
   s.mass = Eigen::VectorXd::Ones(n);
   s.force = Eigen::VectorXd::Zero(n);
   std::vector<Eigen::Triplet<double>> t;
@@ -227,17 +227,17 @@ LinearContactSystem cradle(int n, double d, double e) {
   return s;
 }
 
-TEST(LinearContact, AGappedCradleWithElasticImpactsEndsWithTheLastBallMoving) {
+TEST(LargeContactIntegrator, AGappedCradleWithElasticImpactsEndsWithTheLastBallMoving) {
   // Balls 1 cm apart, the first at v0 = 1: impacts one at a time, each passing the velocity on (Newton,
   // e = 1, equal masses: the closed form of a two-body impact). After the wave: (0, ..., 0, v0) exactly.
   const double d = 0.1, spacing = 0.01, v0 = 1.0, h = 1e-3;
   for (int n : {2, 3, 16, 128, 1024}) {
-    const LinearContactSystem sys = cradle(n, d, 1.0);
+    const LargeContactSystem sys = cradle(n, d, 1.0);
     MoreauJeanSettings settings;
     settings.h = h;
     settings.t_end = (n - 1) * spacing / v0 + 0.05;  // the wave's travel time, then 50 steps more
     settings.max_recorded_impacts = 0;
-    LinearContactIntegrator integrator(sys, settings);
+    LargeContactIntegrator integrator(sys, settings);
     Eigen::VectorXd q0(n), vinit = Eigen::VectorXd::Zero(n);
     for (int i = 0; i < n; ++i) q0(i) = i * (d + spacing);
     vinit(0) = v0;
@@ -251,16 +251,16 @@ TEST(LinearContact, AGappedCradleWithElasticImpactsEndsWithTheLastBallMoving) {
   }
 }
 
-TEST(LinearContact, ATouchingCradleGivesMoreausSimultaneousImpactAndItsEnergyCheckCoversEveryContact) {
+TEST(LargeContactIntegrator, ATouchingCradleGivesMoreausSimultaneousImpactAndItsEnergyCheckCoversEveryContact) {
   // Three touching balls, the first at v0 = 1, e = 1: Moreau's law on both contacts at once,
   // D = [[2, -1], [-1, 2]], q = (-2 v0, 0): P = (4/3, 2/3) v0, V+ = (-1/3, 2/3, 2/3) v0; momentum and
   // kinetic energy conserved. (Not the sequential textbook answer (0, 0, v0).)
   const double d = 0.1, v0 = 1.0, h = 1e-3;
-  const LinearContactSystem sys = cradle(3, d, 1.0);
+  const LargeContactSystem sys = cradle(3, d, 1.0);
   MoreauJeanSettings settings;
   settings.h = h;
   settings.t_end = h;  // the impact step alone
-  LinearContactIntegrator integrator(sys, settings);
+  LargeContactIntegrator integrator(sys, settings);
   Eigen::VectorXd q0(3), vinit = Eigen::VectorXd::Zero(3);
   q0 << 0.0, d, 2.0 * d;
   vinit(0) = v0;
@@ -283,17 +283,17 @@ TEST(LinearContact, ATouchingCradleGivesMoreausSimultaneousImpactAndItsEnergyChe
   EXPECT_LE(diag.max_eq9_mismatch, 1e-15);
 }
 
-TEST(LinearContact, ATouchingCradleWithRestitutionOneHalfMatchesEq9OverEveryContact) {
+TEST(LargeContactIntegrator, ATouchingCradleWithRestitutionOneHalfMatchesEq9OverEveryContact) {
   // e = 0.5 on a touching cradle of 5: the step passes impulse through the closed contacts; eq. (9)'s
   // reference solves the impact law on all of them, so the step and the reference agree (no smooth
   // force here: exactly, up to round-off) and the loss is 1/2 (1 - e) P_1 U-_1 < 0. (d a power of two:
   // the gaps are 0.0 exactly.)
   const double d = 0.125, v0 = 1.0, h = 1e-3;
-  const LinearContactSystem sys = cradle(5, d, 0.5);
+  const LargeContactSystem sys = cradle(5, d, 0.5);
   MoreauJeanSettings settings;
   settings.h = h;
   settings.t_end = h;
-  LinearContactIntegrator integrator(sys, settings);
+  LargeContactIntegrator integrator(sys, settings);
   Eigen::VectorXd q0(5), vinit = Eigen::VectorXd::Zero(5);
   for (int i = 0; i < 5; ++i) q0(i) = i * d;
   vinit(0) = v0;
@@ -311,20 +311,20 @@ TEST(LinearContact, ATouchingCradleWithRestitutionOneHalfMatchesEq9OverEveryCont
   EXPECT_NEAR(momentum, v0, 1e-15);
 }
 
-TEST(LinearContact, ValidationNamesTheProblemAndTheLimit) {
-  LinearContactSystem s = stack(3, {1.0}, 0.05, 9.81);
+TEST(LargeContactIntegrator, ValidationNamesTheProblemAndTheLimit) {
+  LargeContactSystem s = stack(3, {1.0}, 0.05, 9.81);
   EXPECT_EQ(s.validate(), "");
   s.mass(1) = 0.0;
   EXPECT_EQ(s.validate(), "mass 1 is not a finite positive number");
   s = stack(3, {1.0}, 0.05, 9.81);
   s.restitution[2] = 1.5;
   EXPECT_EQ(s.validate(), "the restitution of contact 2 is outside [0, 1]");
-  s = stack(kMaxLinearContactDof + 1, {1.0}, 0.05, 9.81);
+  s = stack(kMaxLargeContactDof + 1, {1.0}, 0.05, 9.81);
   EXPECT_NE(s.validate().find("more than 10000 coordinates"), std::string::npos) << s.validate();
   MoreauJeanSettings settings;
   settings.h = 1e-3;
   settings.t_end = 1e-2;
-  LinearContactIntegrator integrator(s, settings);
+  LargeContactIntegrator integrator(s, settings);
   const RunSummary r = integrator.run(Eigen::VectorXd::Zero(s.dof()), Eigen::VectorXd::Zero(s.dof()));
   EXPECT_EQ(r.status, RunStatus::kFailed);
   EXPECT_NE(r.message.find("more than 10000 coordinates"), std::string::npos) << r.message;

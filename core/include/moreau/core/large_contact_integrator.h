@@ -55,13 +55,13 @@ namespace moreau {
 // The largest system this path takes: memory is linear in these (a few hundred bytes per coordinate and
 // per contact), and so is a step; the bound keeps one request's memory and step time bounded (10,000
 // balls: about 4 MB and under a millisecond a step).
-inline constexpr int kMaxLinearContactDof = 10000;
-inline constexpr int kMaxLinearContacts = 10000;
+inline constexpr int kMaxLargeContactDof = 10000;
+inline constexpr int kMaxLargeContacts = 10000;
 // The coupling the path takes: the Delassus operator's nonzeros at most this many per contact (plus 4096,
 // a dense 64 x 64); a ball in a packing couples each of its contacts with about 2 x 12 others.
 inline constexpr long long kMaxDelassusNonzerosPerContact = 32;
 
-struct LinearContactSystem {
+struct LargeContactSystem {
   Eigen::VectorXd mass;                                    // the diagonal of M: n entries, each > 0
   Eigen::VectorXd force;                                   // g = grad V + F, constant (n entries)
   bool force_is_potential = true;                          // V(q) = g^T q is the potential in W (Lemma 3)
@@ -77,13 +77,13 @@ struct LinearContactSystem {
   std::string validate() const;
 };
 
-class LinearContactIntegrator {
+class LargeContactIntegrator {
  public:
-  LinearContactIntegrator(const LinearContactIntegrator&) = delete;
-  LinearContactIntegrator& operator=(const LinearContactIntegrator&) = delete;
+  LargeContactIntegrator(const LargeContactIntegrator&) = delete;
+  LargeContactIntegrator& operator=(const LargeContactIntegrator&) = delete;
 
   // Precondition: system.validate() is empty (checked again: a failing run says why).
-  LinearContactIntegrator(const LinearContactSystem& system, const MoreauJeanSettings& settings);
+  LargeContactIntegrator(const LargeContactSystem& system, const MoreauJeanSettings& settings);
 
   RunSummary run(const Eigen::VectorXd& q0, const Eigen::VectorXd& v0, RunObserver* observer = nullptr, ContactDiagnostics* diag = nullptr);
 
@@ -116,7 +116,7 @@ class LinearContactIntegrator {
   void record_impacts(ContactDiagnostics& d, std::int64_t step, double t, int impacts_now);
   bool correct(ContactDiagnostics& d);
 
-  LinearContactSystem sys_;
+  LargeContactSystem sys_;
   MoreauJeanSettings settings_;
   std::string invalid_;  // validate()'s answer at construction
   int n_ = 0, nc_ = 0;

@@ -1,5 +1,5 @@
-// The Moreau-Jean scheme for contact systems at scale (linear_contact_integrator.h).
-#include "moreau/core/linear_contact_integrator.h"
+// The Moreau-Jean scheme for contact systems at scale (large_contact_integrator.h).
+#include "moreau/core/large_contact_integrator.h"
 
 #include <algorithm>
 #include <cmath>
@@ -15,14 +15,14 @@ bool all_finite(const Eigen::VectorXd& x) { return x.allFinite(); }
 
 }  // namespace
 
-std::string LinearContactSystem::validate() const {
+std::string LargeContactSystem::validate() const {
   const int n = dof(), nc = num_constraints();
   if (n < 1) return "no coordinates";
-  if (n > kMaxLinearContactDof)
-    return "more than " + std::to_string(kMaxLinearContactDof) + " coordinates (" + std::to_string(n) +
+  if (n > kMaxLargeContactDof)
+    return "more than " + std::to_string(kMaxLargeContactDof) + " coordinates (" + std::to_string(n) +
            "): the bound on one run's memory and step time";
-  if (nc > kMaxLinearContacts)
-    return "more than " + std::to_string(kMaxLinearContacts) + " contacts (" + std::to_string(nc) +
+  if (nc > kMaxLargeContacts)
+    return "more than " + std::to_string(kMaxLargeContacts) + " contacts (" + std::to_string(nc) +
            "): the bound on one run's memory and step time";
   if (force.size() != n) return "force has " + std::to_string(force.size()) + " entries, expected " + std::to_string(n);
   if (gradients.cols() != n)
@@ -62,7 +62,7 @@ std::string LinearContactSystem::validate() const {
   return {};
 }
 
-LinearContactIntegrator::LinearContactIntegrator(const LinearContactSystem& system, const MoreauJeanSettings& settings)
+LargeContactIntegrator::LargeContactIntegrator(const LargeContactSystem& system, const MoreauJeanSettings& settings)
     : sys_(system), settings_(settings), invalid_(system.validate()) {
   if (!invalid_.empty()) return;
   sys_.gradients.makeCompressed();
@@ -94,8 +94,8 @@ LinearContactIntegrator::LinearContactIntegrator(const LinearContactSystem& syst
   rows_.reserve(static_cast<std::size_t>(nc_));
 }
 
-RunSummary LinearContactIntegrator::run(const Eigen::VectorXd& q0, const Eigen::VectorXd& v0, RunObserver* observer,
-                                        ContactDiagnostics* diag) {
+RunSummary LargeContactIntegrator::run(const Eigen::VectorXd& q0, const Eigen::VectorXd& v0, RunObserver* observer,
+                                       ContactDiagnostics* diag) {
   if (invalid_.empty() && (q0.size() != n_ || v0.size() != n_)) invalid_ = "the initial state does not have one entry per coordinate";
   if (invalid_.empty()) {
     q_ = q0;
@@ -105,14 +105,12 @@ RunSummary LinearContactIntegrator::run(const Eigen::VectorXd& q0, const Eigen::
   return SteppingDriver::run_with_diagnostics(*this, SteppingPlan{settings_.grid(), true}, observer, d_, diag);
 }
 
-double LinearContactIntegrator::energy_allowance(double /*e_old*/, double e_initial) const {
-  return kEps64 * std::max(kinetic_, e_initial);
-}
+double LargeContactIntegrator::energy_allowance(double /*e_old*/, double e_initial) const { return kEps64 * std::max(kinetic_, e_initial); }
 
-double LinearContactIntegrator::kinetic(const Eigen::VectorXd& v) const { return 0.5 * v.cwiseProduct(v).dot(sys_.mass); }
-double LinearContactIntegrator::potential(const Eigen::VectorXd& q) const { return sys_.force_is_potential ? sys_.force.dot(q) : 0.0; }
+double LargeContactIntegrator::kinetic(const Eigen::VectorXd& v) const { return 0.5 * v.cwiseProduct(v).dot(sys_.mass); }
+double LargeContactIntegrator::potential(const Eigen::VectorXd& q) const { return sys_.force_is_potential ? sys_.force.dot(q) : 0.0; }
 
-void LinearContactIntegrator::add_impulses(const std::vector<int>& rows, const Eigen::VectorXd& impulse, Eigen::VectorXd& v) const {
+void LargeContactIntegrator::add_impulses(const std::vector<int>& rows, const Eigen::VectorXd& impulse, Eigen::VectorXd& v) const {
   for (int i : rows) {
     const double p = impulse(i);
     if (p == 0.0) continue;
@@ -121,7 +119,7 @@ void LinearContactIntegrator::add_impulses(const std::vector<int>& rows, const E
   }
 }
 
-bool LinearContactIntegrator::begin(double t, StepFailure& f) {
+bool LargeContactIntegrator::begin(double t, StepFailure& f) {
   rest_ = RestTracker{};
   if (!invalid_.empty()) return f.at(0, t, q_.data(), v_.data(), "invalid contact system: " + invalid_);
   rest_.update(v_);
@@ -152,7 +150,7 @@ bool LinearContactIntegrator::begin(double t, StepFailure& f) {
   return true;
 }
 
-bool LinearContactIntegrator::step(std::int64_t k, double t, double h, double t_next, RunRecorder& rec, StepFailure& f) {
+bool LargeContactIntegrator::step(std::int64_t k, double t, double h, double t_next, RunRecorder& rec, StepFailure& f) {
   RunSummary& s = rec.summary();
   ContactDiagnostics& d = *d_;
   s.mass.record(min_mass_, true, k, t);  // Assumption 3.1: a constant diagonal M, its smallest entry
@@ -248,7 +246,7 @@ bool LinearContactIntegrator::step(std::int64_t k, double t, double h, double t_
 // The closed rows F (w == 0: H_F V = -b_F exactly). n of them with a well-conditioned H_F: V solved
 // from them; otherwise a closed row with one nonzero fixes its coordinate. Kept where it agrees with the
 // unpolished V to round-off.
-void LinearContactIntegrator::polish(Eigen::VectorXd& v) {
+void LargeContactIntegrator::polish(Eigen::VectorXd& v) {
   rows_.clear();
   for (int i : active_rows_)
     if (in_F_[static_cast<std::size_t>(i)]) rows_.push_back(i);
@@ -317,7 +315,7 @@ void LinearContactIntegrator::polish(Eigen::VectorXd& v) {
 // P_i >= 0, U+ = U- + D P, solved exactly (sparse_lcp.h). Its kinetic energy change is
 // 1/2 sum_i P_i (U+_i + U-_i) = 1/2 sum_i P_i (U-_i - e_i min(U-_i, 0)), which is eq. (9)'s
 // 1/2 sum_i (1 - e_i) P_i U-_i on approaching contacts and 0 on closed ones.
-void LinearContactIntegrator::record_impacts(ContactDiagnostics& d, std::int64_t step, double t, int impacts_now) {
+void LargeContactIntegrator::record_impacts(ContactDiagnostics& d, std::int64_t step, double t, int impacts_now) {
   carrying_.clear();
   for (int i : active_rows_)
     if (P_(i) > 0.0) carrying_.push_back(i);
@@ -355,7 +353,7 @@ void LinearContactIntegrator::record_impacts(ContactDiagnostics& d, std::int64_t
 
 // Projects Q^{k+1} onto {H q + c >= 0} in the metric of M: the gaps are linear, so one LCP
 // 0 <= h(Q^{k+1}) + D mu  perp  mu >= 0, delta q = M^{-1} H^T mu, lands every gap on >= 0 up to round-off.
-bool LinearContactIntegrator::correct(ContactDiagnostics& d) {
+bool LargeContactIntegrator::correct(ContactDiagnostics& d) {
   d.largest_violation = std::max(d.largest_violation, -gap_.minCoeff());
   const double before = potential(qn_);
   rows_.resize(static_cast<std::size_t>(nc_));
@@ -376,7 +374,7 @@ bool LinearContactIntegrator::correct(ContactDiagnostics& d) {
   return true;
 }
 
-bool LinearContactIntegrator::arrive(std::int64_t k, double t, StepFailure& f) {
+bool LargeContactIntegrator::arrive(std::int64_t k, double t, StepFailure& f) {
   ContactDiagnostics& d = *d_;
   if (!all_finite(qn_) || !all_finite(vn_)) return f.at(k, t, q_.data(), v_.data(), "the state became non-finite");
   gap_.noalias() = sys_.gradients * qn_;
@@ -408,7 +406,7 @@ bool LinearContactIntegrator::arrive(std::int64_t k, double t, StepFailure& f) {
   return true;
 }
 
-void LinearContactIntegrator::finish(RunRecorder& rec, std::int64_t k, double t) {
+void LargeContactIntegrator::finish(RunRecorder& rec, std::int64_t k, double t) {
   ContactDiagnostics& d = *d_;
   rec.finish(k, t, q_.data(), v_.data(), kinetic_);
   if (rec.rest_from() >= 0) {
