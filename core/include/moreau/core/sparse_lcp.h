@@ -66,7 +66,7 @@ class SparseLcpSolver {
     // that did not end (at most guess_restarts times, each with 4 times the sweeps), projected
     // Gauss-Seidel sweeps guess the set the passes go on from (0: none).
     int guess_sweeps = 1;
-    int guess_restarts = 2;
+    int guess_restarts = 3;
   };
   Options options;
 
