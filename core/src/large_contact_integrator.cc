@@ -15,55 +15,10 @@ bool all_finite(const Eigen::VectorXd& x) { return x.allFinite(); }
 
 }  // namespace
 
-std::string LargeContactSystem::validate() const {
-  const int n = dof(), nc = num_constraints();
-  if (n < 1) return "no coordinates";
-  if (n > kMaxLargeContactDof)
-    return "more than " + std::to_string(kMaxLargeContactDof) + " coordinates (" + std::to_string(n) +
-           "): the bound on one run's memory and step time";
-  if (nc > kMaxLargeContacts)
-    return "more than " + std::to_string(kMaxLargeContacts) + " contacts (" + std::to_string(nc) +
-           "): the bound on one run's memory and step time";
-  if (force.size() != n) return "force has " + std::to_string(force.size()) + " entries, expected " + std::to_string(n);
-  if (gradients.cols() != n)
-    return "the gradient matrix has " + std::to_string(gradients.cols()) + " columns, expected " + std::to_string(n);
-  if (offsets.size() != nc) return "offsets has " + std::to_string(offsets.size()) + " entries, expected " + std::to_string(nc);
-  if (static_cast<int>(restitution.size()) != nc)
-    return "restitution has " + std::to_string(restitution.size()) + " entries, expected " + std::to_string(nc);
-  for (int j = 0; j < n; ++j)
-    if (!(mass(j) > 0.0) || !std::isfinite(mass(j))) return "mass " + std::to_string(j) + " is not a finite positive number";
-  if (!force.allFinite()) return "force is not finite";
-  if (!offsets.allFinite()) return "an offset is not finite";
-  // How densely the contacts couple: D = H M^-1 H^T has at most sum_j c_j^2 nonzeros, c_j the contacts
-  // on coordinate j. The path is for contacts that each touch a few others (a ball has a handful of
-  // neighbours); a dense coupling would make each pass's factorisation cubic, one request's step time
-  // unbounded in practice.
-  std::vector<long long> per_coordinate(static_cast<std::size_t>(n), 0);
-  for (int i = 0; i < nc; ++i)
-    for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(gradients, i); it; ++it)
-      ++per_coordinate[static_cast<std::size_t>(it.col())];
-  long long coupling = 0;
-  for (long long c : per_coordinate) coupling += c * c;
-  const long long allowed = kMaxDelassusNonzerosPerContact * static_cast<long long>(nc) + 4096;
-  if (coupling > allowed)
-    return "the contacts couple too densely for this path: H M^-1 H^T may have " + std::to_string(coupling) + " nonzeros, more than " +
-           std::to_string(kMaxDelassusNonzerosPerContact) + " per contact (" + std::to_string(allowed) +
-           "); it is for contacts that each touch a few others";
-  for (int i = 0; i < nc; ++i) {
-    bool nonzero = false;
-    for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(gradients, i); it; ++it) {
-      if (!std::isfinite(it.value())) return "the gradient of contact " + std::to_string(i) + " is not finite";
-      nonzero = nonzero || it.value() != 0.0;
-    }
-    if (!nonzero) return "the gradient of contact " + std::to_string(i) + " is zero";
-    const double e = restitution[static_cast<std::size_t>(i)];
-    if (!(e >= 0.0 && e <= 1.0)) return "the restitution of contact " + std::to_string(i) + " is outside [0, 1]";
-  }
-  return {};
-}
-
 LargeContactIntegrator::LargeContactIntegrator(const LargeContactSystem& system, const MoreauJeanSettings& settings)
     : sys_(system), settings_(settings), invalid_(system.validate()) {
+  if (invalid_.empty() && !sys_.linear() && settings_.correct_positions)
+    invalid_ = "position correction is not taken with nonlinear gaps (one LCP projects onto linear gaps only)";
   if (!invalid_.empty()) return;
   sys_.gradients.makeCompressed();
   n_ = sys_.dof();
@@ -71,18 +26,24 @@ LargeContactIntegrator::LargeContactIntegrator(const LargeContactSystem& system,
   inv_mass_ = sys_.mass.cwiseInverse();
   accel_ = sys_.force.cwiseProduct(inv_mass_);
   min_mass_ = sys_.mass.minCoeff();
-  // D = H M^{-1} H^T, formed once (M and H are constant), both triangles stored.
-  const Eigen::SparseMatrix<double> Hc = sys_.gradients;
-  const Eigen::SparseMatrix<double> HMinv = Hc * inv_mass_.asDiagonal();
-  D_ = HMinv * Hc.transpose();
-  D_.makeCompressed();
-  step_lcp_.set_matrix(D_);
-  impact_lcp_.set_matrix(D_);
-  correction_lcp_.set_matrix(D_);
+  H_ = sys_.gradients;
   row_abs_sum_.setZero(nc_);
-  for (int i = 0; i < nc_; ++i)
-    for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(sys_.gradients, i); it; ++it)
-      row_abs_sum_(i) += std::abs(it.value());
+  if (sys_.linear()) {
+    // D = H M^{-1} H^T, formed once (M and H are constant), both triangles stored.
+    const Eigen::SparseMatrix<double> Hc = H_;
+    D_ = (Hc * inv_mass_.asDiagonal()) * Hc.transpose();
+    D_.makeCompressed();
+    step_lcp_.set_matrix(D_);
+    impact_lcp_.set_matrix(D_);
+    correction_lcp_.set_matrix(D_);
+    for (int i = 0; i < nc_; ++i)
+      for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(H_, i); it; ++it) row_abs_sum_(i) += std::abs(it.value());
+    offsets_ = sys_.offsets;
+  } else {
+    gap_scratch_ = sys_.nonlinear_gaps->make_scratch();
+    offsets_.setZero(nc_);
+    formed_.assign(static_cast<std::size_t>(nc_), 0);
+  }
   for (Eigen::VectorXd* x : {&q_, &v_, &qn_, &vf_, &vn_, &vpos_}) x->setZero(n_);
   for (Eigen::VectorXd* x : {&gap_, &U_, &Un_, &Hvf_, &lcp_q_, &lcp_z_, &lcp_w_, &P_, &ref_q_, &ref_z_, &ref_w_}) x->setZero(nc_);
   in_F_.assign(static_cast<std::size_t>(nc_), 0);
@@ -92,6 +53,60 @@ LargeContactIntegrator::LargeContactIntegrator(const LargeContactSystem& system,
   local_.assign(static_cast<std::size_t>(nc_), -1);
   active_rows_.reserve(static_cast<std::size_t>(nc_));
   rows_.reserve(static_cast<std::size_t>(nc_));
+}
+
+// h(q) into gap_; with nonlinear gaps also H_ = grad h(q)^T, and per contact the round-off scale of the
+// active-set test (row_abs_sum_, offsets_: the constant of the gap's linearisation at q). False when a
+// gap or a gradient entry is not finite (balls at the same centre: the distance has no gradient).
+bool LargeContactIntegrator::evaluate_gaps(const Eigen::VectorXd& q) {
+  sys_.evaluate(q, gap_, H_, gap_scratch_);
+  if (sys_.linear()) return gap_.allFinite();
+  bool finite = true;
+  for (int i = 0; i < nc_; ++i) {
+    double sum = 0.0, hq = 0.0;
+    for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(H_, i); it; ++it) {
+      sum += std::abs(it.value());
+      hq += it.value() * q(it.col());
+    }
+    row_abs_sum_(i) = sum;
+    offsets_(i) = gap_(i) - hq;
+    finite = finite && std::isfinite(sum) && std::isfinite(offsets_(i));
+  }
+  if (!finite) {
+    for (int i = 0; i < nc_; ++i)
+      if (!std::isfinite(row_abs_sum_(i)) || !std::isfinite(offsets_(i))) {
+        nonfinite_contact_ = i;
+        break;
+      }
+  }
+  return finite;
+}
+
+// With nonlinear gaps, D = H M^{-1} H^T at Q^k on the rows of I_k, formed again only when H's values or
+// I_k's rows are not those of the D formed last: a column at rest keeps its D and the LCP its factor.
+void LargeContactIntegrator::form_delassus() {
+  if (sys_.linear()) return;
+  const Eigen::Index nnz = H_.nonZeros();
+  bool current = delassus_current_ && std::equal(H_.valuePtr(), H_.valuePtr() + nnz, previous_H_.begin());
+  for (std::size_t a = 0; current && a < active_rows_.size(); ++a) current = formed_[static_cast<std::size_t>(active_rows_[a])] != 0;
+  if (current) return;
+  triplets_.clear();
+  std::fill(formed_.begin(), formed_.end(), 0);
+  for (int i : active_rows_) {
+    formed_[static_cast<std::size_t>(i)] = 1;
+    for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(H_, i); it; ++it)
+      triplets_.emplace_back(i, static_cast<int>(it.col()), it.value());
+  }
+  HI_.resize(nc_, n_);
+  HI_.setFromTriplets(triplets_.begin(), triplets_.end());
+  const Eigen::SparseMatrix<double> Hc = HI_;
+  D_ = (Hc * inv_mass_.asDiagonal()) * Hc.transpose();
+  D_.makeCompressed();
+  step_lcp_.set_matrix(D_);
+  impact_lcp_.set_matrix(D_);
+  previous_H_.assign(H_.valuePtr(), H_.valuePtr() + nnz);
+  delassus_current_ = true;
+  polish_F_.clear();  // H_F moved: the polishing LU is of another matrix
 }
 
 RunSummary LargeContactIntegrator::run(const Eigen::VectorXd& q0, const Eigen::VectorXd& v0, RunObserver* observer,
@@ -114,7 +129,7 @@ void LargeContactIntegrator::add_impulses(const std::vector<int>& rows, const Ei
   for (int i : rows) {
     const double p = impulse(i);
     if (p == 0.0) continue;
-    for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(sys_.gradients, i); it; ++it)
+    for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(H_, i); it; ++it)
       v(it.col()) += inv_mass_(it.col()) * (it.value() * p);
   }
 }
@@ -132,8 +147,8 @@ bool LargeContactIntegrator::begin(double t, StepFailure& f) {
   d.correction_enabled = settings_.correct_positions;
   d.potential_known = sys_.force_is_potential;
   if (!all_finite(q_) || !all_finite(v_)) return f.at(0, t, q_.data(), v_.data(), "the initial state is not finite");
-  gap_.noalias() = sys_.gradients * q_;
-  gap_ += sys_.offsets;
+  delassus_current_ = false;
+  if (!evaluate_gaps(q_)) return f.at(0, t, q_.data(), v_.data(), nonfinite_gap_message());
   for (int i = 0; i < nc_; ++i)
     if (gap_(i) < d.smallest_gap) {
       d.smallest_gap = gap_(i);
@@ -156,17 +171,18 @@ bool LargeContactIntegrator::step(std::int64_t k, double t, double h, double t_n
   s.mass.record(min_mass_, true, k, t);  // Assumption 3.1: a constant diagonal M, its smallest entry
 
   vf_ = v_ - h * accel_;  // M V_free = M V^k - h g
-  U_.noalias() = sys_.gradients * v_;
-  Hvf_.noalias() = sys_.gradients * vf_;
+  U_.noalias() = H_ * v_;
+  Hvf_.noalias() = H_ * vf_;
   // I_k, with the round-off of the predicted gap h_i(Q^k) + h H_i V_free counted as contact: M^{-1} g
   // rounds differently for different masses (a stack of balls falling together has H_i V_free of 1e-18
   // either side of 0), and a contact that closes by round-off must not let a ball fall through it.
   active_rows_.clear();
   const double reach = q_.cwiseAbs().maxCoeff() + h * vf_.cwiseAbs().maxCoeff();
   for (int i = 0; i < nc_; ++i)
-    if (gap_(i) + h * Hvf_(i) <= kEps64 * (row_abs_sum_(i) * reach + std::abs(sys_.offsets(i)))) active_rows_.push_back(i);
+    if (gap_(i) + h * Hvf_(i) <= kEps64 * (row_abs_sum_(i) * reach + std::abs(offsets_(i)))) active_rows_.push_back(i);
   const bool any_active = !active_rows_.empty();
   d.active_steps += any_active;
+  if (any_active) form_delassus();
 
   vn_ = vf_;
   P_.setZero();
@@ -212,7 +228,7 @@ bool LargeContactIntegrator::step(std::int64_t k, double t, double h, double t_n
   int impacts_now = 0;
   rows_.clear();
   if (any_active) {
-    Un_.noalias() = sys_.gradients * vn_;
+    Un_.noalias() = H_ * vn_;
     const double vmax = v_.cwiseAbs().maxCoeff();
     for (int i : active_rows_) {
       impacting_[static_cast<std::size_t>(i)] = 0;
@@ -258,7 +274,7 @@ void LargeContactIntegrator::polish(Eigen::VectorXd& v) {
       polish_F_ = rows_;
       std::vector<Eigen::Triplet<double>> t;
       for (std::size_t a = 0; a < rows_.size(); ++a)
-        for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(sys_.gradients, rows_[a]); it; ++it)
+        for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(H_, rows_[a]); it; ++it)
           t.emplace_back(static_cast<int>(a), static_cast<int>(it.col()), it.value());
       Eigen::SparseMatrix<double> HF(n_, n_);
       HF.setFromTriplets(t.begin(), t.end());
@@ -298,7 +314,7 @@ void LargeContactIntegrator::polish(Eigen::VectorXd& v) {
   for (int i : rows_) {
     int nz = 0, col = -1;
     double c = 0.0;
-    for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(sys_.gradients, i); it; ++it)
+    for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(H_, i); it; ++it)
       if (it.value() != 0.0) {
         ++nz;
         col = static_cast<int>(it.col());
@@ -366,7 +382,7 @@ bool LargeContactIntegrator::correct(ContactDiagnostics& d) {
   Eigen::VectorXd dq = Eigen::VectorXd::Zero(n_);
   add_impulses(rows_, mu, dq);
   qn_ += dq;
-  gap_.noalias() = sys_.gradients * qn_;
+  gap_.noalias() = H_ * qn_;
   gap_ += sys_.offsets;
   ++d.corrected_steps;
   d.max_correction = std::max(d.max_correction, std::sqrt(2.0 * kinetic(dq)));
@@ -377,8 +393,7 @@ bool LargeContactIntegrator::correct(ContactDiagnostics& d) {
 bool LargeContactIntegrator::arrive(std::int64_t k, double t, StepFailure& f) {
   ContactDiagnostics& d = *d_;
   if (!all_finite(qn_) || !all_finite(vn_)) return f.at(k, t, q_.data(), v_.data(), "the state became non-finite");
-  gap_.noalias() = sys_.gradients * qn_;
-  gap_ += sys_.offsets;
+  if (!evaluate_gaps(qn_)) return f.at(k, t, q_.data(), v_.data(), nonfinite_gap_message());
   if (settings_.correct_positions && nc_ > 0 && gap_.minCoeff() < 0.0 && !correct(d))
     return f.at(k, t, q_.data(), v_.data(), "the position correction did not converge");
   q_ = qn_;

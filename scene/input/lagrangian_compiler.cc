@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cstdint>
 #include <cmath>
 #include <map>
 #include <optional>
@@ -15,6 +16,7 @@
 
 #include "moreau/platform/number_text.h"
 #include "moreau/scene/urdf.h"
+#include "contact_gaps.h"
 #include "scene_reader.h"
 
 namespace moreau::scene {
@@ -625,11 +627,27 @@ class LagrangianCompiler : SceneReader {
       // Linear gaps (a constant gradient) allow the large-contact path; beyond the dense limits they are
       // required, and the n derivatives of each gap are not formed (n times m graph nodes).
       gap_forms_.push_back(expr::affine_form(graph_, h));
-      if (large_) {
-        if (!gap_forms_.back()) throw large_requirement(ptr + "/gap", "is not linear in q");
+      // The gap's partial derivatives in the coordinates it reads (the large-contact path's sparse
+      // gradient; a linear gap's are its coefficients). Beyond the dense limits the n derivatives of each
+      // gap are not formed (n times m graph nodes).
+      std::vector<std::pair<int, Node>> partials;
+      if (large_ && gap_forms_.back()) {
+        for (const auto& [slot, a] : gap_forms_.back()->coefficients) partials.emplace_back(slot - 1, graph_.constant(a));
+      } else if (large_) {
+        const std::vector<int> read = coordinates_read(h);
+        if (static_cast<int>(read.size()) > kMaxDof)
+          throw SceneError(ptr + "/gap", "reads " + std::to_string(read.size()) +
+                                             " coordinates: a gap on the large-contact path reads at most " + std::to_string(kMaxDof) +
+                                             " (a contact joins a few bodies)");
+        for (int j : read) partials.emplace_back(j, graph_.derivative(h, 1 + j));
       } else {
-        for (int j = 0; j < n_; ++j) gap_gradients_.push_back(graph_.derivative(h, 1 + j));
+        for (int j = 0; j < n_; ++j) {
+          gap_gradients_.push_back(graph_.derivative(h, 1 + j));
+          const Node d = gap_gradients_.back();
+          if (!(graph_.is_constant(d) && graph_.constant_value(d) == 0.0)) partials.emplace_back(j, d);
+        }
       }
+      gap_partials_.push_back(std::move(partials));
       scene.constraint_names.push_back(name);
       scene.constraint_gaps.push_back(c[k]["gap"].is_string() ? c[k]["gap"].get<std::string>() : c[k]["gap"].dump());
       scene.restitution.push_back(e);
@@ -912,12 +930,35 @@ class LagrangianCompiler : SceneReader {
     c.potential_tape.wire(w);
   }
 
+  // The coordinates q_j (slots 1 + j) that f reads, increasing: one traversal of f's nodes, marked with a
+  // stamp kept between calls, so that the gaps of a large scene cost the size of their expressions and
+  // not, each, the size of the graph.
+  std::vector<int> coordinates_read(Node f) {
+    if (visit_stamp_.size() < graph_.size()) visit_stamp_.resize(graph_.size(), 0);
+    ++stamp_;
+    std::vector<int> read;
+    std::vector<Node> stack{f};
+    visit_stamp_[static_cast<std::size_t>(f)] = stamp_;
+    while (!stack.empty()) {
+      const expr::Graph::Entry e = graph_.entry(stack.back());
+      stack.pop_back();
+      if (e.op == expr::Op::kVar && e.slot >= 1 && e.slot <= n_) read.push_back(e.slot - 1);
+      for (Node child : {e.a, e.b, e.c, e.d})
+        if (child >= 0 && visit_stamp_[static_cast<std::size_t>(child)] != stamp_) {
+          visit_stamp_[static_cast<std::size_t>(child)] = stamp_;
+          stack.push_back(child);
+        }
+    }
+    std::sort(read.begin(), read.end());
+    return read;
+  }
+
   // The error for a field that the large-contact path cannot take (a system beyond the dense limits).
   SceneError large_requirement(const std::string& ptr, const std::string& what) const {
-    return SceneError(ptr, what + ": a system of more than " + std::to_string(kMaxDof) + " coordinates or " +
-                               std::to_string(kMaxConstraints) +
-                               " constraints runs on the large-contact path, which takes a constant diagonal mass, a linear potential, "
-                               "constant forces, linear gaps, no controller and the moreau-jean scheme (docs/scaling.md)");
+    return SceneError(ptr,
+                      what + ": a system of more than " + std::to_string(kMaxDof) + " coordinates or " + std::to_string(kMaxConstraints) +
+                          " constraints runs on the large-contact path, which takes a constant diagonal mass, a linear potential, "
+                          "constant forces, gaps of a few coordinates each, no controller and the moreau-jean scheme (docs/scaling.md)");
   }
 
   // The system of the large-contact path (large_contact_integrator.h) from the affine forms, when the
@@ -947,15 +988,30 @@ class LagrangianCompiler : SceneReader {
     sys->force_is_potential = !has_force_;  // a constant gradient (given or from V) is that of g^T q
     std::vector<Eigen::Triplet<double>> t;
     const int m = static_cast<int>(gap_forms_.size());
-    sys->offsets.resize(m);
-    for (int i = 0; i < m; ++i) {
-      const std::optional<expr::AffineForm>& form = gap_forms_[static_cast<std::size_t>(i)];
-      if (!form) return nullptr;
-      sys->offsets(i) = form->constant;
-      for (const auto& [slot, a] : form->coefficients) t.emplace_back(i, slot - 1, a);
+    sys->offsets.setZero(m);
+    const bool linear = std::all_of(gap_forms_.begin(), gap_forms_.end(), [](const auto& form) { return form.has_value(); });
+    if (linear) {
+      for (int i = 0; i < m; ++i) {
+        const expr::AffineForm& form = *gap_forms_[static_cast<std::size_t>(i)];
+        sys->offsets(i) = form.constant;
+        for (const auto& [slot, a] : form.coefficients) t.emplace_back(i, slot - 1, a);
+      }
+    } else {
+      // Nonlinear gaps: their tapes, and the pattern of their gradients (values at q0 below). Position
+      // correction is one LCP for linear gaps only: within the dense limits the dense step takes it.
+      if (scene.contact_settings.correct_positions) return nullptr;
+      for (int i = 0; i < m; ++i)
+        for (const auto& [j, node] : gap_partials_[static_cast<std::size_t>(i)]) t.emplace_back(i, j, 1.0);
+      sys->nonlinear_gaps = std::make_shared<detail::ContactGapTapes>(graph_, gaps_, gap_partials_, 1 + 2 * n_);
     }
     sys->gradients.resize(m, n_);
     sys->gradients.setFromTriplets(t.begin(), t.end());
+    sys->gradients.makeCompressed();
+    if (!linear && static_cast<int>(scene.q0.size()) == n_) {
+      Eigen::VectorXd gap;
+      std::vector<double> scratch = sys->nonlinear_gaps->make_scratch();
+      sys->evaluate(Eigen::Map<const Eigen::VectorXd>(scene.q0.data(), n_), gap, sys->gradients, scratch);
+    }
     sys->restitution = scene.restitution;
     // Within the dense limits a system this path does not take (contacts that couple densely, a zero
     // gradient) stays on the dense step; beyond them check_large_at_initial_state reports why.
@@ -968,6 +1024,8 @@ class LagrangianCompiler : SceneReader {
   void check_large_at_initial_state(const LagrangianScene& scene) {
     if (num_params() > 0) throw large_requirement("/parameters", "free parameters (a campaign's) are not taken");
     const std::shared_ptr<const LargeContactSystem> sys = large_contact_system(scene);
+    if (!sys && scene.contact_settings.correct_positions)
+      throw large_requirement("/integrator/position_correction", "position correction with nonlinear gaps is not taken");
     if (!sys) throw large_requirement("/system", "the system does not have that structure");
     for (int i = 0; i < n_; ++i) {
       if (!(sys->mass(i) > 0.0) || !std::isfinite(sys->mass(i)))
@@ -980,7 +1038,10 @@ class LagrangianCompiler : SceneReader {
     const std::string invalid = sys->validate();
     if (!invalid.empty()) throw SceneError("/system/constraints", invalid);
     const Eigen::VectorXd q0 = Eigen::Map<const Eigen::VectorXd>(scene.q0.data(), n_);
-    const Eigen::VectorXd gaps = sys->gradients * q0 + sys->offsets;
+    Eigen::VectorXd gaps;
+    Eigen::SparseMatrix<double, Eigen::RowMajor> H = sys->gradients;
+    std::vector<double> scratch = sys->linear() ? std::vector<double>{} : sys->nonlinear_gaps->make_scratch();
+    sys->evaluate(q0, gaps, H, scratch);
     for (int i = 0; i < sys->num_constraints(); ++i) {
       if (!std::isfinite(gaps(i)))
         throw SceneError("/system/constraints/" + std::to_string(i) + "/gap", "h(q) is not finite at the initial state");
@@ -1117,11 +1178,14 @@ class LagrangianCompiler : SceneReader {
 
   std::vector<std::string> coord_names_, vel_names_;
   std::vector<Node> M_, C_, g_;
-  bool diagonal_mass_ = false;                              // /system/mass given as {"diagonal": [...]}
-  bool large_ = false;                                      // beyond the dense limits: the large-contact path
-  bool has_force_ = false;                                  // /system/force given
-  std::vector<Node> mass_diagonal_;                         // M's diagonal when given so
-  std::vector<std::optional<expr::AffineForm>> gap_forms_;  // each gap as an affine form, when it is one
+  bool diagonal_mass_ = false;                                   // /system/mass given as {"diagonal": [...]}
+  bool large_ = false;                                           // beyond the dense limits: the large-contact path
+  bool has_force_ = false;                                       // /system/force given
+  std::vector<Node> mass_diagonal_;                              // M's diagonal when given so
+  std::vector<std::optional<expr::AffineForm>> gap_forms_;       // each gap as an affine form, when it is one
+  std::vector<std::vector<std::pair<int, Node>>> gap_partials_;  // per gap: (j, dh/dq_j) for the q_j it reads
+  std::vector<std::uint32_t> visit_stamp_;                       // coordinates_read's marks, per graph node
+  std::uint32_t stamp_ = 0;
   std::shared_ptr<const LargeContactSystem> large_system_;  // the large-contact path's system (check_large_at_initial_state)
   std::vector<Node> gradient_, force_;                      // grad V and F alone (constant 0 when absent)
   void enclose_forces(CompiledLagrangian& c, double t0, double t_end) const;

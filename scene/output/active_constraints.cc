@@ -11,8 +11,8 @@ namespace moreau::scene::detail {
 
 namespace {
 
-// A scene compiled for the large-contact path alone: the gaps and gradients from its linear system
-// (h(q) = H q + c, H sparse), the rank of the active rows by sparse QR; `gradients` stays empty.
+// A scene compiled for the large-contact path alone: the gaps and gradients from its system (H sparse,
+// constant or evaluated at the end), the rank of the active rows by sparse QR; `gradients` stays empty.
 ActiveConstraints large_contact_path_at_end(const LagrangianScene& scene, const RunSummary& s) {
   ActiveConstraints out;
   const CompiledLagrangian& c = *scene.compiled;
@@ -25,7 +25,11 @@ ActiveConstraints large_contact_path_at_end(const LagrangianScene& scene, const 
   out.grad_u = Eigen::Map<const Eigen::VectorXd>(split.data(), n);
   const double h = scene.settings.h;
   out.gap_tolerance = 10.0 * h * h * out.grad_u.norm() / std::max(s.mass.lambda_min, 1e-300) + 1e-12;
-  const Eigen::VectorXd gaps = sys.gradients * q + sys.offsets;
+  // The gaps and gradients at the end: constant H with linear gaps, evaluated at q_final otherwise.
+  Eigen::VectorXd gaps;
+  Eigen::SparseMatrix<double, Eigen::RowMajor> H = sys.gradients;
+  std::vector<double> scratch = sys.linear() ? std::vector<double>{} : sys.nonlinear_gaps->make_scratch();
+  sys.evaluate(q, gaps, H, scratch);
   for (int i = 0; i < sys.num_constraints(); ++i)
     if (std::isfinite(gaps(i)) && gaps(i) <= out.gap_tolerance) out.active.push_back(i);
   out.evaluated = true;
@@ -33,7 +37,7 @@ ActiveConstraints large_contact_path_at_end(const LagrangianScene& scene, const 
   if (out.active.empty()) return out;
   std::vector<Eigen::Triplet<double>> t;
   for (std::size_t a = 0; a < out.active.size(); ++a)
-    for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(sys.gradients, out.active[a]); it; ++it)
+    for (Eigen::SparseMatrix<double, Eigen::RowMajor>::InnerIterator it(H, out.active[a]); it; ++it)
       t.emplace_back(static_cast<int>(a), static_cast<int>(it.col()), it.value());
   // The rank of the active rows H_A (a x n) is that of its transpose; SparseQR factorises the one with at
   // least as many rows as columns, with column pivoting by the same 1e-10 threshold as the report's dense QR.

@@ -9,6 +9,7 @@
 #include <stdexcept>
 #include <vector>
 
+#include "moreau/core/large_contact_integrator.h"
 #include "scheme_runs.h"
 
 namespace moreau::scene {

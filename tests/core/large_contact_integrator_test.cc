@@ -210,6 +210,100 @@ TEST(LargeContactIntegrator, AStackRestsExactlyWithEachContactCarryingTheWeightA
   }
 }
 
+// A granular column written by hand (no expressions): N balls (x_i, y_i) of mass 1 and radius r in a tube
+// of width 3r, the floor under the first ball, both walls for each ball, |p_{i+1} - p_i| - 2r between
+// neighbours, contacts ball by ball (left_i, right_i, c_i), and their gradients in closed form.
+class ColumnGaps final : public ContactGapFunction {
+ public:
+  ColumnGaps(int n, double r) : n_(n), r_(r) {}
+  std::vector<double> make_scratch() const override { return {}; }
+  void evaluate(const double* q, double* gap, double* gradient, double* /*scratch*/) const override {
+    int c = 0, k = 0;
+    gap[c++] = q[1] - r_;  // the floor: y_1 - r
+    gradient[k++] = 1.0;
+    for (int i = 0; i < n_; ++i) {
+      const double x = q[2 * i];
+      gap[c++] = x - r_;  // left wall
+      gradient[k++] = 1.0;
+      gap[c++] = 3 * r_ - r_ - x;  // right wall
+      gradient[k++] = -1.0;
+      if (i + 1 < n_) {
+        const double dx = q[2 * i + 2] - x, dy = q[2 * i + 3] - q[2 * i + 1], d = std::hypot(dx, dy);
+        gap[c++] = d - 2 * r_;
+        for (double g : {-dx / d, -dy / d, dx / d, dy / d}) gradient[k++] = g;  // (x_i, y_i, x_{i+1}, y_{i+1})
+      }
+    }
+  }
+
+ private:
+  int n_;
+  double r_;
+};
+
+LargeContactSystem column(int n, double r, double g, double e) {
+  LargeContactSystem s;
+  s.mass = Eigen::VectorXd::Ones(2 * n);
+  s.force = Eigen::VectorXd::Zero(2 * n);
+  for (int i = 0; i < n; ++i) s.force(2 * i + 1) = g;
+  std::vector<Eigen::Triplet<double>> t;
+  int c = 0;
+  t.emplace_back(c++, 1, 1.0);
+  for (int i = 0; i < n; ++i) {
+    t.emplace_back(c++, 2 * i, 1.0);
+    t.emplace_back(c++, 2 * i, 1.0);
+    if (i + 1 < n) {
+      for (int j = 2 * i; j < 2 * i + 4; ++j) t.emplace_back(c, j, 1.0);
+      ++c;
+    }
+  }
+  s.gradients.resize(c, 2 * n);
+  s.gradients.setFromTriplets(t.begin(), t.end());
+  s.gradients.makeCompressed();
+  s.offsets = Eigen::VectorXd::Zero(c);
+  s.restitution.assign(static_cast<std::size_t>(c), e);
+  s.nonlinear_gaps = std::make_shared<ColumnGaps>(n, r);
+  return s;
+}
+
+TEST(LargeContactIntegrator, AColumnAtRestCarriesTheStaticsOfTheZigzag) {
+  // The zigzag at rest: ball i against the left wall (i even) or the right one, its neighbour sqrt(3) r
+  // above. Statics (closed form): contact c_i, along the line of centres at 60 degrees from horizontal,
+  // carries the weight of the balls above it, N_i sin 60 = (N - 1 - i) m g; each ball's wall carries the
+  // horizontal parts of its two contacts, (N_{i-1} + N_i) cos 60; the floor all the weight. Impulses are
+  // these forces times h, and the velocity stays 0.0 (2N closed contacts on 2N coordinates).
+  const double r = 0.0625, g = 9.81, h = 1e-3;
+  for (int n : {2, 3, 50, 1000}) {
+    const LargeContactSystem sys = column(n, r, g, 0.5);
+    ASSERT_EQ(sys.validate(), "");
+    MoreauJeanSettings settings;
+    settings.t_end = 0.02;
+    settings.h = h;
+    LargeContactIntegrator integrator(sys, settings);
+    Eigen::VectorXd q0(2 * n), v0 = Eigen::VectorXd::Zero(2 * n);
+    for (int i = 0; i < n; ++i) {
+      q0(2 * i) = i % 2 == 0 ? r : 2 * r;
+      q0(2 * i + 1) = r + i * std::sqrt(3.0) * r;
+    }
+    RestWatcher watch;
+    const RunSummary s = integrator.run(q0, v0, &watch);
+    ASSERT_EQ(s.status, RunStatus::kCompleted) << s.message;
+    EXPECT_EQ(watch.moving, 0) << "n = " << n << ": a velocity was not 0.0 exactly";
+    EXPECT_EQ(s.rest_step, 0);
+    const Eigen::VectorXd& P = integrator.impulses();
+    std::vector<double> pair(static_cast<std::size_t>(n), 0.0);  // N_i h; pair[n - 1] = 0 (no ball above)
+    for (int i = 0; i + 1 < n; ++i) pair[static_cast<std::size_t>(i)] = h * (n - 1 - i) * g / (std::sqrt(3.0) / 2);
+    const double tol = 1e-11 * h * n * g;
+    int c = 0;
+    EXPECT_NEAR(P(c++), h * n * g, tol) << "n = " << n << ": the floor";
+    for (int i = 0; i < n; ++i) {
+      const double wall = 0.5 * ((i > 0 ? pair[static_cast<std::size_t>(i - 1)] : 0.0) + pair[static_cast<std::size_t>(i)]);
+      EXPECT_NEAR(P(c++), i % 2 == 0 ? wall : 0.0, tol) << "n = " << n << ", left wall of ball " << i;
+      EXPECT_NEAR(P(c++), i % 2 == 0 ? 0.0 : wall, tol) << "n = " << n << ", right wall of ball " << i;
+      if (i + 1 < n) EXPECT_NEAR(P(c++), pair[static_cast<std::size_t>(i)], tol) << "n = " << n << ", contact " << i;
+    }
+  }
+}
+
 // N balls on a horizontal line (no gravity), gaps x_{i+1} - x_i - d >= 0 between neighbours, masses 1.
 LargeContactSystem cradle(int n, double d, double e) {
   LargeContactSystem s;

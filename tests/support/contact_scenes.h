@@ -1,9 +1,10 @@
 // The contact scenes at scale of the benchmarks and tests (docs/scaling.md), as
-// scripts/make-contact-scene.py writes them: a stack of N balls on a floor and a Newton's cradle, masses
-// given as {"diagonal": [...]}, linear gaps. The radius is a power of two, so positions and gaps are exact
-// binary numbers and touching contacts have gap 0.0.
+// scripts/make-contact-scene.py writes them: a stack of N balls on a floor, a Newton's cradle and a
+// granular column, masses given as {"diagonal": [...]}, linear gaps (the column's between balls nonlinear). The radius is a power of two,
+// so positions and gaps are exact binary numbers and touching contacts have gap 0.0.
 #pragma once
 
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -58,6 +59,45 @@ inline nlohmann::json cradle_scene(int n, double gap, double t_end, double e = 1
           {"parameters", {{"m", 1}, {"r", kBallRadius}}},
           {"system", {{"type", "lagrangian"}, {"coordinates", coords}, {"mass", {{"diagonal", mass}}}, {"constraints", cons}}},
           {"initial", {{"q", q0}, {"v", v0}}},
+          {"integrator", {{"scheme", "moreau-jean"}, {"h", 1e-3}, {"t_end", t_end}}}};
+}
+
+// A granular column (scripts/make-contact-scene.py column): N balls (x_i, y_i) in a tube of width 3r,
+// dropped in a zigzag, each gap opened by `drop`; floor under the first, both walls for each, the distance
+// between neighbours minus 2r; contacts ball by ball (left_i, right_i, c_i).
+inline nlohmann::json column_scene(int n, double drop, double t_end, double e = 0.5) {
+  using nlohmann::json;
+  const double r = kBallRadius, width = 3 * kBallRadius;
+  json coords = json::array(), mass = json::array(), grad = json::array(), q0 = json::array();
+  json cons = json::array({{{"name", "floor"}, {"gap", "y1 - r"}, {"restitution", "e"}}});
+  for (int i = 1; i <= n; ++i) {
+    const std::string x = indexed("x", i), y = indexed("y", i);
+    coords.push_back(x);
+    coords.push_back(y);
+    mass.push_back("m");
+    mass.push_back("m");
+    grad.push_back("0");
+    grad.push_back("m*g");
+    q0.push_back(i % 2 == 1 ? r : width - r);
+    q0.push_back(r + drop + (i - 1) * (std::sqrt(3.0) * r + drop));
+    cons.push_back({{"name", indexed("left", i)}, {"gap", x + " - r"}, {"restitution", "e"}});
+    cons.push_back({{"name", indexed("right", i)}, {"gap", "w - r - " + x}, {"restitution", "e"}});
+    if (i < n) {
+      const std::string x2 = indexed("x", i + 1), y2 = indexed("y", i + 1);
+      cons.push_back({{"name", indexed("c", i)},
+                      {"gap", "sqrt((" + x2 + " - " + x + ")^2 + (" + y2 + " - " + y + ")^2) - 2*r"},
+                      {"restitution", "e"}});
+    }
+  }
+  return {{"name", "column"},
+          {"parameters", {{"m", 1}, {"g", 9.81}, {"r", r}, {"w", width}, {"e", e}}},
+          {"system",
+           {{"type", "lagrangian"},
+            {"coordinates", coords},
+            {"mass", {{"diagonal", mass}}},
+            {"potential_gradient", grad},
+            {"constraints", cons}}},
+          {"initial", {{"q", q0}, {"v", std::vector<int>(static_cast<std::size_t>(2 * n), 0)}}},
           {"integrator", {{"scheme", "moreau-jean"}, {"h", 1e-3}, {"t_end", t_end}}}};
 }
 

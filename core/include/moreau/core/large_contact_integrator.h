@@ -1,38 +1,44 @@
 // The Moreau-Jean scheme (eq. (8) of Brogliato 2003) for contact systems at scale: thousands of
 // coordinates and contacts, each step in time and memory linear in their number.
 //
-// The system: a constant diagonal mass matrix M, a constant force term g (gravity: M dv = -g dt + H^T dP),
-// linear gaps h(q) = H q + c with a constant sparse gradient matrix H (a stack of balls on a floor, a
-// Newton's cradle, a column of grains along a line), Newton restitution e_i per contact, no set-valued
-// controller. The step is the step of moreau_jean_integrator.h with C = 0 and W = 0, so Wm = M:
+// The system (large_contact_system.h): a constant diagonal mass matrix M, a constant force term g
+// (gravity: M dv = -g dt + H^T dP), gaps h(q) with a sparse gradient H(q) = grad h(q)^T, linear (H
+// constant: a stack of balls on a floor, a Newton's cradle) or nonlinear (balls against balls in a plane:
+// a granular column), Newton restitution e_i per contact, no set-valued controller. The step is the step
+// of moreau_jean_integrator.h with C = 0 and W = 0, so Wm = M, and H = H(Q^k):
 //
 //   V_free = V^k - h M^{-1} g,   U^k = H V^k,   I_k = {i : h_i(Q^k) + h H_i V_free <= 0 (to round-off)},
 //   V^{k+1} = V_free + M^{-1} H_I^T P,   0 <= H_I V^{k+1} + e_I min(U_I^k, 0)  perp  P >= 0,   (LCP)
 //   Q^{k+1} = Q^k + h V_pos^{k+1}  (V_pos as in moreau_jean_integrator.h: MDI by default),
 //
 // where it is structured rather than dense:
-//  - M^{-1} is a vector; the Delassus operator D = H M^{-1} H^T (the LCP's matrix on I_k is D_II) is a
-//    sparse matrix formed once, since M, H and h are constant: the "factorise once" of a constant M;
+//  - M^{-1} is a vector; the Delassus operator D = H M^{-1} H^T (the LCP's matrix on I_k is D_II) is
+//    sparse. With linear gaps it is formed once, since M, H and h are constant: the "factorise once" of a
+//    constant M. With nonlinear gaps its rows on I_k are formed at a step whose H or I_k differs from the
+//    last formed (a column at rest does not move: no new D, and the LCP's factor is reused);
 //  - (LCP) is solved exactly by block principal pivoting with Murty's rule (sparse_lcp.h), which
 //    terminates for the positive definite D of independent gradients and reuses the factor of D_FF while
-//    the set of closed contacts does not change (a stack at rest: two triangular solves a step);
-//  - every other pass (H V, H^T P, the gaps, energies, rest) is a sweep over the nonzeros.
-// So a step costs O(n + nnz(H)) plus the factorisation of D_FF when the closed set changes, which for a
-// banded D (a stack, a cradle) is O(|F|) as well. Measured: docs/scaling.md.
+//    neither the set of closed contacts nor D changes (a stack at rest: two triangular solves a step);
+//  - every other pass (H V, H^T P, the gaps, energies, rest) is a sweep over the nonzeros; nonlinear gaps
+//    and their gradients are evaluated once per step, at Q^{k+1} (the next step's Q^k).
+// So a step costs O(n + nnz(H)) plus the factorisation of D_FF when the closed set or D changes, which
+// for a banded D (a stack, a cradle, a column in a tube) is O(|F|) as well. Measured: docs/scaling.md.
 //
 // Exact values (the contract of the dense integrator): the rows of the closed set F have
 // H_F V^{k+1} + e_F min(U_F^k, 0) == 0.0 in exact arithmetic; when F has n rows with a well-conditioned
-// H_F, V^{k+1} is solved from them (a stack at rest: V == 0.0 exactly), and a row of F with a single
-// nonzero fixes its coordinate. The polished V is kept only where it is within the solve's round-off of
-// the unpolished one.
+// H_F, V^{k+1} is solved from them (a stack or a column at rest: V == 0.0 exactly), and a row of F with a
+// single nonzero fixes its coordinate. The polished V is kept only where it is within the solve's
+// round-off of the unpolished one.
 //
 // Impacts are recorded as the dense integrator records them, with the reference of eq. (9) computed over
 // every contact that carries impulse in the step (the impacting ones and the closed contacts the impulse
 // passes through, as in a touching Newton's cradle), by the same exact LCP solver: Moreau's impact law
 // (simultaneous impacts, Newton restitution at each contact) from V^k at Q^k without smooth forces.
 //
-// Where this path is not the one: a mass matrix that is not constant and diagonal, a gap that is not
-// linear, a controller (dPhi), C or W nonzero: moreau_jean_integrator.h (dense, fixed-size where small).
+// Position correction (MoreauJeanSettings::correct_positions) projects onto {H q + c >= 0} in one LCP,
+// exact for linear gaps; with nonlinear gaps that would be one Newton step of a projection, so it is not
+// taken there (the run says so). Where this path is not the one: a mass matrix that is not constant and
+// diagonal, a controller (dPhi), C or W nonzero: moreau_jean_integrator.h (dense, fixed-size where small).
 #pragma once
 
 #include <Eigen/Dense>
@@ -43,6 +49,7 @@
 #include <string>
 #include <vector>
 
+#include "moreau/core/large_contact_system.h"
 #include "moreau/core/moreau_jean_settings.h"
 #include "moreau/core/observer.h"
 #include "moreau/core/run_diagnostics.h"
@@ -51,31 +58,6 @@
 #include "moreau/core/stepping_driver.h"
 
 namespace moreau {
-
-// The largest system this path takes: memory is linear in these (a few hundred bytes per coordinate and
-// per contact), and so is a step; the bound keeps one request's memory and step time bounded (10,000
-// balls: about 4 MB and under a millisecond a step).
-inline constexpr int kMaxLargeContactDof = 10000;
-inline constexpr int kMaxLargeContacts = 10000;
-// The coupling the path takes: the Delassus operator's nonzeros at most this many per contact (plus 4096,
-// a dense 64 x 64); a ball in a packing couples each of its contacts with about 2 x 12 others.
-inline constexpr long long kMaxDelassusNonzerosPerContact = 32;
-
-struct LargeContactSystem {
-  Eigen::VectorXd mass;                                    // the diagonal of M: n entries, each > 0
-  Eigen::VectorXd force;                                   // g = grad V + F, constant (n entries)
-  bool force_is_potential = true;                          // V(q) = g^T q is the potential in W (Lemma 3)
-  Eigen::SparseMatrix<double, Eigen::RowMajor> gradients;  // H: nc x n, row i = grad h_i^T, constant
-  Eigen::VectorXd offsets;                                 // c: h(q) = H q + c (nc entries)
-  std::vector<double> restitution;                         // e_i in [0, 1] (nc entries)
-
-  int dof() const { return static_cast<int>(mass.size()); }
-  int num_constraints() const { return static_cast<int>(gradients.rows()); }
-  // "" when the system is valid for the integrator, else what is wrong (sizes, a mass <= 0, a gradient
-  // row that is zero, a restitution outside [0, 1], a value that is not finite, a size above the limits,
-  // contacts that couple too densely).
-  std::string validate() const;
-};
 
 class LargeContactIntegrator {
  public:
@@ -116,14 +98,29 @@ class LargeContactIntegrator {
   void record_impacts(ContactDiagnostics& d, std::int64_t step, double t, int impacts_now);
   bool correct(ContactDiagnostics& d);
 
+  bool evaluate_gaps(const Eigen::VectorXd& q);  // gap_ (and H_, row_abs_sum_, offsets_ with nonlinear gaps)
+  void form_delassus();                          // D_ on I_k from H_, when H_ or I_k changed (nonlinear gaps)
+  std::string nonfinite_gap_message() const {
+    return "the gap of contact " + std::to_string(nonfinite_contact_) + " or its gradient is not finite (coincident centres?)";
+  }
+
   LargeContactSystem sys_;
   MoreauJeanSettings settings_;
   std::string invalid_;  // validate()'s answer at construction
   int n_ = 0, nc_ = 0;
   Eigen::VectorXd inv_mass_, accel_;  // M^{-1} and M^{-1} g
   double min_mass_ = 0.0;
-  Eigen::SparseMatrix<double> D_;  // H M^{-1} H^T
-  Eigen::VectorXd row_abs_sum_;    // per contact: sum_j |H_ij|
+  Eigen::SparseMatrix<double, Eigen::RowMajor> H_;  // grad h(Q^k)^T: the system's, or evaluated at Q^k
+  Eigen::SparseMatrix<double> D_;                   // H M^{-1} H^T (nonlinear gaps: its rows on formed_)
+  Eigen::VectorXd row_abs_sum_;                     // per contact: sum_j |H_ij|
+  Eigen::VectorXd offsets_;                         // per contact: h_i(q) - H_i q (the constant c_i when linear)
+  std::vector<double> gap_scratch_;                 // the nonlinear gap function's
+  std::vector<double> previous_H_;                  // H_'s values when D_ was formed
+  std::vector<char> formed_;                        // per contact: a row of the D_ formed last
+  bool delassus_current_ = false;
+  int nonfinite_contact_ = 0;  // evaluate_gaps(): the first contact whose gap or gradient is not finite                    // D_ is H_
+                               // M^{-1} H_^T on every row of I_k
+  Eigen::SparseMatrix<double, Eigen::RowMajor> HI_;  // scratch: H_'s rows on I_k
   SparseLcpSolver step_lcp_, impact_lcp_, correction_lcp_;
 
   Eigen::VectorXd q_, v_, qn_, vf_, vn_, vpos_;

@@ -22,7 +22,7 @@
 #include "moreau/core/regularization.h"
 #include "moreau/core/observer.h"
 #include "moreau/core/run_diagnostics.h"
-#include "moreau/core/large_contact_integrator.h"
+#include "moreau/core/large_contact_system.h"
 #include "moreau/core/rigid_body.h"
 #include "moreau/core/run_summary.h"
 #include "moreau/core/spline_reference.h"
