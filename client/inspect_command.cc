@@ -78,8 +78,10 @@ void inspect_lagrangian(const scene::LagrangianScene& sc, std::ostream& os) {
      << sc.settings.t_end << "]\n";
   if (scene::uses_large_contact_path(sc)) {
     const LargeContactSystem& sys = *sc.compiled->large_contacts;
-    os << "solver       the large-contact path (large_contact_integrator.h): constant diagonal M, linear gaps (H: "
-       << sys.gradients.nonZeros() << " nonzeros); the Delassus operator H M^-1 H^T formed once, sparse; the step's LCP by block "
+    os << "solver       the large-contact path (large_contact_integrator.h): constant diagonal M, "
+       << (sys.linear() ? "linear gaps (H constant: " : "nonlinear gaps (H(q) evaluated each step: ") << sys.gradients.nonZeros()
+       << " nonzeros); the Delassus operator H M^-1 H^T "
+       << (sys.linear() ? "formed once" : "formed on the active contacts when H or they change") << ", sparse; the step's LCP by block "
        << "principal pivoting with Murty's rule over a sparse LDL^T of the closed contacts' block, reused while they stay closed\n";
   } else if (sc.scheme == scene::Scheme::kMoreauJean) {
     os << "solver       the Moreau-Jean one-step problem (graph_inclusion_solver.h) over dense LU of M + h (C + W)\n";
