@@ -90,6 +90,9 @@ bool SparseLcpSolver::solve(const std::vector<int>& rows, const Eigen::VectorXd&
   double q_inf = 0.0;
   for (int r : rows) q_inf = std::max(q_inf, std::abs(q(r)));
   for (int r : rows) role_[static_cast<std::size_t>(r)] = in_F[static_cast<std::size_t>(r)] ? 2 : 1;
+  // z as the caller left it (the previous step's impulses): where the first guess starts from.
+  z_start_.resize(m);
+  for (int a = 0; a < m; ++a) z_start_(a) = z(rows[static_cast<std::size_t>(a)]);
 
   int best = m + 1, retries = std::max(0, options.block_retries);
   int sweeps = options.guess_sweeps, guesses = 0, guessed_at = 0;
@@ -153,6 +156,12 @@ bool SparseLcpSolver::solve(const std::vector<int>& rows, const Eigen::VectorXd&
     const bool guess_now = stats.passes == 1 || stats.passes - guessed_at >= kPassesBeforeNewGuess;
     if (!options.least_index_only && options.guess_sweeps > 0 && guess_now && guesses <= options.guess_restarts) {
       if (guesses++ > 0) sweeps *= 4;
+      // The first guess starts from the caller's z, not from the failed pass: a warm start that was right
+      // but for a few rows pulls a whole chain of contacts negative in its pass, and sweeps from that
+      // (negative entries set to 0) would lose the chain (the landing column of 1024: 521 passes in one
+      // step, against 9).
+      if (stats.passes == 1)
+        for (int a = 0; a < m; ++a) z(rows[static_cast<std::size_t>(a)]) = z_start_(a);
       guess_by_gauss_seidel(rows, q, z, sweeps);
       guessed_at = stats.passes;
       best = m + 1;
@@ -171,8 +180,8 @@ bool SparseLcpSolver::solve(const std::vector<int>& rows, const Eigen::VectorXd&
       role = role == 2 ? 1 : 2;
       continue;
     }
-    // Rows leaving F: those whose z is at least half as negative as the most negative one (all of them
-    // when option removal_fraction is 0). A wrong row in F pulls z negative along a whole chain of
+    // Rows leaving F: those whose z is at least removal_fraction as negative as the most negative one
+    // (all of them when it is 0). A wrong row in F pulls z negative along a whole chain of
     // contacts; removing only the chain's few strongly negative rows keeps the rest of a good guess.
     double most_negative = 0.0;
     for (int r : rows)

@@ -12,8 +12,9 @@
 // 1994). A complementary set F (z free, w_F = 0) gives z_F = -D_FF^{-1} q_F and w_G = q_G + D_GF z_F on
 // the rest (z_G = 0). The rows where z_F < 0 or w_G < 0 are infeasible; while their number falls, they
 // change sides at once (the rows of G all of them; the rows of F those with z at least
-// Options::removal_fraction as negative as the most negative, since one wrong row in F pulls a whole chain
-// of contacts negative); when it has not fallen for Options::block_retries passes, one pivot of Murty's
+// Options::removal_fraction = 0.99 as negative as the most negative, in practice the most negative alone:
+// one wrong row in F pulls a whole chain of contacts negative, and removing the chain would throw away a
+// warm start that was right but for that row); when it has not fallen for Options::block_retries passes, one pivot of Murty's
 // least-index rule is taken instead (the infeasible row of largest index changes sides; Murty, "Note on a
 // Bard-type scheme for solving the complementarity problem", Opsearch 11, 1974), which visits no set
 // twice and ends for every P-matrix, so the method terminates in finitely many passes with the exact
@@ -21,12 +22,16 @@
 // tolerance: each pass solves a linear system, and the answer is a complementary set's exact solution
 // (w_F == 0.0 by construction, z_G == 0.0).
 //
-// Guess: when the warm start's pass fails, projected Gauss-Seidel sweeps (forward and backward) from its
-// z pick the set the passes go on from, and again, with more sweeps, when a few passes have not ended
-// (Options::guess_sweeps, guess_restarts). An impact wave through a column of closed contacts otherwise
-// makes the block rule close one contact per pass (154 passes, each a factorisation, in one step of a
-// dropped stack of 1024; 7 with the guess). The guesses are bounded in number, so termination is still
-// that of the rules above, and the answer is still a pass's exact solution.
+// Guess: when the warm start's pass fails, projected Gauss-Seidel sweeps (forward and backward) from the
+// z the caller gave (the previous step's impulses) pick the set the passes go on from, and again, with 4
+// times the sweeps from the last pass's z, after every kPassesBeforeNewGuess passes that did not end
+// (Options::guess_sweeps, guess_restarts: 1, 4, 16, 64 sweeps). An impact wave through a column of closed
+// contacts otherwise makes the block rule close one contact per pass (154 passes, each a factorisation,
+// in one step of a dropped stack of 1024). The guesses are bounded in number, so termination is still
+// that of the rules above, and the answer is still a pass's exact solution. Measured (docs/scaling.md):
+// the landing granular column of 1024 took 521 passes in one step when the first guess started from the
+// failed pass's z and the removal fraction was 0.5 (the chain that one wrong row had pulled negative was
+// lost to both).
 //
 // Cost: one sparse LDL^T factorisation of D_FF per pass whose set differs from the last one factorised
 // (a banded D, as a stack's tridiagonal one, factorises in O(|F|)); a step whose answer has the set of
@@ -59,11 +64,11 @@ class SparseLcpSolver {
   using SparseMatrix = Eigen::SparseMatrix<double>;  // column-major
 
   struct Options {
-    int block_retries = 3;          // passes without fewer infeasible rows before Murty's rule (Judice-Pires use 3)
-    bool least_index_only = false;  // Murty's rule from the first pass (slower; the reference of the block phase)
-    double removal_fraction = 0.5;  // block passes move out of F the rows with z below this times the most negative z
+    int block_retries = 3;           // passes without fewer infeasible rows before Murty's rule (Judice-Pires use 3)
+    bool least_index_only = false;   // Murty's rule from the first pass (slower; the reference of the block phase)
+    double removal_fraction = 0.99;  // block passes move out of F the rows with z below this times the most negative z
     // When the warm start's pass is not the answer, and again after every kPassesBeforeNewGuess passes
-    // that did not end (at most guess_restarts times, each with 4 times the sweeps), projected
+    // that did not end (at most guess_restarts times more, each with 4 times the sweeps), projected
     // Gauss-Seidel sweeps guess the set the passes go on from (0: none).
     int guess_sweeps = 1;
     int guess_restarts = 3;
@@ -115,6 +120,7 @@ class SparseLcpSolver {
   Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower> ldlt_;                                      // AMD ordering: 2D patterns
   Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower, Eigen::NaturalOrdering<int>> banded_ldlt_;  // banded D
   Eigen::VectorXd rhs_, zf_;
+  Eigen::VectorXd z_start_;  // z on the problem's rows as the caller gave it: where the first guess starts
   std::vector<Eigen::Triplet<double>> triplets_;
 };
 
