@@ -35,34 +35,48 @@ struct Trajectory : RunObserver {
   }
 };
 
+// The scene run on the large-contact path and on the dense step, sampled at every step, and the largest
+// differences of their positions and velocities over the run.
+struct BothSteps {
+  RunSummary large, dense;
+  ContactDiagnostics large_contacts, dense_contacts;
+  double dq = 0.0, dv = 0.0;
+  std::size_t samples = 0;
+};
+
+BothSteps RunOnBothSteps(const LagrangianScene& sc) {
+  EXPECT_TRUE(uses_large_contact_path(sc));
+  const LagrangianScene dense = on_dense_step(sc);
+  EXPECT_FALSE(uses_large_contact_path(dense));
+  Trajectory a, b;
+  BothSteps r;
+  r.large = run_scene(sc, &a, &r.large_contacts);
+  r.dense = run_scene(dense, &b, &r.dense_contacts);
+  EXPECT_EQ(r.large.status, RunStatus::kCompleted) << r.large.message;
+  EXPECT_EQ(r.dense.status, RunStatus::kCompleted) << r.dense.message;
+  EXPECT_EQ(a.q.size(), b.q.size());
+  r.samples = std::min(a.q.size(), b.q.size());
+  for (std::size_t k = 0; k < r.samples; ++k)
+    for (std::size_t j = 0; j < a.q[k].size(); ++j) {
+      r.dq = std::max(r.dq, std::abs(a.q[k][j] - b.q[k][j]));
+      r.dv = std::max(r.dv, std::abs(a.v[k][j] - b.v[k][j]));
+    }
+  return r;
+}
+
 TEST(LargeContactScene, AgreesWithTheDenseStepWhereBothRun) {
   // A dropped stack of 12 (impacts travelling up and down, contacts opening and closing, rest) and a
   // touching cradle of 9 with e = 0.5: the large-contact path and the dense step, step by step.
   for (const json& doc : {stack_scene(12, 2e-3, 0.3), cradle_scene(9, 0.0, 0.05, 0.5)}) {
-    const LagrangianScene sc = load_scene(doc);
-    ASSERT_TRUE(uses_large_contact_path(sc));
-    const LagrangianScene dense = on_dense_step(sc);
-    ASSERT_FALSE(uses_large_contact_path(dense));
-    Trajectory a, b;
-    ContactDiagnostics ca, cb;
-    const RunSummary sa = run_scene(sc, &a, &ca), sb = run_scene(dense, &b, &cb);
-    ASSERT_EQ(sa.status, RunStatus::kCompleted) << sa.message;
-    ASSERT_EQ(sb.status, RunStatus::kCompleted) << sb.message;
-    ASSERT_EQ(a.q.size(), b.q.size());
-    double dq = 0.0, dv = 0.0;
-    for (std::size_t k = 0; k < a.q.size(); ++k)
-      for (std::size_t j = 0; j < a.q[k].size(); ++j) {
-        dq = std::max(dq, std::abs(a.q[k][j] - b.q[k][j]));
-        dv = std::max(dv, std::abs(a.v[k][j] - b.v[k][j]));
-      }
-    EXPECT_LE(dq, 1e-12) << doc["name"];
-    EXPECT_LE(dv, 1e-10) << doc["name"];
-    EXPECT_EQ(ca.impact_count, cb.impact_count) << doc["name"];
-    EXPECT_GT(ca.impact_count, 0) << doc["name"];  // not a comparison of two resting states
-    EXPECT_GT(a.q.size(), 50u) << doc["name"];
-    EXPECT_EQ(sa.rest_step, sb.rest_step) << doc["name"];
+    const BothSteps r = RunOnBothSteps(load_scene(doc));
+    EXPECT_LE(r.dq, 1e-12) << doc["name"];
+    EXPECT_LE(r.dv, 1e-10) << doc["name"];
+    EXPECT_EQ(r.large_contacts.impact_count, r.dense_contacts.impact_count) << doc["name"];
+    EXPECT_GT(r.large_contacts.impact_count, 0) << doc["name"];  // not a comparison of two resting states
+    EXPECT_GT(r.samples, 50u) << doc["name"];
+    EXPECT_EQ(r.large.rest_step, r.dense.rest_step) << doc["name"];
     // Both record eq. (9) over every contact carrying impulse: the same reference.
-    EXPECT_NEAR(ca.max_eq9_mismatch, cb.max_eq9_mismatch, 1e-12) << doc["name"];
+    EXPECT_NEAR(r.large_contacts.max_eq9_mismatch, r.dense_contacts.max_eq9_mismatch, 1e-12) << doc["name"];
   }
 }
 
@@ -71,28 +85,15 @@ TEST(LargeContactScene, AGranularColumnAgreesWithTheDenseStep) {
   // contacts): four balls dropped into a tube land, bounce off each other and the walls and settle. The
   // large-contact path and the dense step (symbolic n x m gradients, GraphInclusionSolver), step by step.
   const LagrangianScene sc = load_scene(test_support::column_scene(4, 2e-3, 0.6));
-  ASSERT_TRUE(uses_large_contact_path(sc));
   ASSERT_FALSE(sc.compiled->large_contacts->linear());
-  const LagrangianScene dense = on_dense_step(sc);
-  Trajectory a, b;
-  ContactDiagnostics ca, cb;
-  const RunSummary sa = run_scene(sc, &a, &ca), sb = run_scene(dense, &b, &cb);
-  ASSERT_EQ(sa.status, RunStatus::kCompleted) << sa.message;
-  ASSERT_EQ(sb.status, RunStatus::kCompleted) << sb.message;
-  ASSERT_EQ(a.q.size(), b.q.size());
-  double dq = 0.0, dv = 0.0;
-  for (std::size_t k = 0; k < a.q.size(); ++k)
-    for (std::size_t j = 0; j < a.q[k].size(); ++j) {
-      dq = std::max(dq, std::abs(a.q[k][j] - b.q[k][j]));
-      dv = std::max(dv, std::abs(a.v[k][j] - b.v[k][j]));
-    }
-  EXPECT_LE(dq, 1e-12);
-  EXPECT_LE(dv, 1e-10);
-  EXPECT_EQ(ca.impact_count, cb.impact_count);
-  EXPECT_GT(ca.impact_count, 3);
-  ASSERT_TRUE(sa.rest_step.has_value());  // settled within the run: both rest from the same step, exactly
-  EXPECT_EQ(sa.rest_step, sb.rest_step);
-  for (double v : sa.v_final) EXPECT_EQ(v, 0.0);
+  const BothSteps r = RunOnBothSteps(sc);
+  EXPECT_LE(r.dq, 1e-12);
+  EXPECT_LE(r.dv, 1e-10);
+  EXPECT_EQ(r.large_contacts.impact_count, r.dense_contacts.impact_count);
+  EXPECT_GT(r.large_contacts.impact_count, 3);
+  ASSERT_TRUE(r.large.rest_step.has_value());  // settled within the run: both rest from the same step, exactly
+  EXPECT_EQ(r.large.rest_step, r.dense.rest_step);
+  for (double v : r.large.v_final) EXPECT_EQ(v, 0.0);
 }
 
 TEST(LargeContactScene, AGranularColumnOfTwoHundredFiftySixSettlesIntoTheZigzagExactly) {

@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -16,6 +17,19 @@ inline constexpr double kBallRadius = 0.0625;
 
 // "y12": a name and a number (appended, not "y" + std::to_string: GCC 12 warns wrongly of an overlap there).
 inline std::string indexed(const char* name, int i) { return std::string(name).append(std::to_string(i)); }
+
+// The scene of balls with a diagonal mass: its parts, the potential's gradient omitted when null.
+inline nlohmann::json balls_scene(const char* name, nlohmann::json parameters, nlohmann::json coords, nlohmann::json mass,
+                                  nlohmann::json gradient, nlohmann::json cons, nlohmann::json q0, nlohmann::json v0, double t_end) {
+  nlohmann::json system = {{"type", "lagrangian"}, {"coordinates", std::move(coords)}, {"mass", {{"diagonal", std::move(mass)}}}};
+  if (!gradient.is_null()) system["potential_gradient"] = std::move(gradient);
+  system["constraints"] = std::move(cons);
+  return {{"name", name},
+          {"parameters", std::move(parameters)},
+          {"system", std::move(system)},
+          {"initial", {{"q", std::move(q0)}, {"v", std::move(v0)}}},
+          {"integrator", {{"scheme", "moreau-jean"}, {"h", 1e-3}, {"t_end", t_end}}}};
+}
 
 // N balls on a floor under gravity, each gap opened by `drop` (0: resting, every contact closed). With
 // `varied_masses`, every third ball (the second, the fifth, ...) has mass 2 m.
@@ -32,16 +46,8 @@ inline nlohmann::json stack_scene(int n, double drop, double t_end, double e = 0
                     {"gap", i == 0 ? std::string("y1 - r") : indexed("y", i + 1) + " - " + indexed("y", i) + " - 2*r"},
                     {"restitution", "e"}});
   }
-  return {{"name", "stack"},
-          {"parameters", {{"m", 1}, {"g", 9.81}, {"r", kBallRadius}, {"e", e}}},
-          {"system",
-           {{"type", "lagrangian"},
-            {"coordinates", coords},
-            {"mass", {{"diagonal", mass}}},
-            {"potential_gradient", grad},
-            {"constraints", cons}}},
-          {"initial", {{"q", q0}, {"v", std::vector<int>(static_cast<std::size_t>(n), 0)}}},
-          {"integrator", {{"scheme", "moreau-jean"}, {"h", 1e-3}, {"t_end", t_end}}}};
+  return balls_scene("stack", {{"m", 1}, {"g", 9.81}, {"r", kBallRadius}, {"e", e}}, coords, mass, grad, cons, q0,
+                     std::vector<int>(static_cast<std::size_t>(n), 0), t_end);
 }
 
 // N balls of mass 1 on a line, `gap` apart (0: touching), the first at v0 = 1, restitution e.
@@ -55,11 +61,7 @@ inline nlohmann::json cradle_scene(int n, double gap, double t_end, double e = 1
     v0.push_back(i == 0 ? 1 : 0);
     if (i + 1 < n) cons.push_back({{"gap", indexed("x", i + 2) + " - " + indexed("x", i + 1) + " - 2*r"}, {"restitution", e}});
   }
-  return {{"name", "cradle"},
-          {"parameters", {{"m", 1}, {"r", kBallRadius}}},
-          {"system", {{"type", "lagrangian"}, {"coordinates", coords}, {"mass", {{"diagonal", mass}}}, {"constraints", cons}}},
-          {"initial", {{"q", q0}, {"v", v0}}},
-          {"integrator", {{"scheme", "moreau-jean"}, {"h", 1e-3}, {"t_end", t_end}}}};
+  return balls_scene("cradle", {{"m", 1}, {"r", kBallRadius}}, coords, mass, nullptr, cons, q0, v0, t_end);
 }
 
 // A granular column (scripts/make-contact-scene.py column): N balls (x_i, y_i) in a tube of width 3r,
@@ -89,16 +91,8 @@ inline nlohmann::json column_scene(int n, double drop, double t_end, double e = 
                       {"restitution", "e"}});
     }
   }
-  return {{"name", "column"},
-          {"parameters", {{"m", 1}, {"g", 9.81}, {"r", r}, {"w", width}, {"e", e}}},
-          {"system",
-           {{"type", "lagrangian"},
-            {"coordinates", coords},
-            {"mass", {{"diagonal", mass}}},
-            {"potential_gradient", grad},
-            {"constraints", cons}}},
-          {"initial", {{"q", q0}, {"v", std::vector<int>(static_cast<std::size_t>(2 * n), 0)}}},
-          {"integrator", {{"scheme", "moreau-jean"}, {"h", 1e-3}, {"t_end", t_end}}}};
+  return balls_scene("column", {{"m", 1}, {"g", 9.81}, {"r", r}, {"w", width}, {"e", e}}, coords, mass, grad, cons, q0,
+                     std::vector<int>(static_cast<std::size_t>(2 * n), 0), t_end);
 }
 
 }  // namespace moreau::test_support
