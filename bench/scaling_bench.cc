@@ -1,12 +1,11 @@
-// Contact systems at scale (docs/scaling.md): the stack of N balls at rest and dropped, and the gapped
-// Newton's cradle, from N = 2 to 8192, each a scene compiled as `moreau run` compiles it (the scenes of
-// scripts/make-contact-scene.py, tests/support/contact_scenes.h) and run by run_scene. `dense` variants
-// run the same scene on the dense Moreau-Jean step (N <= 64): the two sides of the crossover
-// kLargeContactFromDof.
+// Contact systems at scale (docs/scaling.md): the stack of N balls at rest and dropped, the gapped
+// Newton's cradle, from N = 2 to 8192, and the granular column (nonlinear gaps) from N = 4 to 3333, each a scene compiled as `moreau run`
+// compiles it (the scenes of scripts/make-contact-scene.py, tests/support/contact_scenes.h) and run by run_scene. `dense` variants run the
+// same scene on the dense Moreau-Jean step (N <= 64): the two sides of the crossover kLargeContactFromDof.
 //
-//   build/bench/scaling_bench --benchmark_filter='Stack|Cradle' --benchmark_min_time=0.2
+//   build/bench/scaling_bench --benchmark_filter='Stack|Cradle|Column' --benchmark_min_time=0.2
 //
-// Counters: ns_per_step (the run's wall time over its steps), and for the dropped stack the median and
+// Counters: ns_per_step (the run's wall time over its steps), and for the dropped stack and the column the median and
 // worst single step (timed from one sample to the next, every step sampled; each step's fastest of 7
 // rounds) and their ratio.
 #include <benchmark/benchmark.h>
@@ -29,6 +28,7 @@ using moreau::RunSummary;
 using moreau::Sample;
 namespace scene = moreau::scene;
 
+using moreau::test_support::column_scene;
 using moreau::test_support::cradle_scene;
 using moreau::test_support::stack_scene;
 
@@ -70,14 +70,12 @@ struct StepClock : RunObserver {
   }
 };
 
-// A stack dropped from 1 mm gaps: impacts travel up and down it, contacts close and open, until it rests.
-void BM_StackDropped(benchmark::State& state) {
-  const int n = static_cast<int>(state.range(0));
-  const scene::LagrangianScene sc = scene::load_scene(stack_scene(n, 1e-3, 0.5));
+// Runs the scene each iteration with every step timed and sets the counters: ns_per_step, and the median
+// and worst single step and their ratio. A step's time is its fastest over the rounds (the run is
+// deterministic: the same step does the same work each round): the cost of the step itself, without the
+// preemptions of a shared machine, which a single round's slowest step shows instead.
+void RunTimingEveryStep(benchmark::State& state, const scene::LagrangianScene& sc) {
   std::int64_t steps = 0;
-  // A step's time is its fastest over the rounds (the run is deterministic: the same step does the same
-  // work each round): the cost of the step itself, without the preemptions of a shared machine, which a
-  // single round's slowest step shows instead.
   std::vector<double> fastest;
   for (auto _ : state) {
     StepClock clock;
@@ -99,11 +97,37 @@ void BM_StackDropped(benchmark::State& state) {
   state.counters["worst_over_median"] = worst / median;
 }
 
+// A stack dropped from 1 mm gaps: impacts travel up and down it, contacts close and open, until it rests.
+void BM_StackDropped(benchmark::State& state) {
+  RunTimingEveryStep(state, scene::load_scene(stack_scene(static_cast<int>(state.range(0)), 1e-3, 0.5)));
+}
+
+// A granular column: N balls dropped into a tube (nonlinear gaps between balls), landing, bouncing off
+// each other and the walls, settling into a zigzag over 1 s (2N coordinates, 3N contacts).
+void BM_GranularColumn(benchmark::State& state) {
+  RunTimingEveryStep(state, scene::load_scene(column_scene(static_cast<int>(state.range(0)), 1e-3, 1.0)));
+}
+void BM_GranularColumn_dense(benchmark::State& state) {
+  const scene::LagrangianScene sc = dense(scene::load_scene(column_scene(static_cast<int>(state.range(0)), 1e-3, 1.0)));
+  moreau::bench::RunScene(state, sc);
+}
+
 }  // namespace
 
 BENCHMARK(BM_StackAtRest)->RangeMultiplier(2)->Range(2, 8192)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_StackAtRest_dense)->RangeMultiplier(2)->Range(2, 64)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_StackDropped)->RangeMultiplier(4)->Range(8, 8192)->Iterations(7)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_GranularColumn)
+    ->Arg(4)
+    ->Arg(8)
+    ->Arg(16)
+    ->Arg(64)
+    ->Arg(256)
+    ->Arg(1024)
+    ->Arg(3333)
+    ->Iterations(3)
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_GranularColumn_dense)->Arg(4)->Arg(8)->Arg(16)->Iterations(3)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_GappedCradle)->Arg(2)->Arg(8)->Arg(16)->Arg(64)->Arg(256)->Arg(1024)->Arg(4096)->Arg(8192)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_GappedCradle_dense)->RangeMultiplier(2)->Range(2, 64)->Unit(benchmark::kMillisecond);
 

@@ -13,6 +13,11 @@
 //   stack         scripts/make-contact-scene.py stack N: N balls resting on a floor and on each other
 //                 (one LagrangianLinearTIDS per ball, an Interaction per contact), NewtonImpactNSL(0.5), LCP.
 //   cradle        scripts/make-contact-scene.py cradle N --gap G: Newton's cradle, e = 1, the first ball at 1.
+//   column        scripts/make-contact-scene.py column N --drop D: a granular column, N balls in a tube of
+//                 width 3r dropped in a zigzag, with Siconos's mechanics module: one Disk (x, y, theta) per
+//                 ball, DiskPlanR for the floor (under the first ball) and both walls (every ball), DiskDiskR
+//                 between neighbours, NewtonImpactNSL(e = 0.5), MoreauJeanOSI, LCP, TimeStepping with its
+//                 Newton loop (the disk-disk gaps are nonlinear). Built only when the module is installed.
 //   lure-relay    scenes/lure-relay-2state.json: x' = A x - B Sign(C x): FirstOrderLinearTIDS,
 //                 FirstOrderLinearTIR (y = C x, r = B lambda), RelayNSL(-1, 1), EulerMoreauOSI(theta = 1), Relay.
 //
@@ -25,11 +30,23 @@
 //
 // Usage: siconos_bench WORKLOAD [--h H] [--t-end T] [--reps N] [--csv FILE] [--every K]
 //                               [--theta TH] [--solver NAME] [--newton nonlinear|linear] [--tol TOL]
+//                               [--n N] [--gap G] [--drop D] [--e E]
 // Prints one JSON object: the settings, the steps, the median/min/max time per step over --reps runs of
 // the stepping loop (the model, the simulation and TimeStepping::initialize are built outside the timed
 // loop and timed apart as setup), Newton iterations, the final state. --csv writes the trajectory of one
 // further, untimed run (t, then positions, then velocities; or t, x1, x2), every K-th step.
+
+// MechanicsFwd.hpp first: it adds the mechanics classes to the kernel's visitor (SICONOS_VISITABLES) before
+// SiconosKernel.hpp declares it, as the mechanics library itself was compiled.
+#ifdef MOREAU_SICONOS_MECHANICS
+#include <MechanicsFwd.hpp>
+#endif
 #include <SiconosKernel.hpp>
+#ifdef MOREAU_SICONOS_MECHANICS
+#include <Disk.hpp>
+#include <DiskDiskR.hpp>
+#include <DiskPlanR.hpp>
+#endif
 
 #include <algorithm>
 #include <chrono>
@@ -103,8 +120,10 @@ struct Options {
   double h = NAN, t_end = NAN, theta = 1.0, tol = NAN;
   int reps = 7, every = 1;
   std::string csv, solver = "default", newton = "nonlinear";
-  int n = 8;          // stack, cradle: the number of balls
+  int n = 8;          // stack, cradle, column: the number of balls
   double gap = 0.01;  // cradle: the space between neighbouring balls
+  double drop = NAN;  // column: the opening of each gap at t = 0 (unset or 0: 1e-3, as the script)
+  double e = NAN;     // stack, cradle, column: the restitution (unset: 0.5, 1, 0.5)
 };
 
 // One simulation ready to step: what the timed loop and the CSV writer need.
@@ -286,7 +305,7 @@ constexpr double kBallRadius = 0.0625;
 
 Built BuildBalls(const Options& o, bool stack) {
   constexpr double g = 9.81;
-  const double e = stack ? 0.5 : 1.0;
+  const double e = !std::isnan(o.e) ? o.e : stack ? 0.5 : 1.0;
   Built b;
   b.nsds = std::make_shared<NonSmoothDynamicalSystem>(0.0, o.t_end);
   std::vector<SP::LagrangianLinearTIDS> balls;
@@ -329,6 +348,111 @@ Built BuildBalls(const Options& o, bool stack) {
   return b;
 }
 
+#ifdef MOREAU_SICONOS_MECHANICS
+// DiskPlanR and DiskDiskR of Siconos 4.4 write two rows of their Jacobian, the normal and the tangent one
+// (for NewtonImpactFrictionNSL, an interaction of size 2), also when the interaction has size 1 as with
+// NewtonImpactNSL: SimpleMatrix's range assertion (kept in Debian's build) aborts in Simulation::initialize.
+// Frictionless: Siconos's own Jacobian is computed into a two-row matrix and its normal row kept.
+template <class R>
+class NormalRow : public R {
+ public:
+  using R::R;
+  void computeJachq(const BlockVector& q, BlockVector& z) override {
+    SP::SimpleMatrix& jac = this->_jachq;
+    if (jac->size(0) != 1) {  // a size-2 interaction: as Siconos
+      R::computeJachq(q, z);
+      return;
+    }
+    const unsigned cols = jac->size(1);
+    if (!both_ || both_->size(1) != cols) both_ = std::make_shared<SimpleMatrix>(2, cols);
+    std::swap(jac, both_);
+    R::computeJachq(q, z);
+    std::swap(jac, both_);
+    for (unsigned j = 0; j < cols; ++j) (*jac)(0, j) = (*both_)(0, j);
+  }
+
+ private:
+  SP::SimpleMatrix both_;
+};
+
+// The granular column (scripts/make-contact-scene.py column): ball i (from 0) at x = r (i even) or W - r
+// (i odd), y = r + D + i (sqrt(3) r + D), at rest, in the tube 0 <= x <= W = 3r. Siconos's Disk has the
+// coordinates (x, y, theta) and the mass matrix diag(m, m, m r^2 / 2); without friction theta stays 0.
+// DiskPlanR(r, A, B, C) is the plane A x + B y + C = 0 and its gap |A x + B y + C| / hypot(A, B) - r (two
+// sided; the Jacobian's sign is that of A x + B y + C), so the floor is (0, 1, 0), the left wall (1, 0, 0),
+// the right wall (-1, 0, W): gaps y - r, x - r, W - x - r. DiskDiskR(r, r): hypot(dx, dy) - 2r.
+Built BuildColumn(const Options& o) {
+  constexpr double g = 9.81, r = kBallRadius, width = 3 * kBallRadius;
+  const double e = std::isnan(o.e) ? 0.5 : o.e;
+  const double drop = std::isnan(o.drop) || o.drop == 0.0 ? 1e-3 : o.drop;
+  Built b;
+  b.nsds = std::make_shared<NonSmoothDynamicalSystem>(0.0, o.t_end);
+  std::vector<SP::Disk> balls;
+  for (int i = 0; i < o.n; ++i) {
+    // The same expressions as the script's q0: the same bits.
+    const double x0 = i % 2 == 0 ? r : width - r;
+    const double y0 = r + drop + i * (std::sqrt(3.0) * r + drop);
+    auto ds = std::make_shared<Disk>(r, 1.0, Vec({x0, y0, 0.0}), Vec({0.0, 0.0, 0.0}));
+    ds->setFExtPtr(Vec({0.0, -g, 0.0}));
+    b.nsds->insertDynamicalSystem(ds);
+    balls.push_back(ds);
+  }
+  auto nslaw = std::make_shared<NewtonImpactNSL>(e);
+  // Each interaction with the scene's formula for its gap at t = 0, checked below.
+  std::vector<std::pair<SP::Interaction, double>> contacts;
+  // DiskPlanR(r, A, B, C) leaves its member width uninitialised and tests it (not +inf, its argument) to
+  // decide whether the plane is a finite segment: on reused heap memory (the second model built in this
+  // process) a wall became a segment with a garbage centre and balls left the tube. The constructor with
+  // a point (xc, yc) on the line and the width +inf sets it.
+  constexpr double inf = std::numeric_limits<double>::infinity();
+  auto plane = [&](int i, double A, double B, double C, double xc, double gap0) {
+    auto inter = std::make_shared<Interaction>(
+        nslaw, std::make_shared<NormalRow<DiskPlanR>>(r, A, B, C, xc, 0.0, inf));
+    b.nsds->link(inter, balls[static_cast<std::size_t>(i)]);
+    contacts.emplace_back(inter, gap0);
+  };
+  if (o.n > 0) plane(0, 0.0, 1.0, 0.0, 0.0, balls[0]->getQ(1) - r);  // the floor, y = 0
+  for (int i = 0; i < o.n; ++i) {
+    const double x = balls[static_cast<std::size_t>(i)]->getQ(0);
+    plane(i, 1.0, 0.0, 0.0, 0.0, x - r);              // the left wall, x = 0
+    plane(i, -1.0, 0.0, width, width, width - r - x);  // the right wall, x = W
+  }
+  for (int i = 0; i + 1 < o.n; ++i) {
+    const auto& p = balls[static_cast<std::size_t>(i)];
+    const auto& q = balls[static_cast<std::size_t>(i + 1)];
+    auto inter = std::make_shared<Interaction>(nslaw, std::make_shared<NormalRow<DiskDiskR>>(r, r));
+    b.nsds->link(inter, p, q);
+    const double dx = q->getQ(0) - p->getQ(0), dy = q->getQ(1) - p->getQ(1);
+    contacts.emplace_back(inter, std::sqrt(dx * dx + dy * dy) - 2 * r);
+  }
+  auto osi = std::make_shared<MoreauJeanOSI>(o.theta);
+  auto osnspb = std::make_shared<LCP>(LcpSolverId(o.solver));
+  Finish(b, o, osi, osnspb);
+  // Siconos's gaps at t = 0 against the scene's formulas, in every model built (a few microseconds of the
+  // setup time): a wrong plane convention or sign, or the DiskPlanR width above, would show here. They
+  // agree to 3e-17 (hypot against sqrt).
+  for (const auto& [inter, gap0] : contacts) {
+    inter->computeOutput(0.0, 0);
+    const double y = (*inter->y(0))(0);
+    if (!(std::fabs(y - gap0) <= 1e-15))
+      throw std::runtime_error("column: a Siconos gap at t = 0 is " + std::to_string(y) + ", the scene's " +
+                               std::to_string(gap0));
+  }
+  // The state as the Moreau scene's coordinates (x1, y1, x2, y2, ...), then their velocities; theta and
+  // its velocity (identically 0 without friction, and no coordinate of the scene) are left out.
+  b.state = [balls](std::vector<double>& out) {
+    for (const auto& ds : balls) out.insert(out.end(), {ds->getQ(0), ds->getQ(1)});
+    for (const auto& ds : balls) out.insert(out.end(), {ds->getVelocity(0), ds->getVelocity(1)});
+  };
+  b.columns = "t";
+  for (int i = 1; i <= o.n; ++i) b.columns += ",x" + std::to_string(i) + ",y" + std::to_string(i);
+  for (int i = 1; i <= o.n; ++i) b.columns += ",x" + std::to_string(i) + "_dot,y" + std::to_string(i) + "_dot";
+  return b;
+}
+#endif
+
+constexpr const char* kWorkloads = "manipulator, ball, damped-relay, lure-relay, stack, cradle, column";
+
 Built Build(const Options& o) {
   if (o.workload == "stack") return BuildBalls(o, true);
   if (o.workload == "cradle") return BuildBalls(o, false);
@@ -336,7 +460,14 @@ Built Build(const Options& o) {
   if (o.workload == "ball") return BuildBall(o);
   if (o.workload == "damped-relay") return BuildDampedRelay(o);
   if (o.workload == "lure-relay") return BuildLureRelay(o);
-  throw std::runtime_error("unknown workload '" + o.workload + "' (manipulator, ball, damped-relay, lure-relay, stack, cradle)");
+#ifdef MOREAU_SICONOS_MECHANICS
+  if (o.workload == "column") return BuildColumn(o);
+#else
+  if (o.workload == "column")
+    throw std::runtime_error("the column workload needs Siconos's mechanics module (libsiconos-mechanics-dev): "
+                             "siconos_bench was built without it");
+#endif
+  throw std::runtime_error("unknown workload '" + o.workload + "' (" + kWorkloads + ")");
 }
 
 void Defaults(Options& o) {
@@ -346,7 +477,8 @@ void Defaults(Options& o) {
     double h, t_end;
   };
   const D table[] = {{"manipulator", 1e-3, 10.0}, {"ball", 1e-3, 3.0},  {"damped-relay", 1e-3, 6.0},
-                     {"lure-relay", 1e-3, 10.0},  {"stack", 1e-3, 1.0}, {"cradle", 1e-3, NAN}};
+                     {"lure-relay", 1e-3, 10.0},  {"stack", 1e-3, 1.0}, {"cradle", 1e-3, NAN},
+                     {"column", 1e-3, 1.0}};
   if (o.workload == "cradle" && std::isnan(o.t_end)) o.t_end = (o.n - 1) * o.gap + 0.05;  // the wave, then 50 steps
   for (const D& d : table) {
     if (o.workload == d.name) {
@@ -368,8 +500,9 @@ using Clock = std::chrono::steady_clock;
 
 void Usage() {
   std::fprintf(stderr,
-               "usage: siconos_bench manipulator|ball|damped-relay|lure-relay|stack|cradle [--h H] [--t-end T] [--reps N]\n"
-               "       [--n N] [--gap G]  (stack, cradle: N balls; cradle: G apart)\n"
+               "usage: siconos_bench manipulator|ball|damped-relay|lure-relay|stack|cradle|column [--h H] [--t-end T] [--reps N]\n"
+               "       [--n N] [--gap G] [--drop D] [--e E]  (stack, cradle, column: N balls; cradle: G apart;\n"
+               "       column: each gap opened by D at t = 0, default 1e-3; E the restitution, default 0.5, cradle 1)\n"
                "       [--csv FILE] [--every K] [--theta TH] [--solver NAME] [--newton nonlinear|linear] [--tol TOL]\n");
 }
 
@@ -413,6 +546,10 @@ int main(int argc, char** argv) {
       o.n = std::stoi(next());
     else if (a == "--gap")
       o.gap = std::stod(next());
+    else if (a == "--drop")
+      o.drop = std::stod(next());
+    else if (a == "--e")
+      o.e = std::stod(next());
     else {
       Usage();
       return 2;
@@ -420,7 +557,7 @@ int main(int argc, char** argv) {
   }
   try {
     Defaults(o);
-    if (std::isnan(o.h)) throw std::runtime_error("unknown workload '" + o.workload + "'");
+    if (std::isnan(o.h)) throw std::runtime_error("unknown workload '" + o.workload + "' (" + kWorkloads + ")");
     const long steps = Steps(o);
     std::vector<double> step_ns, setup_us;
     unsigned long newton_total = 0;
