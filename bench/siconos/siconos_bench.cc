@@ -406,15 +406,14 @@ Built BuildColumn(const Options& o) {
   // a point (xc, yc) on the line and the width +inf sets it.
   constexpr double inf = std::numeric_limits<double>::infinity();
   auto plane = [&](int i, double A, double B, double C, double xc, double gap0) {
-    auto inter = std::make_shared<Interaction>(
-        nslaw, std::make_shared<NormalRow<DiskPlanR>>(r, A, B, C, xc, 0.0, inf));
+    auto inter = std::make_shared<Interaction>(nslaw, std::make_shared<NormalRow<DiskPlanR>>(r, A, B, C, xc, 0.0, inf));
     b.nsds->link(inter, balls[static_cast<std::size_t>(i)]);
     contacts.emplace_back(inter, gap0);
   };
   if (o.n > 0) plane(0, 0.0, 1.0, 0.0, 0.0, balls[0]->getQ(1) - r);  // the floor, y = 0
   for (int i = 0; i < o.n; ++i) {
     const double x = balls[static_cast<std::size_t>(i)]->getQ(0);
-    plane(i, 1.0, 0.0, 0.0, 0.0, x - r);              // the left wall, x = 0
+    plane(i, 1.0, 0.0, 0.0, 0.0, x - r);               // the left wall, x = 0
     plane(i, -1.0, 0.0, width, width, width - r - x);  // the right wall, x = W
   }
   for (int i = 0; i + 1 < o.n; ++i) {
@@ -435,8 +434,7 @@ Built BuildColumn(const Options& o) {
     inter->computeOutput(0.0, 0);
     const double y = (*inter->y(0))(0);
     if (!(std::fabs(y - gap0) <= 1e-15))
-      throw std::runtime_error("column: a Siconos gap at t = 0 is " + std::to_string(y) + ", the scene's " +
-                               std::to_string(gap0));
+      throw std::runtime_error("column: a Siconos gap at t = 0 is " + std::to_string(y) + ", the scene's " + std::to_string(gap0));
   }
   // The state as the Moreau scene's coordinates (x1, y1, x2, y2, ...), then their velocities; theta and
   // its velocity (identically 0 without friction, and no coordinate of the scene) are left out.
@@ -464,8 +462,9 @@ Built Build(const Options& o) {
   if (o.workload == "column") return BuildColumn(o);
 #else
   if (o.workload == "column")
-    throw std::runtime_error("the column workload needs Siconos's mechanics module (libsiconos-mechanics-dev): "
-                             "siconos_bench was built without it");
+    throw std::runtime_error(
+        "the column workload needs Siconos's mechanics module (libsiconos-mechanics-dev): "
+        "siconos_bench was built without it");
 #endif
   throw std::runtime_error("unknown workload '" + o.workload + "' (" + kWorkloads + ")");
 }
@@ -476,9 +475,8 @@ void Defaults(Options& o) {
     const char* name;
     double h, t_end;
   };
-  const D table[] = {{"manipulator", 1e-3, 10.0}, {"ball", 1e-3, 3.0},  {"damped-relay", 1e-3, 6.0},
-                     {"lure-relay", 1e-3, 10.0},  {"stack", 1e-3, 1.0}, {"cradle", 1e-3, NAN},
-                     {"column", 1e-3, 1.0}};
+  const D table[] = {{"manipulator", 1e-3, 10.0}, {"ball", 1e-3, 3.0},   {"damped-relay", 1e-3, 6.0}, {"lure-relay", 1e-3, 10.0},
+                     {"stack", 1e-3, 1.0},        {"cradle", 1e-3, NAN}, {"column", 1e-3, 1.0}};
   if (o.workload == "cradle" && std::isnan(o.t_end)) o.t_end = (o.n - 1) * o.gap + 0.05;  // the wave, then 50 steps
   for (const D& d : table) {
     if (o.workload == d.name) {
