@@ -242,6 +242,9 @@ function renderRow(item) {
     rows.set(item.id, entry);
     $('jobs').tBodies[0].prepend(tr);  // newest first
   }
+  // A final state is the last one: a list fetched before the job's final event and answered after it
+  // must not take the row back to "cancelling" or "running".
+  if (FINAL.has(entry.item.state) && !FINAL.has(item.state)) item = entry.item;
   entry.item = item;
   const pick = el('td', { class: 'pick' });
   if (kind === 'run') {
