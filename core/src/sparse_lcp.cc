@@ -159,7 +159,7 @@ bool SparseLcpSolver::solve(const std::vector<int>& rows, const Eigen::VectorXd&
       // The first guess starts from the caller's z, not from the failed pass: a warm start that was right
       // but for a few rows pulls a whole chain of contacts negative in its pass, and sweeps from that
       // (negative entries set to 0) would lose the chain (the landing column of 1024: 521 passes in one
-      // step, against 9).
+      // step, against 10).
       if (stats.passes == 1)
         for (int a = 0; a < m; ++a) z(rows[static_cast<std::size_t>(a)]) = z_start_(a);
       guess_by_gauss_seidel(rows, q, z, sweeps);
