@@ -76,13 +76,29 @@ void BM_DampedRelayJsonScene_moving(benchmark::State& state) {
 // n = 64: the friction bar (scenes/friction-bar.json: an elastic bar as 64 finite elements with Coulomb
 // friction at every node; M constant and tridiagonal, so the step uses banded LU), until t = 0.3, before
 // it comes to rest at t = 0.379.
+// The dense scheme (abl_integrator.h), banded or dense LU: the scene without its large ABL system, which
+// run_scene would otherwise choose (_large below).
 void FrictionBar64(benchmark::State& state, bool banded) {
   scene::LagrangianScene sc = LoadScene("friction-bar.json", 0.3);
+  auto compiled = std::make_shared<scene::CompiledLagrangian>(*sc.compiled);
+  compiled->large_abl = nullptr;
+  sc.compiled = compiled;
   if (!banded) sc.settings.bandwidth = -1;  // the dense LU every scene used before
   RunScene(state, sc);
 }
 void BM_FrictionBar64JsonScene_moving(benchmark::State& state) { FrictionBar64(state, true); }
 void BM_FrictionBar64JsonScene_moving_dense(benchmark::State& state) { FrictionBar64(state, false); }
+// The same scene as run_scene runs it: on the large ABL path (large_abl_integrator.h), the sparse
+// P = M/h + W formed once, grad V from its tape, the inclusion by pivoting over a sparse LDL^T of the
+// moving block.
+void BM_FrictionBar64JsonScene_moving_large(benchmark::State& state) {
+  const scene::LagrangianScene sc = LoadScene("friction-bar.json", 0.3);
+  if (!scene::uses_large_abl_path(sc)) {
+    state.SkipWithError("friction-bar.json does not run on the large ABL path");
+    return;
+  }
+  RunScene(state, sc);
+}
 
 BENCHMARK(BM_ManipulatorJsonScene_moving)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_ManipulatorJsonScene_to_rest)->Unit(benchmark::kMicrosecond);
@@ -92,6 +108,7 @@ BENCHMARK(BM_DampedRelayCompiled_moving)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_DampedRelayJsonScene_moving)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_FrictionBar64JsonScene_moving)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_FrictionBar64JsonScene_moving_dense)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_FrictionBar64JsonScene_moving_large)->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 

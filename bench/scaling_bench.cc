@@ -1,9 +1,10 @@
-// Contact systems at scale (docs/scaling.md): the stack of N balls at rest and dropped, the gapped
-// Newton's cradle, from N = 2 to 8192, and the granular column (nonlinear gaps) from N = 4 to 3333, each a scene compiled as `moreau run`
+// Systems at scale (docs/scaling.md): the stack of N balls at rest and dropped, the gapped
+// Newton's cradle, from N = 2 to 8192, the granular column (nonlinear gaps) from N = 4 to 3333, and the
+// friction bar and chain (the abl scheme, large ABL path) from N = 65 to 10000, each a scene compiled as `moreau run`
 // compiles it (the scenes of scripts/make-contact-scene.py, tests/support/contact_scenes.h) and run by run_scene. `dense` variants run the
 // same scene on the dense Moreau-Jean step (N <= 64): the two sides of the crossover kLargeContactFromDof.
 //
-//   build/bench/scaling_bench --benchmark_filter='Stack|Cradle|Column' --benchmark_min_time=0.2
+//   build/bench/scaling_bench --benchmark_filter='Stack|Cradle|Column|Friction' --benchmark_min_time=0.2
 //
 // Counters: ns_per_step (the run's wall time over its steps), and for the dropped stack and the column the median and
 // worst single step (timed from one sample to the next, every step sampled; each step's fastest of 7
@@ -16,9 +17,11 @@
 #include <string>
 #include <vector>
 
+#include "moreau/core/large_abl_integrator.h"
 #include "moreau/scene/scene.h"
 #include "per_step.h"
 #include "support/contact_scenes.h"
+#include "support/friction_bar_scene.h"
 
 namespace {
 
@@ -112,6 +115,38 @@ void BM_GranularColumn_dense(benchmark::State& state) {
   moreau::bench::RunScene(state, sc);
 }
 
+// The friction bar (tests/support/friction_bar_scene.h, scripts/make-friction-bar.py): an elastic bar of N
+// finite elements with Coulomb friction at every node, M tridiagonal, on the large ABL path beyond 64
+// nodes (the abl scheme). Run to t = 0.3 s, moving (the bar of 64 rests at 0.379 s), and with pendulums at
+// every node (a nonlinear grad V from its terms) over 4 s: sliding, sticking node by node, resting.
+void BM_FrictionBar(benchmark::State& state) {
+  RunTimingEveryStep(state, scene::load_scene(moreau::test_support::friction_bar_scene(static_cast<int>(state.range(0)), 0.3)));
+}
+// Within the dense limits the bar compiles for both steps: the large ABL path (run directly) and the
+// dense scheme (run_scene without the large system): the two sides of the crossover kLargeAblFromDof.
+void BM_FrictionBarSmall(benchmark::State& state) {
+  const scene::LagrangianScene sc = scene::load_scene(moreau::test_support::friction_bar_scene(static_cast<int>(state.range(0)), 0.3));
+  const Eigen::Map<const Eigen::VectorXd> q0(sc.q0.data(), sc.n), v0(sc.v0.data(), sc.n);
+  std::int64_t steps = 0;
+  for (auto _ : state) {
+    moreau::LargeAblIntegrator integrator(*sc.compiled->large_abl, sc.settings.grid());
+    const RunSummary s = integrator.run(q0, v0);
+    steps = s.steps;
+    if (s.status != RunStatus::kCompleted) state.SkipWithError(s.message.c_str());
+  }
+  moreau::bench::SetPerStep(state, steps);
+}
+void BM_FrictionBarSmall_dense(benchmark::State& state) {
+  scene::LagrangianScene sc = scene::load_scene(moreau::test_support::friction_bar_scene(static_cast<int>(state.range(0)), 0.3));
+  auto c = std::make_shared<scene::CompiledLagrangian>(*sc.compiled);
+  c->large_abl = nullptr;
+  sc.compiled = c;
+  moreau::bench::RunScene(state, sc);
+}
+void BM_FrictionChainToRest(benchmark::State& state) {
+  RunTimingEveryStep(state, scene::load_scene(moreau::test_support::friction_bar_scene(static_cast<int>(state.range(0)), 4.0, 0.05)));
+}
+
 }  // namespace
 
 BENCHMARK(BM_StackAtRest)->RangeMultiplier(2)->Range(2, 8192)->Unit(benchmark::kMicrosecond);
@@ -130,5 +165,10 @@ BENCHMARK(BM_GranularColumn)
 BENCHMARK(BM_GranularColumn_dense)->Arg(4)->Arg(8)->Arg(16)->Iterations(3)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_GappedCradle)->Arg(2)->Arg(8)->Arg(16)->Arg(64)->Arg(256)->Arg(1024)->Arg(4096)->Arg(8192)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_GappedCradle_dense)->RangeMultiplier(2)->Range(2, 64)->Unit(benchmark::kMillisecond);
+
+BENCHMARK(BM_FrictionBar)->Arg(65)->Arg(256)->Arg(1024)->Arg(4096)->Arg(10000)->Iterations(3)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_FrictionBarSmall)->Arg(2)->Arg(4)->Arg(8)->Arg(16)->Arg(32)->Arg(64)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_FrictionBarSmall_dense)->Arg(2)->Arg(4)->Arg(8)->Arg(16)->Arg(32)->Arg(64)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_FrictionChainToRest)->Arg(65)->Arg(256)->Arg(1024)->Arg(4096)->Iterations(3)->Unit(benchmark::kMillisecond);
 
 BENCHMARK_MAIN();

@@ -83,6 +83,12 @@ void inspect_lagrangian(const scene::LagrangianScene& sc, std::ostream& os) {
        << " nonzeros); the Delassus operator H M^-1 H^T "
        << (sys.linear() ? "formed once" : "formed on the active contacts when H or they change") << ", sparse; the step's LCP by block "
        << "principal pivoting with Murty's rule over a sparse LDL^T of the closed contacts' block, reused while they stay closed\n";
+  } else if (scene::uses_large_abl_path(sc)) {
+    const LargeAblSystem& sys = *sc.compiled->large_abl;
+    os << "solver       the large ABL path (large_abl_integrator.h): constant sparse M (" << sys.mass.nonZeros() << " nonzeros, bandwidth "
+       << sys.bandwidth() << "), P = M/h + W formed once; " << (sys.gradient ? "grad V from its terms (tapes)" : "constant grad V + F")
+       << "; the inclusion (6.5) by block principal pivoting with Murty's rule over a sparse LDL^T of the moving block, reused "
+          "while it stays\n";
   } else if (sc.scheme == scene::Scheme::kMoreauJean) {
     os << "solver       the Moreau-Jean one-step problem (graph_inclusion_solver.h) over dense LU of M + h (C + W)\n";
   } else {

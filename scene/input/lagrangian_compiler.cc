@@ -16,7 +16,7 @@
 
 #include "moreau/platform/number_text.h"
 #include "moreau/scene/urdf.h"
-#include "contact_gaps.h"
+#include "sparse_vector_tapes.h"
 #include "scene_reader.h"
 
 namespace moreau::scene {
@@ -60,7 +60,10 @@ class LagrangianCompiler : SceneReader {
                                " from the robot model; remove '" + field + "'");
       n_ = robot_->model.dof();
       if (n_ > kMaxDof)
-        throw SceneError("/system/urdf", "more than " + std::to_string(kMaxDof) + " moving joints (got " + std::to_string(n_) + ")");
+        throw SceneError("/system/urdf", "more than " + std::to_string(kMaxDof) + " moving joints (got " + std::to_string(n_) +
+                                             "): a robot's M(q) is dense (each joint's inertia couples it to the joints above it) and "
+                                             "changes with q, so each step factorises it whole, at a cost growing as n^3; the paths at "
+                                             "scale need a constant sparse M (docs/scaling.md)");
       // Joint names as coordinate names: characters an expression cannot use become '_', and a name that
       // starts with a digit (or is empty) gets the prefix j_. The names then follow the rule of every
       // coordinate name (column_name_conflict): the error names the joint, and its line in the URDF.
@@ -96,21 +99,29 @@ class LagrangianCompiler : SceneReader {
     }
     if (!system.contains("mass")) throw SceneError("/system", "missing required field 'mass'");
     const json& mass = system["mass"];
-    diagonal_mass_ = mass.is_object();
+    diagonal_mass_ = mass.is_object() && !mass.contains("bands");
+    banded_mass_ = mass.is_object() && mass.contains("bands");
     if (diagonal_mass_) {
       check_fields(mass, "/system/mass", {"diagonal"});
       if (!mass.contains("diagonal") || !mass["diagonal"].is_array() || mass["diagonal"].empty())
         throw SceneError("/system/mass/diagonal", "expected a non-empty array (the diagonal of M, one entry per coordinate)");
+    } else if (banded_mass_) {
+      check_fields(mass, "/system/mass", {"bands"});
+      const json& b = mass["bands"];
+      if (!b.is_array() || b.empty() || !b[0].is_array() || b[0].empty())
+        throw SceneError("/system/mass/bands", "expected an array of bands, the first the diagonal of M (one entry per coordinate)");
     } else if (!mass.is_array() || mass.empty()) {
       throw SceneError("/system/mass",
-                       "expected a square array of arrays (the n x n mass matrix) or {\"diagonal\": [...]}, got " + type_name(mass));
+                       "expected a square array of arrays (the n x n mass matrix), {\"diagonal\": [...]} or "
+                       "{\"bands\": [[...], ...]}, got " +
+                           type_name(mass));
     }
     if (system.contains("coordinates")) {
       const json& c = system["coordinates"];
       if (!c.is_array() || c.empty()) throw SceneError("/system/coordinates", "expected a non-empty array of names");
       n_ = static_cast<int>(c.size());
     } else {
-      n_ = static_cast<int>(diagonal_mass_ ? mass["diagonal"].size() : mass.size());
+      n_ = static_cast<int>(diagonal_mass_ ? mass["diagonal"].size() : banded_mass_ ? mass["bands"][0].size() : mass.size());
     }
     const std::string n_ptr = system.contains("coordinates") ? "/system/coordinates" : "/system/mass";
     if (n_ > kMaxLargeContactDof)
@@ -120,10 +131,11 @@ class LagrangianCompiler : SceneReader {
     // whose requirements each field checks (large_requirement).
     const std::size_t constraints = system.contains("constraints") && system["constraints"].is_array() ? system["constraints"].size() : 0;
     large_ = n_ > kMaxDof || constraints > static_cast<std::size_t>(kMaxConstraints);
-    if (n_ > kMaxDof && !diagonal_mass_)
+    if (n_ > kMaxDof && !diagonal_mass_ && !banded_mass_)
       throw SceneError(n_ptr, "more than " + std::to_string(kMaxDof) + " degrees of freedom (got " + std::to_string(n_) +
                                   ") with a full mass matrix: up to " + std::to_string(kMaxDof) +
-                                  " the step is dense; beyond, give M as {\"diagonal\": [...]} of constants for the large-contact path");
+                                  " the step is dense; beyond, give M as {\"diagonal\": [...]} or {\"bands\": [...]} of constants "
+                                  "for the paths at scale (docs/scaling.md)");
     if (system.contains("coordinates")) {
       std::vector<std::string> names;
       for (int i = 0; i < n_; ++i) {
@@ -265,6 +277,7 @@ class LagrangianCompiler : SceneReader {
   }
 
   void mass_matrix(const json& mass) {
+    if (banded_mass_) return banded_mass_matrix(mass["bands"]);
     if (diagonal_mass_) {
       const json& d = mass["diagonal"];
       if (d.size() != static_cast<std::size_t>(n_))
@@ -290,6 +303,38 @@ class LagrangianCompiler : SceneReader {
       for (int j = 0; j < n_; ++j)
         M_[i * n_ + j] = expression(mass[i][j], row_ptr + "/" + std::to_string(j), kPosition, "the mass matrix (M depends on q only)");
     }
+  }
+
+  // {"bands": [b_0, b_1, ...]}: b_k[i] = M(i, i + k) = M(i + k, i), b_0 the diagonal (n entries), b_k of
+  // n - k entries. Beyond the dense limits every entry is a constant (the large ABL path's M); within
+  // them the bands fill the dense M.
+  void banded_mass_matrix(const json& bands) {
+    const std::string at = "/system/mass/bands";
+    const int count = static_cast<int>(bands.size());
+    if (count > n_) throw SceneError(at, "has " + std::to_string(count) + " bands: at most n = " + std::to_string(n_));
+    if (large_ && 2LL * count - 1 > kMaxMassNonzerosPerCoordinate)
+      throw large_requirement(at, "has " + std::to_string(count) + " bands: at most " +
+                                      std::to_string((kMaxMassNonzerosPerCoordinate + 1) / 2) + " (M's nonzeros per coordinate bounded)");
+    mass_bands_.assign(static_cast<std::size_t>(count), {});
+    for (int k = 0; k < count; ++k) {
+      const std::string ptr = at + "/" + std::to_string(k);
+      const json& b =
+          array_of(bands[k], ptr, static_cast<std::size_t>(n_ - k),
+                   "band " + std::to_string(k) + " of " + std::to_string(n_ - k) + " entries (M(i, i + " + std::to_string(k) + "))");
+      for (int i = 0; i < n_ - k; ++i) {
+        const Node e = expression(b[i], ptr + "/" + std::to_string(i), kPosition, "the mass matrix (M depends on q only)");
+        if (large_ && !graph_.is_constant(e)) throw large_requirement(ptr + "/" + std::to_string(i), "is not a constant");
+        mass_bands_[static_cast<std::size_t>(k)].push_back(e);
+      }
+    }
+    if (large_) return;  // no dense M: the large ABL path reads mass_bands_
+    M_.assign(static_cast<std::size_t>(n_ * n_), graph_.constant(0.0));
+    for (int k = 0; k < count; ++k)
+      for (int i = 0; i < n_ - k; ++i) {
+        const Node e = mass_bands_[static_cast<std::size_t>(k)][static_cast<std::size_t>(i)];
+        M_[static_cast<std::size_t>(i * n_ + i + k)] = e;
+        M_[static_cast<std::size_t>((i + k) * n_ + i)] = e;
+      }
   }
 
   void coriolis(const json& system, LagrangianScene& scene) {
@@ -356,6 +401,25 @@ class LagrangianCompiler : SceneReader {
 
   // The symmetric mass entry used everywhere: the upper triangle (the lower one is checked equal).
   Node sym(int i, int j) const { return i <= j ? M_[i * n_ + j] : M_[j * n_ + i]; }
+  // V(q): an expression, or an array of expressions (terms) whose sum is V, for a potential too long for
+  // one expression (a chain of thousands of springs). The terms are added as a balanced tree, so that the
+  // graph's depth grows as log2 of their number.
+  Node potential(const json& v) {
+    const char* what = "the potential (V depends on q only)";
+    if (!v.is_array()) return expression(v, "/system/potential", kPosition, what);
+    if (v.empty())
+      throw SceneError("/system/potential", "expected a number or an expression, or a non-empty array of terms (their sum is V)");
+    std::vector<Node> terms;
+    for (std::size_t k = 0; k < v.size(); ++k) terms.push_back(expression(v[k], "/system/potential/" + std::to_string(k), kPosition, what));
+    while (terms.size() > 1) {
+      std::vector<Node> sums;
+      for (std::size_t k = 0; k + 1 < terms.size(); k += 2) sums.push_back(graph_.binary(Op::kAdd, terms[k], terms[k + 1]));
+      if (terms.size() % 2) sums.push_back(terms.back());
+      terms = std::move(sums);
+    }
+    return terms.front();
+  }
+
   void forces(const json& system, LagrangianScene& scene) {
     g_.assign(static_cast<std::size_t>(n_), graph_.constant(0.0));
     force_.assign(static_cast<std::size_t>(n_), graph_.constant(0.0));
@@ -363,24 +427,24 @@ class LagrangianCompiler : SceneReader {
       throw SceneError("/system/potential_gradient", "give either 'potential' or 'potential_gradient', not both");
     potential_ = -1;
     if (system.contains("potential")) {
-      potential_ = expression(system["potential"], "/system/potential", kPosition, "the potential (V depends on q only)");
+      potential_ = potential(system["potential"]);
       if (large_) {
-        // n derivatives of a potential of n terms would cost n^2: its affine form gives them at once.
-        const std::optional<expr::AffineForm> form = expr::affine_form(graph_, potential_);
-        if (!form) throw large_requirement("/system/potential", "is not linear in q (a constant gradient, as gravity's)");
-        for (const auto& [slot, a] : form->coefficients) g_[static_cast<std::size_t>(slot - 1)] = graph_.constant(a);
+        // n derivatives of a potential of n terms would cost n^2: its affine form gives them at once, and
+        // otherwise each term of its sum is differentiated in the coordinates it reads.
+        if (const std::optional<expr::AffineForm> form = expr::affine_form(graph_, potential_)) {
+          for (const auto& [slot, a] : form->coefficients) g_[static_cast<std::size_t>(slot - 1)] = graph_.constant(a);
+        } else {
+          gradient_by_terms();
+        }
       } else {
         for (int i = 0; i < n_; ++i) g_[i] = graph_.derivative(potential_, 1 + i);
       }
     }
     if (system.contains("potential_gradient")) {
       const json& pg = array_of(system["potential_gradient"], "/system/potential_gradient", static_cast<std::size_t>(n_), "an array");
-      for (int i = 0; i < n_; ++i) {
+      for (int i = 0; i < n_; ++i)
         g_[i] =
             expression(pg[i], "/system/potential_gradient/" + std::to_string(i), kPosition, "the potential gradient (depends on q only)");
-        if (large_ && !graph_.is_constant(g_[i]))
-          throw large_requirement("/system/potential_gradient/" + std::to_string(i), "is not a constant");
-      }
     }
     gradient_ = g_;
     scene.has_force = system.contains("force");
@@ -406,8 +470,14 @@ class LagrangianCompiler : SceneReader {
 
   void controller(const json& system, LagrangianScene& scene) {
     scene.controller = Controller<Eigen::Dynamic>::zero(n_);
-    if (large_ && system.contains("controller")) throw large_requirement("/system/controller", "a controller (dPhi) is not taken");
     if (system.contains("controller")) read_controller(system["controller"], "/system/controller", scene.controller);
+    if (large_ && scene.controller.norm_gain > 0.0) {
+      const json& ctl = system["controller"];
+      std::string ptr = "/system/controller";
+      for (std::size_t k = 0; k < ctl.size(); ++k)
+        if (ctl[k].contains("type") && ctl[k]["type"] == "norm") ptr += "/" + std::to_string(k);
+      throw large_requirement(ptr, "the norm term (not separable) is not taken");
+    }
   }
 
   // A controller's terms (quadratic, abs, norm) at `where` (/system/controller, /system/tracking/controller),
@@ -662,7 +732,7 @@ class LagrangianCompiler : SceneReader {
                  {"scheme", "h", "t_end", "t0", "step_rule", "k1", "k3", "max_steps", "position_correction", "position_update", "theta"});
     // Which scheme, and whether the scene's fields belong to it: the scheme table's row decides (scheme.h).
     const bool constrained = !scene.constraint_names.empty();
-    scene.scheme = constrained || large_ ? Scheme::kMoreauJean : (scene.tracking ? Scheme::kTracking : Scheme::kAbl);
+    scene.scheme = constrained ? Scheme::kMoreauJean : (scene.tracking ? Scheme::kTracking : Scheme::kAbl);
     if (in.contains("scheme")) {
       if (!in["scheme"].is_string()) throw SceneError("/integrator/scheme", "expected a string");
       const std::string name = in["scheme"].get<std::string>();
@@ -673,7 +743,7 @@ class LagrangianCompiler : SceneReader {
       if (!named || !traits(*named).scene_can_name)
         throw SceneError("/integrator/scheme", "unknown scheme '" + name + "' (expected: " + expected + ")");
       scene.scheme = *named;
-      if (large_ && scene.scheme != Scheme::kMoreauJean)
+      if (large_ && scene.scheme != Scheme::kMoreauJean && scene.scheme != Scheme::kAbl)
         throw large_requirement("/integrator/scheme", "the " + name + " scheme is not taken");
       if (scene.tracking && scene.scheme != Scheme::kTracking)
         throw SceneError("/integrator/scheme", "a scene with /system/tracking runs the tracking scheme, not " + name);
@@ -733,6 +803,11 @@ class LagrangianCompiler : SceneReader {
         throw SceneError("/integrator/step_rule",
                          "the " + std::string(row.name) + " scheme uses a fixed step; the theorem rules belong to abl");
     }
+    // At scale M is constant and C = 0: the rules' h_k is h itself (k3 = 0, eps_k = 0), and a k1 or k3
+    // given would change that without being a property of the system.
+    for (const char* field : {"k1", "k3"})
+      if (large_ && in.contains(field))
+        throw large_requirement(std::string("/integrator/") + field, "k1 and k3 are not taken (M constant and C = 0: the rules take h)");
     if (in.contains("k1")) s.k1 = positive(in["k1"], "/integrator/k1");
     if (in.contains("k3")) s.k3 = positive(in["k3"], "/integrator/k3");
     s.max_steps = read_max_steps(in);
@@ -953,12 +1028,49 @@ class LagrangianCompiler : SceneReader {
     return read;
   }
 
-  // The error for a field that the large-contact path cannot take (a system beyond the dense limits).
+  // grad V of a potential at scale: V's sum split into its terms (through +, - and unary -), each term
+  // differentiated in the coordinates it reads, and each coordinate's partials added. The graph grows by
+  // the size of V, not by n derivatives of all of V (n times its size).
+  void gradient_by_terms() {
+    std::vector<std::vector<Node>> parts(static_cast<std::size_t>(n_));
+    std::vector<std::pair<Node, bool>> stack{{potential_, false}};  // (node, negated)
+    while (!stack.empty()) {
+      const auto [f, negated] = stack.back();
+      stack.pop_back();
+      const expr::Graph::Entry e = graph_.entry(f);
+      if (e.op == Op::kAdd || e.op == Op::kSub) {
+        stack.emplace_back(e.a, negated);
+        stack.emplace_back(e.b, e.op == Op::kSub ? !negated : negated);
+        continue;
+      }
+      if (e.op == Op::kNeg) {
+        stack.emplace_back(e.a, !negated);
+        continue;
+      }
+      const std::vector<int> read = coordinates_read(f);
+      if (static_cast<int>(read.size()) > kMaxDof)
+        throw large_requirement("/system/potential", "a term of its sum reads " + std::to_string(read.size()) + " coordinates (at most " +
+                                                         std::to_string(kMaxDof) + ": a term couples a few coordinates)");
+      for (int j : read) {
+        const Node d = graph_.derivative(f, 1 + j);
+        parts[static_cast<std::size_t>(j)].push_back(negated ? graph_.unary(Op::kNeg, d) : d);
+      }
+    }
+    for (int i = 0; i < n_; ++i) {
+      Node sum = graph_.constant(0.0);
+      for (Node d : parts[static_cast<std::size_t>(i)]) sum = graph_.binary(Op::kAdd, sum, d);
+      g_[static_cast<std::size_t>(i)] = sum;
+    }
+  }
+
+  // The error for a field that the paths at scale cannot take (a system beyond the dense limits).
   SceneError large_requirement(const std::string& ptr, const std::string& what) const {
     return SceneError(ptr,
                       what + ": a system of more than " + std::to_string(kMaxDof) + " coordinates or " + std::to_string(kMaxConstraints) +
-                          " constraints runs on the large-contact path, which takes a constant diagonal mass, a linear potential, "
-                          "constant forces, gaps of a few coordinates each, no controller and the moreau-jean scheme (docs/scaling.md)");
+                          " constraints runs on a path at scale: the large-contact path (the moreau-jean scheme: a constant diagonal "
+                          "mass, a linear potential, constant forces, gaps of a few coordinates each, no controller) or the large ABL "
+                          "path (the abl scheme: a constant mass given by its bands, potential terms of a few coordinates each, constant "
+                          "forces, quadratic and abs controller terms, no constraints) (docs/scaling.md)");
   }
 
   // The system of the large-contact path (large_contact_integrator.h) from the affine forms, when the
@@ -970,8 +1082,11 @@ class LagrangianCompiler : SceneReader {
     auto sys = std::make_shared<LargeContactSystem>();
     sys->mass.resize(n_);
     sys->force.resize(n_);
+    if (banded_mass_ && large_ && mass_bands_.size() > 1) return nullptr;
     for (int i = 0; i < n_; ++i) {
-      const Node m = large_ ? mass_diagonal_[static_cast<std::size_t>(i)] : M_[static_cast<std::size_t>(i * n_ + i)];
+      const Node m = !large_        ? M_[static_cast<std::size_t>(i * n_ + i)]
+                     : banded_mass_ ? mass_bands_[0][static_cast<std::size_t>(i)]
+                                    : mass_diagonal_[static_cast<std::size_t>(i)];
       if (!graph_.is_constant(m) || !graph_.is_constant(g_[static_cast<std::size_t>(i)])) return nullptr;
       sys->mass(i) = graph_.constant_value(m);
       sys->force(i) = graph_.constant_value(g_[static_cast<std::size_t>(i)]);
@@ -1002,7 +1117,7 @@ class LagrangianCompiler : SceneReader {
       if (scene.contact_settings.correct_positions) return nullptr;
       for (int i = 0; i < m; ++i)
         for (const auto& [j, node] : gap_partials_[static_cast<std::size_t>(i)]) t.emplace_back(i, j, 1.0);
-      sys->nonlinear_gaps = std::make_shared<detail::ContactGapTapes>(graph_, gaps_, gap_partials_, 1 + 2 * n_);
+      sys->nonlinear_gaps = std::make_shared<detail::SparseVectorTapes>(graph_, gaps_, gap_partials_, 1 + 2 * n_);
     }
     sys->gradients.resize(m, n_);
     sys->gradients.setFromTriplets(t.begin(), t.end());
@@ -1023,6 +1138,17 @@ class LagrangianCompiler : SceneReader {
   // finite values, and an admissible initial position.
   void check_large_at_initial_state(const LagrangianScene& scene) {
     if (num_params() > 0) throw large_requirement("/parameters", "free parameters (a campaign's) are not taken");
+    if (scene.scheme == Scheme::kAbl) return check_large_abl_at_initial_state(scene);
+    // The large-contact path's own requirements, each at its field.
+    if (scene.controller.has_quadratic() || scene.controller.has_nonsmooth())
+      throw large_requirement("/system/controller", "a controller (dPhi) is not taken with the moreau-jean scheme");
+    if (banded_mass_ && mass_bands_.size() > 1)
+      throw large_requirement("/system/mass/bands", "the moreau-jean scheme takes a diagonal mass (one band)");
+    for (int i = 0; i < n_; ++i)
+      if (!graph_.is_constant(gradient_[static_cast<std::size_t>(i)]))
+        throw large_requirement(
+            doc_["system"].contains("potential_gradient") ? "/system/potential_gradient/" + std::to_string(i) : "/system/potential",
+            "is not linear in q (the moreau-jean scheme takes a constant gradient, as gravity's)");
     const std::shared_ptr<const LargeContactSystem> sys = large_contact_system(scene);
     if (!sys && scene.contact_settings.correct_positions)
       throw large_requirement("/integrator/position_correction", "position correction with nonlinear gaps is not taken");
@@ -1056,6 +1182,96 @@ class LagrangianCompiler : SceneReader {
     large_system_ = sys;
   }
 
+  // The system of the large ABL path (large_abl_system.h): M from its bands (beyond the dense limits) or
+  // from the dense M's constant entries (within them, when M is constant and sparse, C = 0), Phi's
+  // quadratic and abs terms, g = grad V + F as tapes of its components when it is not constant. Null when
+  // the scene does not have that structure (within the dense limits it then runs on the dense step).
+  std::shared_ptr<LargeAblSystem> large_abl_system(const LagrangianScene& scene) const {
+    if (robot_ || scene.tracking || num_params() > 0 || !scene.constraint_names.empty() || scene.scheme != Scheme::kAbl) return nullptr;
+    if (scene.controller.norm_gain != 0.0 || scene.settings.k1 || scene.settings.k3) return nullptr;
+    auto sys = std::make_shared<LargeAblSystem>();
+    std::vector<Eigen::Triplet<double>> t;
+    bool constant = true;
+    const auto entry = [&](int i, int j, Node e) {
+      if (!graph_.is_constant(e)) {
+        constant = false;
+        return;
+      }
+      const double value = graph_.constant_value(e);
+      if (value != 0.0 || i == j) t.emplace_back(i, j, value);
+    };
+    if (!large_) {
+      for (int i = 0; i < n_; ++i)
+        for (int j = 0; j < n_; ++j) {
+          entry(i, j, M_[static_cast<std::size_t>(i * n_ + j)]);
+          const Node c = C_[static_cast<std::size_t>(i * n_ + j)];
+          if (!(graph_.is_constant(c) && graph_.constant_value(c) == 0.0)) return nullptr;
+        }
+    } else if (banded_mass_) {
+      for (std::size_t k = 0; k < mass_bands_.size(); ++k)
+        for (int i = 0; i + static_cast<int>(k) < n_; ++i) {
+          const Node e = mass_bands_[k][static_cast<std::size_t>(i)];
+          entry(i, i + static_cast<int>(k), e);
+          if (k > 0) entry(i + static_cast<int>(k), i, e);
+        }
+    } else {
+      for (int i = 0; i < n_; ++i) entry(i, i, mass_diagonal_[static_cast<std::size_t>(i)]);
+    }
+    if (!constant) return nullptr;
+    // g = grad V + F of q alone (a force that reads t or v is not this system's).
+    for (int i = 0; i < n_; ++i)
+      if (graph_.any_reachable(g_[static_cast<std::size_t>(i)],
+                               [this](const expr::Graph::Entry& e) { return e.op == Op::kVar && (e.slot == 0 || e.slot > n_); }))
+        return nullptr;
+    sys->mass.resize(n_, n_);
+    sys->mass.setFromTriplets(t.begin(), t.end());
+    sys->mass.makeCompressed();
+    if (!large_ && sys->mass.nonZeros() > kMaxMassNonzerosPerCoordinate * n_) return nullptr;
+    sys->phi = scene.controller;
+    bool constant_g = true;
+    for (int i = 0; i < n_ && constant_g; ++i) constant_g = graph_.is_constant(g_[static_cast<std::size_t>(i)]);
+    sys->force.setZero(n_);
+    if (constant_g) {
+      for (int i = 0; i < n_; ++i) sys->force(i) = graph_.constant_value(g_[static_cast<std::size_t>(i)]);
+    } else {
+      const std::vector<std::vector<std::pair<int, Node>>> no_jacobian(static_cast<std::size_t>(n_));
+      sys->gradient = std::make_shared<detail::SparseVectorTapes>(graph_, g_, no_jacobian, 1 + 2 * n_);
+    }
+    if (!large_ && (!sys->validate().empty() || !(certified_lambda_min(sys->mass) > 0.0))) return nullptr;
+    return sys;
+  }
+
+  // check_at_initial_state for the large ABL path: the system's validation, M certified positive definite
+  // (Assumption 3.1), g(q0) and E_0 finite.
+  void check_large_abl_at_initial_state(const LagrangianScene& scene) {
+    const std::shared_ptr<LargeAblSystem> sys = large_abl_system(scene);
+    if (!sys) throw large_requirement("/system", "the system does not have that structure");
+    const std::string mass_ptr = banded_mass_ ? "/system/mass/bands" : "/system/mass/diagonal";
+    for (int i = 0; i < n_; ++i)
+      if (!(sys->mass.coeff(i, i) > 0.0))
+        throw SceneError(mass_ptr + "/" + (banded_mass_ ? "0/" : "") + std::to_string(i),
+                         "must be a finite positive number (M positive definite), got " + format(sys->mass.coeff(i, i)));
+    if (const std::string invalid = sys->validate(); !invalid.empty()) throw SceneError(mass_ptr, invalid);
+    const double lambda = certified_lambda_min(sys->mass);
+    if (!(lambda > 0.0))
+      throw SceneError(mass_ptr, "M is not positive definite: no Cholesky factor of M - s I for any s > 0 tried (Assumption 3.1)");
+    const Eigen::VectorXd q0 = Eigen::Map<const Eigen::VectorXd>(scene.q0.data(), n_);
+    Eigen::VectorXd g;
+    std::vector<double> scratch = sys->gradient ? sys->gradient->make_scratch() : std::vector<double>{};
+    sys->evaluate(q0, g, scratch);
+    for (int i = 0; i < n_; ++i)
+      if (!std::isfinite(g(i)))
+        throw SceneError(doc_["system"].contains("force")                ? "/system/force/" + std::to_string(i)
+                         : doc_["system"].contains("potential_gradient") ? "/system/potential_gradient/" + std::to_string(i)
+                                                                         : "/system/potential",
+                         "the generalized force grad V + F is not finite at the initial state (component " + std::to_string(i) + ")");
+    const Eigen::VectorXd v0 = Eigen::Map<const Eigen::VectorXd>(scene.v0.data(), n_);
+    const double e0 = 0.5 * v0.dot(sys->mass * v0);
+    if (!std::isfinite(e0))
+      throw SceneError("/initial/v", "the kinetic energy 1/2 <M v0, v0> is not finite at the initial state (" + format(e0) + ")");
+    large_abl_system_ = sys;
+  }
+
   // The compiled scene of the large-contact path: no dense M, C or gap gradients; grad V and F apart
   // (2n constants) and V for the reports' checks, and the system the integrator runs.
   std::shared_ptr<CompiledLagrangian> build_large() {
@@ -1074,6 +1290,8 @@ class LagrangianCompiler : SceneReader {
       c->constraint_tape.wire(w);
     }
     c->large_contacts = large_system_;
+    c->large_abl = large_abl_system_;
+    if (large_abl_system_) c->bandwidth = large_abl_system_->bandwidth();
     return c;
   }
 
@@ -1187,6 +1405,9 @@ class LagrangianCompiler : SceneReader {
   std::vector<std::uint32_t> visit_stamp_;                       // coordinates_read's marks, per graph node
   std::uint32_t stamp_ = 0;
   std::shared_ptr<const LargeContactSystem> large_system_;  // the large-contact path's system (check_large_at_initial_state)
+  std::shared_ptr<const LargeAblSystem> large_abl_system_;  // the large ABL path's (check_large_abl_at_initial_state)
+  bool banded_mass_ = false;                                // /system/mass given as {"bands": [...]}
+  std::vector<std::vector<Node>> mass_bands_;               // its bands (b_k[i] = M(i, i + k))
   std::vector<Node> gradient_, force_;                      // grad V and F alone (constant 0 when absent)
   void enclose_forces(CompiledLagrangian& c, double t0, double t_end) const;
   Node potential_ = -1;
@@ -1267,7 +1488,10 @@ LagrangianScene LagrangianCompiler::compile() {
   check_at_initial_state(scene, free_values_.empty() ? nullptr : free_values_.data());
   std::shared_ptr<CompiledLagrangian> compiled = large_ ? build_large() : build();
   // A dense-size scene with the large-contact structure may run on that path too (run_scene chooses by n).
-  if (!large_) compiled->large_contacts = large_contact_system(scene);
+  if (!large_) {
+    compiled->large_contacts = large_contact_system(scene);
+    compiled->large_abl = large_abl_system(scene);
+  }
   scene.unread_parameters = unread_parameters();
   enclose_forces(*compiled, scene.settings.t0, scene.settings.t_end);
   scene.compiled = std::move(compiled);

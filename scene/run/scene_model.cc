@@ -9,6 +9,7 @@
 #include <stdexcept>
 #include <vector>
 
+#include "moreau/core/large_abl_integrator.h"
 #include "moreau/core/large_contact_integrator.h"
 #include "scheme_runs.h"
 
@@ -111,10 +112,17 @@ RunSummary run_scene(const LagrangianScene& scene, RunObserver* observer, Contac
     observer = &*checks;
   }
   RunSummary s;
+  if (uses_large_abl_path(scene)) {
+    LargeAblIntegrator integrator(*scene.compiled->large_abl, scene.settings.grid());
+    s = integrator.run(Eigen::Map<const Eigen::VectorXd>(scene.q0.data(), scene.n),
+                       Eigen::Map<const Eigen::VectorXd>(scene.v0.data(), scene.n), observer);
+    if (checks) checks->record_into(s);
+    return s;
+  }
   if (uses_large_contact_path(scene)) {
     if (scene.scheme != Scheme::kMoreauJean)
       throw std::invalid_argument(std::string("the ") + row.name +
-                                  " scheme does not run a scene beyond the dense limits; moreau-jean does");
+                                  " scheme does not run a scene beyond the dense limits; moreau-jean and abl do");
     MoreauJeanSettings settings = scene.contact_settings;
     settings.grid() = scene.settings.grid();
     LargeContactIntegrator integrator(*scene.compiled->large_contacts, settings);
@@ -136,6 +144,15 @@ RunSummary run_scene(const LagrangianScene& scene, RunObserver* observer, Contac
   return s;
 }
 
+// From this many coordinates a scene with the large ABL structure (constant sparse M, C = 0, separable
+// Phi, no constraints) runs on that path within the dense limits too: measured crossover (docs/scaling.md).
+constexpr int kLargeAblFromDof = 8;
+
+bool uses_large_abl_path(const LagrangianScene& scene) {
+  const CompiledLagrangian* c = scene.compiled.get();
+  return c && c->large_abl && scene.scheme == Scheme::kAbl && (!c->dense || scene.n >= kLargeAblFromDof);
+}
+
 bool uses_large_contact_path(const LagrangianScene& scene) {
   const CompiledLagrangian* c = scene.compiled.get();
   return c && c->large_contacts && scene.scheme == Scheme::kMoreauJean && (!c->dense || scene.n >= kLargeContactFromDof);
@@ -144,7 +161,10 @@ bool uses_large_contact_path(const LagrangianScene& scene) {
 LagrangianScene scene_variant(const LagrangianScene& scene, Scheme scheme, double h) {
   if (traits(scheme).system != SystemType::kLagrangian)
     throw std::invalid_argument(std::string("the ") + scheme_name(scheme) + " scheme does not integrate a Lagrangian scene");
-  if (scene.compiled && !scene.compiled->dense && scheme != Scheme::kMoreauJean)
+  const bool runs_at_scale = scene.compiled && (scheme == Scheme::kMoreauJean ? scene.compiled->large_contacts != nullptr
+                                                : scheme == Scheme::kAbl      ? scene.compiled->large_abl != nullptr
+                                                                              : false);
+  if (scene.compiled && !scene.compiled->dense && !runs_at_scale)
     throw std::invalid_argument(std::string("the ") + scheme_name(scheme) + " scheme does not run a scene beyond the dense limits (" +
                                 std::to_string(kMaxDof) + " coordinates, " + std::to_string(kMaxConstraints) + " constraints)");
   LagrangianScene at = scene;

@@ -213,7 +213,7 @@ TEST(LargeContactIntegrator, AStackRestsExactlyWithEachContactCarryingTheWeightA
 // A granular column written by hand (no expressions): N balls (x_i, y_i) of mass 1 and radius r in a tube
 // of width 3r, the floor under the first ball, both walls for each ball, |p_{i+1} - p_i| - 2r between
 // neighbours, contacts ball by ball (left_i, right_i, c_i), and their gradients in closed form.
-class ColumnGaps final : public ContactGapFunction {
+class ColumnGaps final : public SparseVectorFunction {
  public:
   ColumnGaps(int n, double r) : n_(n), r_(r) {}
   std::vector<double> make_scratch() const override { return {}; }

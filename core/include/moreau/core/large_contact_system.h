@@ -6,15 +6,17 @@
 // with M constant and diagonal, g = grad V + F constant, and the gaps h either
 //  - linear, h(q) = H q + c with a constant sparse H (a stack of balls on a floor, a Newton's cradle), or
 //  - nonlinear (balls against balls in a plane: h = |p_i - p_j| - r_i - r_j), given by a
-//    ContactGapFunction that returns h(q) and grad h(q) at any q, with a fixed sparsity pattern: each gap
+//    SparseVectorFunction that returns h(q) and grad h(q) at any q, with a fixed sparsity pattern: each gap
 //    reads a few coordinates, always the same ones (a granular column, a packing).
-// No I/O here: the scene compiles its expressions into a ContactGapFunction (scene/input/contact_gaps.h).
+// No I/O here: the scene compiles its expressions into a SparseVectorFunction (scene/input/sparse_vector_tapes.h).
 #pragma once
 
 #include <Eigen/SparseCore>
 #include <memory>
 #include <string>
 #include <vector>
+
+#include "moreau/core/sparse_vector_function.h"
 
 namespace moreau {
 
@@ -27,18 +29,6 @@ inline constexpr int kMaxLargeContacts = 10000;
 // a dense 64 x 64); a ball in a packing couples each of its contacts with about 2 x 12 others.
 inline constexpr long long kMaxDelassusNonzerosPerContact = 32;
 
-// Nonlinear gaps and their gradients. Const and reentrant (one function serves every run of a scene,
-// on any thread): the state of an evaluation lives in the caller's scratch.
-class ContactGapFunction {
- public:
-  virtual ~ContactGapFunction() = default;
-  // A scratch for evaluate(), sized and initialised (the constants the evaluation reads).
-  virtual std::vector<double> make_scratch() const = 0;
-  // gap[i] = h_i(q) for every contact i; gradient[k] = the k-th stored entry of grad h(q)^T in the
-  // pattern of LargeContactSystem::gradients (row-major: contact by contact, coordinates increasing).
-  virtual void evaluate(const double* q, double* gap, double* gradient, double* scratch) const = 0;
-};
-
 struct LargeContactSystem {
   Eigen::VectorXd mass;                                    // the diagonal of M: n entries, each > 0
   Eigen::VectorXd force;                                   // g = grad V + F, constant (n entries)
@@ -49,7 +39,8 @@ struct LargeContactSystem {
   // Null: the gaps are linear, H and c constant. Otherwise h(q) and grad h(q) come from it; `gradients`
   // holds the pattern of grad h(q)^T (every coordinate a gap reads, an entry even where the value is 0)
   // and the values at the initial position, and `offsets` is not used.
-  std::shared_ptr<const ContactGapFunction> nonlinear_gaps;
+  // (evaluate(q, h, the values of grad h(q)^T in that pattern, scratch)).
+  std::shared_ptr<const SparseVectorFunction> nonlinear_gaps;
 
   int dof() const { return static_cast<int>(mass.size()); }
   int num_constraints() const { return static_cast<int>(gradients.rows()); }

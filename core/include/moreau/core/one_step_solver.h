@@ -58,6 +58,28 @@ struct OneStepStats {
   bool zero_by_closed_form = false;
 };
 
+// The safeguard of Judice and Pires (Comput. Oper. Res. 21, 1994) for block principal pivoting: while
+// the count of broken components falls below its lowest, every broken component changes state at once (a
+// block pivot); after kTries passes without a new lowest count, only the broken one of least index does
+// (Murty's rule, finite for P-matrices), until the count falls below its lowest again. Shared by the
+// dense solver below and the sparse one (sparse_one_step_solver.h).
+struct PivotingSafeguard {
+  static constexpr int kTries = 3;
+  int lowest = std::numeric_limits<int>::max();
+  int tries = 0;
+  // Whether the pass that found `count` broken components pivots them all (else the least index only).
+  bool block_pivot(int count) {
+    const bool block = count < lowest || tries < kTries;
+    if (count < lowest) {
+      lowest = count;
+      tries = 0;
+    } else {
+      ++tries;
+    }
+    return block;
+  }
+};
+
 template <int N>
 class OneStepSolver {
  public:
@@ -837,10 +859,9 @@ class OneStepSolver {
   // the count falls below its lowest again. Exact like every other path: the result is the pattern's own
   // solution, with 0.0 where a component rests. The sweep cap is a safety net, never a tolerance.
   bool principal_pivoting(const Mat<N>& P, const Vec<N>& x, Vec<N>& y, double scale_px, double gain_scale, OneStepStats& stats) {
-    constexpr int kTries = 3;
     const int n = size();
     const long max_sweeps = 100L * n + 1000;
-    int lowest = n + 1, tries = 0;
+    PivotingSafeguard safeguard;
     for (long sweep = 0; sweep < max_sweeps; ++sweep) {
       ++stats.iterations;
       if (!solve_pattern(P, x, pattern_, y)) return false;  // singular: P is not a P-matrix
@@ -857,13 +878,7 @@ class OneStepSolver {
         if (direct_) return accept(P, x, y, scale_px, gain_scale, stats, /*w_is_current=*/true);
         return accept_shared_solution(P, x, y, scale_px, gain_scale, stats);
       }
-      const bool block = count < lowest || tries < kTries;
-      if (count < lowest) {
-        lowest = count;
-        tries = 0;
-      } else {
-        ++tries;
-      }
+      const bool block = safeguard.block_pivot(count);
       // A broken moving component comes to rest; a broken resting one moves the way its multiplier left
       // [-a_i, a_i].
       for (int i = block ? 0 : first; i < (block ? n : first + 1); ++i)

@@ -22,6 +22,7 @@
 #include "moreau/core/regularization.h"
 #include "moreau/core/observer.h"
 #include "moreau/core/run_diagnostics.h"
+#include "moreau/core/large_abl_system.h"
 #include "moreau/core/large_contact_system.h"
 #include "moreau/core/rigid_body.h"
 #include "moreau/core/run_summary.h"
@@ -36,8 +37,10 @@ namespace moreau::scene {
 // 10 minutes of the manipulator at 300 ns per step. /integrator/max_steps may lower it, not raise it.
 inline constexpr std::int64_t kMaxStepsLimit = 2'000'000'000;
 // Largest number of degrees of freedom of the dense step (every scheme; a URDF robot). A scene beyond it
-// (up to kMaxLargeContactDof, large_contact_integrator.h) runs on the large-contact path, which needs
-// its structure: constant diagonal M, linear potential and gaps, constant forces, no controller.
+// (up to kMaxLargeContactDof) runs on a path at scale, which needs its structure: the large-contact path
+// (large_contact_integrator.h: constant diagonal M, linear potential, gaps of a few coordinates, constant
+// forces, no controller, moreau-jean) or the large ABL path (large_abl_integrator.h: constant sparse M,
+// potential terms of a few coordinates, constant forces, a separable controller, no constraints, abl).
 inline constexpr int kMaxDof = 64;
 // Largest number of unilateral constraints of the dense step (and of Lur'e outputs); up to
 // kMaxLargeContacts on the large-contact path.
@@ -45,6 +48,7 @@ inline constexpr int kMaxConstraints = 64;
 // From this many coordinates a scene that has the large-contact structure runs on that path even within
 // the dense limits: measured crossover of the two steps (docs/scaling.md).
 inline constexpr int kLargeContactFromDof = 8;
+static_assert(kMaxLargeAblDof == kMaxLargeContactDof, "one limit of coordinates for both paths at scale");
 
 class SceneError : public std::runtime_error {
  public:
@@ -144,6 +148,10 @@ struct CompiledLagrangian {
   // constraints): no dense M, C or gap gradients; constant_terms, step_tape, mass_tape and the gap
   // gradients of constraint_tape are empty, and only run_scene's large-contact route runs it.
   std::shared_ptr<const LargeContactSystem> large_contacts;
+  // The large ABL path (large_abl_integrator.h): the system of a scene beyond the dense limits that runs
+  // the abl scheme (constant sparse M given by its bands, a potential of terms reading a few coordinates
+  // each, constant F, quadratic and abs controller terms, no constraints). `dense` is false then too.
+  std::shared_ptr<const LargeAblSystem> large_abl;
   bool dense = true;
 };
 
@@ -248,6 +256,9 @@ LagrangianScene scene_variant(const LagrangianScene& scene, Scheme scheme, doubl
 // moreau-jean scheme on a scene with that structure (CompiledLagrangian::large_contacts), beyond the
 // dense limits or from kLargeContactFromDof coordinates.
 bool uses_large_contact_path(const LagrangianScene& scene);
+// Whether run_scene runs the scene on the large ABL path (large_abl_integrator.h): the abl scheme on a
+// scene beyond the dense limits (CompiledLagrangian::large_abl).
+bool uses_large_abl_path(const LagrangianScene& scene);
 
 // Validates and compiles a Lagrangian scene. Throws SceneError naming the field (a "lure" scene gets
 // one at /system/type: load it with load_lure_scene or Simulation).
