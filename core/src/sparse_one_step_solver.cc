@@ -23,12 +23,9 @@ void SparseOneStepSolver::configure(const SparseMatrix& P, const Eigen::VectorXd
     }
   p_norm_inf_ = n > 0 ? row_sums.maxCoeff() : 0.0;
   a_max_ = n > 0 ? a_.maxCoeff() : 0.0;
-  banded_ = band <= kBandedBandwidth;
+  banded_ = band <= BandedLdlt::kMaxBandwidth;
   band_ = band;
-  if (banded_) {
-    band_L_.assign(static_cast<std::size_t>(n) * static_cast<std::size_t>(std::max(band, 1)), 0.0);
-    band_D_.setZero(n);
-  }
+  if (banded_) banded_ldlt_.reserve(n, band);
   pattern_.assign(static_cast<std::size_t>(n), 0);
   local_.assign(static_cast<std::size_t>(n), -1);
   F_.clear();
@@ -49,7 +46,7 @@ bool SparseOneStepSolver::factorise() {
   }
   ++factorisations_;
   if (banded_) {
-    if (!factorise_band()) return false;
+    if (!banded_ldlt_.factorise(P_, F_, local_)) return false;
   } else {
     SparseLcpSolver::principal_submatrix(P_, F_, local_, triplets_, pff_);
     ldlt_.compute(pff_);
@@ -60,58 +57,6 @@ bool SparseOneStepSolver::factorise() {
   factored_F_ = F_;
   factor_valid_ = true;
   return true;
-}
-
-// LDL^T of P_FF within its band: F is increasing, so P_FF(a, c) == 0 when |a - c| > b (their coordinates
-// are at least as far apart). Row a of L: L(a, c) = (P_FF(a, c) - sum_{k < c} L(a, k) D(k) L(c, k)) /
-// D(c) for c in [a - b, a), then D(a) = P_FF(a, a) - sum_k L(a, k)^2 D(k). Every pivot must stay above
-// 64 eps times P_FF's largest diagonal entry (positive definite within round-off, as sparse_lcp.h).
-bool SparseOneStepSolver::factorise_band() {
-  const int f = static_cast<int>(F_.size()), b = band_;
-  for (int a = 0; a < f; ++a) local_[static_cast<std::size_t>(F_[static_cast<std::size_t>(a)])] = a;
-  double largest = 0.0, smallest_pivot = std::numeric_limits<double>::infinity();
-  double row[kBandedBandwidth + 1];  // P_FF(a, a - 1 - k) at row[k], k < b; the diagonal at row[b]
-  bool ok = true;
-  for (int a = 0; a < f && ok; ++a) {
-    std::fill(row, row + b + 1, 0.0);
-    const int i = F_[static_cast<std::size_t>(a)];
-    for (SparseMatrix::InnerIterator it(P_, i); it; ++it) {  // column i of the symmetric P: its row i
-      const int c = local_[static_cast<std::size_t>(it.row())];
-      if (c < 0 || c > a || a - c > b) continue;
-      row[c == a ? b : a - 1 - c] = it.value();
-    }
-    double* La = band_L_.data() + static_cast<std::ptrdiff_t>(a) * b;
-    for (int c = std::max(0, a - b); c < a; ++c) {
-      const double* Lc = band_L_.data() + static_cast<std::ptrdiff_t>(c) * b;
-      double sum = row[a - 1 - c];
-      for (int k = std::max(0, a - b); k < c; ++k) sum -= La[a - 1 - k] * band_D_(k) * Lc[c - 1 - k];
-      La[a - 1 - c] = sum / band_D_(c);
-    }
-    double d = row[b];
-    largest = std::max(largest, std::abs(row[b]));
-    for (int k = std::max(0, a - b); k < a; ++k) d -= La[a - 1 - k] * La[a - 1 - k] * band_D_(k);
-    band_D_(a) = d;
-    smallest_pivot = std::min(smallest_pivot, d);
-    ok = std::isfinite(d);
-  }
-  for (int i : F_) local_[static_cast<std::size_t>(i)] = -1;
-  return ok && smallest_pivot > 64.0 * std::numeric_limits<double>::epsilon() * largest;
-}
-
-void SparseOneStepSolver::solve_band(Eigen::VectorXd& x) const {
-  const int f = static_cast<int>(x.size()), b = band_;
-  for (int a = 0; a < f; ++a) {  // L z = x
-    const double* La = band_L_.data() + static_cast<std::ptrdiff_t>(a) * b;
-    double sum = x(a);
-    for (int k = std::max(0, a - b); k < a; ++k) sum -= La[a - 1 - k] * x(k);
-    x(a) = sum;
-  }
-  for (int a = 0; a < f; ++a) x(a) /= band_D_(a);  // D
-  for (int a = f - 1; a >= 0; --a) {               // L^T y = z
-    double sum = x(a);
-    for (int c = a + 1; c <= std::min(f - 1, a + b); ++c) sum -= band_L_[static_cast<std::size_t>(c) * b + (c - 1 - a)] * x(c);
-    x(a) = sum;
-  }
 }
 
 // The pattern's equations: y_i = 0.0 for a resting component, P_FF y_F = -(x_F + a_F s_F) on the moving
@@ -131,7 +76,7 @@ bool SparseOneStepSolver::solve_pattern(const Eigen::VectorXd& x, Eigen::VectorX
     }
     if (banded_) {
       yf_ = rhs_;
-      solve_band(yf_);
+      banded_ldlt_.solve(yf_);
     } else {
       yf_ = ldlt_.solve(rhs_);
     }

@@ -22,9 +22,8 @@
 // (|x|_inf + |P|_inf |y|_inf + max a_i), the dense solver's allowance); otherwise solve() returns false.
 //
 // Cost: a pass is O(nnz(P)) plus, when F differs from the factorised set, an LDL^T of P_FF: for P within
-// kBandedBandwidth of its diagonal (a chain's, a bar's), the band's own LDL^T, O(|F| b^2) with no symbolic
-// phase and no allocation (P_FF keeps the band: F is increasing); beyond, Eigen's sparse LDL^T with a
-// minimum-degree order.
+// BandedLdlt::kMaxBandwidth of its diagonal (a chain's, a bar's), the band's own (banded_ldlt.h, O(|F| b^2),
+// no symbolic phase, no allocation); beyond, Eigen's sparse LDL^T with a minimum-degree order.
 #pragma once
 
 #include <Eigen/SparseCholesky>
@@ -32,6 +31,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "moreau/core/banded_ldlt.h"
 #include "moreau/core/one_step_solver.h"
 
 namespace moreau {
@@ -56,12 +56,8 @@ class SparseOneStepSolver {
   int bandwidth() const { return band_; }
 
  private:
-  static constexpr int kBandedBandwidth = 8;
-
   bool solve_pattern(const Eigen::VectorXd& x, Eigen::VectorXd& y);  // y of pattern_, w_ = -(P y + x)
   bool factorise();
-  bool factorise_band();                      // band_L_, band_D_ of P_FF (banded_)
-  void solve_band(Eigen::VectorXd& b) const;  // b <- P_FF^{-1} b from them
   bool breaks(int i, const Eigen::VectorXd& y, double tol) const {
     if (!(a_(i) > 0.0)) return false;
     return pattern_[static_cast<std::size_t>(i)] != 0 ? y(i) * pattern_[static_cast<std::size_t>(i)] < 0.0 : std::abs(w_(i)) > a_(i) + tol;
@@ -79,9 +75,8 @@ class SparseOneStepSolver {
   SparseMatrix pff_;
   std::vector<Eigen::Triplet<double>> triplets_;
   Eigen::SimplicialLDLT<SparseMatrix, Eigen::Lower> ldlt_;
-  int band_ = 0;                // P's bandwidth
-  std::vector<double> band_L_;  // banded_: L(i, i - 1 - k) at i * band_ + k, P_FF = L D L^T
-  Eigen::VectorXd band_D_;
+  int band_ = 0;            // P's bandwidth
+  BandedLdlt banded_ldlt_;  // P_FF within its band (banded_)
   Eigen::VectorXd rhs_, yf_, w_;
 };
 
