@@ -8,6 +8,13 @@
 
 namespace moreau {
 
+int bandwidth(const Eigen::SparseMatrix<double>& A) {
+  int b = 0;
+  for (int j = 0; j < A.outerSize(); ++j)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(A, j); it; ++it) b = std::max(b, static_cast<int>(std::abs(it.row() - j)));
+  return b;
+}
+
 void BandedLdlt::reserve(int n, int b) {
   b_ = std::clamp(b, 0, kMaxBandwidth);
   L_.assign(static_cast<std::size_t>(std::max(n, 0)) * static_cast<std::size_t>(std::max(b_, 1)), 0.0);
@@ -47,7 +54,7 @@ bool BandedLdlt::factorise(const Eigen::SparseMatrix<double>& A, const std::vect
   return finite && smallest_pivot > 64.0 * std::numeric_limits<double>::epsilon() * largest;
 }
 
-void BandedLdlt::solve(Eigen::VectorXd& x) const {
+void BandedLdlt::solve(Eigen::Ref<Eigen::VectorXd> x) const {
   const int f = static_cast<int>(x.size()), b = b_;
   for (int a = 0; a < f; ++a) {  // L z = x
     const double* La = L_.data() + static_cast<std::ptrdiff_t>(a) * b;

@@ -2,18 +2,15 @@
 #include "moreau/core/large_abl_system.h"
 
 #include <Eigen/SparseCholesky>
+
+#include "moreau/core/banded_ldlt.h"
 #include <algorithm>
 #include <cmath>
 #include <limits>
 
 namespace moreau {
 
-int LargeAblSystem::bandwidth() const {
-  int b = 0;
-  for (int j = 0; j < mass.outerSize(); ++j)
-    for (Eigen::SparseMatrix<double>::InnerIterator it(mass, j); it; ++it) b = std::max(b, static_cast<int>(std::abs(it.row() - j)));
-  return b;
-}
+int LargeAblSystem::bandwidth() const { return moreau::bandwidth(mass); }
 
 void LargeAblSystem::evaluate(const Eigen::VectorXd& q, Eigen::VectorXd& g, std::vector<double>& scratch) const {
   if (!gradient) {

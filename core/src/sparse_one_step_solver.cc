@@ -15,12 +15,9 @@ void SparseOneStepSolver::configure(const SparseMatrix& P, const Eigen::VectorXd
   a_ = gains;
   const int n = size();
   Eigen::VectorXd row_sums = Eigen::VectorXd::Zero(n);
-  int band = 0;
   for (int j = 0; j < n; ++j)
-    for (SparseMatrix::InnerIterator it(P_, j); it; ++it) {
-      row_sums(it.row()) += std::abs(it.value());
-      band = std::max(band, static_cast<int>(std::abs(it.row() - j)));
-    }
+    for (SparseMatrix::InnerIterator it(P_, j); it; ++it) row_sums(it.row()) += std::abs(it.value());
+  const int band = moreau::bandwidth(P_);
   p_norm_inf_ = n > 0 ? row_sums.maxCoeff() : 0.0;
   a_max_ = n > 0 ? a_.maxCoeff() : 0.0;
   banded_ = band <= BandedLdlt::kMaxBandwidth;
@@ -32,6 +29,7 @@ void SparseOneStepSolver::configure(const SparseMatrix& P, const Eigen::VectorXd
   factored_F_.clear();
   factor_valid_ = false;
   w_.setZero(n);
+  rhs_.setZero(n);
 }
 
 // P_FF, factorised unless F is the set factorised last. False when it is not positive definite within
@@ -69,18 +67,20 @@ bool SparseOneStepSolver::solve_pattern(const Eigen::VectorXd& x, Eigen::VectorX
   if (!factorise()) return false;
   y.setZero(n);
   if (!F_.empty()) {
-    rhs_.resize(static_cast<Eigen::Index>(F_.size()));
-    for (std::size_t k = 0; k < F_.size(); ++k) {
-      const int i = F_[k];
-      rhs_(static_cast<Eigen::Index>(k)) = -(x(i) + a_(i) * pattern_[static_cast<std::size_t>(i)]);
+    // rhs_ has n entries (configure): its head of |F| is the pattern's right-hand side, solved in place
+    // within the band, with no allocation as F changes.
+    const auto f = static_cast<Eigen::Index>(F_.size());
+    for (Eigen::Index k = 0; k < f; ++k) {
+      const int i = F_[static_cast<std::size_t>(k)];
+      rhs_(k) = -(x(i) + a_(i) * pattern_[static_cast<std::size_t>(i)]);
     }
     if (banded_) {
-      yf_ = rhs_;
-      banded_ldlt_.solve(yf_);
+      banded_ldlt_.solve(rhs_.head(f));
+      for (Eigen::Index k = 0; k < f; ++k) y(F_[static_cast<std::size_t>(k)]) = rhs_(k);
     } else {
-      yf_ = ldlt_.solve(rhs_);
+      yf_ = ldlt_.solve(rhs_.head(f));
+      for (Eigen::Index k = 0; k < f; ++k) y(F_[static_cast<std::size_t>(k)]) = yf_(k);
     }
-    for (std::size_t k = 0; k < F_.size(); ++k) y(F_[k]) = yf_(static_cast<Eigen::Index>(k));
   }
   w_.noalias() = P_ * y;
   w_ = -(w_ + x);

@@ -15,6 +15,9 @@
 
 namespace moreau {
 
+// max |i - j| over the stored entries of A: the band within which BandedLdlt factorises.
+int bandwidth(const Eigen::SparseMatrix<double>& A);
+
 class BandedLdlt {
  public:
   static constexpr int kMaxBandwidth = 8;
@@ -25,8 +28,8 @@ class BandedLdlt {
   // entry per row of A, all -1 (the caller's, reused), all -1 again on return. False when a pivot is not
   // above 64 eps times A_FF's largest diagonal entry (not positive definite within round-off).
   bool factorise(const Eigen::SparseMatrix<double>& A, const std::vector<int>& F, std::vector<int>& local);
-  // x <- A_FF^{-1} x (x of |F| entries), from the last factorisation.
-  void solve(Eigen::VectorXd& x) const;
+  // x <- A_FF^{-1} x (x of |F| entries, a segment of a longer vector allowed), from the last factorisation.
+  void solve(Eigen::Ref<Eigen::VectorXd> x) const;
 
  private:
   int b_ = 0;
